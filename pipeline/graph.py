@@ -1,0 +1,351 @@
+"""Environmental Extraction (paper Sec. IV-A): the lattice graph of known nodes and the regions.
+
+The lattice is fixed by the start cell and d_n, so every candidate edge (a node and one
+of its 5x5-window neighbours) and the cells its segment crosses are known up front.
+An update after a scan only re-tests edges, node states, frontiers, utilities and regions
+near the cells that changed; nothing is rebuilt from scratch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from pipeline.frontier import frontier_mask, update_frontier_window
+from pipeline.geometry import ray_table, sensor_angles, walk_offsets
+from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
+
+NODE_UNKNOWN, NODE_FREE, NODE_OCCUPIED = 0, 1, 2
+REGION_UNOBSERVED, REGION_EXPLORED, REGION_BOUNDARY = 0, 1, 2
+WINDOW_RADIUS = 2  # neighbours in the 5x5 lattice window
+UTILITY_ANGLES = sensor_angles(1.0)
+
+
+@dataclass(frozen=True)
+class LatticeSpec:
+    """Where the lattice and the regions sit on a grid; pure geometry, no belief."""
+
+    shape: tuple[int, int]  # grid (rows, cols)
+    start_cell: tuple[int, int]  # (col, row)
+    cell_size: float
+    node_resolution: float
+    utility_range: float
+    region_size: float
+    frontier_min_unknown_neighbours: int = 2
+
+    @property
+    def node_step_cells(self) -> float:
+        return self.node_resolution / self.cell_size
+
+    def lattice_range(self, axis: int) -> np.ndarray:
+        """Lattice indices along x (axis 0) or y (axis 1) whose cells lie in the grid."""
+        start = self.start_cell[axis]
+        size = self.shape[1 - axis]
+        step = self.node_step_cells
+        low = int(np.ceil((-start - 0.5) / step))
+        high = int(np.floor((size - 1 - start + 0.5) / step))
+        idx = np.arange(low - 1, high + 2)
+        cells = start + np.round(idx * step).astype(np.int64)
+        return idx[(cells >= 0) & (cells < size)]
+
+    def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
+        """World metres (x, y) to grid cells (col, row), origin at the start cell."""
+        xy = np.asarray(xy, dtype=np.float64)
+        return np.round(xy / self.cell_size).astype(np.int64) + np.asarray(self.start_cell)
+
+    def cell_to_world(self, cells: np.ndarray) -> np.ndarray:
+        return (np.asarray(cells, dtype=np.float64) - np.asarray(self.start_cell)) * self.cell_size
+
+
+class LatticeGraph:
+    """Known free nodes V_f, obstacle nodes V_o, known-free edges, utilities and regions."""
+
+    def __init__(self, spec: LatticeSpec):
+        self.spec = spec
+        rows, cols = spec.shape
+        ii = spec.lattice_range(0)
+        jj = spec.lattice_range(1)
+        self.lattice_i, self.lattice_j = ii, jj
+        grid_j, grid_i = np.meshgrid(jj, ii, indexing="ij")
+        self.node_ij = np.stack([grid_i.ravel(), grid_j.ravel()], axis=1)
+        self.node_world = self.node_ij * spec.node_resolution
+        self.node_cells = spec.world_to_cell(self.node_world)
+        self.node_flat = self.node_cells[:, 1] * cols + self.node_cells[:, 0]
+        self.node_count = len(self.node_ij)
+        self._id_grid = np.arange(self.node_count).reshape(len(jj), len(ii))
+        self.node_state = np.full(self.node_count, NODE_UNKNOWN, dtype=np.int8)
+        self.utility = np.zeros(self.node_count, dtype=np.int64)
+        self.frontier = np.zeros(spec.shape, dtype=bool)
+        self._build_candidate_edges()
+        self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
+        self._adjacency = None
+        self._utility_range_cells = spec.utility_range / spec.cell_size
+        region_cells = spec.region_size / spec.cell_size
+        self._region_cells = region_cells
+        self._region_origin = np.array(spec.start_cell, dtype=np.float64)
+        rx = np.floor((np.arange(cols) - self._region_origin[0]) / region_cells).astype(np.int64)
+        ry = np.floor((np.arange(rows) - self._region_origin[1]) / region_cells).astype(np.int64)
+        self._region_col_of_x = rx - rx.min()
+        self._region_row_of_y = ry - ry.min()
+        self._region_offset = np.array([rx.min(), ry.min()])
+        self.region_shape = (int(self._region_row_of_y.max()) + 1, int(self._region_col_of_x.max()) + 1)
+        self.region_observed = np.zeros(self.region_shape, dtype=np.int64)
+        self.region_frontier = np.zeros(self.region_shape, dtype=np.int64)
+
+    # ----------------------------------------------------------------- construction
+    def node_id(self, i: int, j: int) -> int:
+        """Node id of lattice index (i, j), or -1 outside the lattice."""
+        col = i - self.lattice_i[0]
+        row = j - self.lattice_j[0]
+        if 0 <= row < self._id_grid.shape[0] and 0 <= col < self._id_grid.shape[1]:
+            return int(self._id_grid[row, col])
+        return -1
+
+    def nearest_node(self, xy: tuple[float, float]) -> int:
+        """The lattice node nearest to a world position."""
+        i = int(np.round(xy[0] / self.spec.node_resolution))
+        j = int(np.round(xy[1] / self.spec.node_resolution))
+        i = int(np.clip(i, self.lattice_i[0], self.lattice_i[-1]))
+        j = int(np.clip(j, self.lattice_j[0], self.lattice_j[-1]))
+        return self.node_id(i, j)
+
+    def _build_candidate_edges(self) -> None:
+        cols = self.spec.shape[1]
+        offsets = [
+            (di, dj)
+            for dj in range(0, WINDOW_RADIUS + 1)
+            for di in range(-WINDOW_RADIUS, WINDOW_RADIUS + 1)
+            if dj > 0 or di > 0
+        ]
+        nodes, walks_fwd, walks_bwd, groups = [], [], [], []
+        n_rows, n_cols = self._id_grid.shape
+        count = 0
+        for di, dj in offsets:
+            a_rows = slice(max(0, -dj), n_rows - max(0, dj))
+            a_cols = slice(max(0, -di), n_cols - max(0, di))
+            b_rows = slice(max(0, dj), n_rows - max(0, -dj))
+            b_cols = slice(max(0, di), n_cols - max(0, -di))
+            a = self._id_grid[a_rows, a_cols].ravel()
+            b = self._id_grid[b_rows, b_cols].ravel()
+            if a.size == 0:
+                continue
+            delta = self.node_cells[b] - self.node_cells[a]
+            # With a non-integer node step the cell offset can vary; group by offset.
+            for dx, dy in np.unique(delta, axis=0):
+                sel = (delta[:, 0] == dx) & (delta[:, 1] == dy)
+                ea, eb = a[sel], b[sel]
+                fwd = walk_offsets(int(dx), int(dy))
+                bwd = walk_offsets(int(-dx), int(-dy))
+                ca, cb = self.node_cells[ea], self.node_cells[eb]
+                walks_fwd.append((ca[:, None, 1] + fwd[None, :, 1]) * cols + ca[:, None, 0] + fwd[None, :, 0])
+                walks_bwd.append((cb[:, None, 1] + bwd[None, :, 1]) * cols + cb[:, None, 0] + bwd[None, :, 0])
+                nodes.append(np.stack([ea, eb], axis=1))
+                groups.append(slice(count, count + len(ea)))
+                count += len(ea)
+        self.edge_nodes = np.concatenate(nodes) if nodes else np.zeros((0, 2), dtype=np.int64)
+        self._edge_walks = list(zip(groups, walks_fwd, walks_bwd))
+        ends = self.node_cells[self.edge_nodes]
+        self._edge_box = np.stack(
+            [ends[..., 0].min(1), ends[..., 0].max(1), ends[..., 1].min(1), ends[..., 1].max(1)], axis=1
+        )
+        diff = self.node_world[self.edge_nodes[:, 1]] - self.node_world[self.edge_nodes[:, 0]]
+        self.edge_length = np.hypot(diff[:, 0], diff[:, 1])
+
+    # ----------------------------------------------------------------- updates
+    def update(self, belief: np.ndarray, changed_flat: np.ndarray | None = None) -> None:
+        """Bring the graph up to date with `belief` after the cells `changed_flat` changed.
+
+        `changed_flat=None` means everything may have changed (first call).
+        """
+        rows, cols = belief.shape
+        if changed_flat is None:
+            box = (0, cols - 1, 0, rows - 1)
+        else:
+            if len(changed_flat) == 0:
+                return
+            ys, xs = np.divmod(np.asarray(changed_flat), cols)
+            box = (int(xs.min()), int(xs.max()), int(ys.min()), int(ys.max()))
+        if changed_flat is None:
+            self.frontier = frontier_mask(belief, self.spec.frontier_min_unknown_neighbours)
+            frontier_box = box
+        else:
+            frontier_box = update_frontier_window(
+                self.frontier, belief, box, self.spec.frontier_min_unknown_neighbours
+            )
+        self._update_nodes(belief, box)
+        self._update_edges(belief, box)
+        self._update_utilities(belief, frontier_box)
+        self._update_regions(belief, frontier_box)
+
+    def _nodes_in_box(self, box: tuple[int, int, int, int], margin: float = 0.0) -> np.ndarray:
+        x0, x1, y0, y1 = box
+        c = self.node_cells
+        inside = (c[:, 0] >= x0 - margin) & (c[:, 0] <= x1 + margin) & (c[:, 1] >= y0 - margin) & (c[:, 1] <= y1 + margin)
+        return np.nonzero(inside)[0]
+
+    def _update_nodes(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        ids = self._nodes_in_box(box)
+        values = belief.reshape(-1)[self.node_flat[ids]]
+        state = np.full(len(ids), NODE_UNKNOWN, dtype=np.int8)
+        state[values == FREE] = NODE_FREE
+        state[values == OCCUPIED] = NODE_OCCUPIED
+        self.node_state[ids] = state
+
+    def _update_edges(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        x0, x1, y0, y1 = box
+        eb = self._edge_box
+        free_flat = belief.reshape(-1) == FREE
+        changed = False
+        for group, fwd, bwd in self._edge_walks:
+            gb = eb[group]
+            cand = ~self.edge_valid[group] & (gb[:, 0] <= x1) & (gb[:, 1] >= x0) & (gb[:, 2] <= y1) & (gb[:, 3] >= y0)
+            idx = np.nonzero(cand)[0]
+            if idx.size == 0:
+                continue
+            ok = free_flat[fwd[idx]].all(axis=1) | free_flat[bwd[idx]].all(axis=1)
+            if ok.any():
+                self.edge_valid[group.start + idx[ok]] = True
+                changed = True
+        if changed:
+            self._adjacency = None
+
+    def _update_utilities(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        """Frontier utility: frontier cells visible (through known-free cells) within range."""
+        r = self._utility_range_cells
+        ids = self._nodes_in_box(box, margin=r + 1)
+        ids = ids[self.node_state[ids] == NODE_FREE]
+        self.utility[self._nodes_in_box(box, margin=r + 1)] = 0
+        if ids.size == 0 or not self.frontier.any():
+            return
+        rows, cols = belief.shape
+        # Skip nodes with no frontier cell in their range's bounding square (summed-area table).
+        integral = np.pad(self.frontier, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+        rc = int(np.ceil(r))
+        c = self.node_cells[ids]
+        xa, xb = np.clip(c[:, 0] - rc, 0, cols), np.clip(c[:, 0] + rc + 1, 0, cols)
+        ya, yb = np.clip(c[:, 1] - rc, 0, rows), np.clip(c[:, 1] + rc + 1, 0, rows)
+        near = integral[yb, xb] - integral[ya, xb] - integral[yb, xa] + integral[ya, xa]
+        ids = ids[near > 0]
+        if ids.size == 0:
+            return
+        self.utility[ids] = visible_counts(
+            belief == FREE, self.frontier, self.node_cells[ids], r
+        )
+
+    def _update_regions(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        x0, x1, y0, y1 = box
+        rc0, rc1 = self._region_col_of_x[x0], self._region_col_of_x[x1]
+        rr0, rr1 = self._region_row_of_y[y0], self._region_row_of_y[y1]
+        xs = np.nonzero((self._region_col_of_x >= rc0) & (self._region_col_of_x <= rc1))[0]
+        ys = np.nonzero((self._region_row_of_y >= rr0) & (self._region_row_of_y <= rr1))[0]
+        sub_known = belief[ys[0] : ys[-1] + 1, xs[0] : xs[-1] + 1] != UNKNOWN
+        sub_front = self.frontier[ys[0] : ys[-1] + 1, xs[0] : xs[-1] + 1]
+        ry = self._region_row_of_y[ys[0] : ys[-1] + 1]
+        rx = self._region_col_of_x[xs[0] : xs[-1] + 1]
+        shape = (rr1 - rr0 + 1, rc1 - rc0 + 1)
+        flat = ((ry[:, None] - rr0) * shape[1] + (rx[None, :] - rc0)).ravel()
+        size = shape[0] * shape[1]
+        known = np.bincount(flat, weights=sub_known.ravel(), minlength=size).reshape(shape)
+        front = np.bincount(flat, weights=sub_front.ravel(), minlength=size).reshape(shape)
+        self.region_observed[rr0 : rr1 + 1, rc0 : rc1 + 1] = known.astype(np.int64)
+        self.region_frontier[rr0 : rr1 + 1, rc0 : rc1 + 1] = front.astype(np.int64)
+
+    # ----------------------------------------------------------------- queries
+    @property
+    def free_nodes(self) -> np.ndarray:
+        """Ids of the known free nodes V_f."""
+        return np.nonzero(self.node_state == NODE_FREE)[0]
+
+    @property
+    def obstacle_nodes(self) -> np.ndarray:
+        """Ids of the obstacle nodes V_o."""
+        return np.nonzero(self.node_state == NODE_OCCUPIED)[0]
+
+    @property
+    def edges(self) -> np.ndarray:
+        """Valid undirected edges (a, b) between known free nodes."""
+        return self.edge_nodes[self.edge_valid]
+
+    def neighbours(self, node: int) -> np.ndarray:
+        """Nodes joined to `node` by a known-free edge."""
+        e = self.edges
+        return np.concatenate([e[e[:, 0] == node, 1], e[e[:, 1] == node, 0]])
+
+    def adjacency(self):
+        """Sparse adjacency matrix (upper triangle) weighted by edge length in metres."""
+        if self._adjacency is None:
+            e = self.edge_nodes[self.edge_valid]
+            w = self.edge_length[self.edge_valid]
+            self._adjacency = coo_matrix((w, (e[:, 0], e[:, 1])), shape=(self.node_count,) * 2).tocsr()
+        return self._adjacency
+
+    def shortest_paths(self, source: int) -> tuple[np.ndarray, np.ndarray]:
+        """Distances (metres, inf if unreachable) and predecessors from `source`."""
+        dist, pred = dijkstra(self.adjacency(), directed=False, indices=source, return_predecessors=True)
+        return dist, pred
+
+    @staticmethod
+    def path_from_predecessors(predecessors: np.ndarray, target: int) -> list[int]:
+        """Node ids from the source to `target` (inclusive), [] if unreachable."""
+        path = [int(target)]
+        while predecessors[path[-1]] >= 0:
+            path.append(int(predecessors[path[-1]]))
+        path.reverse()
+        return path
+
+    def region_labels(self) -> np.ndarray:
+        """Per region: UNOBSERVED (nothing known), BOUNDARY (has frontiers), else EXPLORED."""
+        labels = np.full(self.region_shape, REGION_EXPLORED, dtype=np.int8)
+        labels[self.region_observed == 0] = REGION_UNOBSERVED
+        labels[self.region_frontier > 0] = REGION_BOUNDARY
+        return labels
+
+    def region_centroids(self) -> np.ndarray:
+        """World centres (x, y) of every region, shape region_shape + (2,)."""
+        rows, cols = self.region_shape
+        rc = self._region_cells
+        ox, oy = self._region_offset
+        cx = ((np.arange(cols) + ox + 0.5) * rc) * self.spec.cell_size
+        cy = ((np.arange(rows) + oy + 0.5) * rc) * self.spec.cell_size
+        return np.stack(np.meshgrid(cx, cy, indexing="xy"), axis=-1)
+
+    def unobserved_centroids(self) -> np.ndarray:
+        """V_g: centroids (x, y) of the unobserved regions, as placeholders for unknown space."""
+        return self.region_centroids()[self.region_labels() == REGION_UNOBSERVED]
+
+
+def visible_counts(
+    free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float
+) -> np.ndarray:
+    """For each origin cell, how many `targets` cells a ray fan reaches through free cells.
+
+    A ray walks from the origin and stops at the first cell that is not free; the cells
+    before that are visible. Each visible cell counts once per origin however many rays
+    reach it.
+    """
+    rows, cols = free.shape
+    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    counts = np.zeros(len(origins), dtype=np.int64)
+    chunk = 64
+    for start in range(0, len(origins), chunk):
+        org = origins[start : start + chunk]
+        xs = org[:, None, None, 0] + table.offsets[None, ..., 0]
+        ys = org[:, None, None, 1] + table.offsets[None, ..., 1]
+        inside = table.valid[None] & (xs >= 0) & (xs < cols) & (ys >= 0) & (ys < rows)
+        flat = np.where(inside, ys * cols + xs, 0)
+        open_cell = inside & free.reshape(-1)[flat]
+        reach = np.cumprod(open_cell, axis=2).astype(bool)
+        n = len(org)
+        seen = np.zeros((n, len(table.unique_offsets)), dtype=bool)
+        node_idx = np.broadcast_to(np.arange(n)[:, None, None], reach.shape)
+        seen[node_idx[reach], np.broadcast_to(table.unique_index[None], reach.shape)[reach]] = True
+        ux = org[:, None, 0] + table.unique_offsets[None, :, 0]
+        uy = org[:, None, 1] + table.unique_offsets[None, :, 1]
+        uin = (ux >= 0) & (ux < cols) & (uy >= 0) & (uy < rows)
+        hit = np.zeros_like(seen)
+        hit[uin] = targets[uy[uin], ux[uin]]
+        counts[start : start + chunk] = (seen & hit).sum(axis=1)
+    return counts

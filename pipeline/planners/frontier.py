@@ -1,0 +1,46 @@
+"""Classical frontier planners on the lattice graph: nearest frontier and greedy utility."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.simulator import Observation
+
+
+@register_planner("nearest_frontier")
+class NearestFrontierPlanner(GraphPlanner):
+    """Yamauchi's frontier exploration: go to the nearest node that sees frontier cells."""
+
+    description = "Yamauchi: shortest path to the nearest node that sees frontier cells"
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        targets = self.useful_nodes()
+        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        if targets.size == 0:
+            return []
+        # Nearest first; among equally near nodes the one that sees more frontier.
+        order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))
+        return self.waypoints_along(graph.path_from_predecessors(pred, int(targets[order[0]])))
+
+
+@register_planner("greedy_utility")
+class GreedyUtilityPlanner(GraphPlanner):
+    """Greedy information gain: the node with the most frontier utility per metre of path."""
+
+    description = "greedy: frontier utility divided by shortest-path cost"
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        targets = self.useful_nodes()
+        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        if targets.size == 0:
+            return []
+        score = graph.utility[targets] / dist[targets]
+        best = int(targets[np.argmax(score)])
+        return self.waypoints_along(graph.path_from_predecessors(pred, best))

@@ -1,0 +1,53 @@
+"""The benchmark protocol's values (PROTOCOL.md), one frozen object passed everywhere."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """Every protocol value is a parameter; the defaults are the maze benchmark's."""
+
+    cell_size: float = 0.4
+    node_resolution: float = 4.0
+    sensor_range: float = 20.0
+    utility_range: float = 10.0
+    region_size: float = 20.0
+    done_unknown_cells: int = 250
+    max_steps: int = 500
+
+    def __post_init__(self) -> None:
+        for name in ("cell_size", "node_resolution", "sensor_range", "utility_range", "region_size"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"protocol.{name} must be positive, got {getattr(self, name)}")
+        if self.node_resolution < self.cell_size:
+            raise ValueError("protocol.node_resolution must be at least one cell")
+        if self.max_steps < 1:
+            raise ValueError("protocol.max_steps must be at least 1")
+        if self.done_unknown_cells < 0:
+            raise ValueError("protocol.done_unknown_cells must be >= 0")
+
+    @property
+    def sensor_range_cells(self) -> float:
+        return self.sensor_range / self.cell_size
+
+    def with_cell_size(self, cell_size: float) -> "Protocol":
+        """The same protocol on a map with its own cell size (a ROS map's resolution)."""
+        return replace(self, cell_size=cell_size)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "Protocol":
+        known = {f.name for f in fields(cls)}
+        unknown = set(values) - known
+        if unknown:
+            raise ValueError(f"unknown protocol parameter(s): {sorted(unknown)}")
+        return cls(**values)
+
+
+PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=8.0)
+"""The paper's real-robot setting: 0.2 m cells, 1 m nodes, 10 m sensor."""
