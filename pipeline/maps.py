@@ -306,10 +306,13 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     # map_server: image row 0 is the top (largest y); our rows grow with y, so flip.
     free = np.ascontiguousarray(free_lut[image][::-1, :])
 
-    col_f = math.floor((start_x - origin_x) / resolution)
-    row_f = math.floor((start_y - origin_y) / resolution)
-    validate_grid(free, (col_f, row_f), path)
-    return GroundTruthMap(free=free, start_cell=(col_f, row_f), cell_size=resolution, name=path.stem)
+    col_f = (start_x - origin_x) / resolution
+    row_f = (start_y - origin_y) / resolution
+    if not (math.isfinite(col_f) and math.isfinite(row_f)):
+        raise MapError(path, f"start ({start_x}, {start_y}) lies outside the {free.shape[1]}x{free.shape[0]} grid")
+    start = (math.floor(col_f), math.floor(row_f))
+    validate_grid(free, start, path)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem)
 
 
 def _read_npy(path: Path) -> np.ndarray:
@@ -325,7 +328,9 @@ def _read_npy(path: Path) -> np.ndarray:
                 elif version == (2, 0):
                     shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
                 else:
-                    raise MapError(path, f"unsupported .npy format version {version[0]}.{version[1]}")
+                    raise MapError(
+                        path, f"not a readable .npy array (unsupported format version {version[0]}.{version[1]})"
+                    )
             except MapError:
                 raise
             except Exception as error:  # numpy raises ValueError and friends for a bad header

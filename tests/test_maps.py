@@ -54,13 +54,13 @@ def write_maze(path: Path, cells: np.ndarray) -> Path:
 
 def write_ros(
     directory: Path,
-    image: np.ndarray,
+    pixels: np.ndarray,
     name: str = "map",
     image_name: str = "map.pgm",
     **overrides,
 ) -> Path:
     """Write a map_server YAML + image; `overrides` replace keys, a value of None drops the key."""
-    write_png(directory / image_name, image)
+    write_png(directory / image_name, pixels)
     meta = {
         "image": image_name,
         "resolution": 0.5,
@@ -214,15 +214,13 @@ def test_ros_map_pgm_with_start_key(tmp_path):
 
 
 def test_ros_map_rows_grow_with_y(tmp_path):
-    path = write_ros(tmp_path, ros_image(), start=[0.6, -0.6])
-    grid = load_ros_map(path)
-    # y -0.6 -> row floor(1.4 / 0.5) = 2, counted from the bottom; x 0.6 -> col 3
-    # row 2 from the bottom is image row 1 (all occupied), so this start is rejected ...
+    # y -0.4 -> row floor(1.6 / 0.5) = 3 counted from the bottom = image row 0 (the top);
+    # x 0.6 -> col 3, which is free in image row 0
     path = write_ros(tmp_path, ros_image(), start=[0.6, -0.4])
-    # ... y -0.4 -> row 3 = image row 0, whose col 3 is free
     grid = load_ros_map(path)
     assert grid.start_cell == (3, 3)
     assert grid.free[3, 3]
+    np.testing.assert_array_equal(grid.free, (ros_image() == 254)[::-1, :])
 
 
 def test_ros_map_start_on_unknown_or_occupied_is_rejected(tmp_path):
@@ -232,11 +230,11 @@ def test_ros_map_start_on_unknown_or_occupied_is_rejected(tmp_path):
 
 def test_ros_map_png_image_and_explicit_start(tmp_path):
     path = write_ros(tmp_path, ros_image(), image_name="floor.png", start=[0.2, -1.9])
+    assert load_map(path).start_cell == (2, 0)
     # the explicit argument wins over the YAML key
     grid = load_map(path, start=(-0.8, -1.8))
     assert grid.start_cell == (0, 0)
-    grid = load_ros_map(path, start_xy=(0.9, 0.0))  # col 3, row 4? no: y 0 -> row 4 is outside
-    assert grid.start_cell == (3, 3) if False else True  # placeholder replaced below
+    assert load_ros_map(path, start_xy=(0.6, -0.4)).start_cell == (3, 3)
 
 
 def test_ros_map_explicit_start_without_yaml_key(tmp_path):
@@ -413,7 +411,7 @@ def test_yaml_missing_required_key(tmp_path, key):
         ({"origin": [1.0]}, "origin"),
         ({"origin": "here"}, "origin"),
         ({"origin": [float("inf"), 0, 0]}, "finite"),
-        ({"origin": [10**400, 0, 0]}, "finite"),
+        ({"origin": [10**400, 0, 0]}, "origin"),
         ({"free_thresh": 1.5}, "[0, 1]"),
         ({"occupied_thresh": -0.2}, "[0, 1]"),
         ({"negate": "yes"}, "negate"),
@@ -429,8 +427,7 @@ def test_yaml_missing_required_key(tmp_path, key):
     ],
 )
 def test_yaml_bad_values(tmp_path, overrides, fragment):
-    overrides.setdefault("start", [0.2, -1.9])
-    path = write_ros(tmp_path, ros_image(), **overrides)
+    path = write_ros(tmp_path, ros_image(), **{"start": [0.2, -1.9], **overrides})
     assert_map_error(path, fragment, lambda: load_map(path))
 
 

@@ -1,0 +1,221 @@
+"""The `guide` command line: every pipeline stage and the everyday verbs."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from pipeline.maps import MapError
+from pipeline.protocol import Protocol
+
+app = typer.Typer(
+    help="GUIDE exploration: maps, simulator, planners, benchmarks and the DVC pipeline's stages.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+stage_app = typer.Typer(help="Run one DVC pipeline stage (what `dvc repro` calls).", no_args_is_help=True)
+app.add_typer(stage_app, name="stage")
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+def _protocol(
+    cell_size: float, node_resolution: float, sensor_range: float, utility_range: Optional[float],
+    region_size: float, done_unknown_cells: int, max_steps: int,
+) -> Protocol:
+    try:
+        return Protocol(
+            cell_size=cell_size,
+            node_resolution=node_resolution,
+            sensor_range=sensor_range,
+            utility_range=utility_range if utility_range is not None else sensor_range / 2,
+            region_size=region_size,
+            done_unknown_cells=done_unknown_cells,
+            max_steps=max_steps,
+        )
+    except ValueError as error:
+        _fail(str(error))
+        raise  # unreachable; keeps type checkers calm
+
+
+CellSize = typer.Option(0.4, help="Metres per cell for maze PNGs and .npy grids (a ROS map has its own).")
+NodeRes = typer.Option(4.0, help="Node lattice spacing d_n in metres.")
+SensorRange = typer.Option(20.0, help="Lidar range in metres.")
+UtilityRange = typer.Option(None, help="Frontier-utility range in metres [default: sensor range / 2].")
+RegionSize = typer.Option(20.0, help="Side of the fixed regions in metres.")
+DoneCells = typer.Option(250, help="Done when ground-truth free minus belief free cells is at most this.")
+MaxSteps = typer.Option(500, help="Waypoints before an episode ends as a failure.")
+
+
+@app.command()
+def planners() -> None:
+    """List every registered planner name with a one-line description."""
+    from pipeline.planners import planner_class, planner_names
+
+    for name in planner_names():
+        cls = planner_class(name)
+        oracle = " (oracle: sees the ground truth)" if cls.uses_ground_truth else ""
+        typer.echo(f"{name:<18} {cls.description}{oracle}")
+
+
+@app.command()
+def explore(
+    map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
+    planner: str = typer.Option("nearest_frontier", help="Planner name (see `guide planners`)."),
+    out: Path = typer.Option(Path("runs/explore"), help="Output folder."),
+    gif: bool = typer.Option(False, "--gif", help="Also write an animation of the episode."),
+    start: Optional[tuple[float, float]] = typer.Option(
+        None, help="Start: COL ROW for a .npy grid, X Y metres for a ROS map (else its YAML 'start')."
+    ),
+    seed: int = typer.Option(0, help="Seed for randomised planners."),
+    cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
+    utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
+    done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+) -> None:
+    """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF)."""
+    from pipeline.benchmark import protocol_for_map
+    from pipeline.maps import load_map
+    from pipeline.planners import make_planner
+    from pipeline.render import EpisodeRecorder, render_final, save_png
+    from pipeline.simulator import run_episode
+    from pipeline.trajectories import write_metrics_csv, write_trajectory_csv
+
+    protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        agent = make_planner(planner)
+    except MapError as error:
+        _fail(str(error))
+    except KeyError as error:
+        _fail(str(error.args[0]))
+    protocol = protocol_for_map(protocol, ground_truth)
+    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), planner_name=planner) if gif else None
+    result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=recorder)
+    out.mkdir(parents=True, exist_ok=True)
+    write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)
+    write_metrics_csv(out / "metrics.csv", [result.metrics_row()])
+    final = render_final(ground_truth, result, belief=_final_belief(ground_truth, result, protocol), graph=getattr(agent, "graph", None))
+    save_png(final, out / f"{ground_truth.name}.png")
+    if recorder is not None:
+        recorder.save_gif(out / f"{ground_truth.name}.gif")
+    status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"
+    typer.echo(
+        f"{ground_truth.name} {planner}: {status}, {result.distance_m:.1f} m in {result.steps} waypoints, "
+        f"explored {result.explored_ratio * 100:.1f} %, decision {result.metrics_row()['decision_ms_median']} ms median"
+    )
+    typer.echo(f"wrote {out}/")
+    if not result.complete:
+        raise typer.Exit(code=1)
+
+
+def _final_belief(ground_truth, result, protocol):
+    """The belief at the end of an episode, rebuilt by replaying its trajectory."""
+    from pipeline.simulator import Episode
+
+    episode = Episode(ground_truth, protocol)
+    for waypoint in result.trajectory[1:]:
+        episode.move(waypoint)
+    return episode.belief.grid
+
+
+@app.command()
+def benchmark(
+    maps: Path = typer.Option(..., help="Folder of maps (maze PNGs, .npy grids, ROS YAMLs)."),
+    planner: list[str] = typer.Option(..., "--planner", help="Planner name; repeat for several."),
+    out: Path = typer.Option(Path("runs/bench"), help="Output folder (trajectories, metrics.csv, summary.md)."),
+    workers: Optional[int] = typer.Option(None, help="Parallel processes [default: all cores]."),
+    seed: int = typer.Option(0, help="Seed for randomised planners."),
+    tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
+    experiment: str = typer.Option("benchmark", help="MLflow experiment name."),
+    mlflow_log: bool = typer.Option(True, "--mlflow/--no-mlflow", help="Log one MLflow run per planner."),
+    cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
+    utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
+    done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+) -> None:
+    """Run every map in a folder with each planner, in parallel, and summarise."""
+    from pipeline.benchmark import run_benchmark, summary_markdown
+    from pipeline.maps import list_maps
+    from pipeline.tracking import log_benchmark
+
+    protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
+    try:
+        map_paths = list_maps(maps)
+        if not map_paths:
+            _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
+        frame = run_benchmark(map_paths, planner, protocol, out, workers=workers, seed=seed)
+    except MapError as error:
+        _fail(str(error))
+    except KeyError as error:
+        _fail(str(error.args[0]))
+    typer.echo(summary_markdown(frame, protocol))
+    if mlflow_log:
+        log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
+    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md and {len(frame)} trajectories")
+
+
+@app.command()
+def replay(
+    map_path: Path = typer.Option(..., "--map", help="The map the trajectory was run on."),
+    trajectory: Path = typer.Option(..., help="Trajectory CSV (header x,y; first row 0,0)."),
+    start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
+    cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
+    done_unknown_cells: int = DoneCells,
+) -> None:
+    """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON."""
+    from pipeline.benchmark import protocol_for_map
+    from pipeline.maps import load_map
+    from pipeline.simulator import replay as replay_trajectory
+    from pipeline.trajectories import read_trajectory_csv
+
+    protocol = _protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9)
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        points = read_trajectory_csv(trajectory)
+        result = replay_trajectory(ground_truth, points, protocol_for_map(protocol, ground_truth))
+    except (MapError, ValueError) as error:
+        _fail(str(error))
+    typer.echo(
+        json.dumps(
+            {
+                "map": ground_truth.name,
+                "complete": result.complete,
+                "complete_after_waypoint": result.complete_after_waypoint,
+                "distance_m": round(result.distance_m, 3),
+                "motion_violations": result.motion_violations,
+                "explored_ratio": round(result.explored_ratio, 5),
+                "failure": result.failure,
+            }
+        )
+    )
+
+
+@stage_app.command("generate-mazes")
+def stage_generate_mazes(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: training and test mazes from params.yaml's `mazes` section."""
+    from stages import generate_mazes
+
+    generate_mazes.main(str(params))
+
+
+@stage_app.command("benchmark")
+def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: the configured planners on the test mazes, reports in reports/benchmark/."""
+    from stages import benchmark as benchmark_stage
+
+    benchmark_stage.main(str(params))
+
+
+def main() -> None:  # pragma: no cover - console entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(app())

@@ -1,0 +1,58 @@
+"""MLflow tracking on a local sqlite store by default (MLflow 3 refuses the old ./mlruns store)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from pipeline.protocol import Protocol
+
+DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
+
+
+def resolve_tracking_uri(uri: str | None = None) -> str:
+    """The CLI's value, else MLFLOW_TRACKING_URI, else the local sqlite store."""
+    return uri or os.environ.get("MLFLOW_TRACKING_URI") or DEFAULT_TRACKING_URI
+
+
+def log_benchmark(
+    frame: pd.DataFrame,
+    out_dir: str | Path,
+    protocol: Protocol,
+    maps: str,
+    tracking_uri: str | None = None,
+    experiment: str = "benchmark",
+) -> list[str]:
+    """One MLflow run per planner: protocol params, summary metrics, summary and metrics.csv.
+
+    Returns the run ids.
+    """
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    import mlflow  # slow to import; only when tracking is asked for
+
+    from pipeline.benchmark import summarise
+
+    out_dir = Path(out_dir)
+    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
+    mlflow.set_experiment(experiment)
+    summary = summarise(frame)
+    run_ids = []
+    for planner, row in summary.iterrows():
+        with mlflow.start_run(run_name=str(planner)) as run:
+            mlflow.log_params({**protocol.to_dict(), "planner": planner, "maps": maps, "episodes": int(row.episodes)})
+            mlflow.log_metrics(
+                {
+                    "distance_mean_m": float(row.distance_mean_m),
+                    "distance_std_m": float(row.distance_std_m),
+                    "completion_rate": float(row.completion_rate),
+                    "decision_ms_median": float(row.decision_ms_median),
+                    "decision_ms_p95": float(row.decision_ms_p95),
+                }
+            )
+            for name in ("summary.md", "metrics.csv"):
+                if (out_dir / name).is_file():
+                    mlflow.log_artifact(str(out_dir / name))
+            run_ids.append(run.info.run_id)
+    return run_ids

@@ -1,0 +1,106 @@
+"""DVC stage: draw the train and test maze sets and a preview figure.
+
+Reads only the `mazes` section of params.yaml (plus `protocol.cell_size` when present), so
+DVC reruns this stage only when those values change. Train and test mazes come from seed
+sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+if __package__ in (None, ""):  # run as `python stages/generate_mazes.py`: make `pipeline` importable
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import cv2
+import numpy as np
+import yaml
+
+from pipeline.mazes import MazeConfig, generate_maze_set, write_maze_png
+
+MAZE_ROOT = Path("data/mazes")
+PREVIEW_PATH = Path("reports/mazes_preview.png")
+SPLITS = {"train": 0, "test": 1}  # split name -> second word of the seed sequence
+PREVIEW_COUNT = 6
+PREVIEW_COLUMNS = 3
+PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
+PREVIEW_GAP = 10
+DEFAULT_CELL_SIZE = 0.4
+
+
+def _load_params(params_path: str | Path) -> tuple[dict, float]:
+    """The `mazes` section and the cell size; a clear error if the section is missing."""
+    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    if not isinstance(params, dict) or not isinstance(params.get("mazes"), dict):
+        raise ValueError(f"{params_path}: missing the 'mazes' section")
+    protocol = params.get("protocol") if isinstance(params.get("protocol"), dict) else {}
+    cell_size = float(protocol.get("cell_size", DEFAULT_CELL_SIZE))
+    return params["mazes"], cell_size
+
+
+def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig, int]:
+    """The MazeConfig and count of one split; shared keys come from the section's top level."""
+    if not isinstance(mazes.get(split), dict):
+        raise ValueError(f"params 'mazes' section is missing the '{split}' subsection")
+    section = mazes[split]
+    shared = {key: mazes[key] for key in ("block_m", "rooms", "room_blocks", "extra_loops") if key in mazes}
+    if "side_m" not in section or "count" not in section:
+        raise ValueError(f"params 'mazes.{split}' needs 'count' and 'side_m'")
+    config = MazeConfig(side_m=tuple(section["side_m"]), cell_size=cell_size, **{
+        key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()
+    })
+    count = section["count"]
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise ValueError(f"params 'mazes.{split}.count' must be a non-negative integer, got {count!r}")
+    return config, count
+
+
+def _clear_pngs(directory: Path) -> None:
+    """Remove the PNGs of an earlier run so a smaller count leaves no stale mazes behind."""
+    if directory.is_dir():
+        for stale in directory.glob("*.png"):
+            stale.unlink()
+
+
+def preview_image(paths: list[Path]) -> np.ndarray:
+    """Tile up to PREVIEW_COUNT mazes in a grid, each scaled (nearest) to one tile size."""
+    chosen = paths[:PREVIEW_COUNT]
+    if not chosen:
+        return np.full((PREVIEW_TILE, PREVIEW_TILE), 255, dtype=np.uint8)
+    columns = min(PREVIEW_COLUMNS, len(chosen))
+    rows = -(-len(chosen) // columns)
+    step = PREVIEW_TILE + PREVIEW_GAP
+    canvas = np.full((rows * step + PREVIEW_GAP, columns * step + PREVIEW_GAP), 255, dtype=np.uint8)
+    for index, path in enumerate(chosen):
+        maze = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if maze is None:
+            raise OSError(f"{path}: cannot read the maze just written")
+        tile = cv2.resize(maze, (PREVIEW_TILE, PREVIEW_TILE), interpolation=cv2.INTER_NEAREST)
+        top = PREVIEW_GAP + (index // columns) * step
+        left = PREVIEW_GAP + (index % columns) * step
+        canvas[top : top + PREVIEW_TILE, left : left + PREVIEW_TILE] = tile
+    return canvas
+
+
+def main(params_path: str = "params.yaml") -> None:
+    """Write data/mazes/{train,test}/maze_XXXX.png and reports/mazes_preview.png."""
+    mazes, cell_size = _load_params(params_path)
+    seed = mazes.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"params 'mazes.seed' must be a non-negative integer, got {seed!r}")
+    # Build every config first so a bad parameter fails before any file is touched.
+    splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
+    written: dict[str, list[Path]] = {}
+    for split, (config, count) in splits.items():
+        out_dir = MAZE_ROOT / split
+        _clear_pngs(out_dir)
+        written[split] = generate_maze_set(config, count, out_dir, seed=(seed, SPLITS[split]))
+    write_maze_png(preview_image(written["test"]), PREVIEW_PATH)
+    for split, paths in written.items():
+        print(f"{split}: {len(paths)} mazes in {MAZE_ROOT / split}")
+    print(f"preview: {PREVIEW_PATH}")
+
+
+if __name__ == "__main__":
+    main()
