@@ -1,0 +1,301 @@
+"""Receding-horizon next-best-view planning (Bircher et al., ICRA 2016) on the node lattice.
+
+Each decision grows a rapidly-exploring random tree in known free space, rooted at the
+robot's lattice node, scores every branch by the unknown space its nodes would see, and
+executes only the first edge of the best branch. The rest of that branch is kept and put
+back into the next decision's tree (as Bircher does), so the plan is not lost between
+decisions.
+
+Adaptation to the lattice and the protocol:
+
+- Tree vertices are lattice nodes and tree edges are exactly the lattice graph's valid
+  edges (a node and one of its 5x5-window neighbours, the segment known free in either
+  walk direction), so every executed step obeys the motion rule by construction.
+- Sampling: a point uniform in the square of half-side `sample_radius_factor` x sensor
+  range (2 x 20 m by default) around the robot, intersected with the bounding box of the
+  known free cells. The nearest tree vertex (Euclidean) steers toward it by at most two
+  lattice steps per axis (the direction is kept by scaling the offset so that its larger
+  component is 2 steps, then rounding to the lattice); the new vertex is added when the
+  edge is valid and the vertex is not yet in the tree. Samples come from the planner's
+  `rng`, seeded in `reset`, so a run is reproducible.
+- Gain G(n) of a vertex: the number of distinct unknown cells that a fan of the lidar's
+  rays (every `ray_stride`-th of the 720 protocol rays, same range, same 4-connected walk)
+  would see from it. A ray passes free and unknown cells and stops at a known occupied
+  cell, the grid edge, or before its end cell, as the real sensor does. Because the fan is
+  a subset of the real sensor's rays, a vertex the robot has sensed from has gain 0.
+- Branch value as Bircher: Gain(n_k) = Gain(n_{k-1}) + G(n_k) exp(-lambda c(n_k)), with
+  c the path length (metres) from the root along the tree.
+- Fallback (not in the paper, which stops instead): when the best branch value is below
+  `gain_threshold`, the local tree sees nothing worth the trip, and the planner takes one
+  step along the shortest graph path to the nearest useful frontier node, exactly as
+  `nearest_frontier` does. It returns [] only when no useful node is reachable, so an
+  episode ends only when the map is explored or nothing reachable is left.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.geometry import RayTable, ray_table
+from pipeline.graph import NODE_FREE, WINDOW_RADIUS
+from pipeline.maps import GroundTruthMap
+from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.protocol import Protocol
+from pipeline.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN
+from pipeline.simulator import Observation
+
+WINDOW = 2 * WINDOW_RADIUS + 1
+
+
+class ViewGain:
+    """Vectorised view gain: distinct unknown cells a ray fan sees from many origins at once.
+
+    The belief is padded by the sensor range with OCCUPIED cells, so a ray leaving the grid
+    stops exactly where it would at the grid edge and no bounds checks are needed; each
+    ray cell is then one flat offset from the origin's flat index.
+    """
+
+    def __init__(self, shape: tuple[int, int], range_cells: float, ray_stride: int = 4):
+        if ray_stride < 1:
+            raise ValueError(f"ray_stride must be >= 1, got {ray_stride}")
+        self.shape = shape
+        self.table: RayTable = ray_table(0, 0, range_cells, DEFAULT_ANGLES[::ray_stride])
+        self.pad = int(np.abs(self.table.end_offsets).max()) + 1
+        rows, cols = shape
+        self.padded_shape = (rows + 2 * self.pad, cols + 2 * self.pad)
+        pcols = self.padded_shape[1]
+        off = self.table.offsets
+        self.flat_offsets = (off[..., 1] * pcols + off[..., 0]).astype(np.int64)
+        self.valid = self.table.valid
+        self._padded = np.full(self.padded_shape, OCCUPIED, dtype=np.uint8)
+
+    def load(self, belief: np.ndarray) -> None:
+        """Copy the current belief into the padded working grid."""
+        rows, cols = self.shape
+        self._padded[self.pad : self.pad + rows, self.pad : self.pad + cols] = belief
+
+    def gains(self, cells: np.ndarray, chunk: int = 32) -> np.ndarray:
+        """Gain of each origin cell (col, row) on the belief last passed to `load`."""
+        cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+        out = np.zeros(len(cells), dtype=np.int64)
+        if len(cells) == 0:
+            return out
+        flat_grid = self._padded.reshape(-1)
+        pcols = self.padded_shape[1]
+        origin = (cells[:, 1] + self.pad) * pcols + cells[:, 0] + self.pad
+        n_unique = len(self.table.unique_offsets)
+        for start in range(0, len(cells), chunk):
+            org = origin[start : start + chunk]
+            values = flat_grid[org[:, None, None] + self.flat_offsets[None]]
+            passable = (values != OCCUPIED) & self.valid[None]
+            reach = np.logical_and.accumulate(passable, axis=2)
+            node, ray, step = np.nonzero(reach & (values == UNKNOWN))
+            seen = np.zeros((len(org), n_unique), dtype=bool)
+            seen[node, self.table.unique_index[ray, step]] = True
+            out[start : start + chunk] = seen.sum(axis=1)
+        return out
+
+
+def view_gains(belief: np.ndarray, cells: np.ndarray, range_cells: float, ray_stride: int = 4) -> np.ndarray:
+    """Convenience wrapper: NBVP gain of each cell (col, row) on `belief`."""
+    gain = ViewGain(belief.shape, range_cells, ray_stride)
+    gain.load(belief)
+    return gain.gains(cells)
+
+
+@register_planner("nbvp")
+class NBVPPlanner(GraphPlanner):
+    """Bircher's receding-horizon next-best-view planner: RRT in known free space, first edge
+    of the branch with the most discounted unknown-volume gain; nearest frontier fallback."""
+
+    description = (
+        "Bircher 2016 receding-horizon NBVP: lattice RRT in known free space, first edge of the "
+        "best-gain branch; nearest-frontier fallback when the local tree sees nothing"
+    )
+
+    def __init__(
+        self,
+        tree_size: int = 40,
+        lam: float = 0.1,
+        gain_threshold: float = 20.0,
+        sample_radius_factor: float = 2.0,
+        ray_stride: int = 4,
+        max_attempts_factor: int = 15,
+        reuse_best_branch: bool = True,
+        min_utility: int = 2,
+    ):
+        super().__init__(min_utility=min_utility)
+        if tree_size < 2:
+            raise ValueError(f"tree_size must be >= 2, got {tree_size}")
+        if lam < 0:
+            raise ValueError(f"lam must be >= 0, got {lam}")
+        if sample_radius_factor <= 0:
+            raise ValueError(f"sample_radius_factor must be positive, got {sample_radius_factor}")
+        if max_attempts_factor < 1:
+            raise ValueError(f"max_attempts_factor must be >= 1, got {max_attempts_factor}")
+        self.tree_size = int(tree_size)
+        self.lam = float(lam)
+        self.gain_threshold = float(gain_threshold)
+        self.sample_radius_factor = float(sample_radius_factor)
+        self.ray_stride = int(ray_stride)
+        self.max_attempts_factor = int(max_attempts_factor)
+        self.reuse_best_branch = bool(reuse_best_branch)
+        self._branch: list[int] = []
+        self.last_decision: dict = {}
+
+    # ----------------------------------------------------------------- episode setup
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        graph = self.graph
+        assert graph is not None
+        self.view_gain = ViewGain(ground_truth.shape, protocol.sensor_range_cells, self.ray_stride)
+        # edge_of[node, window slot] = id of the candidate edge to that neighbour, -1 if none.
+        self._edge_of = np.full((graph.node_count, WINDOW * WINDOW), -1, dtype=np.int64)
+        a, b = graph.edge_nodes[:, 0], graph.edge_nodes[:, 1]
+        d = graph.node_ij[b] - graph.node_ij[a]
+        ids = np.arange(len(a))
+        self._edge_of[a, self._slot(d[:, 0], d[:, 1])] = ids
+        self._edge_of[b, self._slot(-d[:, 0], -d[:, 1])] = ids
+        self._i0, self._j0 = int(graph.lattice_i[0]), int(graph.lattice_j[0])
+        self._id_grid_shape = (len(graph.lattice_j), len(graph.lattice_i))
+        self._branch = []
+        self.last_decision = {}
+
+    @staticmethod
+    def _slot(di, dj):
+        return (dj + WINDOW_RADIUS) * WINDOW + (di + WINDOW_RADIUS)
+
+    def _lattice_node(self, i: int, j: int) -> int:
+        col, row = i - self._i0, j - self._j0
+        if 0 <= row < self._id_grid_shape[0] and 0 <= col < self._id_grid_shape[1]:
+            return row * self._id_grid_shape[1] + col
+        return -1
+
+    def _edge_ok(self, a: int, b: int) -> bool:
+        """True when a-b is a valid graph edge (known-free segment, 5x5 window)."""
+        assert self.graph is not None
+        di, dj = self.graph.node_ij[b] - self.graph.node_ij[a]
+        if abs(di) > WINDOW_RADIUS or abs(dj) > WINDOW_RADIUS or (di == 0 and dj == 0):
+            return False
+        e = self._edge_of[a, self._slot(int(di), int(dj))]
+        return bool(e >= 0 and self.graph.edge_valid[e])
+
+    # ----------------------------------------------------------------- the tree
+    def _sample_box(self, belief: np.ndarray, position: tuple[float, float]) -> tuple[float, float, float, float]:
+        """World box (x0, x1, y0, y1) where samples are drawn."""
+        assert self.graph is not None
+        free = belief == FREE
+        cols = np.nonzero(free.any(axis=0))[0]
+        rows = np.nonzero(free.any(axis=1))[0]
+        lo = self.graph.spec.cell_to_world(np.array([cols[0], rows[0]]))
+        hi = self.graph.spec.cell_to_world(np.array([cols[-1], rows[-1]]))
+        r = self.sample_radius_factor * self.protocol.sensor_range
+        x0, x1 = max(lo[0], position[0] - r), min(hi[0], position[0] + r)
+        y0, y1 = max(lo[1], position[1] - r), min(hi[1], position[1] + r)
+        return x0, max(x0, x1), y0, max(y0, y1)
+
+    def grow_tree(self, observation: Observation, root: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """RRT of lattice nodes in known free space: (nodes, parent index, path cost in metres)."""
+        graph = self.graph
+        assert graph is not None
+        d = graph.spec.node_resolution
+        n_max = self.tree_size
+        nodes = [root]
+        parent = [-1]
+        cost = [0.0]
+        ij = np.zeros((n_max + len(self._branch) + 1, 2), dtype=np.float64)
+        ij[0] = graph.node_ij[root]
+        in_tree = {root}
+
+        # Bircher: the rest of the previous best branch goes back into the new tree.
+        if self.reuse_best_branch and self._branch and self._branch[0] == root:
+            for node in self._branch[1:]:
+                prev = nodes[-1]
+                if node in in_tree or graph.node_state[node] != NODE_FREE or not self._edge_ok(prev, node):
+                    break
+                nodes.append(node)
+                parent.append(len(nodes) - 2)
+                cost.append(cost[-1] + float(np.hypot(*(graph.node_world[node] - graph.node_world[prev]))))
+                ij[len(nodes) - 1] = graph.node_ij[node]
+                in_tree.add(node)
+        self._branch = []
+
+        x0, x1, y0, y1 = self._sample_box(observation.belief, observation.position)
+        attempts = self.max_attempts_factor * n_max
+        samples = self.rng.uniform(0.0, 1.0, size=(attempts, 2))
+        samples[:, 0] = (x0 + samples[:, 0] * (x1 - x0)) / d
+        samples[:, 1] = (y0 + samples[:, 1] * (y1 - y0)) / d
+        limit = float(WINDOW_RADIUS)
+        for si, sj in samples:
+            if len(nodes) >= n_max:
+                break
+            k = len(nodes)
+            diff = ij[:k] - (si, sj)
+            near = int(np.argmin(diff[:, 0] ** 2 + diff[:, 1] ** 2))
+            ni, nj = ij[near]
+            di, dj = si - ni, sj - nj
+            m = max(abs(di), abs(dj))
+            if m > limit:
+                di, dj = di * limit / m, dj * limit / m
+            ti, tj = int(ni) + round(di), int(nj) + round(dj)
+            target = self._lattice_node(ti, tj)
+            if target < 0 or target in in_tree or graph.node_state[target] != NODE_FREE:
+                continue
+            source = nodes[near]
+            if not self._edge_ok(source, target):
+                continue
+            nodes.append(target)
+            parent.append(near)
+            cost.append(cost[near] + d * float(np.hypot(ti - ni, tj - nj)))
+            ij[k] = (ti, tj)
+            in_tree.add(target)
+        return np.array(nodes, dtype=np.int64), np.array(parent, dtype=np.int64), np.array(cost)
+
+    def branch_values(self, gains: np.ndarray, parent: np.ndarray, cost: np.ndarray) -> np.ndarray:
+        """Bircher's Gain(n_k) = Gain(n_{k-1}) + G(n_k) exp(-lambda c(n_k)); root value 0.
+
+        Parents always come before their children in the tree arrays.
+        """
+        values = np.zeros(len(gains), dtype=np.float64)
+        term = gains * np.exp(-self.lam * cost)
+        for k in range(1, len(gains)):
+            values[k] = values[parent[k]] + term[k]
+        return values
+
+    # ----------------------------------------------------------------- decisions
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        nodes, parent, cost = self.grow_tree(observation, robot)
+        if len(nodes) > 1:
+            self.view_gain.load(observation.belief)
+            gains = np.zeros(len(nodes), dtype=np.int64)
+            gains[1:] = self.view_gain.gains(graph.node_cells[nodes[1:]])
+            values = self.branch_values(gains, parent, cost)
+            best = int(np.argmax(values[1:])) + 1
+            self.last_decision = {"tree": nodes, "parent": parent, "gain": gains, "value": values, "best": best}
+            if values[best] >= self.gain_threshold:
+                branch = [best]
+                while parent[branch[-1]] > 0:
+                    branch.append(int(parent[branch[-1]]))
+                branch.reverse()  # tree indices from the root's child to the best vertex
+                self._branch = [int(nodes[k]) for k in branch]
+                self.last_decision["mode"] = "nbv"
+                return self.waypoints_along([robot, self._branch[0]])
+        else:
+            self.last_decision = {"tree": nodes, "parent": parent}
+        self.last_decision["mode"] = "frontier"
+        return self._nearest_frontier_step(robot)
+
+    def _nearest_frontier_step(self, robot: int) -> list[Waypoint]:
+        """Fallback: one step toward the nearest useful frontier node (as nearest_frontier)."""
+        graph = self.graph
+        assert graph is not None
+        self._branch = []
+        dist, pred = graph.shortest_paths(robot)
+        targets = self.useful_nodes()
+        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        if targets.size == 0:
+            return []
+        order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))
+        return self.waypoints_along(graph.path_from_predecessors(pred, int(targets[order[0]])))

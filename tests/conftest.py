@@ -1,0 +1,84 @@
+"""Shared fixtures: small maps the tests make themselves (nothing reads ../shared)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+os.environ.setdefault("DVC_NO_ANALYTICS", "1")
+
+from pipeline.maps import GroundTruthMap, load_maze_png  # noqa: E402
+from pipeline.mazes import MazeConfig, generate_maze, write_maze_png  # noqa: E402
+
+WALL, FREE, START = 127, 195, 208
+
+
+def maze_from_blocks(blocks: list[str], block_px: int = 25) -> np.ndarray:
+    """A maze PNG image from a picture of blocks: '#' wall, '.' free, 'S' the start block."""
+    rows, cols = len(blocks), len(blocks[0])
+    image = np.full((rows * block_px, cols * block_px), WALL, dtype=np.uint8)
+    values = {"#": WALL, ".": FREE, "S": START}
+    for r, line in enumerate(blocks):
+        for c, char in enumerate(line):
+            image[r * block_px : (r + 1) * block_px, c * block_px : (c + 1) * block_px] = values[char]
+    return image
+
+
+SMALL_MAZE = [
+    "##########",
+    "#S...#...#",
+    "#.##.#.#.#",
+    "#.#..#.#.#",
+    "#.#.##.#.#",
+    "#...#..#.#",
+    "###.#.##.#",
+    "#.......##",
+    "#..#.....#",
+    "##########",
+]
+
+
+@pytest.fixture(scope="session")
+def small_maze_path(tmp_path_factory) -> Path:
+    """A hand-drawn 50 m maze PNG in the benchmark format."""
+    path = tmp_path_factory.mktemp("maps") / "small.png"
+    write_maze_png(maze_from_blocks(SMALL_MAZE), path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def small_maze(small_maze_path) -> GroundTruthMap:
+    return load_maze_png(small_maze_path)
+
+
+@pytest.fixture(scope="session")
+def generated_maze_dir(tmp_path_factory) -> Path:
+    """Three generated 50 m mazes, as the maze stage writes them."""
+    directory = tmp_path_factory.mktemp("mazes")
+    config = MazeConfig(side_m=(50.0, 50.0), rooms=(1, 2))
+    for i in range(3):
+        write_maze_png(generate_maze(config, np.random.default_rng([7, i])), directory / f"maze_{i:04d}.png")
+    return directory
+
+
+def write_ros_map(directory: Path, free: np.ndarray, resolution: float, start_xy: tuple[float, float], name: str = "office") -> Path:
+    """A ROS map_server map (PGM + YAML); `free[row, col]` with row 0 at y = origin (bottom)."""
+    image = np.where(free, 254, 0).astype(np.uint8)[::-1]  # image row 0 is the top
+    cv2.imwrite(str(directory / f"{name}.pgm"), image)
+    yaml_path = directory / f"{name}.yaml"
+    yaml_path.write_text(
+        f"image: {name}.pgm\nresolution: {resolution}\norigin: [0.0, 0.0, 0.0]\n"
+        f"negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\nstart: [{start_xy[0]}, {start_xy[1]}]\n"
+    )
+    return yaml_path
+
+
+@pytest.fixture(scope="session")
+def mlflow_uri(tmp_path_factory) -> str:
+    """One sqlite MLflow store for the whole session (creating one costs seconds)."""
+    return f"sqlite:///{tmp_path_factory.mktemp('mlflow') / 'mlflow.db'}"

@@ -1,0 +1,156 @@
+import numpy as np
+import pytest
+
+from pipeline.frontier import frontier_mask
+from pipeline.geometry import segment_is_known_free
+from pipeline.graph import (
+    NODE_FREE,
+    NODE_OCCUPIED,
+    REGION_BOUNDARY,
+    REGION_EXPLORED,
+    REGION_UNOBSERVED,
+    LatticeGraph,
+    LatticeSpec,
+)
+from pipeline.planners import make_planner
+from pipeline.protocol import Protocol
+from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.simulator import Episode, run_episode
+
+
+def spec_for(ground_truth, protocol=Protocol()):
+    return LatticeSpec(
+        shape=ground_truth.shape,
+        start_cell=ground_truth.start_cell,
+        cell_size=protocol.cell_size,
+        node_resolution=protocol.node_resolution,
+        utility_range=protocol.utility_range,
+        region_size=protocol.region_size,
+    )
+
+
+def partial_episode(ground_truth, steps=12):
+    """An episode part-way through, with the changed-cell batches the planner saw."""
+    planner = make_planner("nearest_frontier")
+    episode = Episode(ground_truth, Protocol())
+    planner.reset(ground_truth, Protocol(), 0)
+    batches = []
+    for _ in range(steps):
+        observation = episode.observe()
+        batches.append(observation.changed)
+        waypoints = planner.plan(observation)
+        if not waypoints:
+            break
+        episode.move(waypoints[0])
+    batches.append(episode.observe().changed)
+    return episode, batches
+
+
+def assert_same_graph(a: LatticeGraph, b: LatticeGraph):
+    np.testing.assert_array_equal(a.node_state, b.node_state)
+    np.testing.assert_array_equal(a.edge_valid, b.edge_valid)
+    np.testing.assert_array_equal(a.frontier, b.frontier)
+    np.testing.assert_array_equal(a.utility, b.utility)
+    np.testing.assert_array_equal(a.region_labels(), b.region_labels())
+
+
+def test_incremental_updates_equal_a_fresh_build(small_maze):
+    episode, batches = partial_episode(small_maze)
+    incremental = LatticeGraph(spec_for(small_maze))
+    fresh = LatticeGraph(spec_for(small_maze))
+    # Replay the same belief history: the incremental graph sees only changed cells.
+    replay = Episode(small_maze, Protocol())
+    incremental.update(replay.belief.grid, None)
+    for point in episode.trajectory[1:]:
+        replay.move(point)
+        changed = replay.observe().changed
+        incremental.update(replay.belief.grid, changed)
+    fresh.update(episode.belief.grid, None)
+    assert_same_graph(incremental, fresh)
+    assert len(batches) > 3
+
+
+def test_edges_are_exactly_the_known_free_segments(small_maze):
+    episode, _ = partial_episode(small_maze, steps=8)
+    graph = LatticeGraph(spec_for(small_maze))
+    graph.update(episode.belief.grid, None)
+    free = episode.belief.grid == FREE
+    for (a, b), valid in zip(graph.edge_nodes, graph.edge_valid):
+        ca, cb = tuple(graph.node_cells[a]), tuple(graph.node_cells[b])
+        assert valid == segment_is_known_free(free, ca, cb)
+    # Only 5x5-window neighbours are candidates.
+    delta = np.abs(graph.node_ij[graph.edge_nodes[:, 0]] - graph.node_ij[graph.edge_nodes[:, 1]])
+    assert delta.max() == 2 and (delta.sum(axis=1) > 0).all()
+
+
+def test_node_states_follow_the_belief(small_maze):
+    episode, _ = partial_episode(small_maze, steps=5)
+    graph = LatticeGraph(spec_for(small_maze))
+    graph.update(episode.belief.grid, None)
+    values = episode.belief.grid.reshape(-1)[graph.node_flat]
+    assert ((graph.node_state == NODE_FREE) == (values == FREE)).all()
+    assert ((graph.node_state == NODE_OCCUPIED) == (values == OCCUPIED)).all()
+    assert set(graph.free_nodes) == set(np.nonzero(values == FREE)[0])
+
+
+def test_shortest_paths_follow_valid_edges(small_maze):
+    episode, _ = partial_episode(small_maze, steps=10)
+    graph = LatticeGraph(spec_for(small_maze))
+    graph.update(episode.belief.grid, None)
+    source = graph.nearest_node(episode.position)
+    dist, pred = graph.shortest_paths(source)
+    reachable = np.nonzero(np.isfinite(dist))[0]
+    assert len(reachable) > 5
+    target = int(reachable[np.argmax(dist[reachable])])
+    path = graph.path_from_predecessors(pred, target)
+    assert path[0] == source and path[-1] == target
+    valid = {tuple(sorted(e)) for e in graph.edges.tolist()}
+    length = 0.0
+    for a, b in zip(path, path[1:]):
+        assert tuple(sorted((a, b))) in valid
+        length += float(np.hypot(*(graph.node_world[b] - graph.node_world[a])))
+    assert length == pytest.approx(dist[target])
+
+
+def test_utility_counts_visible_frontier_cells():
+    belief = np.full((60, 60), OCCUPIED, dtype=np.uint8)
+    belief[10:50, 10:30] = FREE  # a known room ...
+    belief[:, 30:] = UNKNOWN  # ... whose right edge borders unknown space
+    spec = LatticeSpec((60, 60), (20, 30), 0.4, 4.0, 10.0, 20.0)
+    graph = LatticeGraph(spec)
+    graph.update(belief, None)
+    assert graph.frontier.sum() == 40 and graph.frontier[10:50, 29].all()
+    near = graph.node_id(0, 0)  # cell (20, 30): every frontier cell is within 25 cells
+    assert graph.utility[near] == 40
+    corner = graph.node_id(-2, -2)  # cell (0, 10): occupied, so no utility
+    assert graph.utility[corner] == 0
+    belief[:, 30:] = OCCUPIED  # close the room: no frontier left
+    graph.update(belief, np.arange(60 * 60).reshape(60, 60)[:, 30:].ravel())
+    assert graph.utility[near] == 0 and not graph.frontier.any()
+
+
+def test_regions_are_labelled_and_unobserved_centroids_placed(small_maze):
+    episode, _ = partial_episode(small_maze, steps=3)
+    graph = LatticeGraph(spec_for(small_maze))
+    graph.update(episode.belief.grid, None)
+    labels = graph.region_labels()
+    assert {REGION_BOUNDARY, REGION_UNOBSERVED} <= set(labels.ravel().tolist())
+    centroids = graph.unobserved_centroids()
+    assert len(centroids) == int((labels == REGION_UNOBSERVED).sum())
+    # A fully explored map has no boundary and no unobserved region left near the robot.
+    result = run_episode(small_maze, make_planner("nearest_frontier"), Protocol())
+    assert result.complete
+    done = Episode(small_maze, Protocol())
+    for point in result.trajectory[1:]:
+        done.move(point)
+    graph.update(done.belief.grid, None)
+    assert (graph.region_labels() == REGION_EXPLORED).sum() >= (labels == REGION_EXPLORED).sum()
+
+
+def test_lattice_at_real_robot_resolution():
+    spec = LatticeSpec((100, 150), (7, 11), 0.2, 1.0, 5.0, 8.0)
+    graph = LatticeGraph(spec)
+    cells = graph.node_cells
+    assert ((cells[:, 0] - 7) % 5 == 0).all() and ((cells[:, 1] - 11) % 5 == 0).all()
+    assert cells[:, 0].min() == 2 and cells[:, 0].max() == 147
+    assert graph.node_count == len(graph.lattice_i) * len(graph.lattice_j)

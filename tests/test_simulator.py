@@ -1,0 +1,104 @@
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pipeline.maps import load_map
+from pipeline.planners import make_planner, planner_names
+from pipeline.protocol import PAPER_REAL_ROBOT, Protocol
+from pipeline.simulator import Episode, MotionError, replay, run_episode
+from pipeline.trajectories import read_trajectory_csv, write_trajectory_csv
+from tests.conftest import write_ros_map
+
+
+def test_waypoints_must_be_lattice_nodes(small_maze):
+    episode = Episode(small_maze, Protocol())
+    with pytest.raises(MotionError, match="lattice"):
+        episode.move((2.0, 0.0))
+    with pytest.raises(MotionError, match="outside"):
+        episode.move((400.0, 0.0))
+
+
+def test_moves_through_unknown_space_are_refused(small_maze):
+    episode = Episode(small_maze, Protocol())
+    # 40 m straight down from the start crosses walls and unknown cells.
+    with pytest.raises(MotionError, match="not known to be free"):
+        episode.move((0.0, 40.0))
+    assert episode.steps == 0 and episode.distance == 0.0
+
+
+def test_a_known_free_move_senses_and_counts_distance(small_maze):
+    episode = Episode(small_maze, Protocol())
+    before = episode.belief.free_count
+    episode.move((4.0, 0.0))
+    assert episode.distance == pytest.approx(4.0)
+    assert episode.trajectory == [(0.0, 0.0), (4.0, 0.0)]
+    assert episode.belief.free_count > before
+
+
+def test_done_rule_uses_the_unknown_cell_count(small_maze):
+    lenient = Episode(small_maze, Protocol(done_unknown_cells=small_maze.free_cell_count))
+    assert lenient.complete and lenient.complete_after_waypoint == 1
+    strict = Episode(small_maze, Protocol(done_unknown_cells=0))
+    assert not strict.complete
+
+
+def test_step_limit_ends_an_episode_as_failure(small_maze):
+    result = run_episode(small_maze, make_planner("nearest_frontier"), Protocol(max_steps=3))
+    assert not result.complete and result.steps == 3 and "step limit" in result.failure
+
+
+@pytest.mark.parametrize("planner", ["nearest_frontier", "greedy_utility"])
+def test_written_trajectory_replays_to_the_same_distance(small_maze, tmp_path, planner):
+    result = run_episode(small_maze, make_planner(planner), Protocol())
+    assert result.complete and result.motion_violations == 0
+    path = write_trajectory_csv(tmp_path / "run.csv", result.trajectory)
+    replayed = replay(small_maze, read_trajectory_csv(path), Protocol())
+    assert replayed.complete
+    assert replayed.distance_m == pytest.approx(result.distance_m, abs=1e-6)
+    assert replayed.complete_after_waypoint == result.complete_after_waypoint == len(result.trajectory)
+
+
+def test_replay_reports_a_motion_violation(small_maze):
+    replayed = replay(small_maze, [(0, 0), (0, 40)], Protocol())
+    assert not replayed.complete and replayed.motion_violations == 1
+
+
+def office_grid(resolution: float = 0.2) -> tuple[np.ndarray, tuple[float, float]]:
+    """A 24 m x 14 m office: a corridor and six rooms behind 0.8 m doors in 0.2 m walls."""
+    cells = lambda metres: int(round(metres / resolution))  # noqa: E731
+    free = np.zeros((cells(14), cells(24)), dtype=bool)
+    free[1:-1, 1:-1] = True
+    corridor = (cells(5.8), cells(8.2))
+    free[corridor[0] - 1, 1:-1] = False  # wall between the lower rooms and the corridor
+    free[corridor[1], 1:-1] = False  # wall between the corridor and the upper rooms
+    for x in (8.0, 16.0):  # walls between rooms
+        free[1 : corridor[0] - 1, cells(x)] = False
+        free[corridor[1] + 1 : -1, cells(x)] = False
+    door = cells(0.8)
+    for x0 in (3.1, 11.7, 18.3):  # doors off the lattice's columns, on purpose
+        c = cells(x0)
+        free[corridor[0] - 1, c : c + door] = True
+        free[corridor[1], c + 2 : c + 2 + door] = True
+    return free, (1.0, 7.0)
+
+
+def test_real_robot_setting_explores_an_office_with_narrow_doors(tmp_path):
+    free, start = office_grid()
+    yaml_path = write_ros_map(tmp_path, free, 0.2, start)
+    ground_truth = load_map(yaml_path)
+    assert ground_truth.cell_size == 0.2
+    protocol = replace(PAPER_REAL_ROBOT, done_unknown_cells=50)  # every room must be entered
+    result = run_episode(ground_truth, make_planner("nearest_frontier"), protocol)
+    assert result.complete, result.failure
+    assert result.motion_violations == 0
+    assert result.explored_ratio > 0.99
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("planner", [p for p in planner_names() if not make_planner(p).uses_ground_truth])
+def test_every_planner_completes_generated_mazes(generated_maze_dir, planner):
+    for path in sorted(generated_maze_dir.glob("*.png")):
+        result = run_episode(load_map(path), make_planner(planner), Protocol())
+        assert result.complete, f"{planner} on {path.name}: {result.failure}"
+        assert result.motion_violations == 0
