@@ -84,7 +84,7 @@ def explore(
     from pipeline.benchmark import protocol_for_map
     from pipeline.maps import load_map
     from pipeline.planners import make_planner
-    from pipeline.render import EpisodeRecorder, render_final, save_png
+    from pipeline.render import EpisodeRecorder, render_final
     from pipeline.simulator import run_episode
     from pipeline.trajectories import write_metrics_csv, write_trajectory_csv
 
@@ -97,13 +97,15 @@ def explore(
     except KeyError as error:
         _fail(str(error.args[0]))
     protocol = protocol_for_map(protocol, ground_truth)
-    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), planner_name=planner) if gif else None
+    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=planner) if gif else None
     result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=recorder)
     out.mkdir(parents=True, exist_ok=True)
     write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)
     write_metrics_csv(out / "metrics.csv", [result.metrics_row()])
-    final = render_final(ground_truth, result, belief=_final_belief(ground_truth, result, protocol), graph=getattr(agent, "graph", None))
-    save_png(final, out / f"{ground_truth.name}.png")
+    render_final(
+        result, ground_truth, _final_belief(ground_truth, result, protocol),
+        graph=getattr(agent, "graph", None), path=out / f"{ground_truth.name}.png",
+    )
     if recorder is not None:
         recorder.save_gif(out / f"{ground_truth.name}.gif")
     status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"

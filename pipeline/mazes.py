@@ -11,6 +11,7 @@ with 127 for wall, 195 for free and 208 for the free start block, which is what
 
 from __future__ import annotations
 
+import heapq
 import math
 import os
 import tempfile
@@ -29,7 +30,13 @@ MIN_SIDE_BLOCKS = 5  # ring + two corridors + the wall between them
 MIN_BLOCK_PIXELS = 9  # a start block must keep >= 11 whole 208 cells after the 2x2 reduction
 _INTEGER_TOLERANCE = 1e-6
 
-_NEWEST_BIAS = 0.75  # growing-tree: chance to extend the newest corridor (depth-first) vs a random one
+AREA_UNIT_M = 100.0  # `rooms` and `extra_loops` are counts per AREA_UNIT_M x AREA_UNIT_M
+_START_ZONE = (0.3, 0.7)  # the start room's centre lies in this middle share of each side
+_ROOM_ATTEMPTS = 60
+_MERGE_CHANCE = 0.35
+_JITTER = 1.0
+_BESIDE_PENALTY = 1.5
+_LOOP_MIN_DETOUR = 8
 _STEPS = ((-1, 0), (1, 0), (0, -1), (0, 1))
 
 
@@ -46,8 +53,8 @@ class MazeConfig:
     side_m: tuple[float, float]
     block_m: float = 5.0
     cell_size: float = 0.4
-    rooms: tuple[int, int] = (3, 7)
-    room_blocks: tuple[int, int] = (2, 3)
+    rooms: tuple[int, int] = (14, 20)
+    room_blocks: tuple[int, int] = (2, 4)
     extra_loops: int = 4
     free_fraction: tuple[float, float] = (0.36, 0.44)
 
@@ -136,112 +143,161 @@ def _pair(value: object, name: str, kind: type) -> tuple:
     return tuple(items)
 
 
-def _carve_corridors(free: np.ndarray, rng: np.random.Generator) -> None:
-    """Carve a perfect maze over the odd block positions (growing tree).
+def _scaled_count(per_100m: tuple[int, int], side_m: float, rng: np.random.Generator) -> int:
+    """Draw a count from a per-100 m x 100 m range and scale it by the maze's area."""
+    drawn = int(rng.integers(per_100m[0], per_100m[1] + 1))
+    return int(round(drawn * (side_m / AREA_UNIT_M) ** 2))
 
-    Mostly depth-first (long winding corridors) with some random picks (side branches) gives
-    corridor layouts closer to the samples than either alone.
+
+def _place_rooms(n: int, count: int, config: MazeConfig, rng: np.random.Generator) -> np.ndarray:
+    """Lay out `count` rooms; return the region label of every block (-1 = wall).
+
+    Room 0 is the 3 x 3 start room near the middle. A room keeps at least one wall block
+    from the others, except that with chance _MERGE_CHANCE it may touch or overlap one and
+    the two become one larger (L-shaped, T-shaped ...) area.
     """
-    n = free.shape[0]
-    nodes = range(1, n - 1, 2)
-    last = nodes[-1]
-    start = (int(rng.choice(nodes)), int(rng.choice(nodes)))
-    free[start] = True
-    active = [start]
-    while active:
-        index = len(active) - 1 if rng.random() < _NEWEST_BIAS else int(rng.integers(len(active)))
-        row, col = active[index]
-        options = [
-            (row + 2 * dr, col + 2 * dc, dr, dc)
-            for dr, dc in _STEPS
-            if 1 <= row + 2 * dr <= last and 1 <= col + 2 * dc <= last and not free[row + 2 * dr, col + 2 * dc]
-        ]
-        if not options:
-            active.pop(index)
-            continue
-        next_row, next_col, dr, dc = options[int(rng.integers(len(options)))]
-        free[row + dr, col + dc] = True
-        free[next_row, next_col] = True
-        active.append((next_row, next_col))
-
-
-def _carve_rooms(free: np.ndarray, config: MazeConfig, rng: np.random.Generator) -> np.ndarray:
-    """Carve rectangular rooms inside the wall ring, preferring rooms that do not touch.
-
-    Every room is at least 2x2 blocks, so it covers a maze node and joins the corridors.
-    """
-    n = free.shape[0]
-    count = int(rng.integers(config.rooms[0], config.rooms[1] + 1))
-    taken = np.zeros_like(free)
-    for _ in range(count):
-        for attempt in range(50):
-            height, width = (int(v) for v in rng.integers(config.room_blocks[0], config.room_blocks[1] + 1, size=2))
+    region = np.full((n, n), -1, dtype=np.int32)
+    middle_low, middle_high = max(1, int(n * _START_ZONE[0]) - 1), min(n - 4, int(n * _START_ZONE[1]) - 1)
+    top = int(rng.integers(middle_low, max(middle_low, middle_high) + 1))
+    left = int(rng.integers(middle_low, max(middle_low, middle_high) + 1))
+    region[top : top + 3, left : left + 3] = 0
+    labels = 1
+    low, high = config.room_blocks
+    for _ in range(count - 1):
+        for _attempt in range(_ROOM_ATTEMPTS):
+            height, width = (int(v) for v in rng.integers(low, high + 1, size=2))
             top = int(rng.integers(1, n - height))  # rows 1 .. n-1-height, so the room ends by row n-2
             left = int(rng.integers(1, n - width))
-            # Keep a one-block margin from other rooms so rooms stay distinct; give up on that late.
-            margin = taken[max(top - 1, 0) : top + height + 1, max(left - 1, 0) : left + width + 1]
-            if not margin.any() or attempt == 49:
+            near = region[top - 1 : top + height + 1, left - 1 : left + width + 1]
+            touched = np.unique(near[near >= 0])
+            if touched.size == 0:
+                region[top : top + height, left : left + width] = labels
+                labels += 1
                 break
-        free[top : top + height, left : left + width] = True
-        taken[top : top + height, left : left + width] = True
-    return taken
+            if touched.size == 1 and rng.random() < _MERGE_CHANCE:
+                inside = region[top : top + height, left : left + width]
+                if (inside >= 0).sum() <= inside.size // 2:  # grow the area, do not just pad it
+                    region[top : top + height, left : left + width] = touched[0]
+                    break
+    # Relabel by 4-connected component (a merged room may touch its partner only at a corner).
+    _, components = cv2.connectedComponents((region >= 0).astype(np.uint8), connectivity=4)
+    start_label = components[region == 0][0]
+    relabelled = np.where(region >= 0, components, -1)
+    relabelled[components == start_label] = 0
+    relabelled[(components == 0) & (region >= 0)] = start_label
+    return relabelled
 
 
-def _prune_dead_ends(free: np.ndarray, keep: np.ndarray, target: int, rng: np.random.Generator) -> None:
-    """Wall up dead-end blocks (one free neighbour, not in `keep`) until `target` blocks stay free.
+def _cheapest_path(tree: np.ndarray, free: np.ndarray, cost: np.ndarray) -> list[tuple[int, int]]:
+    """Wall blocks of the cheapest path from `tree` to the nearest free block outside it."""
+    n = free.shape[0]
+    best = np.full((n, n), np.inf)
+    parent: dict[tuple[int, int], tuple[int, int]] = {}
+    heap = []
+    for row, col in np.argwhere(tree):
+        best[row, col] = 0.0
+        heap.append((0.0, int(row), int(col)))
+    heapq.heapify(heap)
+    while heap:
+        dist, row, col = heapq.heappop(heap)
+        if dist > best[row, col]:
+            continue
+        if free[row, col] and not tree[row, col]:
+            path = []
+            cell = parent.get((row, col))
+            while cell is not None and not tree[cell]:
+                path.append(cell)
+                cell = parent.get(cell)
+            return path
+        if free[row, col] and dist > 0:
+            continue
+        for dr, dc in _STEPS:
+            r, c = row + dr, col + dc
+            if not (1 <= r < n - 1 and 1 <= c < n - 1) or tree[r, c]:
+                continue
+            step = 0.0 if free[r, c] else cost[r, c]
+            if dist + step < best[r, c]:
+                best[r, c] = dist + step
+                parent[(r, c)] = (row, col)
+                heapq.heappush(heap, (dist + step, r, c))
+    raise RuntimeError("maze generator bug: a room cannot be reached")
 
-    Removing a block with a single free neighbour never disconnects the rest, so the free
-    space stays one component; shrinking all dead ends together in random order shortens
-    branches evenly and leaves solid wall regions like those of the samples.
+
+def _connect_regions(region: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Join every region to the start room with corridors; return the free blocks.
+
+    Prim-like: the region nearest to the connected part is joined next, by the cheapest
+    path through wall, where each wall block costs 1 plus a random jitter (so corridors
+    meander) plus a penalty for running alongside free blocks (so corridors stay one block
+    wide and keep a wall between them and the rooms). Rooms one block apart get a doorway.
     """
-    while free.sum() > target:
+    free = region >= 0
+    jitter = 1.0 + _JITTER * rng.random(free.shape)
+    tree = region == 0
+    while (free & ~tree).any():
         padded = np.pad(free, 1)
-        degree = (
-            padded[:-2, 1:-1].astype(np.int8) + padded[2:, 1:-1] + padded[1:-1, :-2] + padded[1:-1, 2:]
-        )
-        dead_ends = np.argwhere(free & ~keep & (degree == 1))
-        if dead_ends.size == 0:
-            return
-        removed = False
-        for row, col in dead_ends[rng.permutation(len(dead_ends))]:
-            if free.sum() <= target:
-                return
-            neighbours = sum(
-                bool(free[row + dr, col + dc])
-                for dr, dc in _STEPS
-                if 0 <= row + dr < free.shape[0] and 0 <= col + dc < free.shape[1]
-            )
-            if neighbours == 1:
-                free[row, col] = False
-                removed = True
-        if not removed:
-            return
+        beside = padded[:-2, 1:-1].astype(np.int8) + padded[2:, 1:-1] + padded[1:-1, :-2] + padded[1:-1, 2:]
+        cost = jitter + _BESIDE_PENALTY * beside
+        path = _cheapest_path(tree, free, cost)
+        for cell in path:
+            free[cell] = True
+        reached = set()
+        for row, col in path:
+            for dr, dc in _STEPS:
+                if region[row + dr, col + dc] >= 0:
+                    reached.add(int(region[row + dr, col + dc]))
+        if not path:
+            raise RuntimeError("maze generator bug: empty corridor")
+        tree[tuple(np.array(path).T)] = True
+        for label in reached:
+            tree |= region == label
+        # Corridor blocks of earlier corridors touched by this one belong to the tree already.
+    return free
+
+
+def _geodesic(free: np.ndarray, source: tuple[int, int]) -> np.ndarray:
+    """Steps from `source` to every free block (4-connected); -1 where unreachable."""
+    dist = np.full(free.shape, -1, dtype=np.int32)
+    dist[source] = 0
+    frontier = [source]
+    while frontier:
+        nxt = []
+        for row, col in frontier:
+            for dr, dc in _STEPS:
+                r, c = row + dr, col + dc
+                if free[r, c] and dist[r, c] < 0:
+                    dist[r, c] = dist[row, col] + 1
+                    nxt.append((r, c))
+        frontier = nxt
+    return dist
 
 
 def _open_loops(free: np.ndarray, count: int, rng: np.random.Generator) -> None:
-    """Open up to `count` wall blocks that separate two free blocks in a straight line.
-
-    The free space is already connected, so each opening closes a loop. Walls whose other
-    two neighbours are wall are preferred: opening them makes a doorway, not a blob.
-    """
+    """Open up to `count` doorways: wall blocks between two free blocks in a straight line
+    whose walk around is at least _LOOP_MIN_DETOUR blocks, so each one closes a real loop."""
     for _ in range(count):
         inner = free[1:-1, 1:-1]
         up, down = free[:-2, 1:-1], free[2:, 1:-1]
         left, right = free[1:-1, :-2], free[1:-1, 2:]
-        across = (left & right) | (up & down)
         doorway = ((left & right) & ~up & ~down) | ((up & down) & ~left & ~right)
-        candidates = np.argwhere(~inner & doorway)
-        if candidates.size == 0:
-            candidates = np.argwhere(~inner & across)
-        if candidates.size == 0:
+        candidates = np.argwhere(~inner & doorway) + 1
+        good = []
+        for row, col in candidates[rng.permutation(len(candidates))]:
+            if free[row, col - 1] and free[row, col + 1]:
+                a, b = (row, col - 1), (row, col + 1)
+            else:
+                a, b = (row - 1, col), (row + 1, col)
+            if _geodesic(free, a)[b] >= _LOOP_MIN_DETOUR:
+                good.append((row, col))
+                break
+        if not good:
             return
-        row, col = candidates[int(rng.integers(len(candidates)))] + 1
-        free[row, col] = True
+        free[good[0]] = True
 
 
 def _fill_pillars(free: np.ndarray) -> None:
-    """Free single wall blocks with four free neighbours: rooms laid over corridors leave such
-    1x1 pillars, which the samples almost never have. Filling one cannot disconnect anything."""
+    """Free single wall blocks with four free neighbours (1 x 1 pillars, which the samples
+    almost never have). Filling one cannot disconnect anything."""
     inner = free[1:-1, 1:-1]
     pillars = ~inner & free[:-2, 1:-1] & free[2:, 1:-1] & free[1:-1, :-2] & free[1:-1, 2:]
     inner |= pillars
@@ -256,24 +312,27 @@ def generate_block_grid(config: MazeConfig, rng: np.random.Generator) -> tuple[n
     """Draw one maze as a boolean block grid (True = free) and its start block (row, col)."""
     low, high = config.side_blocks
     n = int(rng.integers(low, high + 1))
-    free = np.zeros((n, n), dtype=bool)
-    _carve_corridors(free, rng)
-    rooms = _carve_rooms(free, config, rng)
-    target = int(round(rng.uniform(*config.free_fraction) * n * n))
-    _prune_dead_ends(free, rooms, target, rng)
-    _open_loops(free, config.extra_loops, rng)
+    side_m = n * config.block_m
+    rooms = max(1, _scaled_count(config.rooms, side_m, rng))
+    region = _place_rooms(n, rooms, config, rng)
+    free = _connect_regions(region, rng)
+    _open_loops(free, _scaled_count((config.extra_loops, config.extra_loops), side_m, rng), rng)
     _fill_pillars(free)
-    # With an even side the lattice leaves a spare wall line on the bottom/right; a random
-    # rotation and flip spread it (and the layout's biases) over all four sides.
-    free = np.rot90(free, int(rng.integers(4)))
-    if rng.random() < 0.5:
-        free = free[:, ::-1]
-    free = np.ascontiguousarray(free)
+    start_rows, start_cols = np.nonzero(region == 0)
+    start = np.zeros_like(free)
+    start[int(start_rows.mean()), int(start_cols.mean())] = True
+    # A random rotation and flip spread any bias of the layout over all four sides.
+    turns = int(rng.integers(4))
+    flip = rng.random() < 0.5
+    grids = []
+    for grid in (free, start):
+        grid = np.rot90(grid, turns)
+        grids.append(np.ascontiguousarray(grid[:, ::-1] if flip else grid))
+    free, start_mask = grids
     if free[0].any() or free[-1].any() or free[:, 0].any() or free[:, -1].any() or not _is_connected(free):
         raise RuntimeError("maze generator bug: free space touches the border ring or is disconnected")
-    free_blocks = np.argwhere(free)
-    start = free_blocks[int(rng.integers(len(free_blocks)))]
-    return free, (int(start[0]), int(start[1]))
+    row, col = np.argwhere(start_mask)[0]
+    return free, (int(row), int(col))
 
 
 def render_maze(free: np.ndarray, start: tuple[int, int], block_pixels: int) -> np.ndarray:
