@@ -1,0 +1,50 @@
+"""End to end: `dvc repro` on a fresh copy of the project with a tiny profile."""
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def git(cwd: Path, *args: str) -> None:
+    subprocess.run(["git", "-c", "user.name=ci", "-c", "user.email=ci@example.com", *args], cwd=cwd, check=True, capture_output=True)
+
+
+@pytest.mark.slow
+def test_dvc_repro_on_a_fresh_copy(tmp_path):
+    if shutil.which("dvc") is None:
+        pytest.fail("dvc is a dependency of the project and must be installed")
+    tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, check=True, capture_output=True, text=True).stdout.split()
+    project = tmp_path / "project"
+    for name in tracked:
+        if (ROOT / name).is_file():
+            (project / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, project / name)
+    params = yaml.safe_load((project / "params.yaml").read_text())
+    params["mazes"]["train"]["count"] = 1
+    params["mazes"]["test"]["count"] = 2
+    params["mazes"]["test"]["side_m"] = [50, 50]
+    params["mazes"]["train"]["side_m"] = [50, 60]
+    (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+    git(project, "init", "-q")
+    git(project, "add", "-A")
+    git(project, "commit", "-qm", "copy")
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1", "MLFLOW_DISABLE_TELEMETRY": "true", "MLFLOW_TRACKING_URI": ""}
+    env.pop("MLFLOW_TRACKING_URI")
+    run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
+    metrics = json.loads((project / "reports/benchmark.json").read_text())
+    assert set(metrics) == set(params["benchmark"]["planners"])
+    assert all(m["completion_rate"] == 1.0 for m in metrics.values())
+    for figure in ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png"):
+        assert (project / figure).stat().st_size > 1000
+    assert (project / "mlflow.db").is_file()
+    again = subprocess.run(["dvc", "status"], cwd=project, env=env, capture_output=True, text=True)
+    assert "up to date" in again.stdout.lower() or again.stdout.strip() == "", again.stdout
