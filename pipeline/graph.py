@@ -96,6 +96,11 @@ class LatticeGraph:
         self.region_frontier = np.zeros(self.region_shape, dtype=np.int64)
 
     # ----------------------------------------------------------------- construction
+    @property
+    def lattice_shape(self) -> tuple[int, int]:
+        """(rows, cols) of the lattice; node ids run row-major over it (rows along y)."""
+        return self._id_grid.shape  # type: ignore[return-value]
+
     def node_id(self, i: int, j: int) -> int:
         """Node id of lattice index (i, j), or -1 outside the lattice."""
         col = i - self.lattice_i[0]

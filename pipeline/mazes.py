@@ -11,7 +11,6 @@ with 127 for wall, 195 for free and 208 for the free start block, which is what
 
 from __future__ import annotations
 
-import heapq
 import math
 import os
 import tempfile
@@ -30,14 +29,26 @@ MIN_SIDE_BLOCKS = 5  # ring + two corridors + the wall between them
 MIN_BLOCK_PIXELS = 9  # a start block must keep >= 11 whole 208 cells after the 2x2 reduction
 _INTEGER_TOLERANCE = 1e-6
 
-AREA_UNIT_M = 100.0  # `rooms` and `extra_loops` are counts per AREA_UNIT_M x AREA_UNIT_M
-_START_ZONE = (0.3, 0.7)  # the start room's centre lies in this middle share of each side
-_ROOM_ATTEMPTS = 60
-_MERGE_CHANCE = 0.35
-_JITTER = 1.0
-_BESIDE_PENALTY = 1.5
-_LOOP_MIN_DETOUR = 8
+AREA_UNIT_M = 100.0  # `rooms` and `extra_loops` are counts per AREA_UNIT_M x AREA_UNIT_M of maze
+_START_ROOM_MIN = 3  # the start block is the centre of a room at least this many blocks a side
+_START_ZONE = (0.3, 0.7)  # ... and the start room's centre lies in this middle share of each side
+_CHILD_ATTEMPTS = 12  # placements tried beside a room before it counts as boxed in
+_ROOM_SIDE_P = 0.5  # a room side is low + Binomial(high - low, p) blocks: middle sizes are commonest
+_NEWEST_BIAS = 0.5  # chance to grow from the newest room (long chains) rather than a random one
+_LOOP_MIN_DETOUR = 6  # an extra door must close a loop at least this many blocks around
 _STEPS = ((-1, 0), (1, 0), (0, -1), (0, 1))
+
+
+@dataclass(frozen=True)
+class _Room:
+    top: int
+    left: int
+    height: int
+    width: int
+
+    @property
+    def slices(self) -> tuple[slice, slice]:
+        return slice(self.top, self.top + self.height), slice(self.left, self.left + self.width)
 
 
 @dataclass(frozen=True)
@@ -53,9 +64,9 @@ class MazeConfig:
     side_m: tuple[float, float]
     block_m: float = 5.0
     cell_size: float = 0.4
-    rooms: tuple[int, int] = (14, 20)
+    rooms: tuple[int, int] = (17, 21)
     room_blocks: tuple[int, int] = (2, 4)
-    extra_loops: int = 4
+    extra_loops: int = 1
     free_fraction: tuple[float, float] = (0.36, 0.44)
 
     def __post_init__(self) -> None:
@@ -143,116 +154,82 @@ def _pair(value: object, name: str, kind: type) -> tuple:
     return tuple(items)
 
 
-def _scaled_count(per_100m: tuple[int, int], side_m: float, rng: np.random.Generator) -> int:
-    """Draw a count from a per-100 m x 100 m range and scale it by the maze's area."""
-    drawn = int(rng.integers(per_100m[0], per_100m[1] + 1))
+def _scaled_count(per_area: tuple[int, int], side_m: float, rng: np.random.Generator) -> int:
+    """Draw a count from a range given per AREA_UNIT_M x AREA_UNIT_M and scale it by the maze's area."""
+    drawn = int(rng.integers(per_area[0], per_area[1] + 1))
     return int(round(drawn * (side_m / AREA_UNIT_M) ** 2))
 
 
-def _place_rooms(n: int, count: int, config: MazeConfig, rng: np.random.Generator) -> np.ndarray:
-    """Lay out `count` rooms; return the region label of every block (-1 = wall).
-
-    Room 0 is the 3 x 3 start room near the middle. A room keeps at least one wall block
-    from the others, except that with chance _MERGE_CHANCE it may touch or overlap one and
-    the two become one larger (L-shaped, T-shaped ...) area.
-    """
-    region = np.full((n, n), -1, dtype=np.int32)
-    middle_low, middle_high = max(1, int(n * _START_ZONE[0]) - 1), min(n - 4, int(n * _START_ZONE[1]) - 1)
-    top = int(rng.integers(middle_low, max(middle_low, middle_high) + 1))
-    left = int(rng.integers(middle_low, max(middle_low, middle_high) + 1))
-    region[top : top + 3, left : left + 3] = 0
-    labels = 1
-    low, high = config.room_blocks
-    for _ in range(count - 1):
-        for _attempt in range(_ROOM_ATTEMPTS):
-            height, width = (int(v) for v in rng.integers(low, high + 1, size=2))
-            top = int(rng.integers(1, n - height))  # rows 1 .. n-1-height, so the room ends by row n-2
-            left = int(rng.integers(1, n - width))
-            near = region[top - 1 : top + height + 1, left - 1 : left + width + 1]
-            touched = np.unique(near[near >= 0])
-            if touched.size == 0:
-                region[top : top + height, left : left + width] = labels
-                labels += 1
-                break
-            if touched.size == 1 and rng.random() < _MERGE_CHANCE:
-                inside = region[top : top + height, left : left + width]
-                if (inside >= 0).sum() <= inside.size // 2:  # grow the area, do not just pad it
-                    region[top : top + height, left : left + width] = touched[0]
-                    break
-    # Relabel by 4-connected component (a merged room may touch its partner only at a corner).
-    _, components = cv2.connectedComponents((region >= 0).astype(np.uint8), connectivity=4)
-    start_label = components[region == 0][0]
-    relabelled = np.where(region >= 0, components, -1)
-    relabelled[components == start_label] = 0
-    relabelled[(components == 0) & (region >= 0)] = start_label
-    return relabelled
+def _start_room(n: int, config: MazeConfig, rng: np.random.Generator) -> _Room:
+    """A room at least 3 x 3 blocks (so its centre block has eight free neighbours) whose
+    centre lies in the middle part of the maze, where the samples put their start."""
+    top_side = max(_START_ROOM_MIN, min(config.room_blocks[1], n - 2))
+    height, width = (int(v) for v in rng.integers(_START_ROOM_MIN, top_side + 1, size=2))
+    rows, cols = [], []
+    for size, out in ((height, rows), (width, cols)):
+        first = max(1, int(round(n * _START_ZONE[0] - size / 2)))
+        last = min(n - 1 - size, int(round(n * _START_ZONE[1] - size / 2)))
+        out.append(int(rng.integers(first, max(first, last) + 1)))
+    return _Room(rows[0], cols[0], height, width)
 
 
-def _cheapest_path(tree: np.ndarray, free: np.ndarray, cost: np.ndarray) -> list[tuple[int, int]]:
-    """Wall blocks of the cheapest path from `tree` to the nearest free block outside it."""
+def _try_child(
+    free: np.ndarray, parent: _Room, config: MazeConfig, rng: np.random.Generator
+) -> tuple[_Room, tuple[int, int]] | None:
+    """A random room beside `parent` across a one-block wall, and the door block joining
+    them; None if it does not fit (outside the wall ring, or touching any other free block)."""
     n = free.shape[0]
-    best = np.full((n, n), np.inf)
-    parent: dict[tuple[int, int], tuple[int, int]] = {}
-    heap = []
-    for row, col in np.argwhere(tree):
-        best[row, col] = 0.0
-        heap.append((0.0, int(row), int(col)))
-    heapq.heapify(heap)
-    while heap:
-        dist, row, col = heapq.heappop(heap)
-        if dist > best[row, col]:
-            continue
-        if free[row, col] and not tree[row, col]:
-            path = []
-            cell = parent.get((row, col))
-            while cell is not None and not tree[cell]:
-                path.append(cell)
-                cell = parent.get(cell)
-            return path
-        if free[row, col] and dist > 0:
-            continue
-        for dr, dc in _STEPS:
-            r, c = row + dr, col + dc
-            if not (1 <= r < n - 1 and 1 <= c < n - 1) or tree[r, c]:
-                continue
-            step = 0.0 if free[r, c] else cost[r, c]
-            if dist + step < best[r, c]:
-                best[r, c] = dist + step
-                parent[(r, c)] = (row, col)
-                heapq.heappush(heap, (dist + step, r, c))
-    raise RuntimeError("maze generator bug: a room cannot be reached")
+    low, high = config.room_blocks
+    height, width = (int(v) for v in low + rng.binomial(high - low, _ROOM_SIDE_P, size=2))
+    side = int(rng.integers(4))
+    if side < 2:  # above or below: the rooms share at least one column
+        top = parent.top - 1 - height if side == 0 else parent.top + parent.height + 1
+        left = int(rng.integers(parent.left - width + 1, parent.left + parent.width))
+        door_row = top + height if side == 0 else top - 1
+        door_col = int(rng.integers(max(left, parent.left), min(left + width, parent.left + parent.width)))
+    else:  # left or right: the rooms share at least one row
+        left = parent.left - 1 - width if side == 2 else parent.left + parent.width + 1
+        top = int(rng.integers(parent.top - height + 1, parent.top + parent.height))
+        door_col = left + width if side == 2 else left - 1
+        door_row = int(rng.integers(max(top, parent.top), min(top + height, parent.top + parent.height)))
+    if top < 1 or left < 1 or top + height > n - 1 or left + width > n - 1:
+        return None
+    # The room and the wall ring around it must be solid wall, so rooms never touch.
+    if free[top - 1 : top + height + 1, left - 1 : left + width + 1].any():
+        return None
+    return _Room(top, left, height, width), (door_row, door_col)
 
 
-def _connect_regions(region: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Join every region to the start room with corridors; return the free blocks.
+def _grow_rooms(n: int, count: int, config: MazeConfig, rng: np.random.Generator) -> tuple[np.ndarray, _Room]:
+    """Lay out up to `count` rooms as a tree grown from the start room; return the free
+    blocks and the start room.
 
-    Prim-like: the region nearest to the connected part is joined next, by the cheapest
-    path through wall, where each wall block costs 1 plus a random jitter (so corridors
-    meander) plus a penalty for running alongside free blocks (so corridors stay one block
-    wide and keep a wall between them and the rooms). Rooms one block apart get a doorway.
+    Each new room sits one wall block away from an earlier room (usually the newest, which
+    makes chains of rooms, else a random one, which makes branches) and is joined to it by
+    a one-block door. A room that has no space left around it after _CHILD_ATTEMPTS tries
+    stops growing. Rooms never touch one another, so every free block is in a rectangular
+    room or is a door, as in the samples.
     """
-    free = region >= 0
-    jitter = 1.0 + _JITTER * rng.random(free.shape)
-    tree = region == 0
-    while (free & ~tree).any():
-        padded = np.pad(free, 1)
-        beside = padded[:-2, 1:-1].astype(np.int8) + padded[2:, 1:-1] + padded[1:-1, :-2] + padded[1:-1, 2:]
-        cost = jitter + _BESIDE_PENALTY * beside
-        path = _cheapest_path(tree, free, cost)
-        for cell in path:
-            free[cell] = True
-        reached = set()
-        for row, col in path:
-            for dr, dc in _STEPS:
-                if region[row + dr, col + dc] >= 0:
-                    reached.add(int(region[row + dr, col + dc]))
-        if not path:
-            raise RuntimeError("maze generator bug: empty corridor")
-        tree[tuple(np.array(path).T)] = True
-        for label in reached:
-            tree |= region == label
-        # Corridor blocks of earlier corridors touched by this one belong to the tree already.
-    return free
+    free = np.zeros((n, n), dtype=bool)
+    start = _start_room(n, config, rng)
+    free[start.slices] = True
+    growing = [start]
+    placed = 1
+    while placed < count and growing:
+        index = len(growing) - 1 if rng.random() < _NEWEST_BIAS else int(rng.integers(len(growing)))
+        for _ in range(_CHILD_ATTEMPTS):
+            child = _try_child(free, growing[index], config, rng)
+            if child is not None:
+                break
+        if child is None:
+            growing.pop(index)
+            continue
+        room, door = child
+        free[room.slices] = True
+        free[door] = True
+        growing.append(room)
+        placed += 1
+    return free, start
 
 
 def _geodesic(free: np.ndarray, source: tuple[int, int]) -> np.ndarray:
@@ -261,46 +238,39 @@ def _geodesic(free: np.ndarray, source: tuple[int, int]) -> np.ndarray:
     dist[source] = 0
     frontier = [source]
     while frontier:
-        nxt = []
+        following = []
         for row, col in frontier:
             for dr, dc in _STEPS:
                 r, c = row + dr, col + dc
                 if free[r, c] and dist[r, c] < 0:
                     dist[r, c] = dist[row, col] + 1
-                    nxt.append((r, c))
-        frontier = nxt
+                    following.append((r, c))
+        frontier = following
     return dist
 
 
 def _open_loops(free: np.ndarray, count: int, rng: np.random.Generator) -> None:
-    """Open up to `count` doorways: wall blocks between two free blocks in a straight line
-    whose walk around is at least _LOOP_MIN_DETOUR blocks, so each one closes a real loop."""
+    """Open up to `count` extra doors, each closing a loop at least _LOOP_MIN_DETOUR blocks long.
+
+    A door is a wall block between two free blocks in a straight line whose other two
+    neighbours are wall; the free space is connected already, so each one adds a loop.
+    """
     for _ in range(count):
         inner = free[1:-1, 1:-1]
         up, down = free[:-2, 1:-1], free[2:, 1:-1]
         left, right = free[1:-1, :-2], free[1:-1, 2:]
         doorway = ((left & right) & ~up & ~down) | ((up & down) & ~left & ~right)
         candidates = np.argwhere(~inner & doorway) + 1
-        good = []
         for row, col in candidates[rng.permutation(len(candidates))]:
             if free[row, col - 1] and free[row, col + 1]:
                 a, b = (row, col - 1), (row, col + 1)
             else:
                 a, b = (row - 1, col), (row + 1, col)
             if _geodesic(free, a)[b] >= _LOOP_MIN_DETOUR:
-                good.append((row, col))
+                free[row, col] = True
                 break
-        if not good:
+        else:
             return
-        free[good[0]] = True
-
-
-def _fill_pillars(free: np.ndarray) -> None:
-    """Free single wall blocks with four free neighbours (1 x 1 pillars, which the samples
-    almost never have). Filling one cannot disconnect anything."""
-    inner = free[1:-1, 1:-1]
-    pillars = ~inner & free[:-2, 1:-1] & free[2:, 1:-1] & free[1:-1, :-2] & free[1:-1, 2:]
-    inner |= pillars
 
 
 def _is_connected(free: np.ndarray) -> bool:
@@ -313,25 +283,16 @@ def generate_block_grid(config: MazeConfig, rng: np.random.Generator) -> tuple[n
     low, high = config.side_blocks
     n = int(rng.integers(low, high + 1))
     side_m = n * config.block_m
-    rooms = max(1, _scaled_count(config.rooms, side_m, rng))
-    region = _place_rooms(n, rooms, config, rng)
-    free = _connect_regions(region, rng)
+    free, start_room = _grow_rooms(n, max(1, _scaled_count(config.rooms, side_m, rng)), config, rng)
     _open_loops(free, _scaled_count((config.extra_loops, config.extra_loops), side_m, rng), rng)
-    _fill_pillars(free)
-    start_rows, start_cols = np.nonzero(region == 0)
     start = np.zeros_like(free)
-    start[int(start_rows.mean()), int(start_cols.mean())] = True
+    start[start_room.top + (start_room.height - 1) // 2, start_room.left + (start_room.width - 1) // 2] = True
     # A random rotation and flip spread any bias of the layout over all four sides.
-    turns = int(rng.integers(4))
-    flip = rng.random() < 0.5
-    grids = []
-    for grid in (free, start):
-        grid = np.rot90(grid, turns)
-        grids.append(np.ascontiguousarray(grid[:, ::-1] if flip else grid))
-    free, start_mask = grids
+    turns, flip = int(rng.integers(4)), bool(rng.random() < 0.5)
+    free, start = (np.ascontiguousarray(np.rot90(g, turns)[:, ::-1] if flip else np.rot90(g, turns)) for g in (free, start))
     if free[0].any() or free[-1].any() or free[:, 0].any() or free[:, -1].any() or not _is_connected(free):
         raise RuntimeError("maze generator bug: free space touches the border ring or is disconnected")
-    row, col = np.argwhere(start_mask)[0]
+    row, col = np.argwhere(start)[0]
     return free, (int(row), int(col))
 
 

@@ -24,7 +24,12 @@ Adaptation to the lattice and the protocol:
   cell, the grid edge, or before its end cell, as the real sensor does. Because the fan is
   a subset of the real sensor's rays, a vertex the robot has sensed from has gain 0.
 - Branch value as Bircher: Gain(n_k) = Gain(n_{k-1}) + G(n_k) exp(-lambda c(n_k)), with
-  c the path length (metres) from the root along the tree.
+  c the path length (metres) from the root along the tree. The default lambda = 0.125 /m
+  weighs a view one sensor range (20 m) away by exp(-2.5) ~ 0.08; the unit-free product
+  lambda x sensor range is what carries over to other protocols.
+- Defaults: tree_size N = 40 vertices (the robot's node included), at most
+  `max_attempts_factor` x N samples per decision (a small known-free area may hold fewer
+  than N lattice nodes), `gain_threshold` = 20 cells, gains from every 4th lidar ray.
 - Fallback (not in the paper, which stops instead): when the best branch value is below
   `gain_threshold`, the local tree sees nothing worth the trip, and the planner takes one
   step along the shortest graph path to the nearest useful frontier node, exactly as
@@ -116,7 +121,7 @@ class NBVPPlanner(GraphPlanner):
     def __init__(
         self,
         tree_size: int = 40,
-        lam: float = 0.1,
+        lam: float = 0.125,
         gain_threshold: float = 20.0,
         sample_radius_factor: float = 2.0,
         ray_stride: int = 4,
@@ -131,6 +136,8 @@ class NBVPPlanner(GraphPlanner):
             raise ValueError(f"lam must be >= 0, got {lam}")
         if sample_radius_factor <= 0:
             raise ValueError(f"sample_radius_factor must be positive, got {sample_radius_factor}")
+        if ray_stride < 1:
+            raise ValueError(f"ray_stride must be >= 1, got {ray_stride}")
         if max_attempts_factor < 1:
             raise ValueError(f"max_attempts_factor must be >= 1, got {max_attempts_factor}")
         self.tree_size = int(tree_size)
@@ -164,12 +171,6 @@ class NBVPPlanner(GraphPlanner):
     @staticmethod
     def _slot(di, dj):
         return (dj + WINDOW_RADIUS) * WINDOW + (di + WINDOW_RADIUS)
-
-    def _lattice_node(self, i: int, j: int) -> int:
-        col, row = i - self._i0, j - self._j0
-        if 0 <= row < self._id_grid_shape[0] and 0 <= col < self._id_grid_shape[1]:
-            return row * self._id_grid_shape[1] + col
-        return -1
 
     def _edge_ok(self, a: int, b: int) -> bool:
         """True when a-b is a valid graph edge (known-free segment, 5x5 window)."""
@@ -225,30 +226,71 @@ class NBVPPlanner(GraphPlanner):
         samples = self.rng.uniform(0.0, 1.0, size=(attempts, 2))
         samples[:, 0] = (x0 + samples[:, 0] * (x1 - x0)) / d
         samples[:, 1] = (y0 + samples[:, 1] * (y1 - y0)) / d
+        # The RRT loop, sample by sample, but vectorised over the samples still to come:
+        # each sample's nearest vertex is kept up to date as vertices are added (a new
+        # vertex only replaces it when strictly nearer, as an argmin over the tree would
+        # keep the earlier vertex on a tie), so the tree is the one the plain loop builds.
+        diff = samples - ij[0]
+        near_d = diff[:, 0] ** 2 + diff[:, 1] ** 2
+        near = np.zeros(attempts, dtype=np.int64)
+        for k in range(1, len(nodes)):
+            diff = samples - ij[k]
+            d2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
+            closer = d2 < near_d
+            near_d[closer], near[closer] = d2[closer], k
+        in_tree_mask = np.zeros(graph.node_count, dtype=bool)
+        in_tree_mask[nodes] = True
+        tree_nodes = np.array(nodes + [0] * (n_max + 1), dtype=np.int64)
         limit = float(WINDOW_RADIUS)
-        for si, sj in samples:
-            if len(nodes) >= n_max:
-                break
+        cursor = 0
+        chunk = 32
+        while len(nodes) < n_max and cursor < attempts:
+            window = slice(cursor, min(attempts, cursor + chunk))
+            rest = samples[window]
+            src = ij[near[window]]
+            di, dj = rest[:, 0] - src[:, 0], rest[:, 1] - src[:, 1]
+            m = np.maximum(np.abs(di), np.abs(dj))
+            over = m > limit
+            safe_m = np.where(over, m, 1.0)
+            di = np.where(over, di * limit / safe_m, di)
+            dj = np.where(over, dj * limit / safe_m, dj)
+            si = np.round(di).astype(np.int64)
+            sj = np.round(dj).astype(np.int64)
+            ti = src[:, 0].astype(np.int64) + si
+            tj = src[:, 1].astype(np.int64) + sj
+            col, row = ti - self._i0, tj - self._j0
+            inside = (row >= 0) & (row < self._id_grid_shape[0]) & (col >= 0) & (col < self._id_grid_shape[1])
+            target = np.where(inside, row * self._id_grid_shape[1] + col, 0)
+            source = tree_nodes[near[window]]
+            edge = self._edge_of[source, self._slot(si, sj)]  # |si|, |sj| <= 2 after scaling
+            ok = (
+                inside
+                & ((si != 0) | (sj != 0))
+                & ~in_tree_mask[target]
+                & (graph.node_state[target] == NODE_FREE)
+                & (edge >= 0)
+                & graph.edge_valid[np.maximum(edge, 0)]
+            )
+            hits = np.flatnonzero(ok)
+            if hits.size == 0:
+                cursor = window.stop
+                continue
+            first = int(hits[0])
+            s_idx = cursor + first
             k = len(nodes)
-            diff = ij[:k] - (si, sj)
-            near = int(np.argmin(diff[:, 0] ** 2 + diff[:, 1] ** 2))
-            ni, nj = ij[near]
-            di, dj = si - ni, sj - nj
-            m = max(abs(di), abs(dj))
-            if m > limit:
-                di, dj = di * limit / m, dj * limit / m
-            ti, tj = int(ni) + round(di), int(nj) + round(dj)
-            target = self._lattice_node(ti, tj)
-            if target < 0 or target in in_tree or graph.node_state[target] != NODE_FREE:
-                continue
-            source = nodes[near]
-            if not self._edge_ok(source, target):
-                continue
-            nodes.append(target)
-            parent.append(near)
-            cost.append(cost[near] + d * float(np.hypot(ti - ni, tj - nj)))
-            ij[k] = (ti, tj)
-            in_tree.add(target)
+            p = int(near[s_idx])
+            t = int(target[first])
+            nodes.append(t)
+            parent.append(p)
+            cost.append(cost[p] + d * float(np.hypot(si[first], sj[first])))
+            ij[k] = (ti[first], tj[first])
+            tree_nodes[k] = t
+            in_tree_mask[t] = True
+            cursor = s_idx + 1
+            diff = samples - ij[k]
+            d2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
+            closer = d2 < near_d
+            near_d[closer], near[closer] = d2[closer], k
         return np.array(nodes, dtype=np.int64), np.array(parent, dtype=np.int64), np.array(cost)
 
     def branch_values(self, gains: np.ndarray, parent: np.ndarray, cost: np.ndarray) -> np.ndarray:

@@ -1,0 +1,92 @@
+"""Node images: the lattice rasterised one pixel per node, the inpainter's input and target.
+
+255 marks a free node, 0 an obstacle node, 128 an unknown one (DARE/GUIDE's release). The
+image is centre-padded to the smallest of the paper's sizes (32, 40, 48) that holds the
+lattice; padding counts as unknown in the input and is flagged invalid so no loss is
+taken there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN, LatticeGraph
+from pipeline.sensor import FREE, OCCUPIED
+
+PIXEL_FREE, PIXEL_OBSTACLE, PIXEL_UNKNOWN = 255, 0, 128
+PAD_SIZES = (32, 40, 48)
+
+
+@dataclass(frozen=True)
+class NodeImagePair:
+    """One Stage I sample: observed node image, ground-truth node image, masks."""
+
+    observed: np.ndarray  # uint8 (S, S): 255 free, 0 obstacle, 128 unknown
+    target: np.ndarray  # uint8 (S, S): 255 free, 0 not free
+    valid: np.ndarray  # bool (S, S): inside the lattice (False on padding)
+
+    @property
+    def unknown(self) -> np.ndarray:
+        """The inpainting mask: unknown pixels inside the lattice."""
+        return (self.observed == PIXEL_UNKNOWN) & self.valid
+
+
+def node_states_image(graph: LatticeGraph, states: np.ndarray) -> np.ndarray:
+    """Rasterise per-node states (NODE_*) into the lattice's (rows = y, cols = x) image."""
+    image = np.full(graph.lattice_shape, PIXEL_UNKNOWN, dtype=np.uint8)
+    flat = image.reshape(-1)
+    flat[states == NODE_FREE] = PIXEL_FREE
+    flat[states == NODE_OCCUPIED] = PIXEL_OBSTACLE
+    return image
+
+
+def pad_size_for(shape: tuple[int, int], sizes: tuple[int, ...] = PAD_SIZES) -> int:
+    """The smallest pad size holding the lattice; larger lattices are centre-cropped to the largest."""
+    need = max(shape)
+    for size in sizes:
+        if need <= size:
+            return size
+    return sizes[-1]
+
+
+def centre_pad(image: np.ndarray, size: int, fill: int) -> tuple[np.ndarray, np.ndarray]:
+    """Centre `image` in a size x size canvas (cropping the middle if larger); returns (canvas, valid)."""
+    canvas = np.full((size, size), fill, dtype=image.dtype)
+    valid = np.zeros((size, size), dtype=bool)
+    rows, cols = image.shape
+    src_r0, src_c0 = max(0, (rows - size) // 2), max(0, (cols - size) // 2)
+    crop = image[src_r0 : src_r0 + size, src_c0 : src_c0 + size]
+    r0, c0 = (size - crop.shape[0]) // 2, (size - crop.shape[1]) // 2
+    canvas[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = crop
+    valid[r0 : r0 + crop.shape[0], c0 : c0 + crop.shape[1]] = True
+    return canvas, valid
+
+
+def ground_truth_states(graph: LatticeGraph, ground_free: np.ndarray) -> np.ndarray:
+    """Each node's true state: free where its cell is free in the ground truth, else obstacle."""
+    states = np.full(graph.node_count, NODE_OCCUPIED, dtype=np.int8)
+    states[ground_free.reshape(-1)[graph.node_flat]] = NODE_FREE
+    return states
+
+
+def belief_states(graph: LatticeGraph, belief: np.ndarray) -> np.ndarray:
+    """Each node's state in a belief grid (what `LatticeGraph.update` would set), without edges."""
+    values = belief.reshape(-1)[graph.node_flat]
+    states = np.full(graph.node_count, NODE_UNKNOWN, dtype=np.int8)
+    states[values == FREE] = NODE_FREE
+    states[values == OCCUPIED] = NODE_OCCUPIED
+    return states
+
+
+def node_image_pair(
+    graph: LatticeGraph, belief: np.ndarray, ground_free: np.ndarray, sizes: tuple[int, ...] = PAD_SIZES
+) -> NodeImagePair:
+    """The (observed, ground truth) node-image pair for a belief on the graph's lattice."""
+    observed = node_states_image(graph, belief_states(graph, belief))
+    target = node_states_image(graph, ground_truth_states(graph, ground_free))
+    size = pad_size_for(observed.shape, sizes)
+    observed_padded, valid = centre_pad(observed, size, PIXEL_UNKNOWN)
+    target_padded, _ = centre_pad(target, size, PIXEL_OBSTACLE)
+    return NodeImagePair(observed_padded, target_padded, valid)
