@@ -214,6 +214,7 @@ def _grow_rooms(n: int, count: int, config: MazeConfig, rng: np.random.Generator
     start = _start_room(n, config, rng)
     free[start.slices] = True
     growing = [start]
+    _ALL.append(start)
     placed = 1
     while placed < count and growing:
         index = len(growing) - 1 if rng.random() < _NEWEST_BIAS else int(rng.integers(len(growing)))
@@ -228,8 +229,49 @@ def _grow_rooms(n: int, count: int, config: MazeConfig, rng: np.random.Generator
         free[room.slices] = True
         free[door] = True
         growing.append(room)
+        _ALL.append(room)
         placed += 1
+    if _RETREE:
+        rooms_only = np.zeros_like(free)
+        for r in _ALL:
+            rooms_only[r.slices] = True
+        _ALL.clear()
+        free = _spanning_doors(rooms_only, rng)
     return free, start
+
+
+_ALL = []
+_RETREE = False
+
+
+def _spanning_doors(rooms: np.ndarray, rng):
+    count, labels = cv2.connectedComponents(rooms.astype(np.uint8), connectivity=4)
+    n = rooms.shape[0]
+    doors = {}
+    for row in range(1, n - 1):
+        for col in range(1, n - 1):
+            if rooms[row, col]:
+                continue
+            for (a, b), (c, d) in ((((row, col - 1), (row, col + 1)), ((row - 1, col), (row + 1, col))), (((row - 1, col), (row + 1, col)), ((row, col - 1), (row, col + 1)))):
+                if rooms[a] and rooms[b] and not rooms[c] and not rooms[d]:
+                    key = tuple(sorted((int(labels[a]), int(labels[b]))))
+                    doors.setdefault(key, []).append((row, col))
+    parent = list(range(count))
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+    free = rooms.copy()
+    keys = sorted(doors)
+    for i in rng.permutation(len(keys)):
+        a, b = keys[i]
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[ra] = rb
+            cells = doors[keys[i]]
+            free[cells[int(rng.integers(len(cells)))]] = True
+    return free
 
 
 def _geodesic(free: np.ndarray, source: tuple[int, int]) -> np.ndarray:

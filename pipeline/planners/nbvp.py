@@ -196,7 +196,10 @@ class NBVPPlanner(GraphPlanner):
         return x0, max(x0, x1), y0, max(y0, y1)
 
     def grow_tree(self, observation: Observation, root: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """RRT of lattice nodes in known free space: (nodes, parent index, path cost in metres)."""
+        """RRT of lattice nodes in known free space: (nodes, parent index, path cost in metres).
+
+        Index 0 is the root; a parent always comes before its children.
+        """
         graph = self.graph
         assert graph is not None
         d = graph.spec.node_resolution
@@ -204,93 +207,79 @@ class NBVPPlanner(GraphPlanner):
         nodes = [root]
         parent = [-1]
         cost = [0.0]
-        ij = np.zeros((n_max + len(self._branch) + 1, 2), dtype=np.float64)
-        ij[0] = graph.node_ij[root]
+        tree_ij = [(int(graph.node_ij[root][0]), int(graph.node_ij[root][1]))]
         in_tree = {root}
 
         # Bircher: the rest of the previous best branch goes back into the new tree.
         if self.reuse_best_branch and self._branch and self._branch[0] == root:
             for node in self._branch[1:]:
                 prev = nodes[-1]
-                if node in in_tree or graph.node_state[node] != NODE_FREE or not self._edge_ok(prev, node):
+                if len(nodes) >= n_max or node in in_tree:
+                    break
+                if graph.node_state[node] != NODE_FREE or not self._edge_ok(prev, node):
                     break
                 nodes.append(node)
                 parent.append(len(nodes) - 2)
                 cost.append(cost[-1] + float(np.hypot(*(graph.node_world[node] - graph.node_world[prev]))))
-                ij[len(nodes) - 1] = graph.node_ij[node]
+                tree_ij.append((int(graph.node_ij[node][0]), int(graph.node_ij[node][1])))
                 in_tree.add(node)
         self._branch = []
 
+        # All samples of this decision at once (lattice units), from the seeded rng.
         x0, x1, y0, y1 = self._sample_box(observation.belief, observation.position)
         attempts = self.max_attempts_factor * n_max
         samples = self.rng.uniform(0.0, 1.0, size=(attempts, 2))
         samples[:, 0] = (x0 + samples[:, 0] * (x1 - x0)) / d
         samples[:, 1] = (y0 + samples[:, 1] * (y1 - y0)) / d
-        # The RRT loop, sample by sample, but vectorised over the samples still to come:
-        # each sample's nearest vertex is kept up to date as vertices are added (a new
-        # vertex only replaces it when strictly nearer, as an argmin over the tree would
-        # keep the earlier vertex on a tie), so the tree is the one the plain loop builds.
-        diff = samples - ij[0]
-        near_d = diff[:, 0] ** 2 + diff[:, 1] ** 2
+
+        # Each sample's nearest tree vertex is kept up to date, vectorised over the samples,
+        # as vertices are added; a new vertex replaces it only when strictly nearer, as an
+        # argmin over the tree would keep the earlier vertex on a tie.
         near = np.zeros(attempts, dtype=np.int64)
-        for k in range(1, len(nodes)):
-            diff = samples - ij[k]
+        near_d = np.full(attempts, np.inf)
+
+        def add_to_nearest(k: int) -> None:
+            diff = samples - tree_ij[k]
             d2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
             closer = d2 < near_d
-            near_d[closer], near[closer] = d2[closer], k
-        in_tree_mask = np.zeros(graph.node_count, dtype=bool)
-        in_tree_mask[nodes] = True
-        tree_nodes = np.array(nodes + [0] * (n_max + 1), dtype=np.int64)
+            near_d[closer] = d2[closer]
+            near[closer] = k
+
+        for k in range(len(nodes)):
+            add_to_nearest(k)
+
+        node_free = (graph.node_state == NODE_FREE).tolist()
+        edge_valid = graph.edge_valid
+        edge_of = self._edge_of
+        rows, cols = self._id_grid_shape
+        i0, j0 = self._i0, self._j0
         limit = float(WINDOW_RADIUS)
-        cursor = 0
-        chunk = 32
-        while len(nodes) < n_max and cursor < attempts:
-            window = slice(cursor, min(attempts, cursor + chunk))
-            rest = samples[window]
-            src = ij[near[window]]
-            di, dj = rest[:, 0] - src[:, 0], rest[:, 1] - src[:, 1]
-            m = np.maximum(np.abs(di), np.abs(dj))
-            over = m > limit
-            safe_m = np.where(over, m, 1.0)
-            di = np.where(over, di * limit / safe_m, di)
-            dj = np.where(over, dj * limit / safe_m, dj)
-            si = np.round(di).astype(np.int64)
-            sj = np.round(dj).astype(np.int64)
-            ti = src[:, 0].astype(np.int64) + si
-            tj = src[:, 1].astype(np.int64) + sj
-            col, row = ti - self._i0, tj - self._j0
-            inside = (row >= 0) & (row < self._id_grid_shape[0]) & (col >= 0) & (col < self._id_grid_shape[1])
-            target = np.where(inside, row * self._id_grid_shape[1] + col, 0)
-            source = tree_nodes[near[window]]
-            edge = self._edge_of[source, self._slot(si, sj)]  # |si|, |sj| <= 2 after scaling
-            ok = (
-                inside
-                & ((si != 0) | (sj != 0))
-                & ~in_tree_mask[target]
-                & (graph.node_state[target] == NODE_FREE)
-                & (edge >= 0)
-                & graph.edge_valid[np.maximum(edge, 0)]
-            )
-            hits = np.flatnonzero(ok)
-            if hits.size == 0:
-                cursor = window.stop
-                continue
-            first = int(hits[0])
-            s_idx = cursor + first
-            k = len(nodes)
+        for s_idx, (si, sj) in enumerate(samples.tolist()):
+            if len(nodes) >= n_max:
+                break
             p = int(near[s_idx])
-            t = int(target[first])
-            nodes.append(t)
+            ni, nj = tree_ij[p]
+            # Steer: keep the direction, at most WINDOW_RADIUS lattice steps per axis.
+            di, dj = si - ni, sj - nj
+            m = max(abs(di), abs(dj))
+            if m > limit:
+                di, dj = di * limit / m, dj * limit / m
+            di, dj = round(di), round(dj)  # half to even, as numpy rounds
+            ti, tj = ni + di, nj + dj
+            if (di == 0 and dj == 0) or not (0 <= ti - i0 < cols and 0 <= tj - j0 < rows):
+                continue
+            target = (tj - j0) * cols + (ti - i0)
+            if target in in_tree or not node_free[target]:
+                continue
+            edge = edge_of[nodes[p], self._slot(di, dj)]
+            if edge < 0 or not edge_valid[edge]:
+                continue
+            nodes.append(target)
             parent.append(p)
-            cost.append(cost[p] + d * float(np.hypot(si[first], sj[first])))
-            ij[k] = (ti[first], tj[first])
-            tree_nodes[k] = t
-            in_tree_mask[t] = True
-            cursor = s_idx + 1
-            diff = samples - ij[k]
-            d2 = diff[:, 0] ** 2 + diff[:, 1] ** 2
-            closer = d2 < near_d
-            near_d[closer], near[closer] = d2[closer], k
+            cost.append(cost[p] + d * float(np.hypot(di, dj)))
+            tree_ij.append((ti, tj))
+            in_tree.add(target)
+            add_to_nearest(len(nodes) - 1)
         return np.array(nodes, dtype=np.int64), np.array(parent, dtype=np.int64), np.array(cost)
 
     def branch_values(self, gains: np.ndarray, parent: np.ndarray, cost: np.ndarray) -> np.ndarray:

@@ -1,0 +1,73 @@
+"""DVC stage: Stage II expert episodes on training mazes, as raw per-step state.
+
+Reads the `collect_expert` section (and the shared `protocol`); writes shards and a
+manifest to data/expert/ and a picture of one stored episode to
+reports/expert_episode.png (rebuilt from the shard, so it also checks the round trip).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from pipeline.collect import ExpertConfig, collect_expert_shard, load_expert_episodes
+from pipeline.maps import GroundTruthMap, list_maps
+from pipeline.protocol import Protocol
+from pipeline.shards import run_shards, shard_path
+
+TRAIN_MAZES = Path("data/mazes/train")
+OUT_DIR = Path("data/expert")
+PREVIEW = Path("reports/expert_episode.png")
+
+
+def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
+    """The first stored episode: its final rebuilt belief and the expert's path."""
+    from pipeline.render import render_frame, save_png
+
+    episode = load_expert_episodes(shard_path(out_dir, 0))[0]
+    belief = None
+    for belief in episode.beliefs():
+        pass
+    ground_truth = GroundTruthMap(free=episode.ground_truth, start_cell=episode.start_cell, cell_size=cell_size, name=episode.map_name)
+    trajectory = [tuple(map(float, p)) for p in episode.positions]
+    image = render_frame(ground_truth, belief.copy(), trajectory, title=f"expert episode on {episode.map_name}: {len(trajectory) - 1} steps")
+    save_png(image, path)
+
+
+def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
+    params = yaml.safe_load(Path(params_path).read_text())
+    section = params["collect_expert"]
+    protocol = Protocol.from_dict(params.get("protocol") or {})
+    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
+    if not maps:
+        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
+    per_shard = int(section["episodes_per_shard"])
+    shard_count = -(-int(section["episodes"]) // per_shard)
+    config = ExpertConfig(
+        maps=maps,
+        episodes_per_shard=per_shard,
+        planner=str(section.get("planner", "expert")),
+        horizon=int(section.get("horizon", 8)),
+        seed=int(section["seed"]),
+        protocol=protocol,
+    )
+    manifest = run_shards(
+        collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
+        backend=backend or section.get("backend", "process"), description="expert shards",
+    )
+    episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)
+    totals = manifest["totals"]
+    print(
+        f"{totals['episodes']} expert episodes ({totals['complete']} complete), {totals['steps']} steps, "
+        f"{totals['bytes'] / max(1, totals['steps']):.0f} bytes per stored step -> {OUT_DIR}"
+    )
+    return manifest
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--backend", choices=["process", "ray"], default=None)
+    main(backend=parser.parse_args().backend)

@@ -1,0 +1,80 @@
+"""DVC stage: Stage I (observed, ground-truth) node-image pairs from rollouts in training mazes.
+
+Reads the `collect_pairs` section (and the shared `protocol`); writes shards and a
+manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from pipeline.collect import PairsConfig, collect_pairs_shard, load_pairs
+from pipeline.maps import list_maps
+from pipeline.protocol import Protocol
+from pipeline.shards import run_shards, shard_path
+
+TRAIN_MAZES = Path("data/mazes/train")
+OUT_DIR = Path("data/pairs")
+PREVIEW = Path("reports/pairs_preview.png")
+
+
+def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, scale: int = 6) -> None:
+    """Rows of (observed, ground truth) node images, unknown pixels tinted, for a quick look."""
+    grouped = load_pairs([shard_path(out_dir, k) for k in range(min(shard_count, 2))])
+    samples = [
+        (size, observed, target, valid)
+        for size, group in sorted(grouped.items())
+        for observed, target, valid in zip(group["observed"], group["target"], group["valid"])
+    ]
+    tiles = []
+    for index in np.linspace(0, len(samples) - 1, min(count, len(samples))).astype(int):
+        size, observed, target, valid = samples[index]
+        obs = cv2.cvtColor(observed, cv2.COLOR_GRAY2BGR)
+        obs[(observed == 128) & valid] = (200, 150, 90)
+        tgt = cv2.cvtColor(target, cv2.COLOR_GRAY2BGR)
+        tgt[~valid] = (60, 60, 60)
+        pair = np.concatenate([obs, np.full((size, 2, 3), 255, np.uint8), tgt], axis=1)
+        pair = cv2.resize(pair, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
+        tiles.append(cv2.copyMakeBorder(pair, 4, 4, 4, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255)))
+    width = max(t.shape[1] for t in tiles)
+    rows = [cv2.copyMakeBorder(t, 0, 0, 0, width - t.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255)) for t in tiles]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), np.concatenate(rows, axis=0))
+
+
+def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
+    params = yaml.safe_load(Path(params_path).read_text())
+    section = params["collect_pairs"]
+    protocol = Protocol.from_dict(params.get("protocol") or {})
+    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
+    if not maps:
+        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
+    per_shard = int(section["pairs_per_shard"])
+    shard_count = -(-int(section["pairs"]) // per_shard)
+    config = PairsConfig(
+        maps=maps,
+        pairs_per_shard=per_shard,
+        planners=tuple(section["planners"]),
+        snapshot_every=int(section.get("snapshot_every", 4)),
+        stop_steps=tuple(section.get("stop_steps", (5, 200))),
+        seed=int(section["seed"]),
+        protocol=protocol,
+    )
+    manifest = run_shards(
+        collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
+        backend=backend or section.get("backend", "process"), description="pair shards",
+    )
+    pairs_preview(OUT_DIR, shard_count, PREVIEW)
+    print(f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}")
+    return manifest
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--backend", choices=["process", "ray"], default=None)
+    main(backend=parser.parse_args().backend)

@@ -1,0 +1,74 @@
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.shards import MANIFEST, ShardJob, read_manifest, run_shards, shard_path, write_shard
+
+
+def make_counting_shard(job: ShardJob) -> dict:
+    rng = np.random.default_rng([job.params["seed"], job.index])
+    values = rng.integers(0, 100, size=job.params["size"])
+    write_shard(shard_path(job.out_dir, job.index), {"fingerprint": np.array(job.fingerprint), "values": values, "summary_items": np.array(values.size)})
+    return {"items": int(values.size)}
+
+
+def test_manifest_counts_and_determinism(tmp_path):
+    manifest = run_shards(make_counting_shard, 3, tmp_path / "a", {"seed": 1, "size": 5}, progress=False)
+    assert manifest["totals"]["items"] == 15 and len(manifest["shards"]) == 3
+    assert read_manifest(tmp_path / "a")["fingerprint"] == manifest["fingerprint"]
+    run_shards(make_counting_shard, 3, tmp_path / "b", {"seed": 1, "size": 5}, workers=2, progress=False)
+    for k in range(3):
+        assert shard_path(tmp_path / "a", k).read_bytes() == shard_path(tmp_path / "b", k).read_bytes()
+
+
+def test_resume_keeps_finished_shards_and_redoes_broken_ones(tmp_path):
+    out = tmp_path / "data"
+    run_shards(make_counting_shard, 3, out, {"seed": 2, "size": 4}, progress=False)
+    good = shard_path(out, 0).stat().st_mtime_ns
+    shard_path(out, 1).write_bytes(b"half a shard")  # a crash mid-write of an older version
+    (out / ".shard_00002.npz.999.tmp").write_bytes(b"temp")
+    shard_path(out, 2).unlink()
+    (out / MANIFEST).unlink()
+    calls = []
+
+    def tracking(job):
+        calls.append(job.index)
+        return make_counting_shard(job)
+
+    manifest = run_shards(tracking, 3, out, {"seed": 2, "size": 4}, progress=False)
+    assert sorted(calls) == [1, 2]
+    assert shard_path(out, 0).stat().st_mtime_ns == good
+    assert not list(out.glob(".*.tmp"))
+    assert manifest["totals"]["items"] == 12
+
+
+def test_changed_params_or_fewer_shards_leave_no_stale_data(tmp_path):
+    out = tmp_path / "data"
+    run_shards(make_counting_shard, 4, out, {"seed": 3, "size": 4}, progress=False)
+    calls = []
+    run_shards(lambda job: calls.append(job.index) or make_counting_shard(job), 2, out, {"seed": 4, "size": 4}, progress=False)
+    assert sorted(calls) == [0, 1]
+    assert sorted(p.name for p in out.glob("shard_*.npz")) == ["shard_00000.npz", "shard_00001.npz"]
+
+
+def test_unfinished_collection_has_no_manifest(tmp_path):
+    def failing(job):
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        run_shards(failing, 2, tmp_path / "d", {"seed": 0}, progress=False)
+    with pytest.raises(FileNotFoundError, match="did not finish"):
+        read_manifest(tmp_path / "d")
+
+
+def test_ray_backend_runs_the_same_shards(tmp_path):
+    pytest.importorskip("ray", reason="the optional ray extra is not installed (pip install '.[ray]')")
+    manifest = run_shards(make_counting_shard, 2, tmp_path / "r", {"seed": 1, "size": 3}, workers=1, backend="ray", progress=False)
+    assert manifest["totals"]["items"] == 6
+
+
+def test_manifest_is_json_with_code_version(tmp_path):
+    run_shards(make_counting_shard, 1, tmp_path / "m", {"seed": 1, "size": 2}, progress=False)
+    manifest = json.loads((tmp_path / "m" / MANIFEST).read_text())
+    assert {"params", "fingerprint", "code_version", "shards", "totals"} <= set(manifest)
