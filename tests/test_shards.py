@@ -62,12 +62,6 @@ def test_unfinished_collection_has_no_manifest(tmp_path):
         read_manifest(tmp_path / "d")
 
 
-def test_ray_backend_runs_the_same_shards(tmp_path):
-    pytest.importorskip("ray", reason="the optional ray extra is not installed (pip install '.[ray]')")
-    manifest = run_shards(make_counting_shard, 2, tmp_path / "r", {"seed": 1, "size": 3}, workers=1, backend="ray", progress=False)
-    assert manifest["totals"]["items"] == 6
-
-
 def test_manifest_is_json_with_code_version(tmp_path):
     run_shards(make_counting_shard, 1, tmp_path / "m", {"seed": 1, "size": 2}, progress=False)
     manifest = json.loads((tmp_path / "m" / MANIFEST).read_text())

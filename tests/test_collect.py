@@ -1,0 +1,75 @@
+import numpy as np
+import pytest
+
+from pipeline.collect import (
+    ExpertConfig,
+    PairsConfig,
+    collect_expert_shard,
+    collect_pairs_shard,
+    future_waypoints,
+    load_expert_episodes,
+    load_pairs,
+)
+from pipeline.maps import list_maps, load_map
+from pipeline.protocol import Protocol
+from pipeline.shards import read_manifest, run_shards, shard_path
+from pipeline.simulator import Episode
+
+
+def pairs_config(maze_dir, **overrides):
+    values = dict(maps=tuple(str(p) for p in list_maps(maze_dir)), pairs_per_shard=6, planners=("nearest_frontier", "greedy_utility"),
+                  snapshot_every=2, stop_steps=(3, 12), seed=5)
+    values.update(overrides)
+    return PairsConfig(**values)
+
+
+def test_pairs_shards_are_deterministic_and_well_formed(generated_maze_dir, tmp_path):
+    config = pairs_config(generated_maze_dir)
+    manifest = run_shards(collect_pairs_shard, 2, tmp_path / "a", {"config": config}, progress=False)
+    run_shards(collect_pairs_shard, 2, tmp_path / "b", {"config": config}, workers=2, progress=False)
+    assert manifest["totals"]["pairs"] == 12
+    for k in range(2):
+        assert shard_path(tmp_path / "a", k).read_bytes() == shard_path(tmp_path / "b", k).read_bytes()
+    grouped = load_pairs([shard_path(tmp_path / "a", k) for k in range(2)])
+    assert sum(len(g["observed"]) for g in grouped.values()) == 12
+    for size, group in grouped.items():
+        assert group["observed"].shape[1:] == (size, size)
+        assert set(np.unique(group["observed"])) <= {0, 128, 255}
+        assert set(np.unique(group["target"])) <= {0, 255}
+        # What is observed free is free in the ground truth too.
+        observed_free = group["observed"] == 255
+        assert (group["target"][observed_free] == 255).all()
+
+
+def test_expert_episodes_rebuild_the_belief_exactly(generated_maze_dir, tmp_path):
+    config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir))[:1], episodes_per_shard=1,
+                          planner="nearest_frontier", horizon=4, seed=1)
+    manifest = run_shards(collect_expert_shard, 1, tmp_path / "e", {"config": config}, progress=False)
+    assert read_manifest(tmp_path / "e")["totals"]["episodes"] == 1
+    (episode,) = load_expert_episodes(shard_path(tmp_path / "e", 0))
+    ground_truth = load_map(config.maps[0])
+    assert (episode.ground_truth == ground_truth.free).all() and episode.start_cell == ground_truth.start_cell
+    assert episode.future_waypoints.shape == (len(episode.positions), 4, 2)
+    replayed = Episode(ground_truth, Protocol())
+    beliefs = episode.beliefs()
+    assert (next(beliefs) == replayed.belief.grid).all()
+    for position, belief in zip(episode.positions[1:], beliefs):
+        replayed.move(position)
+        assert (belief == replayed.belief.grid).all()
+    assert manifest["totals"]["steps"] == len(episode.positions)
+
+
+def test_future_waypoints_repeat_the_last():
+    trajectory = np.arange(10, dtype=np.float32).reshape(5, 2)
+    future = future_waypoints(trajectory, 3)
+    assert future.shape == (5, 3, 2)
+    assert (future[0] == trajectory[1:4]).all() and (future[-1] == trajectory[-1]).all()
+
+
+def test_ray_backend_writes_the_same_shards(generated_maze_dir, tmp_path):
+    pytest.importorskip("ray", reason="the optional ray extra is not installed (pip install '.[ray]')")
+    config = pairs_config(generated_maze_dir, pairs_per_shard=3)
+    run_shards(collect_pairs_shard, 2, tmp_path / "p", {"config": config}, progress=False)
+    run_shards(collect_pairs_shard, 2, tmp_path / "r", {"config": config}, workers=2, backend="ray", progress=False)
+    for k in range(2):
+        assert shard_path(tmp_path / "p", k).read_bytes() == shard_path(tmp_path / "r", k).read_bytes()
