@@ -57,21 +57,29 @@ class ViewGain:
 
     The belief is padded by the sensor range with OCCUPIED cells, so a ray leaving the grid
     stops exactly where it would at the grid edge and no bounds checks are needed; each
-    ray cell is then one flat offset from the origin's flat index.
+    ray cell is then one flat offset from the origin's flat index. Every ray ends with at
+    least one padding step (never reached), so each ray's stop is one `argmax`.
     """
 
-    def __init__(self, shape: tuple[int, int], range_cells: float, ray_stride: int = 4):
+    def __init__(self, shape: tuple[int, int], range_cells: float, ray_stride: int = 4, chunk: int = 32):
         if ray_stride < 1:
             raise ValueError(f"ray_stride must be >= 1, got {ray_stride}")
         self.shape = shape
+        self.chunk = int(chunk)
         self.table: RayTable = ray_table(0, 0, range_cells, DEFAULT_ANGLES[::ray_stride])
         self.pad = int(np.abs(self.table.end_offsets).max()) + 1
         rows, cols = shape
         self.padded_shape = (rows + 2 * self.pad, cols + 2 * self.pad)
         pcols = self.padded_shape[1]
-        off = self.table.offsets
-        self.flat_offsets = (off[..., 1] * pcols + off[..., 0]).astype(np.int64)
-        self.valid = self.table.valid
+        n_rays = self.table.valid.shape[0]
+        off = np.concatenate([self.table.offsets, np.zeros((n_rays, 1, 2), dtype=np.int64)], axis=1)
+        self.flat_offsets = off[..., 1] * pcols + off[..., 0]
+        self.invalid = ~np.concatenate([self.table.valid, np.zeros((n_rays, 1), dtype=bool)], axis=1)
+        self.steps = np.arange(self.flat_offsets.shape[1])
+        self.n_unique = len(self.table.unique_offsets)
+        unique_index = np.concatenate([np.maximum(self.table.unique_index, 0), np.zeros((n_rays, 1), np.int64)], axis=1)
+        # seen-matrix flat index of (origin k in a chunk, ray, step): k * n_unique + unique cell.
+        self._seen_key = np.arange(self.chunk)[:, None, None] * self.n_unique + unique_index[None]
         self._padded = np.full(self.padded_shape, OCCUPIED, dtype=np.uint8)
 
     def load(self, belief: np.ndarray) -> None:
@@ -79,25 +87,22 @@ class ViewGain:
         rows, cols = self.shape
         self._padded[self.pad : self.pad + rows, self.pad : self.pad + cols] = belief
 
-    def gains(self, cells: np.ndarray, chunk: int = 32) -> np.ndarray:
+    def gains(self, cells: np.ndarray) -> np.ndarray:
         """Gain of each origin cell (col, row) on the belief last passed to `load`."""
         cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
         out = np.zeros(len(cells), dtype=np.int64)
-        if len(cells) == 0:
-            return out
         flat_grid = self._padded.reshape(-1)
         pcols = self.padded_shape[1]
         origin = (cells[:, 1] + self.pad) * pcols + cells[:, 0] + self.pad
-        n_unique = len(self.table.unique_offsets)
-        for start in range(0, len(cells), chunk):
-            org = origin[start : start + chunk]
+        for start in range(0, len(cells), self.chunk):
+            org = origin[start : start + self.chunk]
+            n = len(org)
             values = flat_grid[org[:, None, None] + self.flat_offsets[None]]
-            passable = (values != OCCUPIED) & self.valid[None]
-            reach = np.logical_and.accumulate(passable, axis=2)
-            node, ray, step = np.nonzero(reach & (values == UNKNOWN))
-            seen = np.zeros((len(org), n_unique), dtype=bool)
-            seen[node, self.table.unique_index[ray, step]] = True
-            out[start : start + chunk] = seen.sum(axis=1)
+            stop = np.argmax((values == OCCUPIED) | self.invalid[None], axis=2)
+            seen_unknown = (self.steps < stop[..., None]) & (values == UNKNOWN)
+            seen = np.zeros(n * self.n_unique, dtype=bool)
+            seen[self._seen_key[:n][seen_unknown]] = True
+            out[start : start + n] = seen.reshape(n, self.n_unique).sum(axis=1)
         return out
 
 

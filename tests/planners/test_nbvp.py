@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline.geometry import ray_end_offsets, walk_offsets
 from pipeline.graph import NODE_FREE
 from pipeline.maps import GroundTruthMap
 from pipeline.planners import make_planner, planner_names
 from pipeline.planners.nbvp import NBVPPlanner, view_gains
 from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN, Belief, scan
+from pipeline.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN, Belief, scan
 from pipeline.simulator import Episode, replay, run_episode
 
 PROTOCOL = Protocol()
@@ -79,6 +80,32 @@ def test_gain_zero_in_known_area_and_positive_facing_unknown():
     belief[1:-1, 20] = OCCUPIED
     gains = view_gains(belief, np.array([[30, 30], [10, 30]]), PROTOCOL.sensor_range_cells)
     assert gains[0] > 0 and gains[1] == 0
+
+
+def reference_gain(belief: np.ndarray, cell: tuple[int, int], range_cells: float, ray_stride: int) -> int:
+    """Plain per-ray loop: unknown cells seen through free/unknown cells, each counted once."""
+    rows, cols = belief.shape
+    seen = set()
+    for ex, ey in ray_end_offsets(cell[0], cell[1], range_cells, DEFAULT_ANGLES[::ray_stride]):
+        for ox, oy in walk_offsets(int(ex), int(ey))[:-1]:  # the end cell is never revealed
+            x, y = cell[0] + int(ox), cell[1] + int(oy)
+            if not (0 <= x < cols and 0 <= y < rows) or belief[y, x] == OCCUPIED:
+                break
+            if belief[y, x] == UNKNOWN:
+                seen.add((x, y))
+    return len(seen)
+
+
+@pytest.mark.parametrize("ray_stride", [3, 8])
+def test_gain_matches_a_plain_loop(ray_stride):
+    rng = np.random.default_rng(1)
+    belief = rng.choice([FREE, UNKNOWN, OCCUPIED], p=[0.6, 0.33, 0.07], size=(45, 70)).astype(np.uint8)
+    cells = np.array([(0, 0), (35, 22), (69, 44), (5, 40), (60, 3)])
+    belief[cells[:, 1], cells[:, 0]] = FREE  # origins are nodes the robot could stand on
+    range_cells = 25.0
+    gains = view_gains(belief, cells, range_cells, ray_stride)
+    assert gains.tolist() == [reference_gain(belief, tuple(c), range_cells, ray_stride) for c in cells]
+    assert (gains > 0).all()
 
 
 @pytest.mark.parametrize("ray_stride", [1, 4])
