@@ -170,6 +170,7 @@ def replay(
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     done_unknown_cells: int = DoneCells,
+    oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
 ) -> None:
     """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON."""
     from pipeline.benchmark import protocol_for_map
@@ -181,7 +182,7 @@ def replay(
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
         points = read_trajectory_csv(trajectory)
-        result = replay_trajectory(ground_truth, points, protocol_for_map(protocol, ground_truth))
+        result = replay_trajectory(ground_truth, points, protocol_for_map(protocol, ground_truth), oracle=oracle)
     except (MapError, ValueError) as error:
         _fail(str(error))
     typer.echo(

@@ -140,13 +140,19 @@ class Episode:
             raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) lies outside the map")
         return col, row
 
-    def move(self, waypoint: Sequence[float]) -> None:
-        """Move to a lattice waypoint through known-free cells, then sense there."""
+    def move(self, waypoint: Sequence[float], oracle: bool = False) -> None:
+        """Move to a lattice waypoint through known-free cells, then sense there.
+
+        `oracle=True` is the ground-truth planner's rule (PROTOCOL.md "Reference figures"):
+        the segment need only be free in the ground truth, observed or not.
+        """
         cell = self.waypoint_cell(waypoint)
-        if not segment_is_known_free(self.belief.grid == FREE, self.cell, cell):
+        free = self.map.free if oracle else self.belief.grid == FREE
+        if not segment_is_known_free(free, self.cell, cell):
+            what = "ground-truth free" if oracle else "known to be free"
             raise MotionError(
                 f"segment ({self.position[0]:.3f}, {self.position[1]:.3f}) -> "
-                f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not known to be free"
+                f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}"
             )
         d = self.protocol.node_resolution
         target = (round(float(waypoint[0]) / d) * d, round(float(waypoint[1]) / d) * d)
@@ -170,6 +176,7 @@ def run_episode(
     decision_ms: list[float] = []
     failure = ""
     violations = 0
+    oracle = bool(getattr(planner, "ignores_motion_rule", False))
     if on_step is not None:
         on_step(episode)
     while not episode.complete and episode.steps < protocol.max_steps:
@@ -182,7 +189,7 @@ def run_episode(
             break
         try:
             for waypoint in waypoints:
-                episode.move(waypoint)
+                episode.move(waypoint, oracle=oracle)
                 if on_step is not None:
                     on_step(episode)
                 if episode.complete or episode.steps >= protocol.max_steps:
@@ -201,11 +208,13 @@ def replay(
     waypoints: Sequence[Sequence[float]],
     protocol: Protocol,
     planner_name: str = "replay",
+    oracle: bool = False,
 ) -> EpisodeResult:
     """Replay a trajectory file's waypoints (first row the start) through a fresh simulator.
 
     The distance reported is the distance at completion; waypoints after completion are
-    not counted. A motion-rule violation stops the replay.
+    not counted. A motion-rule violation stops the replay. `oracle=True` replays under the
+    ground-truth planner's rule (segments free in the ground truth).
     """
     points = [tuple(map(float, p)) for p in waypoints]
     if not points:
@@ -219,7 +228,7 @@ def replay(
         if episode.complete:
             break
         try:
-            episode.move(point)
+            episode.move(point, oracle=oracle)
         except MotionError as error:
             failure = f"motion rule: {error}"
             violations = 1

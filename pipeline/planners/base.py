@@ -28,6 +28,7 @@ class Planner(ABC):
     name: str = ""
     description: str = ""
     uses_ground_truth: bool = False
+    ignores_motion_rule: bool = False  # only the ground-truth "Optimal" reference may set this
 
     @abstractmethod
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
