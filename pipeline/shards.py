@@ -142,6 +142,7 @@ def run_shards(
         "code_version": code_version(),
         "shards": shards,
         "totals": _totals(shards),
+        "made_this_run": [job.index for job in todo],
     }
     tmp = manifest_path.with_name(MANIFEST + ".tmp")
     tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
@@ -164,6 +165,14 @@ def _totals(shards: Sequence[dict[str, Any]]) -> dict[str, int]:
             if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
                 totals[key] = totals.get(key, 0) + int(value)
     return totals
+
+
+def rate_per_minute(manifest: dict[str, Any], key: str, seconds: float) -> float | None:
+    """Items of `key` made per minute by the run that wrote the manifest (None if it made none)."""
+    made = [manifest["shards"][k].get(key, 0) for k in manifest["made_this_run"]]
+    if not made or seconds <= 0:
+        return None
+    return round(60.0 * sum(made) / seconds, 2)
 
 
 def read_manifest(out_dir: str | Path) -> dict[str, Any]:

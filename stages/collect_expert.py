@@ -8,6 +8,8 @@ reports/expert_episode.png (rebuilt from the shard, so it also checks the round 
 from __future__ import annotations
 
 import argparse
+import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,10 +18,11 @@ import yaml
 from pipeline.collect import ExpertConfig, collect_expert_shard, load_expert_episodes
 from pipeline.maps import GroundTruthMap, list_maps
 from pipeline.protocol import Protocol
-from pipeline.shards import run_shards, shard_path
+from pipeline.shards import rate_per_minute, run_shards, shard_path
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/expert")
+SUMMARY = Path("reports/expert_summary.json")
 PREVIEW = Path("reports/expert_episode.png")
 
 
@@ -54,12 +57,25 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
         seed=int(section["seed"]),
         protocol=protocol,
     )
+    started = time.perf_counter()
     manifest = run_shards(
         collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
         backend=backend or section.get("backend", "process"), description="expert shards",
     )
+    seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)
     totals = manifest["totals"]
+    summary = {
+        "episodes": totals["episodes"],
+        "complete": totals["complete"],
+        "steps": totals["steps"],
+        "bytes": totals["bytes"],
+        "bytes_per_step": round(totals["bytes"] / max(1, totals["steps"]), 1),
+        "seconds": round(seconds, 1),
+        # Rate over the shards made by this run (a resumed run reuses finished shards).
+        "episodes_per_minute": rate_per_minute(manifest, "episodes", seconds),
+    }
+    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
     print(
         f"{totals['episodes']} expert episodes ({totals['complete']} complete), {totals['steps']} steps, "
         f"{totals['bytes'] / max(1, totals['steps']):.0f} bytes per stored step -> {OUT_DIR}"

@@ -7,6 +7,8 @@ manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.pn
 from __future__ import annotations
 
 import argparse
+import json
+import time
 from pathlib import Path
 
 import cv2
@@ -16,10 +18,11 @@ import yaml
 from pipeline.collect import PairsConfig, collect_pairs_shard, load_pairs
 from pipeline.maps import list_maps
 from pipeline.protocol import Protocol
-from pipeline.shards import run_shards, shard_path
+from pipeline.shards import rate_per_minute, run_shards, shard_path
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/pairs")
+SUMMARY = Path("reports/pairs_summary.json")
 PREVIEW = Path("reports/pairs_preview.png")
 
 
@@ -65,11 +68,25 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
         seed=int(section["seed"]),
         protocol=protocol,
     )
+    started = time.perf_counter()
     manifest = run_shards(
         collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
         backend=backend or section.get("backend", "process"), description="pair shards",
     )
+    seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)
+    totals = manifest["totals"]
+    summary = {
+        "pairs": totals["pairs"],
+        "rollouts": totals["episodes"],
+        "shards": shard_count,
+        "bytes": totals["bytes"],
+        "bytes_per_pair": round(totals["bytes"] / max(1, totals["pairs"]), 1),
+        "seconds": round(seconds, 1),
+        # Rate over the shards made by this run (a resumed run reuses finished shards).
+        "pairs_per_minute": rate_per_minute(manifest, "pairs", seconds),
+    }
+    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
     print(f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}")
     return manifest
 
