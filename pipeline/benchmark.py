@@ -18,6 +18,9 @@ from pipeline.simulator import EpisodeResult, run_episode
 from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
 
 
+REFERENCE_PLANNER = "optimal"
+
+
 @dataclass(frozen=True)
 class EpisodeTask:
     """One (map, planner) episode, picklable for a worker process."""
@@ -116,20 +119,26 @@ def summarise(frame: pd.DataFrame) -> pd.DataFrame:
             "decision_ms_p95": groups["decision_ms_p95"].median(),
         }
     )
+    if REFERENCE_PLANNER in summary.index:
+        # The paper's gap: mean distance over the reference's mean distance, minus one.
+        summary["gap_to_optimal"] = summary["distance_mean_m"] / summary.loc[REFERENCE_PLANNER, "distance_mean_m"] - 1.0
     return summary.sort_values("distance_mean_m")
 
 
 def summary_markdown(frame: pd.DataFrame, protocol: Protocol) -> str:
     """A markdown table: mean +- std distance, completion rate, decision time per planner."""
     summary = summarise(frame)
+    has_gap = "gap_to_optimal" in summary
+    gap_head = " gap to optimal |" if has_gap else ""
     lines = [
-        "| planner | episodes | distance (m) | complete | decision ms (median) | decision ms (p95) |",
-        "|---|---:|---:|---:|---:|---:|",
+        f"| planner | episodes | distance (m) |{gap_head} complete | decision ms (median) | decision ms (p95) |",
+        "|---|---:|---:|" + ("---:|" if has_gap else "") + "---:|---:|---:|",
     ]
     for planner, row in summary.iterrows():
+        gap = f" {row.gap_to_optimal * 100:+.1f} % |" if has_gap else ""
         lines.append(
-            f"| {planner} | {int(row.episodes)} | {row.distance_mean_m:.1f} +- {row.distance_std_m:.1f} "
-            f"| {row.completion_rate * 100:.0f} % | {row.decision_ms_median:.2f} | {row.decision_ms_p95:.2f} |"
+            f"| {planner} | {int(row.episodes)} | {row.distance_mean_m:.1f} +- {row.distance_std_m:.1f} |{gap}"
+            f" {row.completion_rate * 100:.0f} % | {row.decision_ms_median:.2f} | {row.decision_ms_p95:.2f} |"
         )
     failures = frame[~frame["complete"].astype(bool)]
     notes = [

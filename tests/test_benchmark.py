@@ -33,8 +33,8 @@ def test_benchmark_rejects_unknown_planner_and_bad_maps(generated_maze_dir, tmp_
         run_benchmark([bad], ["nearest_frontier"], Protocol(), tmp_path / "out")
 
 
-def test_failures_are_reported_not_dropped(generated_maze_dir, tmp_path):
-    maps = list_maps(generated_maze_dir)[:1]
+def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
+    maps = [small_maze_path]
     frame = run_benchmark(maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False)
     assert len(frame) == 1 and not frame["complete"].any()
     assert "step limit" in (tmp_path / "summary.md").read_text()
