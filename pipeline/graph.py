@@ -301,6 +301,34 @@ class LatticeGraph:
         path.reverse()
         return path
 
+    def region_of_cells(self, cells: np.ndarray) -> np.ndarray:
+        """(region row, region col) of each cell (x, y)."""
+        cells = np.asarray(cells)
+        return np.stack([self._region_row_of_y[cells[:, 1]], self._region_col_of_x[cells[:, 0]]], axis=1)
+
+    def edges_not_crossing(
+        self, blocked_flat: np.ndarray, members: np.ndarray, required: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate edges between `members` nodes, touching a `required` node, whose walk
+        (either direction) crosses no `blocked_flat` cell; returns (pairs, lengths in metres).
+
+        This is how predicted nodes join the global graph: through unknown space, never
+        through known obstacles.
+        """
+        pairs, lengths = [], []
+        for group, fwd, bwd in self._edge_walks:
+            ends = self.edge_nodes[group]
+            cand = members[ends[:, 0]] & members[ends[:, 1]] & (required[ends[:, 0]] | required[ends[:, 1]])
+            idx = np.nonzero(cand)[0]
+            if idx.size == 0:
+                continue
+            ok = ~blocked_flat[fwd[idx]].any(axis=1) | ~blocked_flat[bwd[idx]].any(axis=1)
+            pairs.append(ends[idx[ok]])
+            lengths.append(self.edge_length[group][idx[ok]])
+        if not pairs:
+            return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
+        return np.concatenate(pairs), np.concatenate(lengths)
+
     def region_labels(self) -> np.ndarray:
         """Per region: UNOBSERVED (nothing known), BOUNDARY (has frontiers), else EXPLORED."""
         labels = np.full(self.region_shape, REGION_EXPLORED, dtype=np.int8)

@@ -1,0 +1,78 @@
+"""Global Node Predictor (paper Algorithm 1): free nodes predicted in unknown space.
+
+Rasterise V_f and V_o one pixel per lattice node, centre-pad to a multiple of the
+network's stride, inpaint, binarise at tau, and drop predicted nodes in small connected
+components. The inpainting model is any callable from a uint8 node image to free-node
+probabilities, so the predictor does not care which network (or test double) runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from pipeline.graph import NODE_FREE, NODE_UNKNOWN, LatticeGraph
+from pipeline.node_image import PIXEL_UNKNOWN, node_states_image
+
+InpaintFn = Callable[[np.ndarray], np.ndarray]
+"""(S, S) uint8 node image (255 free, 0 obstacle, 128 unknown) -> (S, S) free-node probability."""
+
+
+@dataclass(frozen=True)
+class NodePredictorConfig:
+    threshold: float = 0.5  # tau: probability at or above which an unknown node is predicted free
+    min_component: int = 3  # predicted nodes in smaller 8-connected components are dropped
+    stride: int = 8  # the network's total downsampling: images are padded to a multiple of it
+
+
+def pad_to_multiple(image: np.ndarray, multiple: int, fill: int) -> tuple[np.ndarray, tuple[int, int]]:
+    """Centre-pad to the next multiple of `multiple` on each side; returns (image, (row0, col0))."""
+    rows, cols = image.shape
+    size_r = -(-rows // multiple) * multiple
+    size_c = -(-cols // multiple) * multiple
+    r0, c0 = (size_r - rows) // 2, (size_c - cols) // 2
+    canvas = np.full((size_r, size_c), fill, dtype=image.dtype)
+    canvas[r0 : r0 + rows, c0 : c0 + cols] = image
+    return canvas, (r0, c0)
+
+
+def drop_small_components(predicted: np.ndarray, known_free: np.ndarray, min_size: int) -> np.ndarray:
+    """Keep predicted pixels whose 8-connected component (with known free pixels) has >= min_size pixels."""
+    if min_size <= 1 or not predicted.any():
+        return predicted
+    mask = (predicted | known_free).astype(np.uint8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    sizes = stats[:, cv2.CC_STAT_AREA]
+    return predicted & (sizes[labels] >= min_size)
+
+
+class NodePredictor:
+    """Predicts V_p, the lattice nodes in unknown space that are likely free."""
+
+    def __init__(self, inpaint: InpaintFn, config: NodePredictorConfig = NodePredictorConfig()):
+        self.inpaint = inpaint
+        self.config = config
+
+    def probabilities(self, graph: LatticeGraph) -> np.ndarray:
+        """Free-node probability per lattice node (the network's output on the node image)."""
+        image = node_states_image(graph, graph.node_state)
+        padded, (r0, c0) = pad_to_multiple(image, self.config.stride, PIXEL_UNKNOWN)
+        probability = np.asarray(self.inpaint(padded), dtype=np.float32)
+        if probability.shape != padded.shape:
+            raise ValueError(f"the inpainter returned shape {probability.shape} for an image of {padded.shape}")
+        rows, cols = image.shape
+        return probability[r0 : r0 + rows, c0 : c0 + cols].reshape(-1)
+
+    def predict(self, graph: LatticeGraph) -> np.ndarray:
+        """Ids of the predicted free nodes V_p (all currently unknown lattice nodes)."""
+        probability = self.probabilities(graph)
+        unknown = graph.node_state == NODE_UNKNOWN
+        predicted = unknown & (probability >= self.config.threshold)
+        shape = graph.lattice_shape
+        kept = drop_small_components(
+            predicted.reshape(shape), (graph.node_state == NODE_FREE).reshape(shape), self.config.min_component
+        )
+        return np.nonzero(kept.reshape(-1))[0]

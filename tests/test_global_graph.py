@@ -1,0 +1,104 @@
+import numpy as np
+import pytest
+from scipy.sparse.csgraph import connected_components
+
+from pipeline.global_graph import CENTROID, KNOWN, PREDICTED, GlobalGraph, GlobalGraphConfig, RegionEvaluationConfig, region_scores
+from pipeline.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_EXPLORED, REGION_UNOBSERVED
+from pipeline.geometry import walk_cells
+from pipeline.node_image import ground_truth_states, node_states_image
+from pipeline.node_predictor import NodePredictor, NodePredictorConfig, drop_small_components, pad_to_multiple
+from pipeline.planners import make_planner
+from pipeline.protocol import Protocol
+from pipeline.sensor import OCCUPIED
+from pipeline.simulator import Episode
+
+
+@pytest.fixture(scope="module")
+def partial(small_maze):
+    planner = make_planner("nearest_frontier")
+    episode = Episode(small_maze, Protocol())
+    planner.reset(small_maze, Protocol(), 0)
+    for _ in range(4):
+        episode.move(planner.plan(episode.observe())[0])
+    graph = planner.update_graph(episode.observe())
+    return small_maze, episode, planner, graph
+
+
+def oracle_inpainter(graph, ground_free):
+    """A stand-in network that knows the ground-truth node image."""
+    truth = node_states_image(graph, ground_truth_states(graph, ground_free))
+    padded, _ = pad_to_multiple(truth, 8, 128)
+    return lambda image: (padded == 255).astype(np.float32)
+
+
+def test_predictor_returns_unknown_nodes_that_are_free(partial):
+    ground_truth, episode, _, graph = partial
+    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free)).predict(graph)
+    assert predicted.size > 0
+    assert (graph.node_state[predicted] == NODE_UNKNOWN).all()
+    assert ground_truth.free.reshape(-1)[graph.node_flat[predicted]].all()
+
+
+def test_predictor_pads_to_the_stride_and_checks_the_output_shape(partial):
+    _, _, _, graph = partial
+    seen = []
+    NodePredictor(lambda image: seen.append(image.shape) or np.zeros(image.shape)).predict(graph)
+    assert all(s % 8 == 0 for s in seen[0])
+    with pytest.raises(ValueError, match="shape"):
+        NodePredictor(lambda image: np.zeros((3, 3))).predict(graph)
+
+
+def test_isolated_predictions_are_dropped():
+    predicted = np.zeros((8, 8), dtype=bool)
+    predicted[0, 0] = True
+    predicted[5, 5:8] = True
+    kept = drop_small_components(predicted, np.zeros_like(predicted), 3)
+    assert not kept[0, 0] and kept[5, 5:8].all()
+
+
+def test_region_scores_prefer_near_regions_with_frontiers():
+    labels = np.array([[REGION_BOUNDARY, REGION_UNOBSERVED, REGION_EXPLORED]])
+    centroids = np.array([[[10.0, 0.0], [50.0, 0.0], [90.0, 0.0]]])
+    scores = region_scores(labels, centroids, np.array([[12.0, 0.0]]), np.array([0.0, 0.0]), RegionEvaluationConfig())
+    assert scores[0, 0] > scores[0, 1] and np.isnan(scores[0, 2])
+
+
+def test_global_graph_joins_predictions_without_crossing_known_obstacles(partial):
+    ground_truth, episode, planner, graph = partial
+    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(graph)
+    global_graph = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=1.0)))
+    global_graph.update(episode.belief.grid, episode.position, predicted, planner.visited)
+    types = np.bincount(global_graph.types, minlength=3)
+    assert types[KNOWN] == len(graph.free_nodes) and types[PREDICTED] > 0
+    assert (global_graph.utility[global_graph.types != KNOWN] == 0).all()
+    assert (global_graph.utility >= 0).all()
+    coo = global_graph.adjacency.tocoo()
+    cells = graph.spec.world_to_cell(global_graph.positions)
+    for a, b in zip(coo.row, coo.col):
+        if global_graph.types[a] == KNOWN and global_graph.types[b] == KNOWN:
+            continue
+        walks = [walk_cells(tuple(cells[a]), tuple(cells[b])), walk_cells(tuple(cells[b]), tuple(cells[a]))]
+        assert any((episode.belief.grid[w[:, 1], w[:, 0]] != OCCUPIED).all() for w in walks)
+    assert connected_components(global_graph.adjacency, directed=False)[0] <= 2
+
+
+def test_region_evaluation_trims_far_predictions(partial):
+    ground_truth, episode, planner, graph = partial
+    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(graph)
+    everything = GlobalGraph(graph, GlobalGraphConfig(use_region_evaluation=False))
+    everything.update(episode.belief.grid, episode.position, predicted)
+    filtered = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=0.2, centroid_density=0.0)))
+    filtered.update(episode.belief.grid, episode.position, predicted)
+    assert (filtered.types == PREDICTED).sum() < (everything.types == PREDICTED).sum()
+    assert (filtered.types == CENTROID).sum() >= 0
+
+
+def test_features_are_padded_with_a_mask(partial):
+    ground_truth, episode, planner, graph = partial
+    global_graph = GlobalGraph(graph, GlobalGraphConfig(max_nodes=64))
+    global_graph.update(episode.belief.grid, episode.position, None, planner.visited)
+    features, mask, robot_row = global_graph.features(episode.position)
+    assert features.shape == (64, 7) and mask.sum() == min(64, global_graph.node_count)
+    assert np.allclose(features[robot_row, :2], 0.0)
+    assert (features[~mask] == 0).all()
+    assert features[mask, 3].any()  # a guidepost path exists while frontiers remain
