@@ -1,0 +1,471 @@
+"""TARE (Cao et al., RSS 2021): hierarchical exploration, adapted to the node lattice.
+
+TARE plans at two levels and joins them into one route, which it replans continually:
+
+- **Global level.** Space is split into subspaces; those that still hold something to
+  explore are "exploring". A TSP tour from the robot visits them in order, over distances
+  in the known traversable graph.
+- **Local level.** Inside a local planning horizon around the robot, TARE chooses a small
+  set of viewpoints that together cover the uncovered surfaces there, and orders them with
+  a TSP path that starts at the robot and leaves the horizon toward the first exploring
+  subspace of the global tour.
+
+Adaptation to the lattice graph and the protocol:
+
+- What is covered: frontier cells (the 2D stand-in for TARE's uncovered surfaces). A node
+  "sees" the frontier cells its ray fan reaches through known-free cells within the
+  utility range -- the fan of the graph's utility (`visible_frontier_cells`). As in TARE,
+  what has been seen from where the robot has been counts as covered and is no longer
+  planned for (`cover_range`, the utility range by default): frontier that stays after
+  the robot looked at it from close by (grazing rays past wall corners) cannot be cleared
+  by more viewpoints like those, and chasing it would send the robot back and forth.
+- Candidate viewpoints are the *useful* nodes (`GraphPlanner.useful_nodes`: unvisited free
+  nodes with frontier utility) reachable on the known graph.
+- Subspaces are the graph's fixed region grid (`region_size`, 20 m by default). The local
+  horizon is the robot's region and its neighbours (`horizon_radius = 1`: 3 x 3 regions).
+  An uncovered frontier cell belongs to the local level when it lies in the horizon, else
+  to the global level through the region it lies in.
+- Global level: a region outside the horizon is exploring when some candidate sees at
+  least `min_cover` of its uncovered frontier cells; its representative is the nearest
+  such candidate along the graph from the robot. The global tour is an open TSP path from
+  the robot through the representatives.
+- Local level: greedy set cover of the horizon's uncovered frontier cells by the
+  candidates (the most newly covered cells first, the nearer node on a tie) while a
+  viewpoint adds at least `min_cover` cells; the viewpoints are ordered by a TSP path from
+  the robot that ends at the first representative of the global tour (open when the
+  global tour is empty).
+- Distances are shortest paths on the known graph (one multi-source Dijkstra per
+  decision). TSP paths have a fixed start (and end): exact Held-Karp up to `exact_max`
+  points, otherwise nearest-neighbour construction improved by 2-opt and Or-opt moves
+  under a move cap, so every decision is bounded in time and deterministic.
+- Execution: one lattice step (one graph edge) along the shortest path to the first point
+  of the local path, or of the global tour when the horizon holds no viewpoint, and a new
+  plan at every decision. With neither (only covered frontier left), one step toward the
+  nearest useful node, so the map is finished; [] only when no useful node is reachable.
+- Loop guard (not in TARE, which plans in continuous space at a fixed rate): because the
+  horizon moves with the robot, a replanned route can flip at a region border although
+  nothing new was seen, and the robot would step back and forth. When the new first step
+  goes back onto a node visited since the belief last changed, the planner keeps driving
+  to its previous target while that one still has uncovered frontier to see.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from pipeline.geometry import ray_table
+from pipeline.graph import UTILITY_ANGLES
+from pipeline.maps import GroundTruthMap
+from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.protocol import Protocol
+from pipeline.sensor import FREE
+from pipeline.simulator import Observation
+
+
+# --------------------------------------------------------------------------- visibility
+def visible_frontier_cells(
+    free: np.ndarray, frontier: np.ndarray, origins: np.ndarray, range_cells: float, chunk: int = 64
+) -> list[np.ndarray]:
+    """For each origin cell (col, row), the sorted flat indices of the `frontier` cells it sees.
+
+    The ray fan is the graph utility's (`pipeline.graph.visible_counts`): a ray walks from
+    the origin and stops at the first cell that is not free (or outside the grid); the
+    cells before that are visible. So `len(result[k])` equals `visible_counts(...)[k]`.
+    """
+    rows, cols = free.shape
+    origins = np.asarray(origins, dtype=np.int64).reshape(-1, 2)
+    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    offsets, valid = table.offsets, table.valid
+    pad = int(np.abs(offsets).max()) + 1
+    # Padded with blocked cells, so a ray that leaves the grid stops there with no bounds checks.
+    pcols = cols + 2 * pad
+    open_cells = np.zeros((rows + 2 * pad, pcols), dtype=bool)
+    open_cells[pad : pad + rows, pad : pad + cols] = free
+    targets = np.zeros_like(open_cells)
+    targets[pad : pad + rows, pad : pad + cols] = frontier
+    open_flat, target_flat = open_cells.reshape(-1), targets.reshape(-1)
+    step = offsets[..., 1] * pcols + offsets[..., 0]
+    out: list[np.ndarray] = []
+    for start in range(0, len(origins), chunk):
+        org = origins[start : start + chunk]
+        n = len(org)
+        base = (org[:, 1] + pad) * pcols + org[:, 0] + pad
+        idx = base[:, None, None] + step[None]
+        reach = np.logical_and.accumulate(open_flat[idx] & valid[None], axis=2)
+        k, ray, i = np.nonzero(reach & target_flat[idx])
+        py, px = np.divmod(idx[k, ray, i], pcols)
+        key = np.unique(k * (rows * cols) + (py - pad) * cols + (px - pad))
+        owner, cell = np.divmod(key, rows * cols)
+        bounds = np.searchsorted(owner, np.arange(n + 1))
+        out.extend(cell[bounds[j] : bounds[j + 1]] for j in range(n))
+    return out
+
+
+# --------------------------------------------------------------------------- TSP paths
+def tsp_path(distance: np.ndarray, end: int | None = None, exact_max: int = 10, max_moves: int = 200) -> list[int]:
+    """An order of the points 0..n-1 that starts at 0 (and ends at `end` if given) with a
+    short total length along `distance` (symmetric, finite).
+
+    Exact (Held-Karp) when at most `exact_max` points follow the start; otherwise nearest
+    neighbour construction improved by 2-opt and Or-opt, at most `max_moves` moves.
+    """
+    distance = np.asarray(distance, dtype=np.float64)
+    n = len(distance)
+    if n <= 2:
+        return list(range(n))
+    if end is None:
+        # Open end: append a dummy point at distance 0 from all and make it the fixed end.
+        ext = np.zeros((n + 1, n + 1))
+        ext[:n, :n] = distance
+        order = tsp_path(ext, end=n, exact_max=exact_max, max_moves=max_moves)
+        return [p for p in order if p != n]
+    if end == 0:
+        raise ValueError("the end of a TSP path must differ from its start")
+    if n - 1 <= exact_max:
+        return _held_karp(distance, end)
+    order = _nearest_neighbour(distance, end)
+    return _improve(distance, order, max_moves)
+
+
+def path_length(distance: np.ndarray, order: list[int]) -> float:
+    return float(sum(distance[a, b] for a, b in zip(order[:-1], order[1:])))
+
+
+def _held_karp(distance: np.ndarray, end: int) -> list[int]:
+    """Exact shortest path from 0 through every point to `end` (dynamic programming)."""
+    n = len(distance)
+    m = n - 1  # points 1..n-1 as bits 0..m-1
+    w = distance[1:, 1:]
+    full = (1 << m) - 1
+    masks = np.arange(1 << m)
+    bits = (masks[:, None] >> np.arange(m)[None, :]) & 1
+    popcount = bits.sum(axis=1)
+    cost = np.full((1 << m, m), np.inf)
+    parent = np.full((1 << m, m), -1, dtype=np.int64)
+    single = 1 << np.arange(m)
+    cost[single, np.arange(m)] = distance[0, 1:]
+    for size in range(2, m + 1):
+        layer = masks[popcount == size]
+        inside = bits[layer].astype(bool)  # (C, k)
+        prev = layer[:, None] ^ single[None, :]  # (C, k): the set before adding k
+        prev = np.where(inside, prev, 0)
+        # via[c, k, j] = cost[prev[c, k], j] + w[j, k]
+        via = cost[prev] + w.T[None, :, :]
+        best = via.argmin(axis=2)
+        value = np.take_along_axis(via, best[..., None], axis=2)[..., 0]
+        cost[layer] = np.where(inside, value, np.inf)
+        parent[layer] = np.where(inside, best, -1)
+    order = []
+    mask, k = full, end - 1
+    while k >= 0:
+        order.append(k + 1)
+        k, mask = int(parent[mask, k]), mask ^ (1 << k)
+    order.append(0)
+    return order[::-1]
+
+
+def _nearest_neighbour(distance: np.ndarray, end: int) -> list[int]:
+    n = len(distance)
+    left = np.ones(n, dtype=bool)
+    left[[0, end]] = False
+    order = [0]
+    while left.any():
+        candidates = np.nonzero(left)[0]
+        nxt = int(candidates[np.argmin(distance[order[-1], candidates])])
+        order.append(nxt)
+        left[nxt] = False
+    order.append(end)
+    return order
+
+
+def _improve(distance: np.ndarray, order: list[int], max_moves: int) -> list[int]:
+    """Best-improvement 2-opt and Or-opt (segments of 1-3 points, either way round) on a
+    path whose first and last points stay fixed."""
+    p = np.array(order, dtype=np.int64)
+    n = len(p)
+    eps = 1e-9
+    for _ in range(max_moves):
+        best_gain, best_move = eps, None
+        # 2-opt: reverse p[i..j], 1 <= i < j <= n-2.
+        idx = np.arange(1, n - 1)
+        a, b = p[idx - 1], p[idx]
+        c, d = p[idx], p[idx + 1]
+        gain = (distance[a, b][:, None] + distance[c, d][None, :]) - (
+            distance[a[:, None], c[None, :]] + distance[b[:, None], d[None, :]]
+        )
+        gain = np.where(idx[:, None] < idx[None, :], gain, -np.inf)
+        flat = int(np.argmax(gain))
+        if gain.flat[flat] > best_gain:
+            best_gain = float(gain.flat[flat])
+            best_move = ("2opt", int(idx[flat // len(idx)]), int(idx[flat % len(idx)]), False)
+        # Or-opt: move p[i..i+l-1] between p[q] and p[q+1] (q not touching the segment).
+        q = np.arange(0, n - 1)
+        for length in (1, 2, 3):
+            starts = np.arange(1, n - length)  # segment within 1..n-2
+            if starts.size == 0:
+                break
+            first, last = p[starts], p[starts + length - 1]
+            before, after = p[starts - 1], p[starts + length]
+            removal = distance[before, first] + distance[last, after] - distance[before, after]
+            u, v = p[q], p[q + 1]
+            base = distance[u, v][None, :]
+            forward = distance[u[None, :], first[:, None]] + distance[last[:, None], v[None, :]] - base
+            backward = distance[u[None, :], last[:, None]] + distance[first[:, None], v[None, :]] - base
+            ok = (q[None, :] < starts[:, None] - 1) | (q[None, :] > starts[:, None] + length - 1)
+            for reverse, insert in ((False, forward), (True, backward)):
+                g = np.where(ok, removal[:, None] - insert, -np.inf)
+                flat = int(np.argmax(g))
+                if g.flat[flat] > best_gain:
+                    best_gain = float(g.flat[flat])
+                    best_move = ("or", int(starts[flat // len(q)]), int(q[flat % len(q)]), reverse, length)
+        if best_move is None:
+            break
+        if best_move[0] == "2opt":
+            _, i, j, _ = best_move
+            p[i : j + 1] = p[i : j + 1][::-1].copy()
+        else:
+            _, i, qq, reverse, length = best_move
+            segment = p[i : i + length].copy()
+            if reverse:
+                segment = segment[::-1]
+            rest = np.concatenate([p[:i], p[i + length :]])
+            # Edge (p[qq], p[qq+1]) in the old path; find p[qq] in the rest.
+            pos = int(np.nonzero(rest == p[qq])[0][0])
+            p = np.concatenate([rest[: pos + 1], segment, rest[pos + 1 :]])
+    return [int(x) for x in p]
+
+
+# --------------------------------------------------------------------------- planner
+def greedy_set_cover(cover: list[np.ndarray], tie_cost: np.ndarray, min_cover: int) -> list[int]:
+    """Indices of sets chosen greedily: each time the set adding the most uncovered
+    elements (the lowest `tie_cost` on a tie), while it adds at least `min_cover`."""
+    if not cover:
+        return []
+    universe, inverse = np.unique(np.concatenate(cover + [np.zeros(0, np.int64)]), return_inverse=True)
+    if universe.size == 0:
+        return []
+    member = np.zeros((len(cover), universe.size), dtype=bool)
+    rows = np.repeat(np.arange(len(cover)), [len(c) for c in cover])
+    member[rows, inverse] = True
+    covered = np.zeros(universe.size, dtype=bool)
+    chosen: list[int] = []
+    while True:
+        gains = (member & ~covered[None, :]).sum(axis=1)
+        gains[chosen] = 0
+        top = gains.max()
+        if top < max(1, min_cover):
+            break
+        best = int(np.lexsort((tie_cost, -gains))[0])
+        chosen.append(best)
+        covered |= member[best]
+    return chosen
+
+
+@register_planner("tare")
+class TarePlanner(GraphPlanner):
+    """TARE's hierarchy on the lattice: a global TSP tour over exploring regions and a local
+    set cover of viewpoints in a 3 x 3-region horizon, ordered by a TSP path joined to it."""
+
+    description = (
+        "Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
+        "the 3x3-region local horizon ordered by a TSP path that joins the global tour"
+    )
+
+    def __init__(
+        self,
+        min_utility: int = 2,
+        horizon_radius: int = 1,
+        min_cover: int = 2,
+        cover_range: float | None = None,
+        exact_max: int = 10,
+        max_moves: int = 200,
+        loop_guard: bool = True,
+    ):
+        super().__init__(min_utility=min_utility)
+        if horizon_radius < 0:
+            raise ValueError(f"horizon_radius must be >= 0, got {horizon_radius}")
+        if min_cover < 1:
+            raise ValueError(f"min_cover must be >= 1, got {min_cover}")
+        if cover_range is not None and cover_range < 0:
+            raise ValueError(f"cover_range must be >= 0 (0 = off), got {cover_range}")
+        if not 1 <= exact_max <= 14:
+            raise ValueError(f"exact_max must be in 1..14, got {exact_max}")
+        if max_moves < 0:
+            raise ValueError(f"max_moves must be >= 0, got {max_moves}")
+        self.horizon_radius = int(horizon_radius)
+        self.min_cover = int(min_cover)
+        self.cover_range = None if cover_range is None else float(cover_range)
+        self.exact_max = int(exact_max)
+        self.max_moves = int(max_moves)
+        self.loop_guard = bool(loop_guard)
+        self.last_decision: dict = {}
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        graph = self.graph
+        assert graph is not None
+        # Region (row, col) of every lattice node, i.e. its TARE subspace.
+        self._node_region = np.stack(
+            [graph._region_row_of_y[graph.node_cells[:, 1]], graph._region_col_of_x[graph.node_cells[:, 0]]], axis=1
+        )
+        self._region_cols = graph.region_shape[1]
+        self._covered = np.zeros(ground_truth.shape[0] * ground_truth.shape[1], dtype=bool)
+        self._views: dict[int, np.ndarray] = {}
+        self._target = -1
+        self._quiet: set[int] = set()
+        self.last_decision = {}
+
+    # ----------------------------------------------------------------- coverage
+    def _forget_views(self, changed: np.ndarray | None, shape: tuple[int, int]) -> None:
+        """Drop cached visible-frontier sets of nodes whose fan may reach a changed cell."""
+        if changed is None:
+            self._views.clear()
+            return
+        if len(changed) == 0 or not self._views:
+            return
+        assert self.graph is not None
+        ys, xs = np.divmod(np.asarray(changed), shape[1])
+        margin = self.graph._utility_range_cells + 2  # a cell's frontier status depends on its neighbours
+        nodes = np.fromiter(self._views.keys(), dtype=np.int64, count=len(self._views))
+        c = self.graph.node_cells[nodes]
+        stale = (
+            (c[:, 0] >= xs.min() - margin)
+            & (c[:, 0] <= xs.max() + margin)
+            & (c[:, 1] >= ys.min() - margin)
+            & (c[:, 1] <= ys.max() + margin)
+        )
+        for node in nodes[stale]:
+            del self._views[int(node)]
+
+    def _visible(self, nodes: np.ndarray, belief: np.ndarray) -> list[np.ndarray]:
+        """Frontier cells each node sees within the utility range (cached between decisions)."""
+        assert self.graph is not None
+        missing = [int(n) for n in nodes if int(n) not in self._views]
+        if missing:
+            sets = visible_frontier_cells(
+                belief == FREE, self.graph.frontier, self.graph.node_cells[missing], self.graph._utility_range_cells
+            )
+            self._views.update(zip(missing, sets))
+        return [self._views[int(n)] for n in nodes]
+
+    def _mark_covered(self, robot: int, belief: np.ndarray) -> None:
+        """TARE's covered surfaces: frontier cells seen from a place the robot has been."""
+        assert self.graph is not None
+        if self.cover_range is None:
+            seen = self._visible(np.array([robot]), belief)[0]
+        elif self.cover_range > 0:
+            range_cells = self.cover_range / self.graph.spec.cell_size
+            origin = self.graph.node_cells[[robot]]
+            (seen,) = visible_frontier_cells(belief == FREE, self.graph.frontier, origin, range_cells)
+        else:
+            return
+        self._covered[seen] = True
+
+    # ----------------------------------------------------------------- decision
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph = self.update_graph(observation)
+        belief = observation.belief
+        self._forget_views(observation.changed, belief.shape)
+        robot = self.robot_node(observation)
+        if observation.changed is None or len(observation.changed) > 0:
+            self._quiet = set()  # nodes visited since the belief last changed
+        self._quiet.add(robot)
+        self._mark_covered(robot, belief)
+
+        dist_robot, pred_robot = graph.shortest_paths(robot)
+        useful = self.useful_nodes()
+        useful = useful[np.isfinite(dist_robot[useful]) & (useful != robot)]
+        if useful.size == 0:
+            self.last_decision = {"mode": "done"}
+            return []
+
+        # Uncovered frontier cells each useful node sees, split into the horizon's and the rest.
+        views = [v[~self._covered[v]] for v in self._visible(useful, belief)]
+        cols = belief.shape[1]
+        r0, c0 = self._node_region[robot]
+        hrows = np.abs(graph._region_row_of_y - r0) <= self.horizon_radius
+        hcols = np.abs(graph._region_col_of_x - c0) <= self.horizon_radius
+        sizes = np.array([len(v) for v in views])
+        owner = np.repeat(np.arange(len(useful)), sizes)
+        cells = np.concatenate(views + [np.zeros(0, np.int64)])
+        cy, cx = np.divmod(cells, cols)
+        inside = hrows[cy] & hcols[cx]
+
+        # Global level: exploring subspaces are the regions outside the horizon whose uncovered
+        # frontier cells some node sees at least `min_cover` of; each is represented by the
+        # nearest such node (along the graph from the robot).
+        reps = np.zeros(0, dtype=np.int64)
+        if (~inside).any():
+            key = graph._region_row_of_y[cy[~inside]] * self._region_cols + graph._region_col_of_x[cx[~inside]]
+            base = int(key.max()) + 1
+            pair, count = np.unique(owner[~inside] * base + key, return_counts=True)
+            pair = pair[count >= self.min_cover]
+            if pair.size:
+                node_k, key_k = np.divmod(pair, base)
+                node_k = useful[node_k]
+                order = np.lexsort((node_k, dist_robot[node_k], key_k))  # per region, nearest first
+                key_sorted = key_k[order]
+                first = np.ones(len(order), dtype=bool)
+                first[1:] = key_sorted[1:] != key_sorted[:-1]
+                reps = np.unique(node_k[order[first]])
+
+        # Local level: greedy set cover of the uncovered frontier cells in the horizon.
+        viewpoints = np.zeros(0, dtype=np.int64)
+        if inside.any():
+            bounds = np.concatenate([[0], np.cumsum(sizes)])
+            sets = [cells[bounds[k] : bounds[k + 1]][inside[bounds[k] : bounds[k + 1]]] for k in range(len(useful))]
+            viewpoints = useful[greedy_set_cover(sets, dist_robot[useful], self.min_cover)]
+
+        # Shortest-path distances between all tour points: one Dijkstra from each.
+        points = np.unique(np.concatenate([[robot], reps, viewpoints]))
+        rows = dijkstra(graph.adjacency(), directed=False, indices=points)
+        row_of = {int(p): k for k, p in enumerate(points)}
+
+        def matrix(nodes: np.ndarray) -> np.ndarray:
+            d = rows[[row_of[int(x)] for x in nodes]][:, nodes]
+            return np.minimum(d, d.T)  # exactly symmetric for the TSP moves
+
+        global_tour: list[int] = []
+        if reps.size:
+            nodes = np.concatenate([[robot], reps])
+            order = tsp_path(matrix(nodes), None, self.exact_max, self.max_moves)
+            global_tour = [int(nodes[k]) for k in order[1:]]
+
+        # The local path starts at the robot and ends at the first exploring subspace of
+        # the global tour (open when there is none).
+        local_tour: list[int] = []
+        if viewpoints.size:
+            if global_tour:
+                nodes = np.concatenate([[robot], viewpoints[viewpoints != global_tour[0]], [global_tour[0]]])
+                order = tsp_path(matrix(nodes), len(nodes) - 1, self.exact_max, self.max_moves)
+            else:
+                nodes = np.concatenate([[robot], viewpoints])
+                order = tsp_path(matrix(nodes), None, self.exact_max, self.max_moves)
+            local_tour = [int(nodes[k]) for k in order[1:]]
+
+        if local_tour:
+            target, mode = local_tour[0], "local"
+        elif global_tour:
+            target, mode = global_tour[0], "global"
+        else:
+            target, mode = int(useful[np.lexsort((useful, dist_robot[useful]))[0]]), "nearest"
+        path = graph.path_from_predecessors(pred_robot, target)
+
+        # Loop guard (not in TARE): with no new information since the robot stepped onto a
+        # node, a replanned route can still flip as the horizon moves with the robot. When
+        # the new first step would go back onto a node visited since the belief last
+        # changed, keep driving to the previous target while it is still worth a visit.
+        if self.loop_guard and target != self._target and path[1] in self._quiet:
+            k = np.nonzero(useful == self._target)[0]
+            if k.size and len(views[int(k[0])]) >= self.min_cover:
+                target, mode = self._target, "kept"
+                path = graph.path_from_predecessors(pred_robot, target)
+        self._target = target
+        self.last_decision = {
+            "mode": mode,
+            "target": target,
+            "local_tour": local_tour,
+            "global_tour": global_tour,
+        }
+        return self.waypoints_along(path)
