@@ -10,15 +10,20 @@ Everything here looks at the ground truth; it is the oracle side of the project.
   boolean matrix nodes x cells.
 - A coverage plan is a list of viewpoints, ordered by an open TSP path from the robot over
   shortest-path distances on that graph, and expanded into the node-by-node path the robot
-  drives. The robot scans at *every* node of that path, so plans are evaluated by
-  simulating exactly those scans: the plan's length is the distance at which the done rule
-  (ground-truth free cells not yet seen <= `done_unknown_cells`) is first met.
-- Viewpoints come from several randomised greedy set covers (cover as needed, not more);
-  each is ordered, then pruned with what the whole path sees (a viewpoint whose removal
-  still completes the episode, no later, goes), re-ordered, and the shortest wins.
+  drives. The robot scans at *every* node of that path, so plans are judged by simulating
+  exactly those scans: a plan's length is the distance at which the done rule (ground-truth
+  free cells not yet seen <= `done_unknown_cells`) is first met, and the path stops there.
+- Viewpoints come from several randomised constructions (greedy set cover, then TSP
+  order; or cheapest insertion of the best gain per metre); cover as needed, not more.
+  Each is refined: viewpoints the path no longer needs are pruned (what the path sees on
+  the way counts), viewpoints are moved to nearby nodes with a shorter detour, the rest is
+  re-ordered by the TSP; the shortest plan wins and is polished by a few rounds of ruin
+  and recreate.
 
-`run_oracle_episode` runs a planner with the oracle's motion rule (segments must be free in
-the ground truth, not in the belief), which is how `Optimal` is allowed to move.
+`run_oracle_episode` runs any planner under the oracle's motion rule (segments free in the
+ground truth, not necessarily in the belief: how `Optimal` may move), through the
+simulator's own `oracle` rule, which `run_episode` applies to planners that declare
+`ignores_motion_rule = True`.
 """
 
 from __future__ import annotations
@@ -35,17 +40,21 @@ from python_tsp.heuristics import solve_tsp_lin_kernighan
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from pipeline.geometry import segment_is_known_free
 from pipeline.graph import LatticeGraph, LatticeSpec
 from pipeline.maps import GroundTruthMap
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE, OCCUPIED, scan
-from pipeline.simulator import Episode, EpisodeResult, MotionError
+from pipeline.simulator import Episode, EpisodeResult, Observation, replay, run_episode
 
 if TYPE_CHECKING:
     from pipeline.planners.base import Planner
 
-EXACT_TSP_MAX_NODES = 10  # DP is ~10 ms at 10 nodes, ~70 ms at 12 and doubles per node
+EXACT_TSP_MAX_NODES = 10  # python-tsp's DP: ~10 ms at 10 nodes, ~70 ms at 12, x2 per node
+HOP_BONUS_M = 1e-6  # shortest-path tie-break towards more lattice nodes (more scans)
+PATH_JITTER_M = 1e-9  # below the hop bonus even summed over a path of hundreds of edges
+DEFAULT_RESTARTS = 8
+DEFAULT_LNS_ITERATIONS = 30
+RESTART_METHODS = ("greedy", "insertion")
 _EPS = 1e-9
 
 
@@ -73,48 +82,54 @@ def ground_truth_graph(ground_truth: GroundTruthMap, protocol: Protocol) -> Latt
 def node_cell_matrix(
     ground_truth: GroundTruthMap, graph: LatticeGraph, nodes: np.ndarray, protocol: Protocol
 ) -> csr_matrix:
-    """Boolean nodes x cells matrix: row k holds the free cells a scan at `nodes[k]` reveals."""
+    """Boolean nodes x cells (flat grid index) matrix: row k = free cells a scan at `nodes[k]` reveals."""
     rows, cols = [], []
     for k, node in enumerate(nodes):
-        cells = scan(ground_truth.free, tuple(int(c) for c in graph.node_cells[node]), protocol.sensor_range_cells).free
+        cell = (int(graph.node_cells[node][0]), int(graph.node_cells[node][1]))
+        cells = scan(ground_truth.free, cell, protocol.sensor_range_cells).free
         rows.append(np.full(cells.size, k, dtype=np.int64))
         cols.append(cells.astype(np.int64))
     r = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
     c = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
-    data = np.ones(r.size, dtype=bool)
-    return csr_matrix((data, (r, c)), shape=(len(nodes), ground_truth.free.size))
+    return csr_matrix((np.ones(r.size, dtype=bool), (r, c)), shape=(len(nodes), ground_truth.free.size))
 
 
 class CoverageModel:
     """Ground-truth lattice graph, per-node scans and all-pairs shortest paths of one map.
 
-    Nodes are renumbered locally: local index k is lattice node `nodes[k]`, the nodes
+    Nodes are renumbered locally: local index k is lattice node `nodes[k]`, one of the nodes
     reachable from the start on the ground-truth graph. Cells are renumbered too: column j
-    is flat grid cell `cells[j]`, the free cells that some reachable node's scan reveals.
+    is flat grid cell `cells[j]`, one of the free cells that some reachable node's scan
+    reveals (the others can never be seen and only count against the done rule).
     """
 
     def __init__(self, ground_truth: GroundTruthMap, protocol: Protocol):
         self.ground_truth = ground_truth
         self.protocol = protocol
-        self.graph = ground_truth_graph(ground_truth, protocol)
-        graph = self.graph
+        self.graph = graph = ground_truth_graph(ground_truth, protocol)
         self.start_node = graph.nearest_node((0.0, 0.0))
         reach = np.isfinite(graph.shortest_paths(self.start_node)[0])
         self.nodes = np.nonzero(reach)[0]
         self.local = np.full(graph.node_count, -1, dtype=np.int64)
         self.local[self.nodes] = np.arange(len(self.nodes))
         self.start = int(self.local[self.start_node])
-        adjacency = graph.adjacency()[self.nodes][:, self.nodes]
+        adjacency = graph.adjacency()[self.nodes][:, self.nodes].tocsr()
+        # Among equally long paths prefer the one through more lattice nodes (two 4 m hops
+        # rather than one 8 m edge): the robot scans at every node, so more scans for free.
+        # A tinier fixed jitter per edge then makes shortest paths unique, so that the rest
+        # of a shortest path is the shortest path from any node on it: a robot replanning
+        # halfway keeps to the path it was on.
+        jitter = np.random.default_rng(0).random(adjacency.data.size) * PATH_JITTER_M
+        adjacency.data = adjacency.data - HOP_BONUS_M + jitter
         self.dist, pred = dijkstra(adjacency, directed=False, return_predecessors=True)
         self.pred = pred.astype(np.int64)
         full = node_cell_matrix(ground_truth, graph, self.nodes, protocol)
         self.cells = np.unique(full.indices)
         self.column = np.full(ground_truth.free.size, -1, dtype=np.int64)
         self.column[self.cells] = np.arange(len(self.cells))
-        self.cover = full[:, self.cells].tocsr()
+        self.cover = full[:, self.cells].tocsr()  # nodes x coverable cells
         self.cover.sort_indices()
-        self.cover_csc = self.cover.tocsc()
-        self.cover_csc.sort_indices()
+        self.dense = self.cover.toarray()
         self.free_cell_count = ground_truth.free_cell_count
         self.world = graph.node_world[self.nodes].astype(np.float64)
         self.node_cells = graph.node_cells[self.nodes]
@@ -125,7 +140,7 @@ class CoverageModel:
         return len(self.nodes)
 
     def row(self, k: int) -> np.ndarray:
-        """Columns (local cells) revealed by a scan at local node k."""
+        """Columns (coverable cells) revealed by a scan at local node k."""
         return self.cover.indices[self.cover.indptr[k] : self.cover.indptr[k + 1]]
 
     def path(self, a: int, b: int) -> tuple[int, ...]:
@@ -147,17 +162,25 @@ class CoverageModel:
             out.extend(self.path(int(a), int(b))[1:])
         return out
 
+    def path_length(self, path: Sequence[int]) -> float:
+        """Metres along a node path (straight segments between consecutive nodes)."""
+        if len(path) < 2:
+            return 0.0
+        steps = np.diff(self.world[np.asarray(path)], axis=0)
+        return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
+
     def uncovered(self, known_free: np.ndarray | None = None) -> np.ndarray:
-        """Mask over columns of the coverable cells not yet known free (all if None)."""
+        """Mask over columns: coverable cells not known free yet (all of them if None)."""
         if known_free is None:
             return np.ones(len(self.cells), dtype=bool)
         return ~known_free.reshape(-1)[self.cells]
 
-    def slack(self, uncovered: np.ndarray) -> int:
+    def slack(self) -> int:
         """How many coverable cells may stay unseen when the episode is complete.
 
-        The done rule counts every ground-truth free cell; cells no reachable scan reveals
-        are lost anyway. If they alone exceed the allowance, everything coverable is needed.
+        The done rule counts every ground-truth free cell; the ones no reachable scan
+        reveals are lost anyway. If they alone exceed the allowance, all coverable cells
+        are needed (and the episode cannot complete).
         """
         uncoverable = self.free_cell_count - len(self.cells)
         return max(0, self.protocol.done_unknown_cells - uncoverable)
@@ -168,7 +191,7 @@ _MODEL_CACHE_SIZE = 4
 
 
 def coverage_model(ground_truth: GroundTruthMap, protocol: Protocol) -> CoverageModel:
-    """The `CoverageModel` of a map, cached (a few recent maps) so planners share it."""
+    """The `CoverageModel` of a map, cached (the last few maps) so planners share it."""
     digest = hashlib.sha1(np.ascontiguousarray(ground_truth.free).tobytes()).hexdigest()
     key = (digest, ground_truth.shape, tuple(ground_truth.start_cell), ground_truth.cell_size, protocol)
     model = _MODEL_CACHE.get(key)
@@ -182,56 +205,51 @@ def coverage_model(ground_truth: GroundTruthMap, protocol: Protocol) -> Coverage
     return model
 
 
-# --------------------------------------------------------------------------- set cover
-def _rows_of_columns(model: CoverageModel, columns: np.ndarray) -> np.ndarray:
-    """All local nodes (with repetition) whose scan reveals each of `columns`."""
-    csc = model.cover_csc
-    starts = csc.indptr[columns]
-    lengths = csc.indptr[columns + 1] - starts
-    total = int(lengths.sum())
-    if total == 0:
-        return np.zeros(0, dtype=np.int64)
-    offsets = np.repeat(starts - np.concatenate([[0], np.cumsum(lengths)[:-1]]), lengths)
-    return csc.indices[offsets + np.arange(total)]
+class CoverageObjective:
+    """The cells a plan must still see, with each node's scan packed as a bitset over them.
 
-
-def greedy_cover(
-    model: CoverageModel,
-    uncovered: np.ndarray,
-    slack: int,
-    rng: np.random.Generator,
-    robot: int,
-    tolerance: float = 0.0,
-    distance_scale: float | None = None,
-) -> list[int]:
-    """A greedy set cover, stopping as soon as at most `slack` coverable cells stay unseen.
-
-    Each round takes a node among those whose score is within `tolerance` (a fraction) of
-    the best, at random, so restarts differ. The score is the number of new cells, divided
-    by (1 + d / distance_scale) when `distance_scale` is set, d being the path distance to
-    the nearest node already chosen (or the robot), which favours compact covers.
+    Simulating a path is then a cumulative OR of its nodes' bitsets and a popcount.
     """
-    u = uncovered.copy()
-    remaining = int(u.sum())
-    gains = (model.cover @ u.astype(np.int64)).astype(np.float64)
-    chosen: list[int] = []
-    near = model.dist[robot].copy() if distance_scale else None
-    while remaining > slack:
-        score = gains if near is None else gains / (1.0 + near / distance_scale)
-        best = score.max()
-        if best <= 0:
-            break
-        pool = np.nonzero(score >= best * (1.0 - tolerance) - _EPS)[0]
-        pick = int(pool[rng.integers(len(pool))]) if len(pool) > 1 else int(pool[0])
-        row = model.row(pick)
-        new = row[u[row]]
-        u[new] = False
-        remaining -= len(new)
-        gains -= np.bincount(_rows_of_columns(model, new), minlength=model.node_count)
-        chosen.append(pick)
-        if near is not None:
-            np.minimum(near, model.dist[pick], out=near)
-    return chosen
+
+    def __init__(self, model: CoverageModel, uncovered: np.ndarray):
+        self.model = model
+        self.uncovered = uncovered
+        columns = np.nonzero(uncovered)[0]
+        self.total = len(columns)
+        self.slack = model.slack()
+        # Whether the done rule can be met at all (the never-seen cells alone may exceed it).
+        self.achievable = model.free_cell_count - len(model.cells) <= model.protocol.done_unknown_cells
+        packed = np.packbits(model.dense[:, columns], axis=1, bitorder="little")
+        pad = (-packed.shape[1]) % 8 or (8 if packed.shape[1] == 0 else 0)
+        packed = np.pad(packed, ((0, 0), (0, pad)))
+        self.bits = np.ascontiguousarray(packed).view(np.uint64)
+        self.gain = np.bitwise_count(self.bits).sum(axis=1).astype(np.int64)
+
+    @property
+    def need(self) -> int:
+        """Cells still to see before the episode is complete (<= 0: complete already)."""
+        return self.total - self.slack
+
+    def simulate(self, path: Sequence[int]) -> tuple[int, float, int]:
+        """Scan at every node of `path` in order: (nodes needed, metres, cells left unseen).
+
+        `nodes needed` is the length of the shortest prefix after which at most `slack`
+        cells are unseen (the whole path if none).
+        """
+        p = np.asarray(path, dtype=np.int64)
+        seen = np.bitwise_or.accumulate(self.bits[p], axis=0)
+        remaining = self.total - np.bitwise_count(seen).sum(axis=1).astype(np.int64)
+        done = remaining <= self.slack
+        needed = int(np.argmax(done)) + 1 if done.any() else len(p)
+        return needed, self.model.path_length(p[:needed]), int(remaining[needed - 1])
+
+    def seen_by(self, path: Sequence[int]) -> np.ndarray:
+        """Bitset of the cells seen by scanning along `path`."""
+        return np.bitwise_or.reduce(self.bits[np.asarray(path, dtype=np.int64)], axis=0)
+
+    def gains_after(self, seen: np.ndarray) -> np.ndarray:
+        """Per node: cells its scan would add to `seen`."""
+        return np.bitwise_count(self.bits & ~seen).sum(axis=1).astype(np.int64)
 
 
 # --------------------------------------------------------------------------- TSP
@@ -246,31 +264,27 @@ def _two_opt_open(dist: np.ndarray, p: np.ndarray) -> np.ndarray:
     if m < 3:
         return p
     while True:
-        prev = p[:-1]  # p[i-1] for i = 1..m-1
-        first = p[1:]  # p[i]
-        nxt = np.append(p[2:], -1)  # p[j+1] for j = 1..m-1 (-1: j is the end)
-        last = p[1:]  # p[j]
+        prev, first, last = p[:-1], p[1:], p[1:]  # p[i-1], p[i] and p[j] for i, j = 1..m-1
+        nxt = np.append(p[2:], -1)  # p[j+1]; -1 when j is the end
         has_next = nxt >= 0
         nxt_safe = np.where(has_next, nxt, 0)
-        # delta[i, j] for reversing p[i..j]
         before = dist[prev, first][:, None] + np.where(has_next, dist[last, nxt_safe], 0.0)[None, :]
         after = dist[prev[:, None], last[None, :]] + np.where(
             has_next[None, :], dist[first[:, None], nxt_safe[None, :]], 0.0
         )
-        delta = after - before
+        delta = after - before  # reversing p[i..j]
         delta[np.tril_indices(m - 1)] = 0.0
         k = int(np.argmin(delta))
         if delta.flat[k] > -1e-7:
             return p
-        i, j = np.unravel_index(k, delta.shape)
-        i, j = int(i) + 1, int(j) + 1
+        i, j = (int(v) + 1 for v in np.unravel_index(k, delta.shape))
         p = np.concatenate([p[:i], p[i : j + 1][::-1], p[j + 1 :]])
 
 
 def _or_opt_open(dist: np.ndarray, p: np.ndarray, max_segment: int = 3) -> np.ndarray:
-    """Move a segment of 1..max_segment nodes (maybe reversed) elsewhere in an open path."""
-    improved = True
+    """Move a run of 1..max_segment nodes (maybe reversed) elsewhere in an open path."""
     base = path_cost(dist, p)
+    improved = True
     while improved:
         improved = False
         m = len(p)
@@ -278,17 +292,13 @@ def _or_opt_open(dist: np.ndarray, p: np.ndarray, max_segment: int = 3) -> np.nd
             for i in range(1, m - s + 1):
                 seg = p[i : i + s]
                 rest = np.concatenate([p[:i], p[i + s :]])
-                removed = path_cost(dist, rest)
-                # insert after rest[k], k = 0..len(rest)-1 (k = last: append at the end)
-                a = rest
-                b = np.append(rest[1:], -1)
-                has_b = b >= 0
-                b_safe = np.where(has_b, b, 0)
-                link = np.where(has_b, dist[a, b_safe], 0.0)
-                inner = path_cost(dist, seg)
-                fwd = dist[a, seg[0]] + np.where(has_b, dist[seg[-1], b_safe], 0.0) - link
-                rev = dist[a, seg[-1]] + np.where(has_b, dist[seg[0], b_safe], 0.0) - link
-                cost = removed + inner + np.minimum(fwd, rev)
+                after_a = np.append(rest[1:], -1)  # the node after each insertion point
+                has_b = after_a >= 0
+                b = np.where(has_b, after_a, 0)
+                link = np.where(has_b, dist[rest, b], 0.0)
+                fwd = dist[rest, seg[0]] + np.where(has_b, dist[seg[-1], b], 0.0) - link
+                rev = dist[rest, seg[-1]] + np.where(has_b, dist[seg[0], b], 0.0) - link
+                cost = path_cost(dist, rest) + path_cost(dist, seg) + np.minimum(fwd, rev)
                 k = int(np.argmin(cost))
                 if cost[k] < base - 1e-7:
                     piece = seg if fwd[k] <= rev[k] else seg[::-1]
@@ -301,26 +311,53 @@ def _or_opt_open(dist: np.ndarray, p: np.ndarray, max_segment: int = 3) -> np.nd
     return p
 
 
+def _nearest_neighbour(dist: np.ndarray) -> list[int]:
+    left = np.ones(len(dist), dtype=bool)
+    left[0] = False
+    order = [0]
+    for _ in range(len(dist) - 1):
+        nxt = int(np.argmin(np.where(left, dist[order[-1]], np.inf)))
+        order.append(nxt)
+        left[nxt] = False
+    return order
+
+
 def open_tsp_order(
     dist: np.ndarray, exact_max_nodes: int = EXACT_TSP_MAX_NODES, x0: Sequence[int] | None = None
 ) -> np.ndarray:
-    """Order of an open path through all nodes of `dist` starting at node 0 (ending anywhere).
+    """Order of an open path through all nodes of `dist` from node 0, ending anywhere.
 
-    Returning to node 0 is made free (its column set to 0), so the best cycle is the best
-    open path. Exact dynamic programming up to `exact_max_nodes`, else Lin-Kernighan from a
-    nearest-neighbour (or given) start, then 2-opt and or-opt on the open path.
+    Up to `exact_max_nodes` nodes: python-tsp's exact dynamic programming, with the return
+    to node 0 made free (its column set to 0), so the best cycle is the best open path.
+    Larger: python-tsp's Lin-Kernighan from a nearest-neighbour (or given) start, then
+    2-opt and or-opt on the open path. Deterministic.
     """
     n = len(dist)
     if n <= 2:
         return np.arange(n)
-    closed = np.array(dist, dtype=np.float64)
-    closed[:, 0] = 0.0
+    dist = np.asarray(dist, dtype=np.float64)
     if n <= exact_max_nodes:
+        closed = dist.copy()
+        closed[:, 0] = 0.0
         perm, _ = solve_tsp_dynamic_programming(closed)
         return np.asarray(perm, dtype=np.int64)
     if x0 is None:
         x0 = _nearest_neighbour(dist)
-    perm, _ = solve_tsp_lin_kernighan(closed, x0=[int(v) for v in x0])
+    # Lin-Kernighan gets a symmetric instance in whole millimetres: python-tsp 0.5's LK
+    # tracks the tour length incrementally and, on float lengths, can take rounding noise
+    # for an improvement and never stop (seen on 17-node instances, with the asymmetric
+    # free-return matrix and with this one); with integers every accepted move is a real
+    # gain, so it terminates. A dummy node n joins the start at cost 0 and every other node
+    # at a constant `big` larger than any open path, so the best cycle is
+    # start ... last -> dummy -> start: the best open path plus `big`.
+    scaled = np.round(dist * 1000.0)
+    big = float(scaled.max()) * n + 1.0
+    closed = np.full((n + 1, n + 1), big)
+    closed[:n, :n] = scaled
+    closed[n, 0] = closed[0, n] = closed[n, n] = 0.0
+    perm = [int(v) for v in solve_tsp_lin_kernighan(closed, x0=[int(v) for v in x0] + [n])[0]]
+    # The cycle starts at 0; read the path away from the dummy's side.
+    perm = [0] + perm[2:][::-1] if perm[1] == n else [v for v in perm if v != n]
     p = np.asarray(perm, dtype=np.int64)
     for _ in range(4):
         before = path_cost(dist, p)
@@ -330,115 +367,32 @@ def open_tsp_order(
     return p
 
 
-def _nearest_neighbour(dist: np.ndarray) -> list[int]:
-    n = len(dist)
-    left = np.ones(n, dtype=bool)
-    left[0] = False
-    order = [0]
-    for _ in range(n - 1):
-        d = np.where(left, dist[order[-1]], np.inf)
-        nxt = int(np.argmin(d))
-        order.append(nxt)
-        left[nxt] = False
-    return order
-
-
 # --------------------------------------------------------------------------- plans
 @dataclass
 class CoveragePlan:
     """Viewpoints in visiting order and the node path that visits them (local indices)."""
 
-    order: list[int]  # robot first, then the viewpoints
+    order: list[int]  # robot first, then the viewpoints reached before completion
     path: list[int]  # node by node, robot first, cut where the episode completes
-    length: float  # metres along `path` (to completion, or to its end if incomplete)
-    complete: bool  # whether scanning along `path` meets the done rule
+    length: float  # metres along `path`
+    complete: bool  # whether scanning along `path` meets the done rule (then `path` stops there)
     remaining: int  # coverable cells still unseen at the end of `path`
     stats: dict = field(default_factory=dict)
 
 
-def simulate_path(
-    model: CoverageModel, path: Sequence[int], uncovered: np.ndarray, slack: int
-) -> tuple[int, float, int]:
-    """Scan at every node of `path` in order; returns (nodes needed, metres, cells left).
-
-    `nodes needed` is the length of the shortest prefix whose scans leave at most `slack`
-    coverable cells unseen (len(path) if none does; 1 if the robot's own place suffices).
-    """
-    u = uncovered.copy()
-    remaining = int(u.sum())
-    length = 0.0
-    world = model.world
-    for idx, node in enumerate(path):
-        if idx:
-            a, b = world[path[idx - 1]], world[node]
-            length += float(np.hypot(b[0] - a[0], b[1] - a[1]))
-        row = model.row(node)
-        new = row[u[row]]
-        if new.size:
-            u[new] = False
-            remaining -= len(new)
-        if remaining <= slack:
-            return idx + 1, length, remaining
-    return len(path), length, remaining
-
-
-def evaluate_order(model: CoverageModel, order: Sequence[int], uncovered: np.ndarray, slack: int) -> CoveragePlan:
-    """Expand, simulate and cut an order (robot first) into a plan."""
+def evaluate_order(objective: CoverageObjective, order: Sequence[int]) -> CoveragePlan:
+    """Expand an order (robot first), simulate its scans and cut it where it completes."""
+    model = objective.model
     path = model.expand(order)
-    needed, length, remaining = simulate_path(model, path, uncovered, slack)
-    path = path[:needed]
-    # Keep only the viewpoints reached before completion.
+    needed, length, remaining = objective.simulate(path)
     reached, pos = [int(order[0])], 0
     for v in order[1:]:
-        seg = model.path(reached[-1], int(v))
-        pos += len(seg) - 1
+        pos += len(model.path(reached[-1], int(v))) - 1
         if pos > needed - 1:
             break
         reached.append(int(v))
-    return CoveragePlan(reached, list(path), length, remaining <= slack, remaining)
-
-
-def _order_viewpoints(model: CoverageModel, robot: int, viewpoints: Sequence[int], exact_max_nodes: int) -> list[int]:
-    nodes = [robot] + [int(v) for v in dict.fromkeys(viewpoints) if int(v) != robot]
-    sub = model.dist[np.ix_(nodes, nodes)]
-    perm = open_tsp_order(sub, exact_max_nodes)
-    return [nodes[int(i)] for i in perm]
-
-
-def prune_plan(
-    model: CoverageModel,
-    plan: CoveragePlan,
-    uncovered: np.ndarray,
-    slack: int,
-    deadline: float = np.inf,
-) -> CoveragePlan:
-    """Drop viewpoints the path does not need: the rest of the path still completes, no later.
-
-    The scans along the whole path count, intermediate nodes included, so a viewpoint whose
-    cells are seen on the way through others goes.
-    """
-    improved = True
-    while improved and time.perf_counter() < deadline:
-        improved = False
-        # Try the viewpoints that cost the most detour first.
-        order = plan.order
-        if len(order) <= 1:
-            break
-        detour = []
-        for i in range(1, len(order)):
-            a = order[i - 1]
-            b = order[i + 1] if i + 1 < len(order) else None
-            through = model.dist[a, order[i]] + (model.dist[order[i], b] if b is not None else 0.0)
-            direct = model.dist[a, b] if b is not None else 0.0
-            detour.append(through - direct)
-        for i in np.argsort(detour, kind="stable")[::-1]:
-            i = int(i) + 1
-            trial = evaluate_order(model, order[:i] + order[i + 1 :], uncovered, slack)
-            if _better(trial, plan, allow_equal=True):
-                plan = trial
-                improved = True
-                break
-    return plan
+    complete = remaining <= objective.slack and objective.achievable
+    return CoveragePlan(reached, list(path[:needed]), length, complete, remaining)
 
 
 def _better(a: CoveragePlan, b: CoveragePlan, allow_equal: bool = False) -> bool:
@@ -452,31 +406,260 @@ def _better(a: CoveragePlan, b: CoveragePlan, allow_equal: bool = False) -> bool
     return a.length < b.length - 1e-7
 
 
-def refine(
-    model: CoverageModel,
+def greedy_cover(
+    objective: CoverageObjective,
     robot: int,
-    viewpoints: Sequence[int],
-    uncovered: np.ndarray,
-    slack: int,
-    exact_max_nodes: int = EXACT_TSP_MAX_NODES,
-    rounds: int = 3,
-    deadline: float = np.inf,
-    order: Sequence[int] | None = None,
+    rng: np.random.Generator,
+    tolerance: float = 0.0,
+    distance_scale: float | None = None,
+) -> list[int]:
+    """A greedy set cover, stopping as soon as at most `slack` cells stay unseen.
+
+    Each round takes a node among those whose score is within `tolerance` (a fraction) of
+    the best, at random. The score is the number of new cells, divided by
+    (1 + d / distance_scale) when `distance_scale` is set, d being the path distance to the
+    nearest node already chosen (or the robot), which favours compact covers.
+    """
+    model = objective.model
+    seen = objective.seen_by([robot])
+    remaining = objective.total - int(np.bitwise_count(seen).sum())
+    near = model.dist[robot].copy() if distance_scale else None
+    chosen: list[int] = []
+    while remaining > objective.slack:
+        gains = objective.gains_after(seen).astype(np.float64)
+        score = gains if near is None else gains / (1.0 + near / distance_scale)
+        best = score.max()
+        if best <= 0:
+            break
+        pool = np.nonzero(score >= best * (1.0 - tolerance) - _EPS)[0]
+        pick = int(pool[rng.integers(len(pool))]) if len(pool) > 1 else int(pool[0])
+        seen = seen | objective.bits[pick]
+        remaining -= int(gains[pick])
+        chosen.append(pick)
+        if near is not None:
+            np.minimum(near, model.dist[pick], out=near)
+    return chosen
+
+
+def insertion_cover(
+    objective: CoverageObjective,
+    robot: int,
+    rng: np.random.Generator,
+    tolerance: float = 0.0,
+    exponent: float = 1.0,
+    offset_m: float = 4.0,
+    start_order: Sequence[int] | None = None,
+) -> list[int]:
+    """An order (robot first) built by cheapest insertion of the best gain per metre.
+
+    Starts from `start_order` (robot first) when given. Each round scores every node by
+    gain**exponent / (insertion cost + offset_m): the gain counts the cells the current
+    path (scanning at every node) leaves unseen, capped at what is still needed; the
+    insertion cost is the cheapest detour that puts the node into the order, or appends it.
+    A node within `tolerance` of the best score is taken at random.
+    """
+    model = objective.model
+    dist = model.dist
+    order = [robot] if start_order is None else [int(v) for v in start_order]
+    while True:
+        seen = objective.seen_by(model.expand(order))
+        need = objective.total - int(np.bitwise_count(seen).sum()) - objective.slack
+        if need <= 0:
+            return order
+        gains = np.minimum(objective.gains_after(seen), need).astype(np.float64)
+        cand = np.nonzero(gains > 0)[0]
+        if cand.size == 0:
+            return order
+        o = np.asarray(order)
+        append = dist[o[-1], cand][None, :]
+        if len(o) > 1:
+            into = dist[o[:-1, None], cand[None, :]] + dist[cand[None, :], o[1:, None]] - dist[o[:-1], o[1:]][:, None]
+            costs = np.vstack([into, append])
+        else:
+            costs = append
+        where = np.argmin(costs, axis=0)
+        cost = costs[where, np.arange(len(cand))]
+        score = gains[cand] ** exponent / (cost + offset_m)
+        pool = np.nonzero(score >= score.max() * (1.0 - tolerance) - _EPS)[0]
+        pick = int(pool[rng.integers(len(pool))]) if len(pool) > 1 else int(pool[0])
+        order.insert(int(where[pick]) + 1, int(cand[pick]))
+
+
+def _order_viewpoints(
+    objective: CoverageObjective, robot: int, viewpoints: Sequence[int], exact_max_nodes: int
+) -> list[int]:
+    nodes = [robot] + [int(v) for v in dict.fromkeys(viewpoints) if int(v) != robot]
+    perm = open_tsp_order(objective.model.dist[np.ix_(nodes, nodes)], exact_max_nodes)
+    return [nodes[int(i)] for i in perm]
+
+
+def _detours(dist: np.ndarray, order: Sequence[int]) -> np.ndarray:
+    """Per viewpoint order[i] (i >= 1): extra metres the order spends to pass through it."""
+    o = np.asarray(order)
+    prev, here = o[:-1], o[1:]
+    nxt = np.append(o[2:], -1)
+    has = nxt >= 0
+    nxt_safe = np.where(has, nxt, 0)
+    through = dist[prev, here] + np.where(has, dist[here, nxt_safe], 0.0)
+    return through - np.where(has, dist[prev, nxt_safe], 0.0)
+
+
+def prune_plan(objective: CoverageObjective, plan: CoveragePlan, deadline: float = np.inf) -> CoveragePlan:
+    """Drop viewpoints the path does not need: without them it still completes, no later.
+
+    What the whole path sees counts, intermediate nodes included, so a viewpoint whose
+    cells are seen on the way through the others goes. Costliest detours are tried first.
+    """
+    improved = True
+    while improved and len(plan.order) > 1 and time.perf_counter() < deadline:
+        improved = False
+        order = plan.order
+        for i in np.argsort(_detours(objective.model.dist, order), kind="stable")[::-1]:
+            i = int(i) + 1
+            trial = evaluate_order(objective, order[:i] + order[i + 1 :])
+            if _better(trial, plan, allow_equal=True):
+                plan, improved = trial, True
+                break
+    return plan
+
+
+def relocate_plan(
+    objective: CoverageObjective, plan: CoveragePlan, radius_m: float = 12.0, deadline: float = np.inf
 ) -> CoveragePlan:
-    """Order the viewpoints, prune with the path's scans, re-order; repeat while it helps."""
-    if order is None:
-        order = _order_viewpoints(model, robot, viewpoints, exact_max_nodes)
-    plan = evaluate_order(model, list(order), uncovered, slack)
+    """Move single viewpoints to nodes within `radius_m` (graph metres) while that shortens the plan.
+
+    Only nodes with a shorter detour than the viewpoint's are tried (typically: stop short
+    of the end of a dead end when its cells are seen from nearer).
+    """
+    dist = objective.model.dist
+    improved = True
+    while improved and time.perf_counter() < deadline:
+        improved = False
+        order = plan.order
+        for i in range(1, len(order)):
+            a, v = order[i - 1], order[i]
+            b = order[i + 1] if i + 1 < len(order) else None
+            near = np.nonzero(dist[v] <= radius_m)[0]
+            detour = dist[a, near] + (dist[near, b] if b is not None else 0.0)
+            current = dist[a, v] + (dist[v, b] if b is not None else 0.0)
+            keep = detour < current - 1e-7
+            near, detour = near[keep], detour[keep]
+            for w in near[np.argsort(detour, kind="stable")]:
+                trial = evaluate_order(objective, order[:i] + [int(w)] + order[i + 1 :])
+                if _better(trial, plan):
+                    plan, improved = trial, True
+                    break
+            if improved or time.perf_counter() >= deadline:
+                break
+    return plan
+
+
+def reinsert_plan(objective: CoverageObjective, plan: CoveragePlan, deadline: float = np.inf) -> CoveragePlan:
+    """Move single viewpoints elsewhere in the order, judged by the simulated scans.
+
+    The TSP orders by distance alone; here an order is judged by where the episode
+    completes, which also depends on what each stretch of the path sees.
+    """
+    improved = True
+    while improved and time.perf_counter() < deadline:
+        improved = False
+        order = plan.order
+        for i in range(1, len(order)):
+            rest = order[:i] + order[i + 1 :]
+            for j in range(1, len(rest) + 1):
+                if j == i:
+                    continue
+                trial = evaluate_order(objective, rest[:j] + [order[i]] + rest[j:])
+                if _better(trial, plan):
+                    plan, improved = trial, True
+                    break
+            if improved or time.perf_counter() >= deadline:
+                break
+    return plan
+
+
+def refine(
+    objective: CoverageObjective,
+    order: Sequence[int],
+    exact_max_nodes: int = EXACT_TSP_MAX_NODES,
+    rounds: int = 4,
+    deadline: float = np.inf,
+    relocate_radius_m: float = 12.0,
+    reorder_first: bool = True,
+) -> CoveragePlan:
+    """TSP-order the viewpoints, then prune, relocate and re-order while any of them helps.
+
+    With `reorder_first` the given order competes with its TSP re-ordering (a re-ordered
+    path may pass other nodes and see less). A plan that ends up incomplete is topped up
+    by cheapest insertion and refined once more.
+    """
+    robot = int(order[0])
+    plan = evaluate_order(objective, list(order))
+    if reorder_first:
+        reordered = evaluate_order(objective, _order_viewpoints(objective, robot, order[1:], exact_max_nodes))
+        if _better(reordered, plan, allow_equal=True):
+            plan = reordered
+    plan = _refine_rounds(objective, plan, exact_max_nodes, rounds, deadline, relocate_radius_m)
+    if not plan.complete and objective.need > 0:
+        topped = insertion_cover(objective, robot, np.random.default_rng(0), start_order=plan.order)
+        if len(topped) > len(plan.order):
+            plan = _refine_rounds(objective, evaluate_order(objective, topped), exact_max_nodes, rounds, deadline,
+                                  relocate_radius_m)
+    return plan
+
+
+def _refine_rounds(
+    objective: CoverageObjective,
+    plan: CoveragePlan,
+    exact_max_nodes: int,
+    rounds: int,
+    deadline: float,
+    relocate_radius_m: float,
+) -> CoveragePlan:
+    robot = plan.order[0]
     for _ in range(rounds):
-        plan = prune_plan(model, plan, uncovered, slack, deadline)
+        before = plan.length, plan.remaining
+        plan = prune_plan(objective, plan, deadline)
+        if relocate_radius_m > 0:
+            plan = relocate_plan(objective, plan, relocate_radius_m, deadline)
         if time.perf_counter() >= deadline:
             break
-        reordered = evaluate_order(
-            model, _order_viewpoints(model, robot, plan.order[1:], exact_max_nodes), uncovered, slack
-        )
-        if not _better(reordered, plan):
+        reordered = evaluate_order(objective, _order_viewpoints(objective, robot, plan.order[1:], exact_max_nodes))
+        if _better(reordered, plan):
+            plan = reordered
+        elif (plan.length, plan.remaining) == before:
             break
-        plan = reordered
+    return plan
+
+
+def ruin_and_recreate(
+    objective: CoverageObjective,
+    plan: CoveragePlan,
+    rng: np.random.Generator,
+    iterations: int,
+    deadline: float = np.inf,
+    exact_max_nodes: int = EXACT_TSP_MAX_NODES,
+    relocate_radius_m: float = 12.0,
+) -> CoveragePlan:
+    """Large-neighbourhood search: drop 1-3 viewpoints, re-insert greedily, refine, keep if shorter."""
+    robot = plan.order[0]
+    for _ in range(iterations):
+        k = len(plan.order) - 1
+        if time.perf_counter() >= deadline or k < 1:
+            break
+        drop = int(rng.integers(1, min(3, k) + 1))
+        if rng.random() < 0.5:  # a stretch of the tour
+            first = int(rng.integers(1, k - drop + 2))
+            removed = set(range(first, first + drop))
+        else:
+            removed = {int(i) for i in rng.choice(np.arange(1, k + 1), size=drop, replace=False)}
+        kept = [v for i, v in enumerate(plan.order) if i not in removed]
+        tolerance = float(rng.choice([0.0, 0.1, 0.2]))
+        exponent = float(rng.choice([0.5, 1.0, 1.5, 2.0]))
+        order = insertion_cover(objective, robot, rng, tolerance, exponent, start_order=kept)
+        trial = refine(objective, order, exact_max_nodes, deadline=deadline, relocate_radius_m=relocate_radius_m)
+        if _better(trial, plan):
+            plan = trial
     return plan
 
 
@@ -485,41 +668,68 @@ def plan_coverage(
     robot: int,
     uncovered: np.ndarray,
     rng: np.random.Generator,
-    restarts: int = 8,
+    restarts: int = DEFAULT_RESTARTS,
     warm_order: Sequence[int] | None = None,
+    lns_iterations: int = DEFAULT_LNS_ITERATIONS,
     exact_max_nodes: int = EXACT_TSP_MAX_NODES,
     time_limit: float | None = None,
+    methods: Sequence[str] = RESTART_METHODS,
+    relocate_radius_m: float = 12.0,
 ) -> CoveragePlan:
-    """The shortest of several covers, each ordered and pruned; `warm_order` competes too.
+    """The shortest plan from local node `robot` that sees enough of the `uncovered` cells.
 
-    Restart 0 is plain greedy (ties at random); the others add a random score tolerance
-    and a random distance discount, so their covers differ in count and compactness.
+    `uncovered` (mask over the model's columns) should exclude what the robot has already
+    seen, its own scan included. `warm_order` (viewpoints, e.g. the previous tour) is refined
+    without re-ordering and competes with `restarts` fresh constructions cycling through
+    `methods`: "greedy" (set cover, then TSP order) and "insertion" (cheapest insertion by
+    gain per metre). The first restart of each method is its plain version (ties at
+    random); later ones draw a score tolerance and a distance scale or gain exponent. The
+    best is polished by re-insertion and `lns_iterations` rounds of ruin and recreate.
+    The result depends only on the inputs and `rng`, unless `time_limit` (seconds, a
+    safety net) cuts the search short.
     """
     deadline = time.perf_counter() + time_limit if time_limit else np.inf
-    slack = model.slack(uncovered)
+    objective = CoverageObjective(model, uncovered)
+    log: list[tuple[str, float]] = []
     best: CoveragePlan | None = None
     if warm_order is not None:
         warm = [robot] + [int(v) for v in warm_order if int(v) != robot]
-        best = refine(model, robot, [], uncovered, slack, exact_max_nodes, deadline=deadline, order=warm)
-        if not best.complete:
-            best = None
-    tried = 0
+        best = refine(objective, warm, exact_max_nodes, deadline=deadline,
+                      relocate_radius_m=relocate_radius_m, reorder_first=False)
+        log.append(("warm", best.length))
     for r in range(restarts):
         if best is not None and time.perf_counter() >= deadline:
             break
-        if r == 0:
-            tolerance, scale = 0.0, None
+        method = methods[r % len(methods)]
+        plain = r < len(methods)
+        tolerance = 0.0 if plain else float(rng.choice([0.0, 0.1, 0.2, 0.3]))
+        if method == "greedy":
+            scale = None if plain else (float(rng.choice([0.0, 10.0, 20.0, 40.0, 80.0])) or None)
+            order = [robot] + greedy_cover(objective, robot, rng, tolerance, scale)
+        elif method == "insertion":
+            exponent = 1.0 if plain else float(rng.choice([0.5, 1.0, 1.5, 2.0]))
+            order = insertion_cover(objective, robot, rng, tolerance, exponent)
         else:
-            tolerance = float(rng.choice([0.0, 0.1, 0.2, 0.3]))
-            scale = float(rng.choice([0.0, 10.0, 20.0, 40.0, 80.0])) or None
-        viewpoints = greedy_cover(model, uncovered, slack, rng, robot, tolerance, scale)
-        plan = refine(model, robot, viewpoints, uncovered, slack, exact_max_nodes, deadline=deadline)
-        tried += 1
+            raise ValueError(f"unknown restart method {method!r}; choose from {RESTART_METHODS}")
+        plan = refine(objective, order, exact_max_nodes, deadline=deadline, relocate_radius_m=relocate_radius_m)
+        log.append((method, plan.length))
         if best is None or _better(plan, best):
             best = plan
-    assert best is not None
-    best.stats["restarts"] = tried
+    if best is None:
+        best = evaluate_order(objective, [robot])
+    if best.complete and len(best.order) > 2 and lns_iterations > 0:
+        best = reinsert_plan(objective, best, deadline)
+        best = ruin_and_recreate(objective, best, rng, lns_iterations, deadline, exact_max_nodes, relocate_radius_m)
+        log.append(("lns", best.length))
+    best.stats["search"] = log
     return best
+
+
+def uncovered_after_scan(model: CoverageModel, robot: int, known_free: np.ndarray | None = None) -> np.ndarray:
+    """Coverable cells not known free and not revealed by a scan at local node `robot`."""
+    uncovered = model.uncovered(known_free)
+    uncovered[model.row(robot)] = False
+    return uncovered
 
 
 def choose_viewpoints(
@@ -527,65 +737,71 @@ def choose_viewpoints(
     robot: int | None = None,
     known_free: np.ndarray | None = None,
     seed: int = 0,
-    restarts: int = 8,
+    restarts: int = DEFAULT_RESTARTS,
+    lns_iterations: int = DEFAULT_LNS_ITERATIONS,
 ) -> list[int]:
-    """Lattice node ids of the viewpoints of the best plan, in visiting order.
+    """Lattice node ids of the best plan's viewpoints, in visiting order.
 
-    The robot's own scan (at the start if `robot` is None) is taken as given; coverage is
-    complete when at most `done_unknown_cells` ground-truth free cells stay unseen.
+    The robot's own scan (at the start if `robot`, a lattice node id, is None) is taken as
+    given; coverage is complete when at most `done_unknown_cells` ground-truth free cells
+    stay unseen (cover as needed, not more).
     """
-    robot_local = model.start if robot is None else int(model.local[robot])
-    uncovered = _uncovered_after_own_scan(model, robot_local, known_free)
-    plan = plan_coverage(model, robot_local, uncovered, np.random.default_rng(seed), restarts)
+    local = model.start if robot is None else int(model.local[robot])
+    uncovered = uncovered_after_scan(model, local, known_free)
+    plan = plan_coverage(model, local, uncovered, np.random.default_rng(seed), restarts, lns_iterations=lns_iterations)
     return [int(model.nodes[v]) for v in plan.order[1:]]
 
 
-def _uncovered_after_own_scan(model: CoverageModel, robot: int, known_free: np.ndarray | None) -> np.ndarray:
-    uncovered = model.uncovered(known_free)
-    uncovered[model.row(robot)] = False
-    return uncovered
-
-
 def coverage_plan(
-    ground_truth: GroundTruthMap, protocol: Protocol, seed: int = 0, restarts: int = 8
+    ground_truth: GroundTruthMap,
+    protocol: Protocol,
+    seed: int = 0,
+    restarts: int = DEFAULT_RESTARTS,
+    lns_iterations: int = DEFAULT_LNS_ITERATIONS,
+    time_limit: float | None = None,
 ) -> tuple[CoverageModel, CoveragePlan]:
     """The ground-truth coverage plan from the start (the start's scan already given)."""
     model = coverage_model(ground_truth, protocol)
-    uncovered = _uncovered_after_own_scan(model, model.start, None)
-    plan = plan_coverage(model, model.start, uncovered, np.random.default_rng(seed), restarts)
+    uncovered = uncovered_after_scan(model, model.start)
+    plan = plan_coverage(
+        model, model.start, uncovered, np.random.default_rng(seed), restarts,
+        lns_iterations=lns_iterations, time_limit=time_limit,
+    )
     return model, plan
 
 
 def coverage_tour(
-    ground_truth: GroundTruthMap, protocol: Protocol, seed: int = 0, restarts: int = 8
+    ground_truth: GroundTruthMap,
+    protocol: Protocol,
+    seed: int = 0,
+    restarts: int = DEFAULT_RESTARTS,
+    lns_iterations: int = DEFAULT_LNS_ITERATIONS,
+    time_limit: float | None = None,
 ) -> list[tuple[float, float]]:
     """The `Optimal` tour: lattice waypoints in metres, node by node, the start (0, 0) first.
 
     Consecutive waypoints are joined by ground-truth graph edges; the tour ends where the
-    episode completes.
+    episode completes (or, if the map cannot be completed, once all it can see is seen).
     """
-    model, plan = coverage_plan(ground_truth, protocol, seed, restarts)
+    model, plan = coverage_plan(ground_truth, protocol, seed, restarts, lns_iterations, time_limit)
     return [tuple(map(float, model.world[v])) for v in plan.path]
 
 
 # --------------------------------------------------------------------------- oracle runs
-class OracleEpisode(Episode):
-    """An episode whose moves need ground-truth free segments only (the `Optimal` rule)."""
+class _OracleRule:
+    """Wraps a planner so that the simulator applies the oracle motion rule to its moves."""
 
-    def move(self, waypoint: Sequence[float]) -> None:
-        cell = self.waypoint_cell(waypoint)
-        if not segment_is_known_free(self.map.free, self.cell, cell):
-            raise MotionError(
-                f"segment ({self.position[0]:.3f}, {self.position[1]:.3f}) -> "
-                f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses ground-truth occupied cells"
-            )
-        d = self.protocol.node_resolution
-        target = (round(float(waypoint[0]) / d) * d, round(float(waypoint[1]) / d) * d)
-        self.distance += float(np.hypot(target[0] - self.position[0], target[1] - self.position[1]))
-        self.position = target
-        self.cell = cell
-        self.trajectory.append(target)
-        self._sense()
+    ignores_motion_rule = True
+
+    def __init__(self, planner: "Planner"):
+        self.planner = planner
+        self.name = getattr(planner, "name", "") or type(planner).__name__
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.planner.reset(ground_truth, protocol, seed)
+
+    def plan(self, observation: Observation) -> list[tuple[float, float]]:
+        return self.planner.plan(observation)
 
 
 def run_oracle_episode(
@@ -595,70 +811,16 @@ def run_oracle_episode(
     seed: int = 0,
     on_step: Callable[[Episode], None] | None = None,
 ) -> EpisodeResult:
-    """`run_episode` with the oracle's motion rule: segments free in the ground truth.
+    """`run_episode` under the oracle's motion rule, whatever the planner declares.
 
-    Lattice and in-grid checks are the simulator's; only the known-free test is replaced.
+    Segments must be free in the ground truth (observed or not) instead of known free in
+    the belief; lattice and in-grid checks, sensing and the done rule are the simulator's.
     """
-    episode = OracleEpisode(ground_truth, protocol)
-    planner.reset(ground_truth, protocol, seed)
-    decision_ms: list[float] = []
-    failure = ""
-    violations = 0
-    if on_step is not None:
-        on_step(episode)
-    while not episode.complete and episode.steps < protocol.max_steps:
-        observation = episode.observe()
-        t0 = time.perf_counter()
-        waypoints = planner.plan(observation)
-        decision_ms.append((time.perf_counter() - t0) * 1e3)
-        if not waypoints:
-            failure = "no reachable target left"
-            break
-        try:
-            for waypoint in waypoints:
-                episode.move(waypoint)
-                if on_step is not None:
-                    on_step(episode)
-                if episode.complete or episode.steps >= protocol.max_steps:
-                    break
-        except MotionError as error:
-            failure = f"motion rule: {error}"
-            violations += 1
-            break
-    if not episode.complete and not failure:
-        failure = f"step limit ({protocol.max_steps}) reached"
-    complete = episode.complete
-    return EpisodeResult(
-        map_name=ground_truth.name,
-        planner=getattr(planner, "name", type(planner).__name__),
-        trajectory=list(episode.trajectory),
-        distance_m=episode.completion_distance if complete else episode.distance,
-        steps=(episode.complete_after_waypoint - 1) if complete else episode.steps,
-        complete=complete,
-        explored_ratio=episode.explored_ratio,
-        decision_ms=decision_ms,
-        seed=seed,
-        failure="" if complete else failure,
-        motion_violations=violations,
-        complete_after_waypoint=episode.complete_after_waypoint,
-    )
+    return run_episode(ground_truth, _OracleRule(planner), protocol, seed, on_step)  # type: ignore[arg-type]
 
 
 def replay_oracle(
     ground_truth: GroundTruthMap, waypoints: Sequence[Sequence[float]], protocol: Protocol
 ) -> EpisodeResult:
     """Replay a tour (first row the start) under the oracle rule; distance at completion."""
-
-    class _Fixed:
-        name = "replay"
-
-        def reset(self, *args) -> None:
-            self.done = False
-
-        def plan(self, observation) -> list:
-            if self.done:
-                return []
-            self.done = True
-            return [tuple(map(float, p)) for p in waypoints[1:]]
-
-    return run_oracle_episode(ground_truth, _Fixed(), protocol)  # type: ignore[arg-type]
+    return replay(ground_truth, waypoints, protocol, planner_name="optimal", oracle=True)
