@@ -31,6 +31,8 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     params["mazes"]["test"]["count"] = 2
     params["mazes"]["test"]["side_m"] = [50, 50]
     params["mazes"]["train"]["side_m"] = [50, 60]
+    params["collect_pairs"].update(pairs=12, pairs_per_shard=6, stop_steps=[3, 10])
+    params["collect_expert"].update(episodes=2, episodes_per_shard=1)
     (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     git(project, "init", "-q")
     git(project, "add", "-A")
@@ -43,7 +45,11 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     metrics = json.loads((project / "reports/benchmark.json").read_text())
     assert set(metrics) == set(params["benchmark"]["planners"])
     assert all(m["completion_rate"] == 1.0 for m in metrics.values())
-    for figure in ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png"):
+    assert json.loads((project / "reports/pairs_summary.json").read_text())["pairs"] == 12
+    assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
+    figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
+               "reports/pairs_preview.png", "reports/expert_episode.png")
+    for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()
     again = subprocess.run(["dvc", "status"], cwd=project, env=env, capture_output=True, text=True)
