@@ -189,7 +189,10 @@ def _run_ray(make_shard: Callable[[ShardJob], dict[str, Any]], jobs: list[ShardJ
     except ImportError:
         raise RuntimeError("the ray backend needs Ray: pip install '.[ray]'") from None
     if not ray.is_initialized():
-        ray.init(num_cpus=workers if workers > 0 else None, include_dashboard=False, log_to_driver=False)
+        if os.environ.get("RAY_ADDRESS"):
+            ray.init(log_to_driver=False)  # join the cluster RAY_ADDRESS names
+        else:
+            ray.init(num_cpus=workers if workers > 0 else None, include_dashboard=False, log_to_driver=False)
     remote = ray.remote(make_shard)
     pending = {remote.remote(job): job.index for job in jobs}
     while pending:
