@@ -60,6 +60,15 @@ class LatticeSpec:
         return (np.asarray(cells, dtype=np.float64) - np.asarray(self.start_cell)) * self.cell_size
 
 
+def node_states_in(belief: np.ndarray, node_flat: np.ndarray) -> np.ndarray:
+    """NODE_FREE / NODE_OCCUPIED / NODE_UNKNOWN of the nodes at flat cells `node_flat`."""
+    values = belief.reshape(-1)[node_flat]
+    states = np.full(len(node_flat), NODE_UNKNOWN, dtype=np.int8)
+    states[values == FREE] = NODE_FREE
+    states[values == OCCUPIED] = NODE_OCCUPIED
+    return states
+
+
 class LatticeGraph:
     """Known free nodes V_f, obstacle nodes V_o, known-free edges, utilities and regions."""
 
@@ -193,11 +202,7 @@ class LatticeGraph:
 
     def _update_nodes(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         ids = self._nodes_in_box(box)
-        values = belief.reshape(-1)[self.node_flat[ids]]
-        state = np.full(len(ids), NODE_UNKNOWN, dtype=np.int8)
-        state[values == FREE] = NODE_FREE
-        state[values == OCCUPIED] = NODE_OCCUPIED
-        self.node_state[ids] = state
+        self.node_state[ids] = node_states_in(belief, self.node_flat[ids])
 
     def _update_edges(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         x0, x1, y0, y1 = box

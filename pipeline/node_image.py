@@ -12,8 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN, LatticeGraph
-from pipeline.sensor import FREE, OCCUPIED
+from pipeline.graph import NODE_FREE, NODE_OCCUPIED, LatticeGraph, node_states_in
 
 PIXEL_FREE, PIXEL_OBSTACLE, PIXEL_UNKNOWN = 255, 0, 128
 PAD_SIZES = (32, 40, 48)
@@ -71,20 +70,11 @@ def ground_truth_states(graph: LatticeGraph, ground_free: np.ndarray) -> np.ndar
     return states
 
 
-def belief_states(graph: LatticeGraph, belief: np.ndarray) -> np.ndarray:
-    """Each node's state in a belief grid (what `LatticeGraph.update` would set), without edges."""
-    values = belief.reshape(-1)[graph.node_flat]
-    states = np.full(graph.node_count, NODE_UNKNOWN, dtype=np.int8)
-    states[values == FREE] = NODE_FREE
-    states[values == OCCUPIED] = NODE_OCCUPIED
-    return states
-
-
 def node_image_pair(
     graph: LatticeGraph, belief: np.ndarray, ground_free: np.ndarray, sizes: tuple[int, ...] = PAD_SIZES
 ) -> NodeImagePair:
     """The (observed, ground truth) node-image pair for a belief on the graph's lattice."""
-    observed = node_states_image(graph, belief_states(graph, belief))
+    observed = node_states_image(graph, node_states_in(belief, graph.node_flat))
     target = node_states_image(graph, ground_truth_states(graph, ground_free))
     size = pad_size_for(observed.shape, sizes)
     observed_padded, valid = centre_pad(observed, size, PIXEL_UNKNOWN)
