@@ -26,16 +26,7 @@ from pipeline.simulator import Episode, run_episode
 
 
 def lattice_graph_for(ground_truth: GroundTruthMap, protocol: Protocol) -> LatticeGraph:
-    return LatticeGraph(
-        LatticeSpec(
-            shape=ground_truth.shape,
-            start_cell=ground_truth.start_cell,
-            cell_size=protocol.cell_size,
-            node_resolution=protocol.node_resolution,
-            utility_range=protocol.utility_range,
-            region_size=protocol.region_size,
-        )
-    )
+    return LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
 
 
 # ----------------------------------------------------------------------------- Stage I

@@ -61,14 +61,7 @@ _EPS = 1e-9
 # --------------------------------------------------------------------------- the model
 def lattice_spec(ground_truth: GroundTruthMap, protocol: Protocol) -> LatticeSpec:
     """The lattice every planner uses on this map (as `GraphPlanner.reset` builds it)."""
-    return LatticeSpec(
-        shape=ground_truth.shape,
-        start_cell=ground_truth.start_cell,
-        cell_size=protocol.cell_size,
-        node_resolution=protocol.node_resolution,
-        utility_range=protocol.utility_range,
-        region_size=protocol.region_size,
-    )
+    return LatticeSpec.for_map(ground_truth, protocol)
 
 
 def ground_truth_graph(ground_truth: GroundTruthMap, protocol: Protocol) -> LatticeGraph:

@@ -36,6 +36,18 @@ class LatticeSpec:
     region_size: float
     frontier_min_unknown_neighbours: int = 2
 
+    @classmethod
+    def for_map(cls, ground_truth, protocol) -> "LatticeSpec":
+        """The lattice every planner uses on a map under a protocol."""
+        return cls(
+            shape=ground_truth.shape,
+            start_cell=ground_truth.start_cell,
+            cell_size=protocol.cell_size,
+            node_resolution=protocol.node_resolution,
+            utility_range=protocol.utility_range,
+            region_size=protocol.region_size,
+        )
+
     @property
     def node_step_cells(self) -> float:
         return self.node_resolution / self.cell_size

@@ -19,14 +19,7 @@ from pipeline.simulator import Episode, run_episode
 
 
 def spec_for(ground_truth, protocol=Protocol()):
-    return LatticeSpec(
-        shape=ground_truth.shape,
-        start_cell=ground_truth.start_cell,
-        cell_size=protocol.cell_size,
-        node_resolution=protocol.node_resolution,
-        utility_range=protocol.utility_range,
-        region_size=protocol.region_size,
-    )
+    return LatticeSpec.for_map(ground_truth, protocol)
 
 
 def partial_episode(ground_truth, steps=12):

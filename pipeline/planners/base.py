@@ -81,15 +81,7 @@ class GraphPlanner(Planner):
         self.rng = np.random.default_rng(0)
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        spec = LatticeSpec(
-            shape=ground_truth.shape,
-            start_cell=ground_truth.start_cell,
-            cell_size=protocol.cell_size,
-            node_resolution=protocol.node_resolution,
-            utility_range=protocol.utility_range,
-            region_size=protocol.region_size,
-        )
-        self.graph = LatticeGraph(spec)
+        self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
         self.visited = np.zeros(self.graph.node_count, dtype=bool)
         self.protocol = protocol
         self.rng = np.random.default_rng(seed)
@@ -117,6 +109,21 @@ class GraphPlanner(Planner):
         if useful.size == 0:
             useful = np.nonzero((self.graph.utility > 0) & ~self.visited)[0]
         return useful
+
+    def nearest_useful_step(self, robot: int) -> list[Waypoint]:
+        """One step along the shortest path to the nearest useful node (Yamauchi's rule).
+
+        Among equally near nodes the one that sees more frontier wins; [] when none is reachable.
+        """
+        graph = self.graph
+        assert graph is not None
+        dist, pred = graph.shortest_paths(robot)
+        targets = self.useful_nodes()
+        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        if targets.size == 0:
+            return []
+        order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))
+        return self.waypoints_along(graph.path_from_predecessors(pred, int(targets[order[0]])))
 
     def waypoints_along(self, path: list[int], max_waypoints: int = 1) -> list[Waypoint]:
         """The first `max_waypoints` nodes of a path after the robot's own node, in metres."""

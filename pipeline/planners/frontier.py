@@ -15,16 +15,8 @@ class NearestFrontierPlanner(GraphPlanner):
     description = "Yamauchi: shortest path to the nearest node that sees frontier cells"
 
     def plan(self, observation: Observation) -> list[Waypoint]:
-        graph = self.update_graph(observation)
-        robot = self.robot_node(observation)
-        dist, pred = graph.shortest_paths(robot)
-        targets = self.useful_nodes()
-        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
-        if targets.size == 0:
-            return []
-        # Nearest first; among equally near nodes the one that sees more frontier.
-        order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))
-        return self.waypoints_along(graph.path_from_predecessors(pred, int(targets[order[0]])))
+        self.update_graph(observation)
+        return self.nearest_useful_step(self.robot_node(observation))
 
 
 @register_planner("greedy_utility")

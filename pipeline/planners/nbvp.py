@@ -325,13 +325,5 @@ class NBVPPlanner(GraphPlanner):
 
     def _nearest_frontier_step(self, robot: int) -> list[Waypoint]:
         """Fallback: one step toward the nearest useful frontier node (as nearest_frontier)."""
-        graph = self.graph
-        assert graph is not None
         self._branch = []
-        dist, pred = graph.shortest_paths(robot)
-        targets = self.useful_nodes()
-        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
-        if targets.size == 0:
-            return []
-        order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))
-        return self.waypoints_along(graph.path_from_predecessors(pred, int(targets[order[0]])))
+        return self.nearest_useful_step(robot)
