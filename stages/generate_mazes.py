@@ -1,17 +1,16 @@
 """DVC stage: draw the train and test maze sets and a preview figure.
 
+Run as `python -m stages.generate_mazes` from the repository root (the package is installed).
 Reads only the `mazes` section of params.yaml (plus `protocol.cell_size` when present), so
 DVC reruns this stage only when those values change. Train and test mazes come from seed
-sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze.
+sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze. `rooms` and
+`extra_loops` are per 100 m x 100 m (see `MazeConfig`), so train mazes of any side in
+`side_m` have the room density of the 100 m test mazes.
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-
-if __package__ in (None, ""):  # run as `python stages/generate_mazes.py`: make `pipeline` importable
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import cv2
 import numpy as np

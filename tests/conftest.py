@@ -60,7 +60,7 @@ def small_maze(small_maze_path) -> GroundTruthMap:
 def generated_maze_dir(tmp_path_factory) -> Path:
     """Three generated 50 m mazes, as the maze stage writes them."""
     directory = tmp_path_factory.mktemp("mazes")
-    config = MazeConfig(side_m=(50.0, 50.0), rooms=(1, 2))
+    config = MazeConfig(side_m=(50.0, 50.0))
     for i in range(3):
         write_maze_png(generate_maze(config, np.random.default_rng([7, i])), directory / f"maze_{i:04d}.png")
     return directory

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import cv2
+import pytest
 import yaml
 
 from pipeline.maps import load_maze_png
@@ -13,9 +19,9 @@ PARAMS = {
     "mazes": {
         "seed": 5,
         "block_m": 5.0,
-        "rooms": [1, 2],
-        "room_blocks": [2, 3],
-        "extra_loops": 2,
+        "rooms": [17, 21],
+        "room_blocks": [2, 4],
+        "extra_loops": 1,
         "train": {"count": 2, "side_m": [40, 50]},
         "test": {"count": 1, "side_m": [40, 40]},
     },
@@ -50,3 +56,24 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     main("params.yaml")
     assert sorted(p.name for p in (tmp_path / "data/mazes/train").glob("*.png")) == ["maze_0000.png"]
     assert (tmp_path / "data/mazes/train/maze_0000.png").read_bytes() == first
+
+
+def test_bad_params_fail_before_any_file_is_written(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    bad = {**PARAMS, "mazes": {**PARAMS["mazes"], "room_blocks": [1, 3]}}
+    _write_params(tmp_path / "params.yaml", bad)
+    with pytest.raises(ValueError, match="room_blocks"):
+        main()
+    assert not (tmp_path / "data").exists() and not (tmp_path / "reports").exists()
+
+
+def test_stage_runs_as_a_module(tmp_path):
+    """`python -m stages.generate_mazes`, as dvc.yaml runs it, in a directory holding params.yaml."""
+    small = {**PARAMS, "mazes": {**PARAMS["mazes"], "train": {"count": 1, "side_m": [40, 40]}}}
+    _write_params(tmp_path / "params.yaml", small)
+    repo = str(Path(__file__).resolve().parents[1])  # importable even where the package is not installed
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [repo, os.environ.get("PYTHONPATH")]))}
+    command = [sys.executable, "-m", "stages.generate_mazes"]
+    subprocess.run(command, cwd=tmp_path, env=env, check=True, capture_output=True)
+    assert (tmp_path / "data/mazes/train/maze_0000.png").is_file()
+    assert (tmp_path / "reports/mazes_preview.png").is_file()
