@@ -56,15 +56,19 @@ class OptimalPlanner(Planner):
         self._sent = False
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        model, plan = coverage_plan(ground_truth, protocol, seed, self.restarts, self.lns_iterations, self.time_limit_s)
-        self.model: CoverageModel = model
-        self.coverage: CoveragePlan = plan
-        self.tour = [tuple(map(float, model.world[v])) for v in plan.path]
+        self._episode = (ground_truth, protocol, seed)
+        self.tour = []
         self._sent = False
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         if self._sent:
             return []  # the tour is over and the episode is not complete: nothing left to cover
+        # Planned at the first decision, not in reset, so its time is the decision time reported.
+        ground_truth, protocol, seed = self._episode
+        model, plan = coverage_plan(ground_truth, protocol, seed, self.restarts, self.lns_iterations, self.time_limit_s)
+        self.model: CoverageModel = model
+        self.coverage: CoveragePlan = plan
+        self.tour = [tuple(map(float, model.world[v])) for v in plan.path]
         self._sent = True
         return list(self.tour[1:])
 

@@ -97,8 +97,8 @@ def test_planners_are_deterministic_with_the_seed(small_maze):
 
 def test_expert_starts_on_the_optimal_tour(small_maze):
     """With the same seed the expert's first plan is optimal's: it takes the same first steps."""
-    optimal = make_planner("optimal", **FAST)
-    optimal.reset(small_maze, PROTOCOL, 2)
+    optimal = run_episode(small_maze, make_planner("optimal", **FAST), PROTOCOL, seed=2)
     expert = run_episode(small_maze, make_planner("expert", **FAST), PROTOCOL, seed=2)
-    steps = min(3, len(optimal.tour))
-    assert expert.trajectory[:steps] == optimal.tour[:steps]
+    steps = min(3, len(optimal.trajectory))
+    assert steps == 3
+    assert expert.trajectory[:steps] == optimal.trajectory[:steps]
