@@ -216,6 +216,47 @@ def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Param
     benchmark_stage.main(str(params))
 
 
+@stage_app.command("collect-pairs")
+def stage_collect_pairs(
+    params: Path = typer.Option(Path("params.yaml"), help="Parameters file."),
+    backend: Optional[str] = typer.Option(None, help="process (default) or ray (pip install '.[ray]')."),
+) -> None:
+    """DVC stage: Stage I node-image pairs from rollouts in the training mazes."""
+    from stages import collect_pairs
+
+    collect_pairs.main(str(params), backend)
+
+
+@stage_app.command("collect-expert")
+def stage_collect_expert(
+    params: Path = typer.Option(Path("params.yaml"), help="Parameters file."),
+    backend: Optional[str] = typer.Option(None, help="process (default) or ray (pip install '.[ray]')."),
+) -> None:
+    """DVC stage: Stage II expert episodes on the training mazes."""
+    from stages import collect_expert
+
+    collect_expert.main(str(params), backend)
+
+
+@stage_app.command("train-inpainter")
+def stage_train_inpainter(
+    params: Path = typer.Option(Path("params.yaml"), help="Parameters file."),
+    accelerator: Optional[str] = typer.Option(None, help="Lightning accelerator (cpu, gpu, auto) [default: params]."),
+    devices: Optional[str] = typer.Option(None, help="Lightning devices (1, 2, auto) [default: params]."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from models/inpainter/last.ckpt."),
+    init_checkpoint: Optional[Path] = typer.Option(
+        None, help="Official Big-LaMa checkpoint (.ckpt/.pth with generator.* weights) to start from."),
+    tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
+    progress: bool = typer.Option(False, "--progress", help="Show Lightning's progress bar."),
+) -> None:
+    """DVC stage: train the Stage I inpainter from params.yaml's `train_inpainter` section."""
+    from stages import train_inpainter
+
+    device_count = int(devices) if devices and devices.isdigit() else devices
+    train_inpainter.main(str(params), accelerator, device_count, resume,
+                         str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()
 

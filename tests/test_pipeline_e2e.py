@@ -27,12 +27,13 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
             (project / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, project / name)
     params = yaml.safe_load((project / "params.yaml").read_text())
-    params["mazes"]["train"]["count"] = 1
+    params["mazes"]["train"]["count"] = 2
     params["mazes"]["test"]["count"] = 2
     params["mazes"]["test"]["side_m"] = [50, 50]
     params["mazes"]["train"]["side_m"] = [50, 60]
     params["collect_pairs"].update(pairs=12, pairs_per_shard=6, stop_steps=[3, 10])
     params["collect_expert"].update(episodes=2, episodes_per_shard=1)
+    params["train_inpainter"].update(max_epochs=2, batch_size=4)
     (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     git(project, "init", "-q")
     git(project, "add", "-A")
@@ -47,6 +48,8 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     assert all(m["completion_rate"] == 1.0 for m in metrics.values())
     assert json.loads((project / "reports/pairs_summary.json").read_text())["pairs"] == 12
     assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
+    assert (project / "models/inpainter/inpainter.pt").is_file()
+    assert "val_precision" in (project / "reports/inpainter_metrics.json").read_text()
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
                "reports/pairs_preview.png", "reports/expert_episode.png")
     for figure in figures:

@@ -1,0 +1,30 @@
+"""Neural models: the Stage I node-image inpainter (LaMa's FFC ResNet generator)."""
+
+from pipeline.models.configuration_inpainter import INPUT_ENCODINGS, InpainterConfig
+from pipeline.models.modeling_inpainter import (
+    FFC,
+    FFC_BN_ACT,
+    FFCResnetBlock,
+    FourierUnit,
+    InpainterModel,
+    SpectralTransform,
+    TracedInpainter,
+    encode_node_image,
+    load_big_lama_generator,
+    read_checkpoint,
+)
+
+__all__ = [
+    "FFC",
+    "FFC_BN_ACT",
+    "FFCResnetBlock",
+    "FourierUnit",
+    "INPUT_ENCODINGS",
+    "InpainterConfig",
+    "InpainterModel",
+    "SpectralTransform",
+    "TracedInpainter",
+    "encode_node_image",
+    "load_big_lama_generator",
+    "read_checkpoint",
+]

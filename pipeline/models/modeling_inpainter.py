@@ -1,0 +1,440 @@
+"""LaMa's FFC ResNet generator, written for node images, with the official state-dict layout.
+
+Architecture (Suvorov et al., "Resolution-robust Large Mask Inpainting with Fourier
+Convolutions", 2022): reflect-padded 7x7 convolution, stride-2 downsamplings, a stack of
+fast-Fourier-convolution (FFC) residual blocks, transposed-convolution upsamplings, a 7x7
+convolution and a sigmoid. An FFC splits its channels into a local part (ordinary
+convolutions) and a global part whose global-to-global path is a spectral transform:
+1x1 conv -> FourierUnit (rfft2, 1x1 conv + BN + ReLU on the stacked real and imaginary
+parts, irfft2) -> 1x1 conv, so every output pixel sees the whole image in one layer.
+
+Module and parameter names follow the official generator exactly (`model.1.ffc.convl2l`,
+`model.5.conv1.ffc.convg2g.fu.conv_layer`, `model.24` for the first transposed
+convolution, ...), so `load_big_lama_generator` can load the published Big-LaMa weights
+into `InpainterConfig.big_lama()`; absent branches are `None` (no parameters), where the
+official code puts an `nn.Identity`.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, Optional
+
+import numpy as np
+import torch
+import torch.nn as nn
+
+from pipeline.models.configuration_inpainter import InpainterConfig
+
+PIXEL_FREE_MIN = 192  # node image values >= this are free nodes (255)
+PIXEL_OBSTACLE_MAX = 63  # values <= this are obstacle nodes (0); anything between is unknown (128)
+
+Pair = tuple[Optional[torch.Tensor], Optional[torch.Tensor]]  # (local, global) feature maps
+
+
+# ----------------------------------------------------------------------------- FFC parts
+class FourierUnit(nn.Module):
+    """rfft2 -> 1x1 conv + BN + ReLU on [real, imag] channel pairs -> irfft2 (a global filter)."""
+
+    def __init__(self, in_channels: int, out_channels: int, groups: int = 1, fft_norm: str = "ortho") -> None:
+        super().__init__()
+        self.conv_layer = nn.Conv2d(in_channels * 2, out_channels * 2, kernel_size=1, groups=groups, bias=False)
+        self.bn = nn.BatchNorm2d(out_channels * 2)
+        self.relu = nn.ReLU()
+        self.fft_norm = fft_norm
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        batch, _, height, width = x.shape
+        dtype = x.dtype
+        spectrum = torch.fft.rfft2(x.float(), norm=self.fft_norm)  # (B, C, H, W/2+1) complex
+        # Channel order [c0.re, c0.im, c1.re, c1.im, ...], as the official unit stacks them.
+        stacked = torch.view_as_real(spectrum).permute(0, 1, 4, 2, 3).reshape(batch, -1, height, spectrum.shape[-1])
+        stacked = self.relu(self.bn(self.conv_layer(stacked.to(dtype))))
+        pairs = stacked.float().reshape(batch, -1, 2, height, spectrum.shape[-1]).permute(0, 1, 3, 4, 2).contiguous()
+        out = torch.fft.irfft2(torch.view_as_complex(pairs), s=(height, width), norm=self.fft_norm)
+        return out.to(dtype)
+
+
+class SpectralTransform(nn.Module):
+    """The global-to-global path: 1x1 conv (halving) -> FourierUnit (+ optional LFU) -> 1x1 conv."""
+
+    def __init__(self, in_channels: int, out_channels: int, stride: int = 1, groups: int = 1,
+                 enable_lfu: bool = False, fft_norm: str = "ortho") -> None:
+        super().__init__()
+        self.enable_lfu = enable_lfu
+        self.downsample = nn.AvgPool2d(kernel_size=2, stride=2) if stride == 2 else nn.Identity()
+        hidden = out_channels // 2
+        self.conv1 = nn.Sequential(
+            nn.Conv2d(in_channels, hidden, kernel_size=1, groups=groups, bias=False),
+            nn.BatchNorm2d(hidden),
+            nn.ReLU(),
+        )
+        self.fu = FourierUnit(hidden, hidden, groups, fft_norm=fft_norm)
+        self.lfu = FourierUnit(hidden, hidden, groups, fft_norm=fft_norm) if enable_lfu else None
+        self.conv2 = nn.Conv2d(hidden, out_channels, kernel_size=1, groups=groups, bias=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.conv1(self.downsample(x))
+        out = x + self.fu(x)
+        if self.lfu is not None:
+            # Local Fourier unit: the first quarter of the channels, cut into 2 x 2 spatial
+            # tiles stacked as channels, filtered in the spectrum, tiled back.
+            _, channels, height, width = x.shape
+            if height % 2 or width % 2:
+                raise ValueError(f"the local Fourier unit needs even feature maps, got {height}x{width}")
+            quarter = x[:, : channels // 4]
+            tiles = torch.cat(torch.split(quarter, height // 2, dim=-2), dim=1)
+            tiles = torch.cat(torch.split(tiles, width // 2, dim=-1), dim=1)
+            out = out + self.lfu(tiles).repeat(1, 1, 2, 2)
+        return self.conv2(out)
+
+
+class FFC(nn.Module):
+    """Fast Fourier convolution: local/global channel split with four cross paths."""
+
+    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, ratio_gin: float, ratio_gout: float,
+                 stride: int = 1, padding: int = 0, dilation: int = 1, groups: int = 1, bias: bool = False,
+                 enable_lfu: bool = False, padding_type: str = "reflect", fft_norm: str = "ortho") -> None:
+        super().__init__()
+        if stride not in (1, 2):
+            raise ValueError("FFC stride must be 1 or 2")
+        in_cg = int(in_channels * ratio_gin)
+        in_cl = in_channels - in_cg
+        out_cg = int(out_channels * ratio_gout)
+        out_cl = out_channels - out_cg
+        self.ratio_gin, self.ratio_gout = ratio_gin, ratio_gout
+        self.global_in_num = in_cg
+
+        def conv(cin: int, cout: int) -> Optional[nn.Conv2d]:
+            if cin == 0 or cout == 0:
+                return None
+            return nn.Conv2d(cin, cout, kernel_size, stride, padding, dilation, groups, bias, padding_mode=padding_type)
+
+        self.convl2l = conv(in_cl, out_cl)
+        self.convl2g = conv(in_cl, out_cg)
+        self.convg2l = conv(in_cg, out_cl)
+        self.convg2g = (
+            SpectralTransform(in_cg, out_cg, stride, 1 if groups == 1 else groups // 2, enable_lfu, fft_norm)
+            if in_cg and out_cg else None
+        )
+
+    def forward(self, x: torch.Tensor | Pair) -> Pair:
+        x_l, x_g = x if isinstance(x, tuple) else (x, None)
+        out_l = _add(_apply(self.convl2l, x_l), _apply(self.convg2l, x_g))
+        out_g = _add(_apply(self.convl2g, x_l), _apply(self.convg2g, x_g))
+        return out_l, out_g
+
+
+def _apply(module: Optional[nn.Module], x: Optional[torch.Tensor]) -> Optional[torch.Tensor]:
+    return None if module is None or x is None else module(x)
+
+
+def _add(a: Optional[torch.Tensor], b: Optional[torch.Tensor]) -> Optional[torch.Tensor]:
+    if a is None:
+        return b
+    return a if b is None else a + b
+
+
+class FFC_BN_ACT(nn.Module):  # noqa: N801 - the official class name
+    """FFC followed by BatchNorm and an activation on each of the local and global parts."""
+
+    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, ratio_gin: float, ratio_gout: float,
+                 stride: int = 1, padding: int = 0, dilation: int = 1, enable_lfu: bool = False,
+                 padding_type: str = "reflect", fft_norm: str = "ortho", activation: bool = True) -> None:
+        super().__init__()
+        self.ffc = FFC(in_channels, out_channels, kernel_size, ratio_gin, ratio_gout, stride, padding, dilation,
+                       enable_lfu=enable_lfu, padding_type=padding_type, fft_norm=fft_norm)
+        out_cg = int(out_channels * ratio_gout)
+        out_cl = out_channels - out_cg
+        self.bn_l = nn.BatchNorm2d(out_cl) if out_cl else None
+        self.bn_g = nn.BatchNorm2d(out_cg) if out_cg else None
+        self.act_l = nn.ReLU() if activation and out_cl else None
+        self.act_g = nn.ReLU() if activation and out_cg else None
+
+    def forward(self, x: torch.Tensor | Pair) -> Pair:
+        x_l, x_g = self.ffc(x)
+        return self._norm_act(x_l, self.bn_l, self.act_l), self._norm_act(x_g, self.bn_g, self.act_g)
+
+    @staticmethod
+    def _norm_act(x: Optional[torch.Tensor], norm: Optional[nn.Module], act: Optional[nn.Module]) -> Optional[torch.Tensor]:
+        if x is None:
+            return None
+        x = norm(x) if norm is not None else x
+        return act(x) if act is not None else x
+
+
+class FFCResnetBlock(nn.Module):
+    """Two FFC_BN_ACT (3x3) with a residual connection on both the local and global parts."""
+
+    def __init__(self, dim: int, ratio_gin: float, ratio_gout: float, kernel_size: int = 3, dilation: int = 1,
+                 enable_lfu: bool = False, padding_type: str = "reflect", fft_norm: str = "ortho") -> None:
+        super().__init__()
+        padding = dilation * (kernel_size // 2)
+        kwargs = dict(kernel_size=kernel_size, ratio_gin=ratio_gin, ratio_gout=ratio_gout, padding=padding,
+                      dilation=dilation, enable_lfu=enable_lfu, padding_type=padding_type, fft_norm=fft_norm)
+        self.conv1 = FFC_BN_ACT(dim, dim, **kwargs)
+        self.conv2 = FFC_BN_ACT(dim, dim, **kwargs)
+
+    def forward(self, x: torch.Tensor | Pair) -> Pair:
+        x_l, x_g = x if isinstance(x, tuple) else (x, None)
+        y_l, y_g = self.conv2(self.conv1((x_l, x_g)))
+        return _add(x_l, y_l), _add(x_g, y_g)
+
+
+class ConcatTupleLayer(nn.Module):
+    """(local, global) -> one tensor, local channels first."""
+
+    def forward(self, x: torch.Tensor | Pair) -> torch.Tensor:
+        if not isinstance(x, tuple):
+            return x
+        parts = [t for t in x if t is not None]
+        return parts[0] if len(parts) == 1 else torch.cat(parts, dim=1)
+
+
+# ----------------------------------------------------------------------------- generator
+def encode_node_image(node_image: torch.Tensor, encoding: str, in_channels: int) -> torch.Tensor:
+    """Node image (B, 1, H, W) or (B, H, W), values 255 free / 0 obstacle / 128 unknown -> input channels."""
+    if node_image.dim() == 3:
+        node_image = node_image.unsqueeze(1)
+    if node_image.dim() != 4 or node_image.shape[1] != 1:
+        raise ValueError(f"expected a node image batch (B, 1, H, W), got shape {tuple(node_image.shape)}")
+    free = (node_image >= PIXEL_FREE_MIN).float()
+    obstacle = (node_image <= PIXEL_OBSTACLE_MAX).float()
+    unknown = 1.0 - free - obstacle
+    if encoding == "signed":
+        channels = [free - obstacle, unknown]
+    elif encoding == "lama":
+        channels = [free] * (in_channels - 1) + [unknown]  # masked grey image (as RGB if 4 channels) + mask
+    elif encoding == "onehot":
+        channels = [free, obstacle, unknown]
+    else:
+        raise ValueError(f"unknown input encoding {encoding!r}")
+    return torch.cat(channels, dim=1)
+
+
+class InpainterModel(nn.Module):
+    """FFC ResNet generator: node image (B, 1, S, S) -> free-node probability (B, out, S, S).
+
+    `self.model` is an `nn.Sequential` with the official generator's indices: 0 pad,
+    1 first conv, 2.. downsamplings, then the residual blocks, a ConcatTupleLayer, three
+    (ConvTranspose2d, BatchNorm2d, ReLU) upsamplings, pad, the last conv and the sigmoid.
+    """
+
+    def __init__(self, config: InpainterConfig | None = None) -> None:
+        super().__init__()
+        self.config = config = config or InpainterConfig()
+        c = config
+        maxf = c.max_features
+
+        def width(mult: float) -> int:
+            return min(maxf, int(c.ngf * mult))
+
+        # Global share of each stage's output: the first conv, then every downsampling; the
+        # last downsampling hands the blocks their input ratio (as the official generator).
+        init_gout = c.init_ratio_g if c.n_downsampling > 0 else c.ratio_gin
+        layers: list[nn.Module] = [
+            nn.ReflectionPad2d(c.init_kernel_size // 2),
+            FFC_BN_ACT(c.in_channels, c.ngf, c.init_kernel_size, c.init_ratio_g, init_gout, padding=0,
+                       enable_lfu=c.enable_lfu, padding_type=c.padding_type, fft_norm=c.fft_norm),
+        ]
+        ratio_in = init_gout
+        for i in range(c.n_downsampling):
+            ratio_out = c.ratio_gin if i == c.n_downsampling - 1 else c.downsample_ratio_g
+            layers.append(
+                FFC_BN_ACT(width(2**i), width(2 ** (i + 1)), c.downsample_kernel_size, ratio_in, ratio_out, stride=2,
+                           padding=c.downsample_kernel_size // 2, enable_lfu=c.enable_lfu,
+                           padding_type=c.padding_type, fft_norm=c.fft_norm)
+            )
+            ratio_in = ratio_out
+        for _ in range(c.n_blocks):
+            layers.append(
+                FFCResnetBlock(c.bottleneck_channels, c.ratio_gin, c.ratio_gout, c.block_kernel_size,
+                               enable_lfu=c.enable_lfu, padding_type=c.padding_type, fft_norm=c.fft_norm)
+            )
+        layers.append(ConcatTupleLayer())
+        for i in range(c.n_downsampling):
+            mult = 2 ** (c.n_downsampling - i)
+            layers += [
+                nn.ConvTranspose2d(width(mult), width(mult / 2), c.upsample_kernel_size, stride=2,
+                                   padding=c.upsample_kernel_size // 2, output_padding=1),
+                nn.BatchNorm2d(width(mult / 2)),
+                nn.ReLU(),
+            ]
+        layers += [
+            nn.ReflectionPad2d(c.out_kernel_size // 2),
+            nn.Conv2d(width(1), c.out_channels, c.out_kernel_size),
+            nn.Sigmoid(),
+        ]
+        self.model = nn.Sequential(*layers)
+
+    # -- forward passes -------------------------------------------------------------
+    def encode(self, node_image: torch.Tensor) -> torch.Tensor:
+        """The network input for a node image batch (see `encode_node_image`)."""
+        param = next(self.parameters())
+        x = encode_node_image(node_image.to(param.device), self.config.input_encoding, self.config.in_channels)
+        return x.to(param.dtype)
+
+    def check_size(self, height: int, width: int) -> None:
+        multiple = self.config.size_multiple
+        if height % multiple or width % multiple:
+            raise ValueError(
+                f"node image is {height}x{width}: both sides must be multiples of {multiple} "
+                f"(2 ** n_downsampling = 2 ** {self.config.n_downsampling}); centre-pad it with unknown pixels"
+            )
+
+    def forward_encoded_logits(self, x: torch.Tensor) -> torch.Tensor:
+        """Logits (before the sigmoid) for already encoded input channels (B, in_channels, H, W)."""
+        self.check_size(x.shape[-2], x.shape[-1])
+        last = len(self.model) - 1
+        for index, layer in enumerate(self.model):
+            if index == last:  # the sigmoid
+                break
+            x = layer(x)
+        return x
+
+    def forward_logits(self, node_image: torch.Tensor) -> torch.Tensor:
+        """Logits of the free-node probability for a node image batch."""
+        return self.forward_encoded_logits(self.encode(node_image))
+
+    def forward(self, node_image: torch.Tensor) -> torch.Tensor:
+        """Free-node probability (B, out_channels, H, W) for a node image batch (B, 1, H, W)."""
+        return torch.sigmoid(self.forward_logits(node_image))
+
+    @torch.inference_mode()
+    def predict(self, observed: np.ndarray) -> np.ndarray:
+        """Free-node probabilities for one (H, W) or a batch (B, H, W) of uint8 node images.
+
+        Call `.eval()` first (the loader does): in training mode BatchNorm uses batch statistics.
+        """
+        array = np.asarray(observed)
+        single = array.ndim == 2
+        batch = torch.from_numpy(np.ascontiguousarray(array[None] if single else array))
+        probs = self.forward(batch.unsqueeze(1))[:, 0].float().cpu().numpy()
+        return probs[0] if single else probs
+
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+
+# ----------------------------------------------------------------------------- official weights
+FIRST_CONV = "model.1.ffc.convl2l.weight"
+
+
+def last_conv_prefix(model: InpainterModel) -> str:
+    return f"model.{len(model.model) - 2}"
+
+
+def generator_state_dict(state_dict: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """The generator's tensors of a LaMa checkpoint: keys under `generator.` (prefix removed),
+    or the dict itself when it holds bare generator keys (`model.*`)."""
+    if "state_dict" in state_dict and isinstance(state_dict["state_dict"], Mapping):
+        state_dict = state_dict["state_dict"]
+    prefixed = {k[len("generator."):]: v for k, v in state_dict.items() if k.startswith("generator.")}
+    if prefixed:
+        return prefixed
+    bare = {k: v for k, v in state_dict.items() if k.startswith("model.")}
+    if not bare:
+        raise ValueError("no generator weights found: expected keys 'generator.model.*' or 'model.*'")
+    return bare
+
+
+def adapt_first_conv(weight: torch.Tensor, in_channels: int) -> torch.Tensor:
+    """Official (out, 4, k, k) weights for [R, G, B, mask] -> ours for [grey image, mask].
+
+    Our grey image stands for R = G = B, so the sum of the three colour kernels gives the
+    same response the official conv gives to that grey image; the mask kernel is kept.
+    """
+    if weight.shape[1] == in_channels:
+        return weight
+    if weight.shape[1] == 4 and in_channels == 2:
+        return torch.cat([weight[:, :3].sum(dim=1, keepdim=True), weight[:, 3:4]], dim=1)
+    raise ValueError(f"cannot adapt a first convolution with {weight.shape[1]} input channels to {in_channels}")
+
+
+def adapt_last_conv(weight: torch.Tensor, bias: Optional[torch.Tensor], out_channels: int):
+    """Official (3, ngf, k, k) RGB output conv -> ours: the mean of the colour kernels (grey logit)."""
+    if weight.shape[0] == out_channels:
+        return weight, bias
+    if out_channels == 1:
+        return weight.mean(dim=0, keepdim=True), None if bias is None else bias.mean(dim=0, keepdim=True)
+    raise ValueError(f"cannot adapt a last convolution with {weight.shape[0]} outputs to {out_channels}")
+
+
+def load_big_lama_generator(model: InpainterModel, state_dict: Mapping[str, torch.Tensor], strict: bool = True) -> dict:
+    """Load official (Big-)LaMa generator weights into `model`, adapting its first and last conv.
+
+    `state_dict` may be a whole LaMa checkpoint (`{"state_dict": {"generator.model...": ...,
+    "discriminator...": ...}}`), its `state_dict`, or bare generator keys. Returns a
+    summary {loaded, adapted}; raises with the offending keys when the layouts differ.
+    """
+    weights = generator_state_dict(state_dict)
+    weights = dict(weights)
+    adapted = []
+    if FIRST_CONV in weights:
+        new = adapt_first_conv(weights[FIRST_CONV], model.config.in_channels)
+        if new is not weights[FIRST_CONV]:
+            adapted.append(FIRST_CONV)
+        weights[FIRST_CONV] = new
+    last = last_conv_prefix(model)
+    if f"{last}.weight" in weights:
+        w, b = adapt_last_conv(weights[f"{last}.weight"], weights.get(f"{last}.bias"), model.config.out_channels)
+        if w is not weights[f"{last}.weight"]:
+            adapted += [f"{last}.weight", f"{last}.bias"]
+        weights[f"{last}.weight"] = w
+        if b is not None:
+            weights[f"{last}.bias"] = b
+    own = model.state_dict()
+    mismatched = [f"{k}: checkpoint {tuple(v.shape)} vs model {tuple(own[k].shape)}"
+                  for k, v in weights.items() if k in own and tuple(v.shape) != tuple(own[k].shape)]
+    if mismatched:
+        raise ValueError("generator weights do not fit this layout (use InpainterConfig.big_lama()):\n  "
+                         + "\n  ".join(mismatched[:10]))
+    result = model.load_state_dict(weights, strict=strict)
+    return {"loaded": len(weights), "adapted": adapted, "missing": list(result.missing_keys),
+            "unexpected": list(result.unexpected_keys)}
+
+
+def read_checkpoint(path) -> dict:
+    """Read a .ckpt/.pth file; falls back to full unpickling (LaMa's checkpoints hold config
+    objects) only for a file the user named, since that runs code from the file."""
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # noqa: BLE001 - e.g. OmegaConf objects in LaMa's hyper_parameters
+        import warnings
+
+        warnings.warn(f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=2)
+        return torch.load(path, map_location="cpu", weights_only=False)
+
+
+class TracedInpainter:
+    """Fast inference: frozen TorchScript traces of an eval-mode model, one per input shape.
+
+    Single 48 x 48 predictions run about 1.5-2x faster than eager mode (less Python per
+    layer). `traced(node_image)` takes the same (B, 1, H, W) batch as the model and returns
+    probabilities; `predict` takes uint8 numpy images like `InpainterModel.predict`.
+    """
+
+    def __init__(self, model: InpainterModel) -> None:
+        self.model = model.eval()
+        self._traces: dict[tuple, torch.jit.ScriptModule] = {}
+
+    def _trace(self, node_image: torch.Tensor) -> torch.jit.ScriptModule:
+        key = (tuple(node_image.shape), node_image.dtype, node_image.device)
+        if key not in self._traces:
+            import warnings
+
+            with warnings.catch_warnings(), torch.no_grad():
+                warnings.simplefilter("ignore")  # shape checks become constants for this shape: intended
+                self.model.check_size(node_image.shape[-2], node_image.shape[-1])
+                self._traces[key] = torch.jit.freeze(torch.jit.trace(self.model, node_image, check_trace=False))
+        return self._traces[key]
+
+    def __call__(self, node_image: torch.Tensor) -> torch.Tensor:
+        with torch.inference_mode():
+            return self._trace(node_image)(node_image)
+
+    def predict(self, observed: np.ndarray) -> np.ndarray:
+        array = np.asarray(observed)
+        single = array.ndim == 2
+        batch = torch.from_numpy(np.ascontiguousarray(array[None] if single else array)).unsqueeze(1)
+        probs = self(batch)[:, 0].float().cpu().numpy()
+        return probs[0] if single else probs

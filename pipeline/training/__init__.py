@@ -1,0 +1,1 @@
+"""Training code: Stage I inpainter (Lightning)."""

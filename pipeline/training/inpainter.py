@@ -1,0 +1,696 @@
+"""Stage I training: the FFC inpainter on (observed, ground-truth) node-image pairs.
+
+Data: the shards of a Stage I data set (read through its manifest), grouped by image size
+(32, 40, 48); a batch holds one size. Validation holds out whole mazes (a maze is
+recognised by its ground-truth image), about `val_fraction` of the pairs: with few
+training mazes a network learns to recognise a maze from its explored part and recall the
+rest, which a split that shares mazes would count as inference. (`split="rollout"` keeps
+the last pairs of each shard and size instead: separate rollouts, same mazes.)
+
+Augmentation: the 8 flips / quarter turns of the square (the lattice has no preferred
+direction); optionally (`hide_prob`) the observations inside a random box are turned back
+to unknown, an earlier view of the same exploration (off by default: it did not help on
+the default data).
+
+Loss: binary cross-entropy on the hole pixels (unknown and inside the lattice) plus
+`known_weight` times the BCE on the known pixels (LaMa's L1 on known pixels, as BCE for a
+probability output); padding never counts. With `adversarial_weight > 0` a small
+conditional PatchGAN discriminator is trained alongside (non-saturating loss with an R1
+penalty, as LaMa's `r1` adversarial loss); off by default.
+
+Validation: precision, recall and F1 of the predicted free nodes (probability >= tau) over
+the hole pixels, summed over the validation set. Checkpoints (`last.ckpt`, `best.ckpt` by
+validation F1) go to the output folder; `resume=True` continues from `last.ckpt`. At the
+end the best weights are exported as a small `inpainter.pt` (config + state_dict +
+metrics) that `load_inpainter` reads for inference.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import time
+import warnings
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any, Iterator, Optional, Sequence
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+from pipeline.collect import load_pairs
+from pipeline.models.configuration_inpainter import InpainterConfig
+from pipeline.models.modeling_inpainter import (
+    PIXEL_FREE_MIN,
+    PIXEL_OBSTACLE_MAX,
+    InpainterModel,
+    load_big_lama_generator,
+    read_checkpoint,
+)
+from pipeline.shards import read_manifest
+
+EXPORT_FORMAT = "guide-inpainter/1"
+EXPORT_NAME = "inpainter.pt"
+LAST_CKPT = "last.ckpt"
+BEST_NAME = "best"
+PairSet = dict[int, dict[str, np.ndarray]]  # {size: {"observed", "target", "valid"}}
+
+
+@dataclass
+class TrainConfig:
+    """Training hyperparameters (the `train_inpainter` section of params.yaml, minus the model)."""
+
+    max_epochs: int = 40
+    batch_size: int = 16
+    lr: float = 1e-3  # Adam (LaMa's generator learning rate)
+    weight_decay: float = 0.0
+    lr_min_factor: float = 0.05  # cosine decay to lr * this at the last epoch
+    known_weight: float = 0.1  # weight of the BCE on known pixels, relative to the hole BCE
+    hole_pos_weight: float = 1.0  # BCE weight of free hole pixels (>1 favours recall, <1 precision)
+    adversarial_weight: float = 0.0  # > 0 trains a PatchGAN discriminator alongside
+    discriminator_lr: float = 1e-4
+    discriminator_width: int = 32
+    r1_weight: float = 0.001  # R1 gradient penalty on real images (LaMa's gp_coef)
+    threshold: float = 0.5  # tau: probability at or above which a node is predicted free
+    val_fraction: float = 0.2
+    split: str = "maze"  # hold out whole mazes ("maze") or the last pairs of each rollout group ("rollout")
+    augment: bool = True  # random flips and 90-degree rotations (the lattice is symmetric)
+    hide_prob: float = 0.0  # chance per training pair of hiding the observations in a random box
+    seed: int = 0
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown training keys {unknown}; known: {sorted(known)}")
+        return cls(**values)
+
+
+# ----------------------------------------------------------------------------- masks, loss, metrics
+def unknown_mask(observed: torch.Tensor) -> torch.Tensor:
+    return (observed > PIXEL_OBSTACLE_MAX) & (observed < PIXEL_FREE_MIN)
+
+
+def hole_and_known(observed: torch.Tensor, valid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(hole, known) boolean masks: unknown / known pixels inside the lattice (padding in neither)."""
+    valid = valid.bool()
+    unknown = unknown_mask(observed)
+    return unknown & valid, ~unknown & valid
+
+
+def as_image_batch(x: torch.Tensor) -> torch.Tensor:
+    return x.unsqueeze(1) if x.dim() == 3 else x
+
+
+def inpainting_loss(
+    logits: torch.Tensor, observed: torch.Tensor, target: torch.Tensor, valid: torch.Tensor,
+    known_weight: float = 0.1, hole_pos_weight: float = 1.0,
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """BCE over hole pixels + known_weight * BCE over known pixels; invalid (padding) pixels ignored.
+
+    All arguments are (B, 1, H, W) or (B, H, W); `target` is a node image (255 free).
+    Returns (loss, {"hole": ..., "known": ...}).
+    """
+    logits, observed, target, valid = (as_image_batch(t) for t in (logits, observed, target, valid))
+    hole, known = hole_and_known(observed, valid)
+    free = (target >= PIXEL_FREE_MIN).to(logits.dtype)
+    weight = torch.where(free > 0, torch.full_like(free, hole_pos_weight), torch.ones_like(free))
+    bce = F.binary_cross_entropy_with_logits(logits, free, reduction="none")
+    zero = torch.zeros((), dtype=bce.dtype, device=bce.device)
+    hole_loss = torch.where(hole, bce * weight, zero).sum() / hole.sum().clamp_min(1)
+    known_loss = torch.where(known, bce, zero).sum() / known.sum().clamp_min(1)
+    return hole_loss + known_weight * known_loss, {"hole": hole_loss.detach(), "known": known_loss.detach()}
+
+
+def hole_counts(probs: torch.Tensor, observed: torch.Tensor, target: torch.Tensor, valid: torch.Tensor,
+                threshold: float) -> torch.Tensor:
+    """[true positives, false positives, false negatives] of predicted free nodes in the hole."""
+    probs, observed, target, valid = (as_image_batch(t) for t in (probs, observed, target, valid))
+    hole, _ = hole_and_known(observed, valid)
+    predicted = (probs >= threshold) & hole
+    actual = (target >= PIXEL_FREE_MIN) & hole
+    return torch.stack([(predicted & actual).sum(), (predicted & ~actual).sum(), (~predicted & actual).sum()]).double()
+
+
+def precision_recall_f1(counts: Sequence[float]) -> dict[str, float]:
+    tp, fp, fn = (float(c) for c in counts[:3])
+    precision = tp / (tp + fp) if tp + fp else 0.0
+    recall = tp / (tp + fn) if tp + fn else 0.0
+    f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+    return {"precision": precision, "recall": recall, "f1": f1, "predicted": int(tp + fp), "actual": int(tp + fn)}
+
+
+@torch.inference_mode()
+def evaluate_inpainter(model: InpainterModel, pairs: PairSet, thresholds: Sequence[float] = (0.5,),
+                       batch_size: int = 64) -> dict[float, dict[str, float]]:
+    """Hole precision / recall / F1 of a model (in eval mode) on a pair set, per threshold."""
+    counts = {t: torch.zeros(3, dtype=torch.float64) for t in thresholds}
+    for group in pairs.values():
+        for start in range(0, len(group["observed"]), batch_size):
+            observed = torch.from_numpy(group["observed"][start : start + batch_size])
+            target = torch.from_numpy(group["target"][start : start + batch_size])
+            valid = torch.from_numpy(group["valid"][start : start + batch_size])
+            probs = model(observed.unsqueeze(1)).float().cpu()
+            for t in thresholds:
+                counts[t] += hole_counts(probs, observed, target, valid, t)
+    return {t: precision_recall_f1(c.tolist()) for t, c in counts.items()}
+
+
+# ----------------------------------------------------------------------------- data
+def shard_files(data_dir: str | Path) -> list[Path]:
+    """The shard files of a finished Stage I data set, in manifest order."""
+    data_dir = Path(data_dir)
+    return [data_dir / entry["file"] for entry in read_manifest(data_dir)["shards"]]
+
+
+SPLITS = ("maze", "rollout")
+
+
+def maze_ids(group: dict[str, np.ndarray]) -> list[str]:
+    """Which maze each pair comes from: its ground-truth image (the whole lattice) identifies it."""
+    return [hashlib.sha1(t.tobytes() + v.tobytes()).hexdigest()[:16] for t, v in zip(group["target"], group["valid"])]
+
+
+def split_pairs(data_dir: str | Path, val_fraction: float = 0.2, split: str = "maze",
+                seed: int = 0) -> tuple[PairSet, PairSet]:
+    """(train, val) pair sets.
+
+    split="maze": whole mazes are held out (about `val_fraction` of the pairs), so the
+    validation measures inference in unseen mazes, like the paper's test set; a maze is
+    recognised by its ground-truth image. split="rollout": the last `val_fraction` of each
+    (shard, size) group (pairs are stored in rollout order), which shares mazes with
+    training and so also rewards remembering them.
+    """
+    if not 0.0 < val_fraction < 1.0:
+        raise ValueError("val_fraction must lie strictly between 0 and 1")
+    if split not in SPLITS:
+        raise ValueError(f"split {split!r}: use one of {SPLITS}")
+    groups = [(size, group) for path in shard_files(data_dir) for size, group in load_pairs([path]).items()]
+    if split == "maze":
+        ids = [maze_ids(group) for _, group in groups]
+        counts: dict[str, int] = {}
+        for group_ids in ids:
+            for maze in group_ids:
+                counts[maze] = counts.get(maze, 0) + 1
+        if len(counts) < 2:
+            warnings.warn(f"{data_dir}: pairs from a single maze; holding out the last pairs of each rollout group",
+                          stacklevel=2)
+            return split_pairs(data_dir, val_fraction, "rollout", seed)
+        goal = val_fraction * sum(counts.values())
+        held: set[str] = set()
+        held_count = 0
+        for maze in np.random.default_rng(seed).permutation(sorted(counts)):
+            if held_count >= goal:
+                break
+            if held_count + counts[maze] <= 1.5 * goal and len(held) < len(counts) - 1:
+                held.add(maze)
+                held_count += counts[maze]
+        if not held:
+            held.add(min(counts, key=counts.get))
+        masks = [np.array([maze in held for maze in group_ids], dtype=bool) for group_ids in ids]
+    else:
+        masks = []
+        for _, group in groups:
+            count = len(group["observed"])
+            n_val = int(round(count * val_fraction)) if count > 1 else 0
+            masks.append(np.arange(count) >= count - n_val)
+    train: dict[int, dict[str, list[np.ndarray]]] = {}
+    val: dict[int, dict[str, list[np.ndarray]]] = {}
+    for (size, group), is_val in zip(groups, masks):
+        for target, select in ((train, ~is_val), (val, is_val)):
+            if select.any():
+                bucket = target.setdefault(size, {"observed": [], "target": [], "valid": []})
+                for key in bucket:
+                    bucket[key].append(group[key][select])
+    join = lambda d: {s: {k: np.concatenate(v) for k, v in g.items()} for s, g in sorted(d.items())}  # noqa: E731
+    train_set, val_set = join(train), join(val)
+    if not train_set or not val_set:
+        raise ValueError(f"{data_dir}: too few pairs for a train/validation split")
+    return train_set, val_set
+
+
+def maze_count(pairs: PairSet) -> int:
+    return len({maze for group in pairs.values() for maze in maze_ids(group)})
+
+
+def pair_count(pairs: PairSet) -> int:
+    return int(sum(len(g["observed"]) for g in pairs.values()))
+
+
+def dihedral(image: np.ndarray, k: int) -> np.ndarray:
+    """One of the 8 symmetries of the square: rotate by k % 4 quarter turns, flip if k >= 4."""
+    out = np.rot90(image, k % 4)
+    return np.ascontiguousarray(out[:, ::-1] if k >= 4 else out)
+
+
+def hide_box(observed: np.ndarray) -> np.ndarray:
+    """An earlier view of the same exploration: the observations inside a random box (20-60 %
+    of the side) turned back to unknown, so hidden corridor ends become hole pixels to predict."""
+    size = observed.shape[0]
+    height, width = (int(v) for v in torch.randint(size // 5, 3 * size // 5 + 1, (2,)))
+    top, left = int(torch.randint(0, size - height + 1, ())), int(torch.randint(0, size - width + 1, ()))
+    out = observed.copy()
+    out[top : top + height, left : left + width] = 128
+    return out
+
+
+class NodeImagePairDataset(torch.utils.data.Dataset):
+    """(observed, target, valid) arrays of one pair set; `sizes[i]` is item i's image size."""
+
+    def __init__(self, pairs: PairSet, augment: bool = False, hide_prob: float = 0.0) -> None:
+        self.pairs = pairs
+        self.augment = augment
+        self.hide_prob = hide_prob
+        self.index = [(size, i) for size, group in pairs.items() for i in range(len(group["observed"]))]
+        self.sizes = np.array([size for size, _ in self.index], dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, item: int):
+        size, i = self.index[item]
+        group = self.pairs[size]
+        arrays = [group["observed"][i], group["target"][i], group["valid"][i]]
+        if self.augment:
+            k = int(torch.randint(0, 8, ()))
+            arrays = [dihedral(a, k) for a in arrays]
+        if self.hide_prob > 0 and float(torch.rand(())) < self.hide_prob:
+            arrays[0] = hide_box(arrays[0])
+        return tuple(torch.from_numpy(np.ascontiguousarray(a)) for a in arrays)
+
+
+class SizeGroupedBatchSampler(torch.utils.data.Sampler):
+    """Batches of one image size each; shuffled per epoch (`set_epoch`), split across ranks."""
+
+    def __init__(self, sizes: np.ndarray, batch_size: int, shuffle: bool, seed: int = 0,
+                 rank: int = 0, world_size: int = 1) -> None:
+        self.sizes, self.batch_size, self.shuffle, self.seed = sizes, batch_size, shuffle, seed
+        self.rank, self.world_size = rank, world_size
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        self.epoch = epoch
+
+    def _batches(self) -> list[list[int]]:
+        rng = np.random.default_rng([self.seed, self.epoch])
+        batches = []
+        for size in np.unique(self.sizes):
+            members = np.nonzero(self.sizes == size)[0]
+            if self.shuffle:
+                members = rng.permutation(members)
+            batches += [members[i : i + self.batch_size].tolist() for i in range(0, len(members), self.batch_size)]
+        if self.shuffle:
+            batches = [batches[i] for i in rng.permutation(len(batches))]
+        if self.world_size > 1:  # every rank gets the same number of batches
+            per_rank = len(batches) // self.world_size
+            batches = batches[self.rank : per_rank * self.world_size : self.world_size]
+        return batches
+
+    def __iter__(self) -> Iterator[list[int]]:
+        return iter(self._batches())
+
+    def __len__(self) -> int:
+        return len(self._batches())
+
+
+# Lightning is imported here (not lazily): this module is the training entry point.
+import lightning as L  # noqa: E402
+from lightning.pytorch.callbacks import ModelCheckpoint  # noqa: E402
+
+
+class InpainterDataModule(L.LightningDataModule):
+    """Stage I shards -> size-grouped, augmented training batches and validation batches."""
+
+    def __init__(self, data_dir: str | Path, batch_size: int = 16, val_fraction: float = 0.2,
+                 augment: bool = True, seed: int = 0, hide_prob: float = 0.0, split: str = "maze") -> None:
+        super().__init__()
+        self.data_dir, self.batch_size, self.val_fraction = Path(data_dir), batch_size, val_fraction
+        self.augment, self.seed, self.hide_prob, self.split = augment, seed, hide_prob, split
+        self.train_pairs: PairSet | None = None
+        self.val_pairs: PairSet | None = None
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.train_pairs is None:
+            self.train_pairs, self.val_pairs = split_pairs(self.data_dir, self.val_fraction, self.split, self.seed)
+
+    def _loader(self, pairs: PairSet, train: bool) -> torch.utils.data.DataLoader:
+        dataset = NodeImagePairDataset(pairs, augment=self.augment and train, hide_prob=self.hide_prob if train else 0.0)
+        rank, world = 0, 1
+        trainer = getattr(self, "trainer", None)
+        if trainer is not None:
+            rank, world = trainer.global_rank, trainer.world_size
+        sampler = SizeGroupedBatchSampler(dataset.sizes, self.batch_size, shuffle=train, seed=self.seed,
+                                          rank=rank if train else 0, world_size=world if train else 1)
+        return torch.utils.data.DataLoader(dataset, batch_sampler=sampler, num_workers=0)
+
+    def train_dataloader(self):
+        return self._loader(self.train_pairs, train=True)
+
+    def val_dataloader(self):
+        return self._loader(self.val_pairs, train=False)
+
+
+# ----------------------------------------------------------------------------- discriminator
+class PatchDiscriminator(nn.Module):
+    """A small conditional PatchGAN: [net input channels, free-node image in [-1, 1]] -> patch logits."""
+
+    def __init__(self, in_channels: int, width: int = 32) -> None:
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Conv2d(in_channels, width, 4, stride=2, padding=1),
+            nn.LeakyReLU(0.2),
+            nn.Conv2d(width, width * 2, 4, stride=2, padding=1),
+            nn.LeakyReLU(0.2),
+            nn.Conv2d(width * 2, width * 2, 3, padding=1),
+            nn.LeakyReLU(0.2),
+            nn.Conv2d(width * 2, 1, 3, padding=1),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
+# ----------------------------------------------------------------------------- Lightning module
+class InpainterLightning(L.LightningModule):
+    """Generator (+ optional discriminator), manual optimisation, hole metrics and a history."""
+
+    def __init__(self, model_config: dict[str, Any], train_config: dict[str, Any]) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.model_config = InpainterConfig.from_dict(model_config)
+        self.train_config = TrainConfig.from_dict(train_config)
+        self.generator = InpainterModel(self.model_config)
+        tc = self.train_config
+        self.discriminator = (
+            PatchDiscriminator(self.model_config.in_channels + 1, tc.discriminator_width) if tc.adversarial_weight > 0 else None
+        )
+        self.automatic_optimization = False
+        self.history: list[dict[str, float]] = []
+        self._train_sums = torch.zeros(2, dtype=torch.float64)  # loss * n, n
+        self._val_sums = torch.zeros(5, dtype=torch.float64)  # tp, fp, fn, loss * n, n
+        self._epoch_started = time.perf_counter()
+
+    # -- optimisation -----------------------------------------------------------------
+    def configure_optimizers(self):
+        tc = self.train_config
+        gen_opt = torch.optim.Adam(self.generator.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
+
+        def cosine(epoch: int) -> float:  # reads max_epochs at call time: a resumed, longer run decays over it
+            total = max(1, (self.trainer.max_epochs if self._trainer is not None else tc.max_epochs) - 1)
+            t = min(epoch, total) / total
+            return tc.lr_min_factor + (1 - tc.lr_min_factor) * 0.5 * (1 + math.cos(math.pi * t))
+
+        gen_sched = torch.optim.lr_scheduler.LambdaLR(gen_opt, cosine)
+        if self.discriminator is None:
+            return [gen_opt], [gen_sched]
+        disc_opt = torch.optim.Adam(self.discriminator.parameters(), lr=tc.discriminator_lr, betas=(0.5, 0.999))
+        return [gen_opt, disc_opt], [gen_sched]
+
+    def _optimizers(self) -> list:
+        opts = self.optimizers()
+        return list(opts) if isinstance(opts, (list, tuple)) else [opts]
+
+    def _disc_input(self, encoded: torch.Tensor, free_prob: torch.Tensor, observed: torch.Tensor,
+                    valid: torch.Tensor) -> torch.Tensor:
+        """The discriminator's view: input channels + image with known pixels as observed, padding 0."""
+        hole, known = hole_and_known(observed, valid)
+        known_value = (observed >= PIXEL_FREE_MIN).to(free_prob.dtype)
+        image = torch.where(hole, free_prob, known_value) * 2 - 1
+        image = torch.where(valid.bool(), image, torch.zeros_like(image))
+        return torch.cat([encoded, image], dim=1)
+
+    def training_step(self, batch, batch_idx):
+        observed, target, valid = (t.unsqueeze(1) for t in batch)
+        tc = self.train_config
+        opts = self._optimizers()
+        encoded = self.generator.encode(observed)
+        logits = self.generator.forward_encoded_logits(encoded)
+        loss, parts = inpainting_loss(logits, observed, target, valid, tc.known_weight, tc.hole_pos_weight)
+        total = loss
+        if self.discriminator is not None:
+            gen_opt, disc_opt = opts
+            real = self._disc_input(encoded, (target >= PIXEL_FREE_MIN).float(), observed, valid)
+            fake = self._disc_input(encoded, torch.sigmoid(logits), observed, valid)
+            # Discriminator step: non-saturating loss + R1 penalty on real images.
+            real_d = real.detach().requires_grad_(tc.r1_weight > 0)
+            d_real = self.discriminator(real_d)
+            d_fake = self.discriminator(fake.detach())
+            d_loss = F.softplus(-d_real).mean() + F.softplus(d_fake).mean()
+            if tc.r1_weight > 0:
+                (grad,) = torch.autograd.grad(d_real.sum(), real_d, create_graph=True)
+                d_loss = d_loss + tc.r1_weight * grad.pow(2).flatten(1).sum(1).mean()
+            disc_opt.zero_grad()
+            self.manual_backward(d_loss)
+            disc_opt.step()
+            # Generator's adversarial term (the discriminator's grads from it are cleared next step).
+            adv = F.softplus(-self.discriminator(fake)).mean()
+            total = loss + tc.adversarial_weight * adv
+            self.log_dict({"train_adv": adv.detach(), "train_disc": d_loss.detach()}, on_step=False, on_epoch=True,
+                          batch_size=observed.shape[0])
+        else:
+            gen_opt = opts[0]
+        gen_opt.zero_grad()
+        self.manual_backward(total)
+        gen_opt.step()
+        n = observed.shape[0]
+        self._train_sums += torch.tensor([float(loss.detach()) * n, n], dtype=torch.float64)
+        self.log_dict({"train_loss": loss.detach(), "train_hole_bce": parts["hole"], "train_known_bce": parts["known"]},
+                      on_step=False, on_epoch=True, prog_bar=True, batch_size=n)
+        return total.detach()
+
+    def on_train_epoch_start(self) -> None:
+        self._train_sums.zero_()
+        self._epoch_started = time.perf_counter()
+
+    def on_train_epoch_end(self) -> None:
+        schedulers = self.lr_schedulers()
+        for scheduler in schedulers if isinstance(schedulers, list) else [schedulers]:
+            if scheduler is not None:
+                scheduler.step()
+
+    # -- validation -----------------------------------------------------------------------
+    def on_validation_epoch_start(self) -> None:
+        self._val_sums.zero_()
+
+    def validation_step(self, batch, batch_idx):
+        observed, target, valid = (t.unsqueeze(1) for t in batch)
+        tc = self.train_config
+        logits = self.generator.forward_logits(observed)
+        loss, _ = inpainting_loss(logits, observed, target, valid, tc.known_weight, tc.hole_pos_weight)
+        counts = hole_counts(torch.sigmoid(logits), observed, target, valid, tc.threshold).cpu()
+        n = observed.shape[0]
+        self._val_sums += torch.cat([counts, torch.tensor([float(loss) * n, n], dtype=torch.float64)])
+
+    def on_validation_epoch_end(self) -> None:
+        sums = self._val_sums.to(self.device)
+        if self.trainer.world_size > 1:
+            sums = self.trainer.strategy.reduce(sums, reduce_op="sum")
+        sums = sums.cpu()
+        metrics = precision_recall_f1(sums[:3].tolist())
+        val_loss = float(sums[3] / max(1.0, float(sums[4])))
+        self.log_dict({"val_loss": val_loss, "val_precision": metrics["precision"], "val_recall": metrics["recall"],
+                       "val_f1": metrics["f1"]}, prog_bar=True, sync_dist=False)
+        if self.trainer.sanity_checking:
+            return
+        train = self._train_sums.to(self.device)
+        if self.trainer.world_size > 1:
+            train = self.trainer.strategy.reduce(train, reduce_op="sum")
+        train = train.cpu()
+        record = {
+            "epoch": int(self.current_epoch),
+            "train_loss": float(train[0] / max(1.0, float(train[1]))),
+            "val_loss": val_loss,
+            "val_precision": metrics["precision"],
+            "val_recall": metrics["recall"],
+            "val_f1": metrics["f1"],
+            "lr": float(self._optimizers()[0].param_groups[0]["lr"]),
+            "seconds": time.perf_counter() - self._epoch_started,
+        }
+        self.history = [h for h in self.history if h["epoch"] != record["epoch"]] + [record]
+
+    # -- checkpoint extras ------------------------------------------------------------
+    def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        checkpoint["inpainter_history"] = list(self.history)
+
+    def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        self.history = list(checkpoint.get("inpainter_history", []))
+
+
+# ----------------------------------------------------------------------------- export / load
+def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) -> Path:
+    """Write `inpainter.pt`: {format, config, state_dict, ...extra}; atomic."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": EXPORT_FORMAT,
+        "config": generator.config.to_dict(),
+        "state_dict": {k: v.detach().cpu().clone() for k, v in generator.state_dict().items()},
+        "num_parameters": generator.num_parameters(),
+        **extra,
+    }
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
+    """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
+    payload = torch.load(path, map_location=map_location, weights_only=True)
+    if "config" in payload and "state_dict" in payload:
+        config = InpainterConfig.from_dict(payload["config"])
+        state = payload["state_dict"]
+    elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
+        config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
+        state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
+    else:
+        raise ValueError(f"{path}: neither an exported inpainter nor an inpainter training checkpoint")
+    model = InpainterModel(config)
+    model.load_state_dict(state)
+    return model.eval(), config
+
+
+def read_export(path: str | Path) -> dict[str, Any]:
+    """The whole exported payload (config, state_dict, metrics, history, timings)."""
+    return torch.load(path, map_location="cpu", weights_only=True)
+
+
+# ----------------------------------------------------------------------------- entry point
+def is_big_lama_layout(config: InpainterConfig) -> bool:
+    reference = InpainterConfig.big_lama(in_channels=config.in_channels, out_channels=config.out_channels,
+                                         input_encoding=config.input_encoding)
+    return config == reference
+
+
+def train_inpainter(
+    model_config: InpainterConfig | dict[str, Any] | None = None,
+    data_dir: str | Path = "data/pairs",
+    out_dir: str | Path = "models/inpainter",
+    *,
+    max_epochs: Optional[int] = None,
+    batch_size: Optional[int] = None,
+    lr: Optional[float] = None,
+    accelerator: str = "cpu",
+    devices: int | str = 1,
+    resume: bool = False,
+    tracking_uri: Optional[str] = None,
+    init_checkpoint: Optional[str | Path] = None,
+    train_config: TrainConfig | dict[str, Any] | None = None,
+    mlflow: bool = True,
+    experiment_name: str = "inpainter",
+    run_name: Optional[str] = None,
+    progress: bool = False,
+    num_threads: Optional[int] = None,
+    artifact_location: Optional[str] = None,
+) -> Path:
+    """Train the inpainter on a Stage I data set; returns the path of the exported `inpainter.pt`.
+
+    `max_epochs`, `batch_size` and `lr` override `train_config`. `resume=True` continues
+    from `out_dir/last.ckpt` (epoch counter, optimiser and history included) when it
+    exists; otherwise stale checkpoints in `out_dir` are removed first. `init_checkpoint`
+    is an official (Big-)LaMa checkpoint whose `generator.*` weights start the training
+    (the model then takes the Big-LaMa layout). MLflow logs to `tracking_uri` (default:
+    $MLFLOW_TRACKING_URI or sqlite:///mlflow.db). `num_threads` sets torch's CPU threads
+    for the run (1 is often fastest for these small images on a busy machine).
+    `artifact_location` is where a newly created MLflow experiment keeps its artifacts
+    (MLflow's default: ./mlruns).
+    """
+    previous_threads = torch.get_num_threads()
+    if num_threads:
+        torch.set_num_threads(int(num_threads))
+    try:
+        return _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume,
+                      tracking_uri, init_checkpoint, train_config, mlflow, experiment_name, run_name, progress,
+                      artifact_location)
+    finally:
+        torch.set_num_threads(previous_threads)
+
+
+def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
+           init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location) -> Path:
+    from pipeline.tracking import resolve_tracking_uri
+
+    tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
+    overrides = {k: v for k, v in (("max_epochs", max_epochs), ("batch_size", batch_size), ("lr", lr)) if v is not None}
+    tc = TrainConfig(**{**asdict(tc), **overrides})
+    if isinstance(model_config, dict):
+        model_config = InpainterConfig.from_dict(model_config)
+    model_config = model_config or InpainterConfig()
+    if init_checkpoint is not None and not is_big_lama_layout(model_config):
+        warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
+                      stacklevel=2)
+        model_config = InpainterConfig.big_lama()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    last = out_dir / LAST_CKPT
+    ckpt_path = str(last) if resume and last.is_file() else None
+    if resume and ckpt_path is None:
+        warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
+    if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
+        for stale in list(out_dir.glob("*.ckpt")):
+            stale.unlink()
+
+    L.seed_everything(tc.seed, workers=True, verbose=False)
+    module = InpainterLightning(model_config.to_dict(), asdict(tc))
+    if init_checkpoint is not None and ckpt_path is None:
+        summary = load_big_lama_generator(module.generator, read_checkpoint(init_checkpoint))
+        print(f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}")
+    data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
+
+    checkpoint = ModelCheckpoint(dirpath=out_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
+                                 save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
+    logger: Any = False
+    if mlflow:
+        os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+        from lightning.pytorch.loggers import MLFlowLogger
+
+        logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
+                              tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
+    trainer = L.Trainer(
+        max_epochs=tc.max_epochs,
+        accelerator=accelerator,
+        devices=devices,
+        logger=logger,
+        callbacks=[checkpoint],
+        default_root_dir=str(out_dir),
+        enable_progress_bar=progress,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        use_distributed_sampler=False,
+        log_every_n_steps=1,
+    )
+    started = time.perf_counter()
+    trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
+    seconds = time.perf_counter() - started
+    export_path = out_dir / EXPORT_NAME
+    if trainer.is_global_zero:
+        best_path = checkpoint.best_model_path
+        generator = module.generator
+        if best_path and Path(best_path).is_file():
+            state = torch.load(best_path, map_location="cpu", weights_only=True)["state_dict"]
+            generator = InpainterModel(module.model_config)
+            generator.load_state_dict({k[len("generator."):]: v for k, v in state.items() if k.startswith("generator.")})
+        history = list(module.history)
+        best = max(history, key=lambda h: h["val_f1"]) if history else {}
+        export_inpainter(
+            generator.cpu().eval(), export_path,
+            threshold=tc.threshold,
+            train_config=asdict(tc),
+            history=history,
+            best_epoch=int(best.get("epoch", -1)),
+            val_metrics={k: float(v) for k, v in best.items() if k.startswith("val_")},
+            train_seconds=round(seconds, 2),  # this fit() call (a resumed run counts its own part)
+            epoch_seconds_total=round(sum(h["seconds"] for h in history), 2),  # all epochs, across resumes
+            epochs=int(trainer.current_epoch),
+            pairs={"train": pair_count(data.train_pairs), "val": pair_count(data.val_pairs)},
+            mazes={"train": maze_count(data.train_pairs), "val": maze_count(data.val_pairs)},
+        )
+        if logger:
+            logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
+            logger.experiment.log_metric(logger.run_id, "num_parameters", module.generator.num_parameters())
+            logger.experiment.log_artifact(logger.run_id, str(export_path))
+    return export_path

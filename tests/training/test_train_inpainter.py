@@ -1,0 +1,286 @@
+"""Stage I training: loss masking, data split and augmentation, train / resume / export, the stage."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from pipeline.models import InpainterConfig
+from pipeline.shards import write_shard
+from pipeline.training.inpainter import (
+    NodeImagePairDataset,
+    SizeGroupedBatchSampler,
+    dihedral,
+    evaluate_inpainter,
+    hole_counts,
+    inpainting_loss,
+    load_inpainter,
+    maze_count,
+    maze_ids,
+    pair_count,
+    precision_recall_f1,
+    read_export,
+    split_pairs,
+    train_inpainter,
+)
+
+TINY = {"ngf": 4, "n_blocks": 1}
+FAST = {"batch_size": 8, "val_fraction": 0.25, "lr": 0.005, "split": "rollout"}  # fixed batch counts
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    """Tiny images train fastest on one thread (and many threads stall on a busy machine)."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
+
+
+def synthetic_maze(rng: np.random.Generator, side: int) -> np.ndarray:
+    """A lattice's ground truth: a few straight corridors."""
+    truth = np.zeros((side, side), dtype=bool)
+    for _ in range(3):
+        k = int(rng.integers(1, side - 1))
+        if rng.random() < 0.5:
+            truth[k, :] = True
+        else:
+            truth[:, k] = True
+    return truth
+
+
+def synthetic_pair(rng: np.random.Generator, size: int, truth: np.ndarray | None = None):
+    """(observed, target, valid): part of a maze observed, centre-padded to `size`."""
+    side = size - 4
+    truth = synthetic_maze(rng, side) if truth is None else truth
+    observed = np.full((side, side), 128, dtype=np.uint8)
+    r0, c0 = rng.integers(0, side // 2, size=2)
+    window = (slice(r0, r0 + side // 2), slice(c0, c0 + side // 2))
+    observed[window] = np.where(truth[window], 255, 0)
+    obs = np.full((size, size), 128, np.uint8)
+    tgt = np.zeros((size, size), np.uint8)
+    valid = np.zeros((size, size), bool)
+    obs[2:-2, 2:-2], tgt[2:-2, 2:-2], valid[2:-2, 2:-2] = observed, np.where(truth, 255, 0), True
+    return obs, tgt, valid
+
+
+def write_pairs(directory: Path, shards: int = 2, per_size: int = 6, sizes=(32, 40), seed: int = 0,
+                mazes: int = 0) -> Path:
+    """A Stage I data set as collect_pairs writes it: shards + manifest. With `mazes` > 0 the
+    pairs of each size come from that many mazes (several views of each), else one maze each."""
+    directory.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    pool = {size: [synthetic_maze(rng, size - 4) for _ in range(mazes)] for size in sizes}
+    entries = []
+    for k in range(shards):
+        arrays = {"fingerprint": np.array("test")}
+        for size in sizes:
+            pairs = [synthetic_pair(rng, size, pool[size][int(rng.integers(mazes))] if mazes else None)
+                     for _ in range(per_size)]
+            for name, index in (("observed", 0), ("target", 1), ("valid", 2)):
+                arrays[f"{name}_{size}"] = np.stack([p[index] for p in pairs])
+        name = f"shard_{k:05d}.npz"
+        write_shard(directory / name, arrays)
+        entries.append({"file": name, "pairs": per_size * len(sizes)})
+    (directory / "manifest.json").write_text(json.dumps({"shards": entries, "totals": {}}))
+    return directory
+
+
+@pytest.fixture(scope="module")
+def pairs_dir(tmp_path_factory) -> Path:
+    return write_pairs(tmp_path_factory.mktemp("pairs") / "pairs")
+
+
+# --------------------------------------------------------------------------- loss and metrics
+def test_loss_ignores_invalid_pixels():
+    rng = np.random.default_rng(0)
+    obs, tgt, valid = (torch.from_numpy(np.stack(a)) for a in zip(*[synthetic_pair(rng, 32) for _ in range(3)]))
+    logits = torch.randn(3, 32, 32)
+    loss, _ = inpainting_loss(logits, obs, tgt, valid)
+    # Anything on the padding: extreme logits, flipped targets, even "known" observations.
+    logits2, tgt2, obs2 = logits.clone(), tgt.clone(), obs.clone()
+    logits2[~valid] = 1e4
+    tgt2[~valid] = 255 - tgt2[~valid]
+    obs2[~valid] = 255
+    loss2, _ = inpainting_loss(logits2, obs2, tgt2, valid)
+    assert torch.allclose(loss, loss2)
+    # ... while a change on a valid hole pixel does count.
+    hole = (obs == 128) & valid
+    logits3 = logits.clone()
+    logits3[hole] += 3.0
+    assert not torch.allclose(loss, inpainting_loss(logits3, obs, tgt, valid)[0])
+
+
+def test_loss_weights_hole_and_known():
+    rng = np.random.default_rng(1)
+    obs, tgt, valid = (torch.from_numpy(a)[None] for a in synthetic_pair(rng, 32))
+    logits = torch.randn(1, 32, 32)
+    known = (obs != 128) & valid
+    changed = logits.clone()
+    changed[known] = -changed[known]
+    same_hole = inpainting_loss(logits, obs, tgt, valid, known_weight=0.0)[0]
+    assert torch.allclose(same_hole, inpainting_loss(changed, obs, tgt, valid, known_weight=0.0)[0])
+    _, parts = inpainting_loss(logits, obs, tgt, valid, known_weight=0.5)
+    total, _ = inpainting_loss(logits, obs, tgt, valid, known_weight=0.5)
+    assert torch.allclose(total, parts["hole"] + 0.5 * parts["known"])
+
+
+def test_hole_metrics_count_only_the_hole():
+    obs = torch.tensor([[128, 128, 128, 255]], dtype=torch.uint8)[None]
+    tgt = torch.tensor([[255, 0, 255, 255]], dtype=torch.uint8)[None]
+    valid = torch.tensor([[True, True, False, True]])[None]
+    probs = torch.tensor([[0.9, 0.8, 0.9, 0.9]])[None]
+    counts = hole_counts(probs, obs, tgt, valid, 0.5).tolist()
+    assert counts == [1, 1, 0]  # pixel 2 is padding, pixel 3 is known
+    assert precision_recall_f1(counts) == pytest.approx(
+        {"precision": 0.5, "recall": 1.0, "f1": 2 / 3, "predicted": 2, "actual": 1})
+
+
+# --------------------------------------------------------------------------- data
+def test_split_holds_out_whole_mazes(tmp_path):
+    directory = write_pairs(tmp_path / "pairs", shards=3, per_size=10, mazes=4)
+    train, val = split_pairs(directory, 0.25, "maze", seed=0)
+    total = pair_count(train) + pair_count(val)
+    assert total == 60 and 0.1 * total <= pair_count(val) <= 0.4 * total
+    train_mazes = {m for g in train.values() for m in maze_ids(g)}
+    val_mazes = {m for g in val.values() for m in maze_ids(g)}
+    assert val_mazes and train_mazes and not train_mazes & val_mazes
+    assert maze_count(train) + maze_count(val) == 8  # 4 mazes per size
+    again = split_pairs(directory, 0.25, "maze", seed=0)[1]
+    assert all(np.array_equal(again[s]["target"], val[s]["target"]) for s in val)
+
+
+def test_single_maze_falls_back_to_the_rollout_split(tmp_path):
+    directory = write_pairs(tmp_path / "pairs", shards=2, per_size=8, sizes=(32,), mazes=1)
+    with pytest.warns(UserWarning, match="single maze"):
+        train, val = split_pairs(directory, 0.25, "maze")
+    assert pair_count(train) == 12 and pair_count(val) == 4
+
+
+def test_rollout_split_keeps_the_tail_of_each_shard_and_size(pairs_dir):
+    train, val = split_pairs(pairs_dir, 0.25, "rollout")
+    assert set(train) == set(val) == {32, 40}
+    assert all(len(train[s]["observed"]) == 2 * 4 and len(val[s]["observed"]) == 2 * 2 for s in (32, 40))
+    from pipeline.collect import load_pairs
+
+    first = load_pairs([pairs_dir / "shard_00000.npz"])
+    np.testing.assert_array_equal(val[32]["observed"][:2], first[32]["observed"][4:])
+
+
+def test_dihedral_augmentation_is_the_square_group():
+    image = np.arange(16).reshape(4, 4)
+    images = {dihedral(image, k).tobytes() for k in range(8)}
+    assert len(images) == 8
+    rng = np.random.default_rng(2)
+    obs, tgt, valid = synthetic_pair(rng, 32)
+    dataset = NodeImagePairDataset({32: {"observed": obs[None], "target": tgt[None], "valid": valid[None]}}, augment=True)
+    for _ in range(5):
+        o, t, v = (x.numpy() for x in dataset[0])
+        assert (o[~v] == 128).all() and ((o == 255) <= (t == 255)).all()  # pairs transformed together
+
+
+def test_batches_hold_one_size():
+    sizes = np.array([32] * 5 + [40] * 7 + [48] * 3)
+    sampler = SizeGroupedBatchSampler(sizes, batch_size=4, shuffle=True, seed=0)
+    batches = list(sampler)
+    assert sorted(i for b in batches for i in b) == list(range(15))
+    assert all(len({sizes[i] for i in b}) == 1 for b in batches)
+    sampler.set_epoch(1)
+    assert list(sampler) != batches or len(batches) == 1
+    halves = [list(SizeGroupedBatchSampler(sizes, 4, True, 0, rank=r, world_size=2)) for r in (0, 1)]
+    assert len(halves[0]) == len(halves[1]) and not {tuple(b) for b in halves[0]} & {tuple(b) for b in halves[1]}
+
+
+# --------------------------------------------------------------------------- training
+def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
+    out = tmp_path / "inpainter"
+    artifacts = str(tmp_path / "mlartifacts")  # a new experiment's artifacts, kept out of ./mlruns
+    path = train_inpainter(TINY, pairs_dir, out, max_epochs=1, tracking_uri=mlflow_uri, train_config=FAST,
+                           experiment_name="inpainter-test", artifact_location=artifacts)
+    assert path == out / "inpainter.pt" and path.is_file()
+    assert (out / "last.ckpt").is_file() and (out / "best.ckpt").is_file()
+    export = read_export(path)
+    assert export["epochs"] == 1 and [h["epoch"] for h in export["history"]] == [0]
+    assert np.isfinite(export["history"][0]["train_loss"]) and 0 <= export["history"][0]["val_f1"] <= 1
+    assert export["pairs"] == {"train": 16, "val": 8}
+    model, config = load_inpainter(path)
+    assert config == InpainterConfig(**TINY) and not model.training
+    assert model.predict(np.full((32, 32), 128, np.uint8)).shape == (32, 32)
+    assert export["num_parameters"] == model.num_parameters()
+    first_epoch = export["history"][0]
+    # Resume: the epoch counter, step counter and history continue from last.ckpt (epoch 0 is
+    # not trained again: its record, timing included, is the first run's).
+    path = train_inpainter(TINY, pairs_dir, out, max_epochs=2, resume=True, tracking_uri=mlflow_uri, train_config=FAST,
+                           experiment_name="inpainter-test", artifact_location=artifacts)
+    export = read_export(path)
+    assert export["epochs"] == 2 and [h["epoch"] for h in export["history"]] == [0, 1]
+    assert export["history"][0] == first_epoch
+    ckpt = torch.load(out / "last.ckpt", map_location="cpu", weights_only=True)
+    assert ckpt["epoch"] == 2 and ckpt["global_step"] == 4  # 2 batches (one per size) per epoch
+    # The training checkpoint is also readable as a model.
+    assert load_inpainter(out / "last.ckpt")[1] == config
+    # Both runs logged to MLflow, with the exported model as an artifact.
+    import mlflow
+
+    client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
+    runs = client.search_runs([client.get_experiment_by_name("inpainter-test").experiment_id])
+    assert len(runs) == 2 and all("val_f1" in r.data.metrics for r in runs)
+    assert any(p.name == "inpainter.pt" for p in (tmp_path / "mlartifacts").rglob("*"))
+
+
+def test_training_reduces_the_loss(pairs_dir, tmp_path):
+    path = train_inpainter(TINY, pairs_dir, tmp_path / "fit", max_epochs=4, mlflow=False,
+                           train_config={**FAST, "lr": 0.01, "augment": False, "split": "maze"})
+    export = read_export(path)
+    assert export["pairs"] == {"train": 18, "val": 6} and export["mazes"] == {"train": 18, "val": 6}
+    history = export["history"]
+    assert history[-1]["train_loss"] < history[0]["train_loss"]
+    model, _ = load_inpainter(path)
+    _, val = split_pairs(pairs_dir, 0.25)
+    assert pair_count(val) == 6  # 24 pairs, each its own maze: a quarter held out
+    metrics = evaluate_inpainter(model, val, (0.5,))[0.5]
+    assert set(metrics) >= {"precision", "recall", "f1"}
+
+
+def test_adversarial_training_runs(pairs_dir, tmp_path):
+    path = train_inpainter(TINY, pairs_dir, tmp_path / "gan", max_epochs=1, mlflow=False,
+                           train_config={**FAST, "adversarial_weight": 0.1, "discriminator_width": 8})
+    state = torch.load(tmp_path / "gan" / "last.ckpt", map_location="cpu", weights_only=True)["state_dict"]
+    assert any(k.startswith("discriminator.") for k in state)
+    assert not any(k.startswith("discriminator.") for k in read_export(path)["state_dict"])
+
+
+def test_fresh_run_clears_stale_checkpoints(pairs_dir, tmp_path):
+    out = tmp_path / "stale"
+    out.mkdir()
+    (out / "best-v1.ckpt").write_text("old")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        train_inpainter(TINY, pairs_dir, out, max_epochs=1, mlflow=False, resume=True, train_config=FAST)
+    assert not (out / "best-v1.ckpt").exists()
+
+
+def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow_uri):
+    from stages import train_inpainter as stage
+
+    monkeypatch.chdir(tmp_path)
+    Path("data").mkdir()
+    Path("data/pairs").symlink_to(pairs_dir, target_is_directory=True)
+    params = {"other_section": {"ignored": True},
+              "train_inpainter": {"model": TINY, "max_epochs": 1, **FAST, "threshold": 0.4, "threads": 1}}
+    Path("params.yaml").write_text(yaml.safe_dump(params))
+    metrics = stage.main("params.yaml", tracking_uri=mlflow_uri, artifact_location=str(tmp_path / "mlartifacts"))
+    for path in ("models/inpainter/inpainter.pt", "models/inpainter/last.ckpt", "reports/inpainter_metrics.json",
+                 "reports/inpainter_curves.png", "reports/inpainter_samples.png"):
+        assert Path(path).is_file(), path
+    written = json.loads(Path("reports/inpainter_metrics.json").read_text())
+    assert written == metrics
+    assert written["threshold"] == 0.4 and "0.4" in written["by_threshold"]
+    assert {"val_precision", "val_recall", "val_f1", "num_parameters", "train_seconds", "predict_ms_48",
+            "val_mazes", "split"} <= set(written)
