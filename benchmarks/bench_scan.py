@@ -17,7 +17,7 @@ from pipeline.maps import load_maze_png
 from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
-from pipeline.sensor import scan
+from pipeline.sensor import Lidar
 from pipeline.simulator import run_episode
 
 
@@ -34,11 +34,12 @@ def main() -> None:
     free_cells = np.argwhere(ground_truth.free)
     rng = np.random.default_rng(0)
     positions = free_cells[rng.integers(0, len(free_cells), size=args.repeats)]
-    scan(ground_truth.free, ground_truth.start_cell, protocol.sensor_range_cells)  # warm the ray table
+    lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)  # as the simulator holds it
+    lidar.scan(ground_truth.start_cell)  # warm the ray table
     times = []
     for row, col in positions:
         t0 = time.perf_counter()
-        scan(ground_truth.free, (int(col), int(row)), protocol.sensor_range_cells)
+        lidar.scan((int(col), int(row)))
         times.append(time.perf_counter() - t0)
     times_ms = np.array(times) * 1e3
     print(f"scan (720 rays, {protocol.sensor_range} m): median {np.median(times_ms):.3f} ms, "

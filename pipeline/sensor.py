@@ -28,6 +28,56 @@ class ScanResult:
     occupied: np.ndarray
 
 
+class Lidar:
+    """The sensor on one ground-truth map, with the map padded once so rays need no bounds checks.
+
+    Cells beyond the grid hold OUTSIDE in the padded copy: a ray stops there without
+    revealing anything, exactly as the protocol's walk stops at the grid's edge.
+    """
+
+    _OCC, _FREE, _OUTSIDE = 0, 1, 2
+
+    def __init__(self, ground_free: np.ndarray, range_cells: float, angles: np.ndarray = DEFAULT_ANGLES):
+        self.shape = ground_free.shape
+        self.range_cells = float(range_cells)
+        self.angles = angles
+        self.pad = int(np.ceil(range_cells)) + 1
+        padded = np.full((self.shape[0] + 2 * self.pad, self.shape[1] + 2 * self.pad), self._OUTSIDE, dtype=np.uint8)
+        padded[self.pad : -self.pad, self.pad : -self.pad] = ground_free.astype(np.uint8)
+        self._padded = padded.reshape(-1)
+        self._padded_cols = padded.shape[1]
+        self._tables: dict[int, tuple] = {}
+
+    def _table(self, x0: int, y0: int):
+        table = ray_table(x0, y0, self.range_cells, self.angles)
+        cached = self._tables.get(id(table))
+        if cached is None or cached[0] is not table:
+            padded_flat = table.offsets[..., 1] * self._padded_cols + table.offsets[..., 0]
+            grid_flat = table.offsets[..., 1] * self.shape[1] + table.offsets[..., 0]
+            cached = (table, padded_flat, grid_flat, np.arange(table.valid.shape[1]))
+            self._tables[id(table)] = cached
+        return cached
+
+    def scan(self, cell: tuple[int, int]) -> ScanResult:
+        """Cells revealed from `cell` (col, row): free cells before each ray's stop, and the
+        occupied cell it stopped at (never the end cell, never a cell beyond the grid)."""
+        x0, y0 = int(cell[0]), int(cell[1])
+        table, padded_flat, grid_flat, steps = self._table(x0, y0)
+        base = (y0 + self.pad) * self._padded_cols + (x0 + self.pad)
+        values = self._padded[base + padded_flat]
+        values[~table.valid] = self._OUTSIDE
+        blocked = values != self._FREE
+        any_blocked = blocked.any(axis=1)
+        stop = np.where(any_blocked, np.argmax(blocked, axis=1), blocked.shape[1])
+        origin = y0 * self.shape[1] + x0
+        revealed_free = steps[None, :] < stop[:, None]
+        rays = np.nonzero(any_blocked)[0]
+        at_stop = stop[rays]
+        hit = values[rays, at_stop] == self._OCC
+        occupied = origin + grid_flat[rays[hit], at_stop[hit]]
+        return ScanResult(free=np.unique(origin + grid_flat[revealed_free]), occupied=np.unique(occupied))
+
+
 def scan(
     ground_free: np.ndarray,
     cell: tuple[int, int],
@@ -37,25 +87,10 @@ def scan(
     """Cells the lidar at `cell` (col, row) reveals on the ground truth `ground_free[row, col]`.
 
     Per ray: walk from the robot's cell; stop outside the grid; stop before the end cell;
-    reveal an occupied cell and stop; reveal free cells and go on.
+    reveal an occupied cell and stop; reveal free cells and go on. For many scans on one
+    map, build a `Lidar` once instead.
     """
-    rows, cols = ground_free.shape
-    x0, y0 = int(cell[0]), int(cell[1])
-    table = ray_table(x0, y0, range_cells, angles)
-    xs = table.offsets[..., 0] + x0
-    ys = table.offsets[..., 1] + y0
-    inside = table.valid & (xs >= 0) & (xs < cols) & (ys >= 0) & (ys < rows)
-    flat = np.where(inside, ys * cols + xs, 0)
-    is_free = inside & ground_free.reshape(-1)[flat]
-    # First cell per ray that is not a free in-grid ray cell: the ray stops there.
-    stop = np.where((~is_free).any(axis=1), np.argmax(~is_free, axis=1), is_free.shape[1])
-    steps = np.arange(is_free.shape[1])
-    revealed_free = steps[None, :] < stop[:, None]
-    ray_ids = np.nonzero(stop < is_free.shape[1])[0]
-    stop_cells = stop[ray_ids]
-    hit = inside[ray_ids, stop_cells]  # in the grid and not padding: occupied, so revealed
-    occupied = flat[ray_ids[hit], stop_cells[hit]]
-    return ScanResult(free=np.unique(flat[revealed_free]), occupied=np.unique(occupied))
+    return Lidar(ground_free, range_cells, angles).scan(cell)
 
 
 class Belief:

@@ -16,7 +16,7 @@ import numpy as np
 from pipeline.geometry import segment_is_known_free
 from pipeline.maps import GroundTruthMap
 from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, Belief, scan
+from pipeline.sensor import FREE, Belief, Lidar
 
 if TYPE_CHECKING:
     from pipeline.planners.base import Planner
@@ -77,6 +77,7 @@ class Episode:
         self.map = ground_truth
         self.protocol = protocol
         self.belief = Belief(ground_truth.shape)
+        self.lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
         self.cell = ground_truth.start_cell
         self.position = (0.0, 0.0)
         self.trajectory: list[tuple[float, float]] = [(0.0, 0.0)]
@@ -104,7 +105,7 @@ class Episode:
         return self.belief.free_count / max(1, self.map.free_cell_count)
 
     def _sense(self) -> None:
-        result = scan(self.map.free, self.cell, self.protocol.sensor_range_cells)
+        result = self.lidar.scan(self.cell)
         changed = self.belief.apply(result)
         if changed.size:
             self._pending_changes.append(changed)
