@@ -200,6 +200,23 @@ def replay(
     )
 
 
+@app.command("eval-predictor")
+def eval_predictor(
+    maps: Path = typer.Option(..., help="Folder of maps to explore (nearest_frontier)."),
+    out: Path = typer.Option(Path("runs/predictor"), help="Output folder (precision.csv, table1.md, fig3.png)."),
+    checkpoint: Optional[Path] = typer.Option(None, help="Inpainter export [default: models/inpainter/inpainter.pt]."),
+) -> None:
+    """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
+    from stages import eval_predictor as eval_stage
+
+    try:
+        frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None)
+    except (MapError, FileNotFoundError) as error:
+        _fail(str(error))
+    typer.echo(frame.to_string(index=False))
+    typer.echo(f"wrote {out}/precision.csv")
+
+
 @stage_app.command("generate-mazes")
 def stage_generate_mazes(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
     """DVC stage: training and test mazes from params.yaml's `mazes` section."""
@@ -255,6 +272,14 @@ def stage_train_inpainter(
     device_count = int(devices) if devices and devices.isdigit() else devices
     train_inpainter.main(str(params), accelerator, device_count, resume,
                          str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
+
+
+@stage_app.command("eval-predictor")
+def stage_eval_predictor(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: Table I precision on the test mazes, reports in reports/predictor/."""
+    from stages import eval_predictor as eval_stage
+
+    eval_stage.main(str(params))
 
 
 def main() -> None:  # pragma: no cover - console entry point

@@ -50,6 +50,8 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
     assert (project / "models/inpainter/inpainter.pt").is_file()
     assert "val_precision" in (project / "reports/inpainter_metrics.json").read_text()
+    precision = (project / "reports/predictor/precision.csv").read_text().splitlines()
+    assert precision[0] == "step,precision,predicted_nodes,maps,prediction_ms_median"
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
                "reports/pairs_preview.png", "reports/expert_episode.png")
     for figure in figures:

@@ -1,0 +1,380 @@
+"""Precision of structural inference (paper Table I) and the prediction figure (paper Fig. 3).
+
+Each map is explored with `nearest_frontier`, so the figure measures the predictor and not
+the planner under test. At each checkpoint step the lattice graph is brought up to date
+with the belief, the Global Node Predictor proposes V_p, region evaluation (GlobalGraph)
+keeps V_u, and every predicted node of V_u whose cell is free in the ground truth is a
+true positive. Precision is pooled over maps: sum of true positives / sum of predictions.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from pipeline.global_graph import CENTROID, KNOWN, PREDICTED, GlobalGraph, GlobalGraphConfig
+from pipeline.graph import NODE_FREE, NODE_OCCUPIED, LatticeGraph, LatticeSpec
+from pipeline.maps import GroundTruthMap, load_map
+from pipeline.node_image import PIXEL_UNKNOWN, ground_truth_states, node_states_image
+from pipeline.node_predictor import InpaintFn, NodePredictor, NodePredictorConfig, pad_to_multiple
+from pipeline.protocol import Protocol
+from pipeline.simulator import Episode, MotionError
+
+COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")
+PAPER_STEPS = (15, 30, 45, 60)
+PAPER_PRECISION = {15: 75.92, 30: 79.73, 45: 79.24, 60: 84.61}  # % (Table I)
+PAPER_PREDICTION_MS = (5.4, 6.3)
+DEFAULT_CHECKPOINT = Path("models/inpainter/inpainter.pt")
+EXPLORER = "nearest_frontier"
+
+InpaintFactory = Callable[[GroundTruthMap, LatticeGraph], InpaintFn]
+"""(ground truth, the map's lattice) -> inpaint function; lets test doubles (an oracle) see the map."""
+
+
+# ----------------------------------------------------------------------------- inpainters
+def load_inpaint_fn(checkpoint: str | Path | None = None, threads: int | None = 1) -> InpaintFn:
+    """The trained inpainter as an InpaintFn: `checkpoint`, else models/inpainter/inpainter.pt."""
+    path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
+    if not path.is_file():
+        if checkpoint:
+            raise FileNotFoundError(f"inpainter checkpoint {path} not found")
+        raise FileNotFoundError(
+            f"no inpainter checkpoint given and {DEFAULT_CHECKPOINT} does not exist; no default model is "
+            "shipped: train one with `python -m stages.train_inpainter` (or `dvc repro train_inpainter`) "
+            "or pass --checkpoint PATH"
+        )
+    import torch
+
+    from pipeline.models import TracedInpainter
+    from pipeline.training.inpainter import load_inpainter
+
+    if threads:
+        torch.set_num_threads(int(threads))
+    model, _ = load_inpainter(path)
+    return TracedInpainter(model).predict
+
+
+def oracle_inpaint_for(ground_truth: GroundTruthMap, lattice: LatticeGraph, stride: int = 8) -> InpaintFn:
+    """A stand-in network that returns the ground-truth node image (precision 1 by construction)."""
+    truth = node_states_image(lattice, ground_truth_states(lattice, ground_truth.free))
+    padded, _ = pad_to_multiple(truth, stride, PIXEL_UNKNOWN)
+    probability = (padded == 255).astype(np.float32)
+    return lambda image: probability
+
+
+def all_free_inpaint(image: np.ndarray) -> np.ndarray:
+    """A naive predictor: every node is free."""
+    return np.ones(np.shape(image), dtype=np.float32)
+
+
+# ----------------------------------------------------------------------------- exploration
+@dataclass
+class Checkpoint:
+    """The state at one exploration step: the episode, an up-to-date lattice, visited nodes."""
+
+    step: int
+    episode: Episode
+    lattice: LatticeGraph
+    visited: np.ndarray
+
+
+def explore_checkpoints(
+    ground_truth: GroundTruthMap, steps: Sequence[int], protocol: Protocol, explorer: str = EXPLORER
+) -> Iterator[Checkpoint]:
+    """Explore with `explorer` and yield the state after each of `steps` waypoints it reaches.
+
+    The lattice graph is our own (not the planner's), updated from the belief at each
+    checkpoint with the cells changed since the previous one. The episode stops after the
+    last step, on completion, or when the explorer has nothing left (or breaks the motion rule).
+    """
+    from pipeline.planners import make_planner
+
+    wanted = sorted({int(s) for s in steps})
+    if not wanted:
+        return
+    last = wanted[-1]
+    planner = make_planner(explorer)
+    episode = Episode(ground_truth, protocol)
+    planner.reset(ground_truth, protocol, 0)
+    lattice = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
+    visited = np.zeros(lattice.node_count, dtype=bool)
+    visited[lattice.nearest_node(episode.position)] = True
+    snapshot: list[np.ndarray | None] = [None]
+
+    def sync() -> Checkpoint:
+        grid = episode.belief.grid
+        if snapshot[0] is None:
+            lattice.update(grid, None)
+        else:
+            lattice.update(grid, np.flatnonzero(snapshot[0] != grid))
+        snapshot[0] = grid.copy()
+        return Checkpoint(episode.steps, episode, lattice, visited)
+
+    if wanted[0] == 0:
+        yield sync()
+    while not episode.complete and episode.steps < last:
+        waypoints = planner.plan(episode.observe())
+        if not waypoints:
+            return
+        for waypoint in waypoints:
+            try:
+                episode.move(waypoint)
+            except MotionError:
+                return
+            visited[lattice.nearest_node(episode.position)] = True
+            if episode.steps in wanted:
+                yield sync()
+            if episode.complete or episode.steps >= last:
+                break
+
+
+@dataclass
+class Prediction:
+    """One checkpoint's prediction: V_p, the global graph (V_u), timing and true positives."""
+
+    predicted: np.ndarray  # V_p lattice ids
+    global_graph: GlobalGraph
+    milliseconds: float
+
+    @property
+    def kept(self) -> np.ndarray:
+        """Lattice ids of V_u's predicted nodes."""
+        return self.global_graph.lattice_ids[self.global_graph.types == PREDICTED]
+
+
+def predict_at(
+    checkpoint: Checkpoint, predictor: NodePredictor, graph_config: GlobalGraphConfig
+) -> Prediction:
+    t0 = time.perf_counter()
+    predicted = predictor.predict(checkpoint.lattice)
+    ms = (time.perf_counter() - t0) * 1e3
+    global_graph = GlobalGraph(checkpoint.lattice, graph_config)
+    global_graph.update(checkpoint.episode.belief.grid, checkpoint.episode.position, predicted, checkpoint.visited)
+    return Prediction(predicted, global_graph, ms)
+
+
+def free_in_truth(lattice: LatticeGraph, ground_truth: GroundTruthMap, ids: np.ndarray) -> np.ndarray:
+    """Whether each lattice node's cell is free in the ground truth."""
+    ids = np.asarray(ids, dtype=np.int64)
+    return ground_truth.free.reshape(-1)[lattice.node_flat[ids]]
+
+
+def _resolve_inpaint(
+    inpaint_fn: InpaintFn | None, inpaint_for: InpaintFactory | None
+) -> InpaintFactory:
+    if (inpaint_fn is None) == (inpaint_for is None):
+        raise ValueError("give exactly one of inpaint_fn and inpaint_for")
+    if inpaint_for is not None:
+        return inpaint_for
+    return lambda ground_truth, lattice: inpaint_fn  # type: ignore[return-value]
+
+
+def _protocol_for(protocol: Protocol, ground_truth: GroundTruthMap) -> Protocol:
+    if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
+        return protocol.with_cell_size(ground_truth.cell_size)
+    return protocol
+
+
+# ----------------------------------------------------------------------------- Table I
+def evaluate_predictor(
+    map_paths: Sequence[str | Path],
+    inpaint_fn: InpaintFn | None = None,
+    steps: Sequence[int] = PAPER_STEPS,
+    predictor_config: NodePredictorConfig = NodePredictorConfig(),
+    graph_config: GlobalGraphConfig = GlobalGraphConfig(),
+    protocol: Protocol = Protocol(),
+    *,
+    inpaint_for: InpaintFactory | None = None,
+    explorer: str = EXPLORER,
+) -> pd.DataFrame:
+    """Pooled precision of V_u's predicted nodes per step, one row per step (COLUMNS).
+
+    Give the network as `inpaint_fn` (image -> probabilities) or as `inpaint_for`, a
+    factory (ground truth, lattice) -> inpaint function built per map. A step no map
+    reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
+    (rasterise, inpaint, threshold, component filter).
+    """
+    factory = _resolve_inpaint(inpaint_fn, inpaint_for)
+    steps = sorted({int(s) for s in steps})
+    tp = {s: 0 for s in steps}
+    total = {s: 0 for s in steps}
+    reached = {s: 0 for s in steps}
+    times: dict[int, list[float]] = {s: [] for s in steps}
+    for path in map_paths:
+        ground_truth = load_map(path, cell_size=protocol.cell_size)
+        map_protocol = _protocol_for(protocol, ground_truth)
+        predictor: NodePredictor | None = None
+        for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol, explorer):
+            if predictor is None:
+                predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
+            prediction = predict_at(checkpoint, predictor, graph_config)
+            kept = prediction.kept
+            s = checkpoint.step
+            tp[s] += int(free_in_truth(checkpoint.lattice, ground_truth, kept).sum())
+            total[s] += int(kept.size)
+            reached[s] += 1
+            times[s].append(prediction.milliseconds)
+    rows = []
+    for s in steps:
+        rows.append(
+            {
+                "step": s,
+                "precision": tp[s] / total[s] if total[s] else float("nan"),
+                "predicted_nodes": total[s],
+                "maps": reached[s],
+                "prediction_ms_median": float(np.median(times[s])) if times[s] else float("nan"),
+            }
+        )
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
+def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference precision (paper Table I)") -> str:
+    """Our precision per step beside the paper's."""
+    lines = [
+        f"# {title}",
+        "",
+        "Predicted nodes of V_u (after region evaluation) that are free in the ground truth, pooled over maps; "
+        f"exploration by `{EXPLORER}`.",
+        "",
+        "Paper (100 mazes): step "
+        + "/".join(str(s) for s in PAPER_PRECISION)
+        + " = "
+        + "/".join(f"{v:.2f}" for v in PAPER_PRECISION.values())
+        + f" %, prediction {PAPER_PREDICTION_MS[0]}-{PAPER_PREDICTION_MS[1]} ms.",
+        "",
+        "| step | precision (ours) | precision (paper) | predicted nodes | maps | prediction ms (median, ours) |",
+        "|---:|---:|---:|---:|---:|---:|",
+    ]
+    for row in frame.itertuples(index=False):
+        ours = "n/a" if not np.isfinite(row.precision) else f"{100.0 * row.precision:.2f} %"
+        paper = f"{PAPER_PRECISION[row.step]:.2f} %" if row.step in PAPER_PRECISION else "-"
+        ms = "n/a" if not np.isfinite(row.prediction_ms_median) else f"{row.prediction_ms_median:.2f}"
+        lines.append(f"| {row.step} | {ours} | {paper} | {row.predicted_nodes} | {row.maps} | {ms} |")
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------- Fig. 3
+FREE_NODE_RGB = (40, 110, 230)
+OBSTACLE_NODE_RGB = (20, 20, 20)
+TRUE_PRED_RGB = (30, 170, 60)
+FALSE_PRED_RGB = (230, 40, 40)
+CENTROID_RGB = (255, 150, 0)
+
+
+def _panel(base: np.ndarray, title: str) -> np.ndarray:
+    from pipeline.render import render_header
+
+    header = render_header(base.shape[1], title, legend=False)
+    return base if header is None else np.concatenate([header, base], axis=0)
+
+
+def _centre(cells: np.ndarray, scale: int) -> list[tuple[int, int]]:
+    pts = np.round((np.asarray(cells, dtype=np.float64).reshape(-1, 2) + 0.5) * scale).astype(int)
+    return [tuple(map(int, p)) for p in pts]
+
+
+def _dots(img: np.ndarray, cells: np.ndarray, scale: int, colour, radius: int, outline: bool = True) -> None:
+    for c in _centre(cells, scale):
+        if outline:
+            cv2.circle(img, c, radius + 1, (255, 255, 255), -1, cv2.LINE_AA)
+        cv2.circle(img, c, radius, colour, -1, cv2.LINE_AA)
+
+
+def render_prediction_figure(
+    ground_truth: GroundTruthMap, checkpoint: Checkpoint, prediction: Prediction, scale: int | None = None
+) -> np.ndarray:
+    """Fig. 3-style RGB image: observed nodes | V_p | V_u after region evaluation (with centroids).
+
+    Predicted nodes are green where free in the ground truth and red where not; centroids orange.
+    """
+    from pipeline.render import PANEL_GAP_RGB, auto_scale, render_frame
+
+    episode, lattice = checkpoint.episode, checkpoint.lattice
+    scale = scale or max(2, auto_scale(ground_truth.shape, target_px=420))
+    radius = max(2, int(round(1.2 * scale)))
+
+    def background() -> np.ndarray:
+        return render_frame(ground_truth, episode.belief.grid, episode.trajectory, None, scale, "", legend=False).copy()
+
+    def predicted_dots(img: np.ndarray, ids: np.ndarray) -> None:
+        free = free_in_truth(lattice, ground_truth, ids)
+        _dots(img, lattice.node_cells[ids[free]], scale, TRUE_PRED_RGB, radius)
+        _dots(img, lattice.node_cells[ids[~free]], scale, FALSE_PRED_RGB, radius)
+
+    observed = background()
+    _dots(observed, lattice.node_cells[lattice.node_state == NODE_FREE], scale, FREE_NODE_RGB, radius)
+    _dots(observed, lattice.node_cells[lattice.node_state == NODE_OCCUPIED], scale, OBSTACLE_NODE_RGB, radius)
+
+    vp = background()
+    _dots(vp, lattice.node_cells[lattice.node_state == NODE_FREE], scale, FREE_NODE_RGB, max(1, radius - 1), False)
+    predicted_dots(vp, prediction.predicted)
+
+    vu = background()
+    gg = prediction.global_graph
+    _dots(vu, lattice.node_cells[gg.lattice_ids[gg.types == KNOWN]], scale, FREE_NODE_RGB, max(1, radius - 1), False)
+    kept = prediction.kept
+    predicted_dots(vu, kept)
+    centroid_cells = lattice.spec.world_to_cell(gg.positions[gg.types == CENTROID])
+    for c in _centre(centroid_cells, scale):
+        cv2.circle(vu, c, 2 * radius + 1, (20, 20, 20), -1, cv2.LINE_AA)
+        cv2.circle(vu, c, 2 * radius, CENTROID_RGB, -1, cv2.LINE_AA)
+
+    def precision_text(ids: np.ndarray) -> str:
+        if ids.size == 0:
+            return "none"
+        return f"{int(free_in_truth(lattice, ground_truth, ids).sum())}/{ids.size} free"
+
+    panels = [
+        _panel(observed, f"step {checkpoint.step}: observed nodes (blue free, black obstacle)"),
+        _panel(vp, f"V_p: {precision_text(prediction.predicted)} (green free, red not)"),
+        _panel(vu, f"V_u: {precision_text(kept)}, {int((gg.types == CENTROID).sum())} centroids (orange)"),
+    ]
+    height = max(p.shape[0] for p in panels)
+    gap = np.empty((height, 8, 3), dtype=np.uint8)
+    gap[:] = PANEL_GAP_RGB
+    row = []
+    for i, p in enumerate(panels):
+        if p.shape[0] < height:
+            pad = np.empty((height - p.shape[0], p.shape[1], 3), dtype=np.uint8)
+            pad[:] = PANEL_GAP_RGB
+            p = np.concatenate([p, pad], axis=0)
+        row.extend([gap, p] if i else [p])
+    return np.ascontiguousarray(np.concatenate(row, axis=1))
+
+
+def prediction_figure(
+    map_path: str | Path,
+    step: int,
+    inpaint_fn: InpaintFn | None = None,
+    predictor_config: NodePredictorConfig = NodePredictorConfig(),
+    graph_config: GlobalGraphConfig = GlobalGraphConfig(),
+    protocol: Protocol = Protocol(),
+    *,
+    inpaint_for: InpaintFactory | None = None,
+    out_path: str | Path | None = None,
+    scale: int | None = None,
+    explorer: str = EXPLORER,
+) -> np.ndarray | None:
+    """Explore one map to `step` and draw its Fig. 3 panels (saved with save_png when `out_path`).
+
+    Returns None when the exploration ends before `step`.
+    """
+    from pipeline.render import save_png
+
+    factory = _resolve_inpaint(inpaint_fn, inpaint_for)
+    ground_truth = load_map(map_path, cell_size=protocol.cell_size)
+    map_protocol = _protocol_for(protocol, ground_truth)
+    for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol, explorer):
+        predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
+        prediction = predict_at(checkpoint, predictor, graph_config)
+        image = render_prediction_figure(ground_truth, checkpoint, prediction, scale)
+        if out_path is not None:
+            save_png(image, out_path)
+        return image
+    return None

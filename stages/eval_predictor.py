@@ -1,0 +1,120 @@
+"""DVC stage: precision of structural inference on the test mazes (paper Table I and Fig. 3).
+
+Reads only the `eval_predictor` section (steps, threshold, min_component, checkpoint) and
+the shared `protocol` section of params.yaml. Explores each test maze with nearest_frontier,
+runs the Global Node Predictor with the trained inpainter at each step and region
+evaluation, and writes reports/predictor/precision.csv, reports/predictor/table1.md (ours
+beside the paper's) and reports/predictor/fig3.png; logs one MLflow run in experiment "table1".
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Optional
+
+import pandas as pd
+import yaml
+
+from pipeline.global_graph import GlobalGraphConfig
+from pipeline.maps import list_maps
+from pipeline.node_predictor import NodePredictorConfig
+from pipeline.protocol import Protocol
+
+TEST_MAZES = Path("data/mazes/test")
+OUT_DIR = Path("reports/predictor")
+EXPERIMENT = "table1"
+SECTION_KEYS = {"steps", "threshold", "min_component", "checkpoint"}
+
+
+def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
+    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    section = dict(params.get("eval_predictor") or {})
+    unknown = set(section) - SECTION_KEYS
+    if unknown:
+        raise ValueError(f"{params_path}: unknown eval_predictor parameter(s): {sorted(unknown)}")
+    section.setdefault("steps", [15, 30, 45, 60])
+    section.setdefault("threshold", NodePredictorConfig.threshold)
+    section.setdefault("min_component", NodePredictorConfig.min_component)
+    section.setdefault("checkpoint", None)
+    if not section["steps"]:
+        raise ValueError(f"{params_path}: eval_predictor.steps must list at least one step")
+    return section, Protocol.from_dict(params.get("protocol") or {})
+
+
+def run(
+    maps_dir: str | Path,
+    out_dir: str | Path,
+    checkpoint: Optional[str],
+    steps,
+    predictor_config: NodePredictorConfig,
+    protocol: Protocol,
+    figure: bool = True,
+) -> pd.DataFrame:
+    """Evaluate on every map in `maps_dir`; writes precision.csv, table1.md and (optionally) fig3.png."""
+    from pipeline.predictor_eval import evaluate_predictor, load_inpaint_fn, prediction_figure, table1_markdown
+
+    maps = list_maps(maps_dir)
+    if not maps:
+        raise SystemExit(f"error: {maps_dir}: no maps; run the generate_mazes stage first")
+    inpaint = load_inpaint_fn(checkpoint)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, GlobalGraphConfig(), protocol)
+    frame.to_csv(out_dir / "precision.csv", index=False)
+    (out_dir / "table1.md").write_text(table1_markdown(frame))
+    if figure:
+        steps_sorted = sorted(int(s) for s in steps)
+        figure_step = steps_sorted[min(1, len(steps_sorted) - 1)]  # the paper's Fig. 3 is mid-exploration
+        for candidate in (figure_step, steps_sorted[0]):
+            done = any(
+                prediction_figure(m, candidate, inpaint, predictor_config, GlobalGraphConfig(), protocol,
+                                  out_path=out_dir / "fig3.png") is not None
+                for m in maps[:3]
+            )
+            if done:
+                break
+    return frame
+
+
+def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protocol: Protocol, maps: str) -> str:
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    import mlflow
+
+    from pipeline.tracking import resolve_tracking_uri
+
+    mlflow.set_tracking_uri(resolve_tracking_uri(None))
+    mlflow.set_experiment(EXPERIMENT)
+    with mlflow.start_run(run_name="structural_inference") as active:
+        mlflow.log_params({**protocol.to_dict(), **{f"eval_predictor.{k}": v for k, v in section.items()}, "maps": maps})
+        metrics = {}
+        for row in frame.itertuples(index=False):
+            for name in ("precision", "predicted_nodes", "maps", "prediction_ms_median"):
+                value = float(getattr(row, name))
+                if value == value:  # skip NaN
+                    metrics[f"{name}_step{row.step}"] = value
+        mlflow.log_metrics(metrics)
+        for name in ("precision.csv", "table1.md", "fig3.png"):
+            if (out_dir / name).is_file():
+                mlflow.log_artifact(str(out_dir / name))
+        return active.info.run_id
+
+
+def main(params_path: str = "params.yaml") -> pd.DataFrame:
+    section, protocol = read_params(params_path)
+    config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
+    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol)
+    log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
+    print((OUT_DIR / "table1.md").read_text())
+    return frame
+
+
+def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None) -> pd.DataFrame:
+    """`guide eval-predictor`: default steps and predictor settings, OUT/precision.csv (+ table1.md, fig3.png)."""
+    from pipeline.predictor_eval import PAPER_STEPS
+
+    return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, NodePredictorConfig(), Protocol())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,126 @@
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.predictor_eval import (
+    COLUMNS,
+    all_free_inpaint,
+    evaluate_predictor,
+    load_inpaint_fn,
+    oracle_inpaint_for,
+    prediction_figure,
+    table1_markdown,
+)
+
+STEPS = (3, 6)
+
+
+@pytest.fixture(scope="module")
+def maze_dir(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("predictor_mazes")
+    for i in range(2):
+        image = generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng([31, i]))
+        write_maze_png(image, directory / f"maze_{i:04d}.png")
+    return directory
+
+
+@pytest.fixture(scope="module")
+def maze_paths(maze_dir):
+    return sorted(maze_dir.glob("*.png"))
+
+
+def test_oracle_predictions_are_all_free(maze_paths):
+    frame = evaluate_predictor(maze_paths, steps=STEPS, inpaint_for=oracle_inpaint_for)
+    assert tuple(frame.columns) == COLUMNS
+    assert frame["step"].tolist() == list(STEPS)
+    assert (frame["maps"] == 2).all()
+    assert (frame["predicted_nodes"] > 0).all()
+    assert (frame["precision"] == 1.0).all()
+    assert (frame["prediction_ms_median"] > 0).all()
+
+
+def test_an_all_free_predictor_is_not_precise(maze_paths):
+    frame = evaluate_predictor(maze_paths, all_free_inpaint, steps=STEPS)
+    assert tuple(frame.columns) == COLUMNS
+    assert (frame["precision"] < 1.0).all() and (frame["precision"] > 0.0).all()
+    table = table1_markdown(frame)
+    assert "| 3 |" in table and "%" in table
+
+
+def test_steps_no_map_reaches_have_no_precision(maze_paths):
+    frame = evaluate_predictor(maze_paths[:1], all_free_inpaint, steps=(2, 10_000))
+    late = frame[frame["step"] == 10_000].iloc[0]
+    assert late["maps"] == 0 and late["predicted_nodes"] == 0 and np.isnan(late["precision"])
+
+
+def test_exactly_one_inpainter_is_required(maze_paths):
+    with pytest.raises(ValueError, match="exactly one"):
+        evaluate_predictor(maze_paths, steps=STEPS)
+
+
+def test_prediction_figure_has_three_panels(maze_paths, tmp_path):
+    out = tmp_path / "fig3.png"
+    image = prediction_figure(maze_paths[0], 6, all_free_inpaint, out_path=out)
+    assert image is not None and image.ndim == 3 and image.shape[2] == 3
+    assert image.shape[1] > 2.5 * image.shape[0] / 1.3  # three map panels side by side
+    assert cv2.imread(str(out)).shape == image.shape
+    assert prediction_figure(maze_paths[0], 10_000, all_free_inpaint) is None
+
+
+def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
+    with pytest.raises(FileNotFoundError, match="not found"):
+        load_inpaint_fn(str(tmp_path / "nope.pt"))
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(FileNotFoundError, match="train_inpainter"):
+        load_inpaint_fn(None)
+
+
+def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, mlflow_uri):
+    import stages.eval_predictor as stage
+    import pipeline.predictor_eval as predictor_eval
+
+    (tmp_path / "data" / "mazes").mkdir(parents=True)
+    (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
+    (tmp_path / "params.yaml").write_text(
+        yaml.safe_dump(
+            {
+                "protocol": {"cell_size": 0.4},
+                "eval_predictor": {"steps": [3, 6], "threshold": 0.5, "min_component": 3, "checkpoint": None},
+            }
+        )
+    )
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
+    monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: all_free_inpaint)
+    frame = stage.main("params.yaml")
+    out = tmp_path / "reports" / "predictor"
+    written = pd.read_csv(out / "precision.csv")
+    assert tuple(written.columns) == COLUMNS and len(written) == 2
+    assert np.allclose(written["precision"], frame["precision"])
+    assert "75.92" in (out / "table1.md").read_text()
+    assert (out / "fig3.png").is_file()
+
+    import mlflow
+
+    mlflow.set_tracking_uri(mlflow_uri)
+    runs = mlflow.search_runs(experiment_names=["table1"])
+    assert len(runs) >= 1 and "metrics.precision_step3" in runs.columns
+
+
+def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
+    import stages.eval_predictor as stage
+    import pipeline.predictor_eval as predictor_eval
+
+    seen = []
+    monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
+    monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: seen.append(checkpoint) or all_free_inpaint)
+    stage.cli_main(maze_dir, tmp_path / "out", "some.pt")
+    assert seen == ["some.pt"]
+    written = pd.read_csv(tmp_path / "out" / "precision.csv")
+    assert tuple(written.columns) == COLUMNS
+    with pytest.raises(ValueError, match="unknown eval_predictor"):
+        (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
+        stage.read_params(tmp_path / "bad.yaml")
