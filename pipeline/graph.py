@@ -100,6 +100,7 @@ class LatticeGraph:
         self.node_state = np.full(self.node_count, NODE_UNKNOWN, dtype=np.int8)
         self.utility = np.zeros(self.node_count, dtype=np.int64)
         self.frontier = np.zeros(spec.shape, dtype=bool)
+        self.belief = np.full(spec.shape, UNKNOWN, dtype=np.uint8)
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
         self._adjacency = None
@@ -186,6 +187,7 @@ class LatticeGraph:
 
         `changed_flat=None` means everything may have changed (first call).
         """
+        self.belief = belief  # the belief this graph reflects (read-only; the node image is drawn from it)
         rows, cols = belief.shape
         if changed_flat is None:
             box = (0, cols - 1, 0, rows - 1)

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from pipeline.graph import NODE_FREE, NODE_UNKNOWN, LatticeGraph
-from pipeline.node_image import PIXEL_UNKNOWN, node_states_image
+from pipeline.node_image import PIXEL_UNKNOWN, node_states_image, observed_node_states
 
 InpaintFn = Callable[[np.ndarray], np.ndarray]
 """(S, S) uint8 node image (255 free, 0 obstacle, 128 unknown) -> (S, S) free-node probability."""
@@ -58,7 +58,7 @@ class NodePredictor:
 
     def probabilities(self, graph: LatticeGraph) -> np.ndarray:
         """Free-node probability per lattice node (the network's output on the node image)."""
-        image = node_states_image(graph, graph.node_state)
+        image = node_states_image(graph, observed_node_states(graph.belief, graph))
         padded, (r0, c0) = pad_to_multiple(image, self.config.stride, PIXEL_UNKNOWN)
         probability = np.asarray(self.inpaint(padded), dtype=np.float32)
         if probability.shape != padded.shape:
@@ -69,7 +69,7 @@ class NodePredictor:
     def predict(self, graph: LatticeGraph) -> np.ndarray:
         """Ids of the predicted free nodes V_p (all currently unknown lattice nodes)."""
         probability = self.probabilities(graph)
-        unknown = graph.node_state == NODE_UNKNOWN
+        unknown = observed_node_states(graph.belief, graph) == NODE_UNKNOWN
         predicted = unknown & (probability >= self.config.threshold)
         shape = graph.lattice_shape
         kept = drop_small_components(

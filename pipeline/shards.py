@@ -1,8 +1,8 @@
 """Crash-safe sharded data sets: deterministic shards, a manifest, and parallel backends.
 
 A data set is a folder of shards `shard_XXXXX.npz` plus `manifest.json`. Shard k is a
-pure function of (params, seed, k), so an interrupted collection resumes by skipping the
-shards already on disk whose recorded fingerprint matches, and a shard file only ever
+pure function of (params, seed, k) and the code, so an interrupted collection resumes by
+skipping the shards already on disk whose recorded fingerprint (params + source) matches, and a shard file only ever
 appears complete (written to a temp name, then renamed). The manifest is written last:
 later stages read the manifest, never a folder listing.
 """
@@ -34,9 +34,20 @@ class ShardJob:
     params: dict[str, Any]
 
 
+def source_digest() -> str:
+    """A hash of the library's source: data made by other code is never resumed from."""
+    digest = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def fingerprint(params: dict[str, Any]) -> str:
-    """A short stable hash of the parameters that determine a data set's content."""
-    return hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    """A short stable hash of what determines a data set's content: parameters and code."""
+    payload = json.dumps(params, sort_keys=True, default=str) + source_digest()
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
 def shard_path(out_dir: str | Path, index: int) -> Path:

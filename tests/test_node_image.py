@@ -1,7 +1,16 @@
 import numpy as np
 
 from pipeline.graph import LatticeGraph, LatticeSpec
-from pipeline.node_image import PIXEL_FREE, PIXEL_OBSTACLE, PIXEL_UNKNOWN, centre_pad, node_image_pair, pad_size_for
+from pipeline.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN
+from pipeline.node_image import (
+    PIXEL_FREE,
+    PIXEL_OBSTACLE,
+    PIXEL_UNKNOWN,
+    centre_pad,
+    node_image_pair,
+    observed_node_states,
+    pad_size_for,
+)
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 
 
@@ -40,3 +49,18 @@ def test_pair_rasterises_nodes_from_the_belief():
     assert pair.target[centre] == PIXEL_FREE
     assert pair.unknown.sum() == (pair.observed[pair.valid] == PIXEL_UNKNOWN).sum() > 0
     assert (pair.observed[~pair.valid] == PIXEL_UNKNOWN).all()
+
+
+def test_unknown_nodes_next_to_known_walls_are_drawn_as_obstacles():
+    spec = LatticeSpec((100, 100), (50, 50), 0.4, 4.0, 10.0, 20.0)
+    graph = LatticeGraph(spec)
+    belief = np.full((100, 100), UNKNOWN, dtype=np.uint8)
+    belief[45:56, 40:56] = FREE
+    belief[45:56, 56] = OCCUPIED  # a wall surface 4 cells short of the node at cell (60, 50)
+    states = observed_node_states(belief, graph)
+    assert states[graph.node_id(1, 0)] == NODE_OCCUPIED  # cell (60, 50): unknown, 1.6 m from the wall
+    assert states[graph.node_id(0, 0)] == NODE_FREE
+    assert states[graph.node_id(3, 0)] == NODE_UNKNOWN  # cell (80, 50): far from anything known
+    ground = np.ones((100, 100), dtype=bool)
+    pair = node_image_pair(graph, belief, ground)
+    assert (pair.observed == PIXEL_OBSTACLE).sum() == (states == NODE_OCCUPIED).sum()
