@@ -365,7 +365,7 @@ class LatticeGraph:
         return np.stack(np.meshgrid(cx, cy, indexing="xy"), axis=-1)
 
     def unobserved_centroids(self) -> np.ndarray:
-        """V_g: centroids (x, y) of the unobserved regions, as placeholders for unknown space."""
+        """V_g: centroids (x, y) of the unobserved regions, standing in for unknown space."""
         return self.region_centroids()[self.region_labels() == REGION_UNOBSERVED]
 
 

@@ -1,6 +1,6 @@
 """Crash-safe sharded data sets: deterministic shards, a manifest, and parallel backends.
 
-A data set is a folder of shards `shard_XXXXX.npz` plus `manifest.json`. Shard k is a
+A data set is a folder of shards `shard_00000.npz, shard_00001.npz, ...` plus `manifest.json`. Shard k is a
 pure function of (params, seed, k) and the code, so an interrupted collection resumes by
 skipping the shards already on disk whose recorded fingerprint (params + source) matches, and a shard file only ever
 appears complete (written to a temp name, then renamed). The manifest is written last:

@@ -83,7 +83,7 @@ def preview_image(paths: list[Path]) -> np.ndarray:
 
 
 def main(params_path: str = "params.yaml") -> None:
-    """Write data/mazes/{train,test}/maze_XXXX.png and reports/mazes_preview.png."""
+    """Write data/mazes/{train,test}/maze_NNNN.png and reports/mazes_preview.png."""
     mazes, cell_size = _load_params(params_path)
     seed = mazes.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
