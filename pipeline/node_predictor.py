@@ -56,9 +56,14 @@ class NodePredictor:
         self.inpaint = inpaint
         self.config = config
 
-    def probabilities(self, graph: LatticeGraph) -> np.ndarray:
-        """Free-node probability per lattice node (the network's output on the node image)."""
-        image = node_states_image(graph, observed_node_states(graph.belief, graph))
+    def probabilities(self, graph: LatticeGraph, states: np.ndarray | None = None) -> np.ndarray:
+        """Free-node probability per lattice node (the network's output on the node image).
+
+        `states` are the observed node states when the caller already has them.
+        """
+        if states is None:
+            states = observed_node_states(graph.belief, graph)
+        image = node_states_image(graph, states)
         padded, (r0, c0) = pad_to_multiple(image, self.config.stride, PIXEL_UNKNOWN)
         probability = np.asarray(self.inpaint(padded), dtype=np.float32)
         if probability.shape != padded.shape:
@@ -68,8 +73,9 @@ class NodePredictor:
 
     def predict(self, graph: LatticeGraph) -> np.ndarray:
         """Ids of the predicted free nodes V_p (all currently unknown lattice nodes)."""
-        probability = self.probabilities(graph)
-        unknown = observed_node_states(graph.belief, graph) == NODE_UNKNOWN
+        states = observed_node_states(graph.belief, graph)
+        probability = self.probabilities(graph, states)
+        unknown = states == NODE_UNKNOWN
         predicted = unknown & (probability >= self.config.threshold)
         shape = graph.lattice_shape
         kept = drop_small_components(
