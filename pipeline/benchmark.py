@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import inspect
 import os
+import re
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import pandas as pd
 from tqdm import tqdm
@@ -19,16 +21,123 @@ from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_traj
 
 
 REFERENCE_PLANNER = "optimal"
+_LABEL = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")  # a label names a folder and an MLflow run
+
+
+@dataclass(frozen=True)
+class PlannerSpec:
+    """A registered planner under a label, built with keyword options (`make_planner(name, **options)`)."""
+
+    label: str
+    name: str
+    options: dict[str, Any] = field(default_factory=dict, hash=False)
+
+    def __str__(self) -> str:
+        if not self.options and self.label == self.name:
+            return self.name
+        text = f"{self.label}={self.name}"
+        if self.options:
+            text += ":" + ",".join(f"{key}={value}" for key, value in self.options.items())
+        return text
+
+
+def parse_option_value(text: str) -> Any:
+    """'10' -> 10, '0.5' -> 0.5, 'true'/'false' (any case) -> bool, anything else stays a string."""
+    lowered = text.lower()
+    if lowered in ("true", "false"):
+        return lowered == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_planner_spec(text: str) -> PlannerSpec:
+    """Parse "name" or "label=name:key=value,key=value" (e.g. "guide_k10=guide:num_inference_steps=10").
+
+    "label=name" without options is an alias. Values are parsed as int, float, bool or str.
+    Only the syntax is checked here; `run_benchmark` checks that the name is registered
+    and that the planner accepts the options. Raises ValueError naming the problem.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"empty planner spec {text!r}; expected 'name' or 'label=name:key=value,...'")
+    raw = text.strip()
+    head, colon, tail = raw.partition(":")
+    if "=" in head:
+        label, _, name = (part.strip() for part in head.partition("="))
+    elif colon:
+        raise ValueError(
+            f"planner spec {raw!r}: a planner with options needs a label, e.g. '{head.strip()}_v1={raw}'"
+        )
+    else:
+        label = name = head.strip()
+    if not label or not _LABEL.match(label):
+        raise ValueError(
+            f"planner spec {raw!r}: label {label!r} must be letters, digits, '_', '-' or '.' (it names a folder)"
+        )
+    if not name or not name.isidentifier() or name != name.lower():
+        raise ValueError(f"planner spec {raw!r}: planner name {name!r} must be a lower-case identifier")
+    options: dict[str, Any] = {}
+    if colon:
+        if not tail.strip():
+            raise ValueError(f"planner spec {raw!r}: nothing after ':'; expected key=value[,key=value]")
+        for item in tail.split(","):
+            key, equals, value = (part.strip() for part in item.partition("="))
+            if not equals or not key or not value:
+                raise ValueError(f"planner spec {raw!r}: option {item.strip()!r} is not key=value")
+            if not key.isidentifier():
+                raise ValueError(f"planner spec {raw!r}: option name {key!r} is not an identifier")
+            if key in options:
+                raise ValueError(f"planner spec {raw!r}: option {key!r} is given twice")
+            options[key] = parse_option_value(value)
+    return PlannerSpec(label, name, options)
+
+
+def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
+    """Parse every entry, check the names are registered (KeyError listing the known ones),
+    the options are accepted by the planner's constructor and the labels are unique (ValueError)."""
+    specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
+    seen: set[str] = set()
+    for spec in specs:
+        cls = planner_class(spec.name)  # unknown names fail here, with the list of known ones
+        if spec.label in seen:
+            raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
+        seen.add(spec.label)
+        if spec.options:
+            try:
+                inspect.signature(cls).bind(**spec.options)
+            except TypeError as error:
+                accepted = [
+                    p.name for p in inspect.signature(cls).parameters.values()
+                    if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+                ]
+                raise ValueError(
+                    f"planner {spec.label!r}: {spec.name} does not accept options {sorted(spec.options)} ({error}); "
+                    f"it accepts: {', '.join(accepted) or 'no options'}"
+                ) from None
+    return specs
 
 
 @dataclass(frozen=True)
 class EpisodeTask:
-    """One (map, planner) episode, picklable for a worker process."""
+    """One (map, planner variant) episode, picklable for a worker process.
+
+    `planner` is the registered name, `label` the name in metrics.csv and the trajectory
+    folder (the name itself when empty), `options` the keyword options of make_planner.
+    """
 
     map_path: str
     planner: str
     protocol: Protocol
     seed: int
+    label: str = ""
+    options: dict[str, Any] = field(default_factory=dict, hash=False)
+
+    def __post_init__(self) -> None:
+        if not self.label:
+            object.__setattr__(self, "label", self.planner)
 
 
 def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protocol:
@@ -41,7 +150,9 @@ def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protoc
 def run_task(task: EpisodeTask) -> EpisodeResult:
     ground_truth = load_map(task.map_path, cell_size=task.protocol.cell_size)
     protocol = protocol_for_map(task.protocol, ground_truth)
-    return run_episode(ground_truth, make_planner(task.planner), protocol, seed=task.seed)
+    result = run_episode(ground_truth, make_planner(task.planner, **task.options), protocol, seed=task.seed)
+    result.planner = task.label
+    return result
 
 
 def default_workers() -> int:
@@ -50,7 +161,7 @@ def default_workers() -> int:
 
 def run_benchmark(
     map_paths: Sequence[str | Path],
-    planners: Sequence[str],
+    planners: Sequence[str | PlannerSpec],
     protocol: Protocol,
     out_dir: str | Path,
     workers: int | None = None,
@@ -59,16 +170,22 @@ def run_benchmark(
 ) -> pd.DataFrame:
     """Run every map with every planner; write trajectories, metrics.csv and summary.md.
 
-    Maps are loaded once up front so a malformed map fails before any work starts.
-    Failed episodes are kept in the metrics (complete = False), never dropped.
+    A planner entry is a registered name or a labelled variant "label=name:key=value,..."
+    (see `parse_planner_spec`), or a PlannerSpec; the label is the `planner` column of
+    metrics.csv and the trajectory folder OUT/label/.
+    Planner specs and maps are checked up front so a typo or a malformed map fails before
+    any work starts. Failed episodes are kept in the metrics (complete = False), never dropped.
     """
-    for name in planners:
-        planner_class(name)  # unknown names fail here, with the list of known ones
+    specs = resolve_planner_specs(planners)
     for path in map_paths:
         load_map(path, cell_size=protocol.cell_size)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    tasks = [EpisodeTask(str(p), name, protocol, seed) for name in planners for p in map_paths]
+    tasks = [
+        EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options))
+        for spec in specs
+        for p in map_paths
+    ]
     workers = default_workers() if workers is None else max(1, workers)
     results: list[EpisodeResult] = []
     bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress)
@@ -91,7 +208,8 @@ def run_benchmark(
 
 def _write_result(result: EpisodeResult, task: EpisodeTask, out_dir: Path) -> EpisodeResult:
     result.map_name = Path(task.map_path).stem
-    write_trajectory_csv(out_dir / task.planner / f"{result.map_name}.csv", result.trajectory)
+    result.planner = task.label
+    write_trajectory_csv(out_dir / task.label / f"{result.map_name}.csv", result.trajectory)
     return result
 
 

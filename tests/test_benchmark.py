@@ -38,3 +38,17 @@ def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
     frame = run_benchmark(maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False)
     assert len(frame) == 1 and not frame["complete"].any()
     assert "step limit" in (tmp_path / "summary.md").read_text()
+
+
+def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze_path):
+    from pipeline.benchmark import EpisodeTask, PlannerSpec, resolve_planner_specs, run_task
+
+    plain = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0)
+    assert plain.label == "nearest_frontier" and plain.options == {}
+    variant = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0, label="nf_u1", options={"min_utility": 1})
+    assert run_task(variant).planner == "nf_u1"
+    specs = resolve_planner_specs(["greedy_utility", PlannerSpec("nf_u1", "nearest_frontier", {"min_utility": 1})])
+    assert [(s.label, s.name, s.options) for s in specs] == [
+        ("greedy_utility", "greedy_utility", {}),
+        ("nf_u1", "nearest_frontier", {"min_utility": 1}),
+    ]

@@ -1,0 +1,172 @@
+"""DVC stage: the paper's Tables I-IV from our outputs, one report, one figure, MLflow runs.
+
+Reads only the `report` section and the shared `protocol` section of params.yaml:
+
+- k_values, k_planners, k_option, k_maps: the denoising-steps sweep (Table IV). Each
+  planner of k_planners runs on the first k_maps test mazes once per K, as the variant
+  f"{planner}_k{K}={planner}:{k_option}={K}", into reports/denoising_steps/.
+- ablation_planners: the rows of Table III (a planner missing from the benchmark shows "not run").
+- figure_planners: the panels of reports/trajectories.png (those the benchmark ran).
+- workers, seed: for the sweep.
+
+Reads reports/benchmark/metrics.csv (the benchmark stage, Tables II and III) and, when it
+exists, reports/predictor/precision.csv (the eval_predictor stage, Table I). Writes
+reports/tables/table{1,2,3,4}.md, reports/report.md, reports/report.json (DVC metrics)
+and reports/trajectories.png, and logs one MLflow experiment per table.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pipeline.benchmark import PlannerSpec, run_benchmark
+from pipeline.maps import MapError, list_maps
+from pipeline.protocol import Protocol
+from pipeline.reports import (
+    ABLATION_PLANNERS,
+    K_PLANNERS,
+    log_tables_to_mlflow,
+    metrics_json,
+    read_metrics,
+    read_precision,
+    report_markdown,
+    sweep_label,
+    table1_markdown,
+    table2,
+    table2_markdown,
+    table3,
+    table3_markdown,
+    table4,
+    table4_markdown,
+    trajectory_figure,
+)
+
+TEST_MAZES = Path("data/mazes/test")
+BENCHMARK_DIR = Path("reports/benchmark")
+METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
+PRECISION_CSV = Path("reports/predictor/precision.csv")
+SWEEP_DIR = Path("reports/denoising_steps")
+TABLES_DIR = Path("reports/tables")
+REPORT_MD = Path("reports/report.md")
+REPORT_JSON = Path("reports/report.json")
+FIGURE_PATH = Path("reports/trajectories.png")
+
+DEFAULTS: dict[str, Any] = {
+    "k_values": [10, 30, 50, 100],
+    "k_planners": list(K_PLANNERS),
+    "k_option": "num_inference_steps",
+    "k_maps": 2,
+    "ablation_planners": list(ABLATION_PLANNERS),
+    "figure_planners": ["optimal", "guide", "dare", "greedy_utility"],
+    "workers": 2,
+    "seed": 0,
+}
+
+
+def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
+    """The `report` section (defaults filled in, unknown keys refused) and the protocol."""
+    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    raw = params.get("report") or {}
+    if not isinstance(raw, dict):
+        raise ValueError(f"{params_path}: the 'report' section must be a mapping")
+    unknown = set(raw) - set(DEFAULTS)
+    if unknown:
+        raise ValueError(f"{params_path}: unknown report parameter(s) {sorted(unknown)}; known: {sorted(DEFAULTS)}")
+    section = {**DEFAULTS, **raw}
+    for key in ("k_values", "k_planners", "ablation_planners", "figure_planners"):
+        if not isinstance(section[key], list):
+            raise ValueError(f"{params_path}: report.{key} must be a list")
+    section["k_values"] = [int(k) for k in section["k_values"]]
+    section["k_maps"] = int(section["k_maps"])
+    if section["k_maps"] < 1:
+        raise ValueError(f"{params_path}: report.k_maps must be at least 1")
+    if not str(section["k_option"]).isidentifier():
+        raise ValueError(f"{params_path}: report.k_option must be a planner option name, got {section['k_option']!r}")
+    return section, Protocol.from_dict(params.get("protocol") or {})
+
+
+def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
+    """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
+    return [PlannerSpec(sweep_label(name, k), name, {option: int(k)}) for name in planners for k in k_values]
+
+
+def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
+    """The denoising-steps sweep into reports/denoising_steps/ (None when no K or no planner)."""
+    specs = sweep_specs(section["k_planners"], section["k_values"], section["k_option"])
+    if not specs:
+        return None
+    try:
+        return run_benchmark(
+            maps, specs, protocol, SWEEP_DIR, workers=section["workers"], seed=int(section["seed"])
+        )
+    except KeyError as error:  # an unregistered planner name
+        raise SystemExit(f"error: report.k_planners: {error.args[0]}") from None
+    except ValueError as error:  # an option the planner does not take
+        raise SystemExit(f"error: report.k_option: {error}") from None
+
+
+def main(params_path: str = "params.yaml") -> dict[str, Any]:
+    section, protocol = read_params(params_path)
+    if not METRICS_CSV.is_file():
+        raise SystemExit(
+            f"error: {METRICS_CSV} not found; run the benchmark stage first "
+            "(`dvc repro benchmark` or `python -m stages.benchmark`)"
+        )
+    try:
+        maps = list_maps(TEST_MAZES)
+    except MapError as error:
+        raise SystemExit(f"error: {error}; run the generate_mazes stage first") from None
+    if not maps:
+        raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
+
+    frame = read_metrics(METRICS_CSV)
+    sweep_maps = maps[: section["k_maps"]]
+    sweep = run_sweep(sweep_maps, section, protocol)
+    precision = read_precision(PRECISION_CSV)
+
+    tables = {
+        "table1": precision,
+        "table2": table2(frame),
+        "table3": table3(frame, section["ablation_planners"]),
+        "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
+    }
+    TABLES_DIR.mkdir(parents=True, exist_ok=True)
+    (TABLES_DIR / "table1.md").write_text(table1_markdown(precision))
+    (TABLES_DIR / "table2.md").write_text(table2_markdown(tables["table2"]))
+    (TABLES_DIR / "table3.md").write_text(table3_markdown(tables["table3"]))
+    (TABLES_DIR / "table4.md").write_text(
+        table4_markdown(tables["table4"]) if tables["table4"] is not None
+        else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n"
+    )
+
+    benchmark_maps = sorted(str(m) for m in frame["map"].unique())
+    map_order = {Path(p).stem: p for p in maps}
+    figure_maps = [map_order[name] for name in benchmark_maps if name in map_order]
+    try:
+        trajectory_figure(figure_maps, frame, BENCHMARK_DIR, section["figure_planners"], FIGURE_PATH, protocol)
+        figure = FIGURE_PATH.name
+    except ValueError as error:
+        raise SystemExit(f"error: report.figure_planners: {error}") from None
+
+    REPORT_MD.write_text(
+        report_markdown(
+            tables["table2"], tables["table3"], tables["table4"], precision,
+            maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
+            protocol=protocol, params=section, figure=figure,
+        )
+    )
+    metrics = metrics_json(tables)
+    REPORT_JSON.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    log_tables_to_mlflow(
+        tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)}
+    )
+    print(REPORT_MD.read_text())
+    return metrics
+
+
+if __name__ == "__main__":
+    main()
