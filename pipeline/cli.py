@@ -76,6 +76,8 @@ def explore(
         None, help="Start: COL ROW for a .npy grid, X Y metres for a ROS map (else its YAML 'start')."
     ),
     seed: int = typer.Option(0, help="Seed for randomised planners."),
+    checkpoint: Optional[Path] = typer.Option(
+        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) [default: models/, else shipped]."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
@@ -91,11 +93,16 @@ def explore(
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
-        agent = make_planner(planner)
+        from pipeline.benchmark import parse_planner_spec
+
+        spec = parse_planner_spec(_with_checkpoint(planner, checkpoint))
+        agent = make_planner(spec.name, **spec.options)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:
         _fail(str(error.args[0]))
+    except (ValueError, FileNotFoundError, TypeError) as error:
+        _fail(str(error))
     protocol = protocol_for_map(protocol, ground_truth)
     recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=planner) if gif else None
     result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=recorder)
@@ -128,16 +135,35 @@ def _final_belief(ground_truth, result, protocol):
     return episode.belief.grid
 
 
+def _with_checkpoint(spec: str, checkpoint: Optional[Path]) -> str:
+    """`spec` with checkpoint=PATH added when it names a diffusion planner and a checkpoint is given."""
+    from pipeline.benchmark import parse_planner_spec
+    from pipeline.planners import planner_class
+
+    if checkpoint is None:
+        return spec
+    parsed = parse_planner_spec(spec)
+    if not planner_class(parsed.name).needs_policy:
+        return spec
+    if not checkpoint.is_file():
+        raise FileNotFoundError(f"{checkpoint}: no planner checkpoint there")
+    options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "checkpoint": str(checkpoint)}.items())
+    return f"{parsed.label}={parsed.name}:{options}"
+
+
 @app.command()
 def benchmark(
     maps: Path = typer.Option(..., help="Folder of maps (maze PNGs, .npy grids, ROS YAMLs)."),
-    planner: list[str] = typer.Option(..., "--planner", help="Planner name; repeat for several."),
+    planner: list[str] = typer.Option(
+        ..., "--planner", help="Planner name or labelled variant label=name:key=value,...; repeat for several."),
     out: Path = typer.Option(Path("runs/bench"), help="Output folder (trajectories, metrics.csv, summary.md)."),
     workers: Optional[int] = typer.Option(None, help="Parallel processes [default: all cores]."),
     seed: int = typer.Option(0, help="Seed for randomised planners."),
     tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
     experiment: str = typer.Option("benchmark", help="MLflow experiment name."),
     mlflow_log: bool = typer.Option(True, "--mlflow/--no-mlflow", help="Log one MLflow run per planner."),
+    checkpoint: Optional[Path] = typer.Option(
+        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) [default: models/, else shipped]."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
@@ -152,11 +178,14 @@ def benchmark(
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
-        frame = run_benchmark(map_paths, planner, protocol, out, workers=workers, seed=seed)
+        specs = [_with_checkpoint(p, checkpoint) for p in planner]
+        frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:
         _fail(str(error.args[0]))
+    except (ValueError, FileNotFoundError) as error:  # a malformed "label=name:key=value" spec, unknown option, no model
+        _fail(str(error))
     typer.echo(summary_markdown(frame, protocol))
     if mlflow_log:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
@@ -272,6 +301,55 @@ def stage_train_inpainter(
     device_count = int(devices) if devices and devices.isdigit() else devices
     train_inpainter.main(str(params), accelerator, device_count, resume,
                          str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
+
+
+@stage_app.command("build-observations")
+def stage_build_observations(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: expert episodes replayed into graph observations with the frozen predictor."""
+    from stages import build_observations
+
+    build_observations.main(str(params))
+
+
+def _train_planner(params: Path, variant: str, accelerator: Optional[str], devices: Optional[str], resume: bool,
+                   max_epochs: Optional[int]) -> None:
+    from stages import train_planner
+
+    try:
+        train_planner.main(str(params), variant, accelerator, devices, resume, max_epochs)
+    except (FileNotFoundError, ValueError) as error:
+        _fail(str(error))
+
+
+_Variant = typer.Option("guide", help="guide (global graph with predictions) or dare (observed graph only).")
+_Accelerator = typer.Option(None, help="Lightning accelerator (cpu, gpu, auto) [default: params].")
+_Devices = typer.Option(None, help="Lightning devices (1, 2, auto) [default: params].")
+_Resume = typer.Option(False, "--resume", help="Continue from models/planner_<variant>/last.ckpt.")
+_MaxEpochs = typer.Option(None, help="Override train_planner.train.max_epochs.")
+
+
+@stage_app.command("train-planner")
+def stage_train_planner(params: Path = typer.Option(Path("params.yaml"), help="Parameters file."), variant: str = _Variant,
+                        accelerator: Optional[str] = _Accelerator, devices: Optional[str] = _Devices,
+                        resume: bool = _Resume, max_epochs: Optional[int] = _MaxEpochs) -> None:
+    """DVC stage: Stage II training of the diffusion planner from params.yaml's `train_planner` section."""
+    _train_planner(params, variant, accelerator, devices, resume, max_epochs)
+
+
+@app.command("train-planner")
+def train_planner_command(params: Path = typer.Option(Path("params.yaml"), help="Parameters file."), variant: str = _Variant,
+                          accelerator: Optional[str] = _Accelerator, devices: Optional[str] = _Devices,
+                          resume: bool = _Resume, max_epochs: Optional[int] = _MaxEpochs) -> None:
+    """Train the diffusion planner on data/observations/<variant>.npz (same as `guide stage train-planner`)."""
+    _train_planner(params, variant, accelerator, devices, resume, max_epochs)
+
+
+@stage_app.command("report")
+def stage_report(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: Tables I-IV beside the paper's (runs the K sweep), reports/report.md and reports/tables/."""
+    from stages import report as report_stage
+
+    report_stage.main(str(params))
 
 
 @stage_app.command("eval-predictor")

@@ -82,3 +82,17 @@ def write_ros_map(directory: Path, free: np.ndarray, resolution: float, start_xy
 def mlflow_uri(tmp_path_factory) -> str:
     """One sqlite MLflow store for the whole session (creating one costs seconds)."""
     return f"sqlite:///{tmp_path_factory.mktemp('mlflow') / 'mlflow.db'}"
+
+
+@pytest.fixture(scope="session")
+def expert_shard_dir(generated_maze_dir, tmp_path_factory) -> Path:
+    """Two expert episodes on generated 50 m mazes, stored as the collect_expert stage stores them."""
+    from pipeline.collect import ExpertConfig, collect_expert_shard
+    from pipeline.maps import list_maps
+    from pipeline.shards import run_shards
+
+    directory = tmp_path_factory.mktemp("expert")
+    config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), episodes_per_shard=1,
+                          planner="expert", horizon=8, seed=3)
+    run_shards(collect_expert_shard, 2, directory, {"config": config}, progress=False)
+    return directory

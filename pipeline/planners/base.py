@@ -29,6 +29,7 @@ class Planner(ABC):
     description: str = ""
     uses_ground_truth: bool = False
     ignores_motion_rule: bool = False  # only the ground-truth "Optimal" reference may set this
+    needs_policy: bool = False  # True: needs a trained diffusion policy (models/ or the shipped default)
 
     @abstractmethod
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:

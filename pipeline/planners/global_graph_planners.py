@@ -69,7 +69,9 @@ def cached_inpainter(path: str | Path) -> InpaintFn:
             from pipeline.models.modeling_inpainter import TracedInpainter
             from pipeline.training.inpainter import load_inpainter
 
-            torch.set_num_threads(max(1, min(2, torch.get_num_threads())))
+            # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
+            # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
+            torch.set_num_threads(1)
             model, _ = load_inpainter(path)
             _MODEL_CACHE[key] = TracedInpainter(model).predict
     return _MODEL_CACHE[key]
@@ -120,11 +122,11 @@ class _PredictingPlanner(GraphPlanner):
 
 @register_planner("guide_tsp")
 class GuideTspPlanner(_PredictingPlanner):
-    """GUIDE without the diffusion policy: utility-sampled targets ordered by a TSP path on the global graph."""
+    """GUIDE without the diffusion policy: frontier clusters of the global graph ordered by an open TSP path."""
 
     base_description = (
-        "GUIDE w/o diffusion: top-k boosted-utility targets of the global graph (predicted nodes), "
-        "open TSP over global-graph distances, one known-graph step to the first"
+        "GUIDE w/o diffusion: boosted-utility frontier clusters of the global graph (predicted nodes), "
+        "open TSP over global-graph distances with hysteresis, one known-graph step to the first"
     )
     description = base_description
 
@@ -133,43 +135,94 @@ class GuideTspPlanner(_PredictingPlanner):
         min_utility: int = 2,
         checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
-        top_k: int = 12,  # dev mazes (6 x 100 m, oracle): k=12 / 12 m 518 m mean, k=8 / 8 m 535 m, k=4 / 8 m 603 m
-        spread: float = 12.0,
-        exact_max: int = 8,
-        max_moves: int = 100,
+        top_k: int = 0,
+        spread: float = 10.0,
+        min_weight: float = 0.0,
+        hysteresis: float = 8.0,
+        exact_max: int = 9,
+        max_moves: int = 200,
         global_graph: GlobalGraphConfig = GlobalGraphConfig(),
         threshold: float = 0.5,
         min_component: int = 3,
     ):
         super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
-        if top_k < 1:
-            raise ValueError(f"top_k must be >= 1, got {top_k}")
+        if top_k < 0:
+            raise ValueError(f"top_k must be >= 0 (0 = every cluster), got {top_k}")
+        if spread <= 0:
+            raise ValueError(f"spread must be positive, got {spread}")
         self.top_k = int(top_k)
         self.spread = float(spread)
+        self.min_weight = float(min_weight)
+        self.hysteresis = float(hysteresis)
         self.exact_max = int(exact_max)
         self.max_moves = int(max_moves)
         self.global_config = global_graph
+        self.previous: int | None = None
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         super().reset(ground_truth, protocol, seed)
         assert self.graph is not None
         self.global_graph = GlobalGraph(self.graph, self.global_config)
+        self.previous = None
 
-    def select_targets(self, candidates: np.ndarray, utility: np.ndarray, dist: np.ndarray) -> np.ndarray:
-        """Up to top_k candidates, highest utility first (nearer on a tie), none within `spread` of another."""
+    def select_targets(
+        self, candidates: np.ndarray, utility: np.ndarray, dist: np.ndarray, keep: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Cluster centres (the best node of each cluster) and cluster weights (summed boosted utility).
+
+        Candidates are taken highest utility first (nearer on a tie); one within `spread` metres
+        (straight line, and within `spread` of its path distance from the robot, so a wall does
+        not merge two rooms) of a centre joins it, else it starts a cluster. `keep` (the previous
+        first target) is seeded as the first centre. With `top_k` > 0 only that many centres
+        (heaviest first) are kept.
+        """
         graph = self.graph
         assert graph is not None
         order = np.lexsort((candidates, dist[candidates], -utility))
-        chosen: list[int] = []
-        xy = graph.node_world
+        if keep is not None:
+            where = np.nonzero(candidates[order] == keep)[0]
+            if where.size:
+                order = np.concatenate([order[where], np.delete(order, where)])
+        xy = graph.node_world[candidates]
+        d_robot = dist[candidates]
+        centres: list[int] = []  # indices into candidates
+        weight: list[float] = []
         for k in order:
-            node = int(candidates[k])
-            if chosen and np.hypot(*(xy[chosen] - xy[node]).T).min() < self.spread:
-                continue
-            chosen.append(node)
-            if len(chosen) >= self.top_k:
-                break
-        return np.array(chosen, dtype=np.int64)
+            if centres:
+                c = np.asarray(centres)
+                near = (np.hypot(*(xy[c] - xy[k]).T) < self.spread) & (np.abs(d_robot[c] - d_robot[k]) < self.spread)
+                if near.any():
+                    j = int(np.nonzero(near)[0][0])
+                    weight[j] += float(utility[k])
+                    continue
+            centres.append(int(k))
+            weight.append(float(utility[k]))
+        centres_arr = candidates[np.asarray(centres, dtype=np.int64)]
+        weight_arr = np.asarray(weight)
+        mask = weight_arr >= self.min_weight
+        if keep is not None and centres_arr.size and centres_arr[0] == keep:
+            mask[0] = True
+        if not mask.any():
+            mask[:] = True
+        centres_arr, weight_arr = centres_arr[mask], weight_arr[mask]
+        if self.top_k and centres_arr.size > self.top_k:
+            top = np.argsort(-weight_arr, kind="stable")[: self.top_k]
+            if keep is not None and centres_arr[0] == keep and 0 not in top:
+                top[-1] = 0
+            top = np.sort(top)
+            centres_arr, weight_arr = centres_arr[top], weight_arr[top]
+        return centres_arr, weight_arr
+
+    def _tour(self, d: np.ndarray, first: int | None = None) -> tuple[list[int], float]:
+        """Open TSP path over `d` from point 0 (optionally forced through `first` next); (order, length)."""
+        if first is None:
+            order = tsp_path(d, None, self.exact_max, self.max_moves)
+        else:
+            rest = [i for i in range(len(d)) if i not in (0, first)]
+            sub = d[np.ix_([first] + rest, [first] + rest)]
+            tail = tsp_path(sub, None, self.exact_max, self.max_moves)
+            order = [0, first] + [rest[i - 1] for i in tail[1:]]
+        return order, float(sum(d[a, b] for a, b in zip(order[:-1], order[1:])))
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         graph = self.update_graph(observation)
@@ -182,20 +235,23 @@ class GuideTspPlanner(_PredictingPlanner):
         gg = self.global_graph
         gg.update(observation.belief, observation.position, predicted, self.visited)
         known_ids = gg.lattice_ids[gg.types == KNOWN]  # sorted: the first rows of the global graph
-        rows = np.searchsorted(known_ids, candidates)
-        utility = gg.utility[rows]
-        targets = self.select_targets(candidates, utility, dist)
-        target_rows = np.searchsorted(known_ids, targets)
-        robot_row = int(np.searchsorted(known_ids, robot))
-        points = np.concatenate([[robot_row], target_rows])
+        utility = gg.utility[np.searchsorted(known_ids, candidates)]
+        keep = self.previous if self.previous is not None and self.previous in set(candidates.tolist()) else None
+        targets, weight = self.select_targets(candidates, utility, dist, keep)
+        points = np.concatenate([[int(np.searchsorted(known_ids, robot))], np.searchsorted(known_ids, targets)])
         d = dijkstra(gg.adjacency, directed=False, indices=points)[:, points]
         d = np.minimum(d, d.T)
         if not np.isfinite(d).all():  # cannot happen (known edges are in the global graph); be safe
             d = np.where(np.isfinite(d), d, 1e6)
-        order = tsp_path(d, None, self.exact_max, self.max_moves)
+        order, length = self._tour(d)
+        if keep is not None and order[1] != 1:  # targets[0] is `keep`: stay unless the new tour is clearly shorter
+            kept_order, kept_length = self._tour(d, 1)
+            if kept_length <= length + self.hysteresis:
+                order, length = kept_order, kept_length
         tour = [int(targets[k - 1]) for k in order[1:]]
         first = tour[0]
-        self.last_decision = {"targets": targets, "tour": tour, "predicted": int(len(predicted))}
+        self.previous = first
+        self.last_decision = {"targets": targets, "tour": tour, "length": length, "predicted": int(len(predicted))}
         return self.waypoints_along(graph.path_from_predecessors(pred, first))
 
 

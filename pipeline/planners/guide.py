@@ -1,0 +1,256 @@
+"""The diffusion planners: `guide`, its ablation `guide_noregion`, and the DARE baseline `dare`.
+
+Every decision: update the lattice graph, predict V_p (GUIDE only), build the global
+graph (region-evaluated, or keeping every prediction for `guide_noregion`, or the observed
+graph alone for `dare`), make the padded observation, stack the last T_o observations, and
+sample T_p lattice steps with K denoising steps. The first T_a steps are executed
+(receding horizon), one waypoint per simulator call so that every intermediate position is
+observed, as in the expert data.
+
+Each predicted step becomes a feasible move: the lattice neighbour it names when that edge
+is known free, else the known-free neighbour whose direction best matches the policy's
+soft (expected) direction. A step that stays put, or a plan that has revealed nothing for
+`stall_steps` moves, hands over to one step along the shortest path to the nearest useful
+node (Yamauchi's rule) until new cells appear: a safety net that keeps a weak policy from
+circling forever; the benchmark metrics count how often it fired (`fallback_share` in
+`last_decision`). The robot moves only along known-free lattice edges.
+
+Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/planner_dare/ for
+`dare`) from the pipeline; else the default shipped in pipeline/assets/ when present.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.global_graph import GlobalGraph, GlobalGraphConfig
+from pipeline.graph_observation import GraphObservation, observe, stack_history
+from pipeline.maps import GroundTruthMap
+from pipeline.planners.base import Waypoint, register_planner
+from pipeline.planners.global_graph_planners import InpaintFn, _PredictingPlanner
+from pipeline.protocol import Protocol
+from pipeline.simulator import Observation
+
+ASSETS = Path(__file__).resolve().parent.parent / "assets"
+PIPELINE_POLICY = {"guide": Path("models/planner_guide/policy.pt"), "dare": Path("models/planner_dare/policy.pt")}
+SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
+
+_POLICY_CACHE: dict[str, object] = {}
+_POLICY_LOCK = threading.Lock()
+
+
+def cached_policy(path: str | Path):
+    """The exported policy at `path`, loaded once per process (eval mode, no grad)."""
+    key = str(Path(path).resolve())
+    with _POLICY_LOCK:
+        if key not in _POLICY_CACHE:
+            import torch
+
+            from pipeline.training.planner import load_policy
+
+            # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
+            # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
+            torch.set_num_threads(1)
+            policy, _ = load_policy(path)
+            _POLICY_CACHE[key] = policy
+    return _POLICY_CACHE[key]
+
+
+def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
+    if checkpoint is not None:
+        if not Path(checkpoint).is_file():
+            raise FileNotFoundError(f"{checkpoint}: no planner checkpoint there")
+        return Path(checkpoint)
+    for path in (PIPELINE_POLICY[kind], SHIPPED_POLICY[kind]):
+        if path.is_file():
+            return path
+    raise FileNotFoundError(
+        f"no trained {kind} policy: neither {PIPELINE_POLICY[kind]} nor the shipped {SHIPPED_POLICY[kind]} exists; "
+        f"run `dvc repro train_planner` or pass --checkpoint PATH"
+    )
+
+
+class _DiffusionPlanner(_PredictingPlanner):
+    """Shared receding-horizon loop of the diffusion planners."""
+
+    kind = "guide"  # which trained policy (guide or dare)
+    needs_policy = True
+    predicts = True
+    region_evaluation = True
+
+    def __init__(
+        self,
+        checkpoint: str | None = None,
+        num_inference_steps: int | None = None,
+        sampler: str | None = None,
+        action_steps: int | None = None,
+        inpainter_checkpoint: str | None = None,
+        inpaint: InpaintFn | None = None,
+        policy=None,
+        min_utility: int = 2,
+        threshold: float = 0.5,
+        min_component: int = 3,
+        stall_steps: int = 6,
+    ):
+        if self.predicts:
+            super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold, min_component)
+        else:
+            super().__init__(min_utility, None, lambda image: np.zeros(np.shape(image), np.float32), threshold, min_component)
+            self.predictor = None
+            self.predictor_source = "no prediction (observed graph only)"
+        if policy is None:
+            path = resolve_policy_path(self.kind, checkpoint)
+            policy = cached_policy(path)
+            self.policy_source = str(path)
+        else:
+            self.policy_source = "injected policy"
+        self.policy = policy
+        config = policy.config
+        self.num_inference_steps = int(num_inference_steps or config.num_inference_steps)
+        if self.num_inference_steps < 1:
+            raise ValueError(f"num_inference_steps must be >= 1, got {num_inference_steps}")
+        if sampler is not None and sampler != config.sampler:
+            policy = self._with_sampler(policy, sampler)
+            self.policy = policy
+        self.action_steps = int(action_steps or config.action_steps)
+        if not 1 <= self.action_steps <= config.horizon:
+            raise ValueError(f"action_steps must be in 1..{config.horizon}, got {action_steps}")
+        self.stall_steps = int(stall_steps)
+        self.graph_config = GlobalGraphConfig(max_nodes=config.max_nodes, use_region_evaluation=self.region_evaluation)
+        self.description = (
+            f"{self.base_description} [policy {self.policy_source}; {self.predictor_source}; K={self.num_inference_steps}]"
+        )
+
+    @staticmethod
+    def _with_sampler(policy, sampler: str):
+        """A shallow copy of `policy` (weights shared) that samples with another diffusers scheduler."""
+        import copy
+        from dataclasses import replace
+
+        from diffusers import DDIMScheduler, DDPMScheduler
+
+        if sampler not in ("ddpm", "ddim"):
+            raise ValueError(f"sampler must be ddpm or ddim, got {sampler!r}")
+        variant = copy.copy(policy)
+        variant.config = replace(policy.config, sampler=sampler)
+        scheduler_class = DDIMScheduler if sampler == "ddim" else DDPMScheduler
+        variant.inference_scheduler = scheduler_class.from_config(policy.noise_scheduler.config)
+        return variant
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        import torch
+
+        assert self.graph is not None
+        self.global_graph = GlobalGraph(self.graph, self.graph_config)
+        self.history: list[GraphObservation] = []
+        self.queue: list[np.ndarray] = []
+        self.moves_without_news = 0
+        self.decisions = 0
+        self.fallbacks = 0
+        self.generator = torch.Generator().manual_seed(int(seed))
+
+    # ------------------------------------------------------------------ decisions
+    def observe_step(self, observation: Observation) -> GraphObservation:
+        predicted = self.predict() if self.predicts else None
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited)
+        obs = observe(self.global_graph, observation.position, self.policy.config.max_neighbors)
+        self.history.append(obs)
+        del self.history[: -self.policy.config.obs_steps]
+        return obs
+
+    def sample_steps(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T_p, 2) lattice steps and (T_p, 2) soft directions for the current history."""
+        import torch
+
+        stacked = stack_history(self.history, self.policy.config.obs_steps)
+        batch = {k: torch.from_numpy(v) for k, v in stacked.items()}
+        with torch.inference_mode():
+            out = self.policy.predict_action(batch, num_inference_steps=self.num_inference_steps, generator=self.generator)
+        return out["deltas"][0].numpy(), out["expected"][0].numpy()
+
+    def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:
+        """The lattice node reached by `step` from `node` if that edge is known free, else the best-matching neighbour."""
+        graph = self.graph
+        assert graph is not None
+        neighbours = graph.neighbours(node)
+        if neighbours.size == 0:
+            return None
+        i, j = graph.node_ij[node]
+        step = np.asarray(step, dtype=np.int64)
+        if step.any():
+            ti, tj = int(i + step[0]), int(j + step[1])
+            target = [n for n in neighbours if graph.node_ij[n][0] == ti and graph.node_ij[n][1] == tj]
+            if target:
+                return int(target[0])
+        want = np.asarray(direction, dtype=np.float64)
+        if not step.any() and np.hypot(*want) < 0.25:
+            return None  # the policy says stay: not a move
+        if np.hypot(*want) < 1e-6:
+            want = step.astype(np.float64)
+        offsets = (graph.node_ij[neighbours] - graph.node_ij[node]).astype(np.float64)
+        cosine = offsets @ want / (np.hypot(*offsets.T) * max(np.hypot(*want), 1e-9))
+        length_gap = np.abs(np.hypot(*offsets.T) - np.hypot(*want))
+        best = np.lexsort((neighbours, length_gap, -np.round(cosine, 6)))[0]
+        return int(neighbours[best])
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        new_free = observation.changed is None or bool(np.any(observation.belief.reshape(-1)[observation.changed] == 255))
+        self.moves_without_news = 0 if new_free else self.moves_without_news + 1
+        dist, pred = graph.shortest_paths(robot)
+        useful = self.useful_nodes()
+        if not (np.isfinite(dist[useful]) & (useful != robot)).any():
+            return []  # nothing reachable is left to explore
+        self.observe_step(observation)
+        self.decisions += 1
+        move = None
+        if self.moves_without_news < self.stall_steps:
+            if not self.queue:
+                steps, directions = self.sample_steps()
+                self.queue = [np.concatenate([s, d]) for s, d in zip(steps[: self.action_steps], directions[: self.action_steps])]
+            planned = self.queue.pop(0)
+            move = self.feasible_move(robot, planned[:2].astype(np.int64), planned[2:])
+            exact = move is not None and np.array_equal(graph.node_ij[move] - graph.node_ij[robot], planned[:2].astype(np.int64))
+            if not exact:
+                self.queue = []  # the rest of the chunk assumed this step: re-plan next time
+        if move is None:
+            self.fallbacks += 1
+            self.queue = []
+            waypoints = self.nearest_useful_step(robot)
+            self.last_decision = {"fallback": True, "fallback_share": self.fallbacks / self.decisions}
+            return waypoints
+        self.last_decision = {"fallback": False, "fallback_share": self.fallbacks / self.decisions}
+        return [tuple(map(float, graph.node_world[move]))]
+
+
+@register_planner("guide")
+class GuidePlanner(_DiffusionPlanner):
+    """GUIDE: the diffusion policy on the region-evaluated global graph."""
+
+    base_description = "GUIDE: diffusion policy conditioned on the region-evaluated global graph (predicted nodes)"
+    description = base_description
+
+
+@register_planner("guide_noregion")
+class GuideNoRegionPlanner(_DiffusionPlanner):
+    """GUIDE without region evaluation: every predicted node enters the graph (paper Table III)."""
+
+    base_description = "GUIDE w/o region evaluation: the guide policy on a graph with every predicted node"
+    description = base_description
+    region_evaluation = False
+
+
+@register_planner("dare")
+class DarePlanner(_DiffusionPlanner):
+    """DARE: the same diffusion policy trained and run on the observed graph only."""
+
+    base_description = "DARE: diffusion policy on the observed graph only (no prediction, no region evaluation)"
+    description = base_description
+    kind = "dare"
+    predicts = False
+    region_evaluation = False

@@ -1,0 +1,271 @@
+"""Stage II training of the diffusion planner in Lightning.
+
+DDPM loss (epsilon prediction, squared-cosine schedule from `diffusers`) on expert action
+chunks given T_o graph observations; AdamW with linear warm-up and cosine decay (the
+`diffusers` schedule helper); EMA weights (`torch.optim.swa_utils`), which are what gets
+exported and what validation measures. Validation holds out whole episodes and reports the
+loss and how often the first sampled step equals the expert's.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any, Optional
+
+import lightning as L
+import numpy as np
+import torch
+from lightning.pytorch.callbacks import ModelCheckpoint
+from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
+
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.modeling_diffusion import DiffusionPolicy
+from pipeline.planner_data import PlannerDataset, load_observations
+
+EXPORT_NAME = "policy.pt"
+LAST_CKPT = "last.ckpt"
+
+
+@dataclass(frozen=True)
+class PlannerTrainConfig:
+    max_epochs: int = 30
+    batch_size: int = 64
+    lr: float = 3e-4  # AdamW (DARE: 1e-4 at 256 wide; the small default model takes a larger step)
+    weight_decay: float = 1e-4
+    warmup_steps: int = 100
+    ema_decay: float = 0.995
+    val_fraction: float = 0.15  # share of episodes held out
+    augment: bool = True  # random dihedral transforms of positions and actions
+    seed: int = 0
+    val_accuracy_samples: int = 64  # validation samples whose first step is sampled (K from the model config)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "PlannerTrainConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"unknown planner training keys: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+        return cls(**values)
+
+
+def split_episodes(episode: np.ndarray, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(train rows, val rows), holding out whole episodes (at least one when there are two or more)."""
+    ids = np.unique(episode)
+    rng = np.random.default_rng(seed)
+    n_val = int(round(val_fraction * len(ids)))
+    if len(ids) >= 2:
+        n_val = min(max(n_val, 1), len(ids) - 1)
+    else:
+        n_val = 0
+    val_ids = rng.permutation(ids)[:n_val]
+    is_val = np.isin(episode, val_ids)
+    return np.nonzero(~is_val)[0], np.nonzero(is_val)[0]
+
+
+def collate(samples: list[dict]) -> dict[str, torch.Tensor]:
+    return {k: torch.stack([s[k] for s in samples]) for k in samples[0]}
+
+
+class PlannerLightning(L.LightningModule):
+    """The diffusion policy, its EMA copy, and the DDPM objective."""
+
+    def __init__(self, model_config: dict[str, Any], train_config: dict[str, Any]) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.model_config = DiffusionPolicyConfig.from_dict(model_config)
+        self.train_config = PlannerTrainConfig.from_dict(train_config)
+        self.policy = DiffusionPolicy(self.model_config)
+        self.ema = AveragedModel(self.policy, multi_avg_fn=get_ema_multi_avg_fn(self.train_config.ema_decay), use_buffers=True)
+        self.history: list[dict[str, float]] = []
+        self._epoch_losses: list[float] = []
+        self._val: dict[str, list[float]] = {}
+        self._epoch_start = time.perf_counter()
+
+    def training_step(self, batch, batch_idx):
+        loss = self.policy.compute_loss(batch)
+        self.log("train_loss", loss, prog_bar=True, batch_size=len(batch["actions"]))
+        self._epoch_losses.append(float(loss.detach()))
+        return loss
+
+    def on_train_batch_end(self, outputs, batch, batch_idx) -> None:
+        self.ema.update_parameters(self.policy)
+
+    def on_train_epoch_start(self) -> None:
+        self._epoch_losses = []
+        self._epoch_start = time.perf_counter()
+
+    def on_validation_epoch_start(self) -> None:
+        self._val = {"loss": [], "first_step_hits": [], "first_step_count": []}
+
+    def validation_step(self, batch, batch_idx):
+        ema_policy: DiffusionPolicy = self.ema.module  # type: ignore[assignment]
+        generator = torch.Generator(device=batch["actions"].device).manual_seed(batch_idx)
+        with torch.random.fork_rng(devices=[]):  # the same noise every epoch: a comparable validation loss
+            torch.manual_seed(batch_idx)
+            loss = ema_policy.compute_loss(batch)
+        self._val["loss"].append(float(loss))
+        seen = sum(self._val["first_step_count"])
+        budget = self.train_config.val_accuracy_samples - seen
+        if budget > 0:
+            obs = {k: v[:budget] for k, v in batch.items() if k != "actions"}
+            deltas = ema_policy.predict_action(obs, generator=generator)["deltas"]
+            hits = (deltas[:, 0] == batch["actions"][:budget, 0]).all(dim=-1)
+            self._val["first_step_hits"].append(float(hits.sum()))
+            self._val["first_step_count"].append(float(len(hits)))
+
+    def on_validation_epoch_end(self) -> None:
+        if self.trainer.sanity_checking or not self._val["loss"]:
+            return
+        val_loss = float(np.mean(self._val["loss"]))
+        count = sum(self._val["first_step_count"])
+        accuracy = sum(self._val["first_step_hits"]) / count if count else float("nan")
+        self.log("val_loss", val_loss)
+        self.log("val_first_step_accuracy", accuracy)
+        self.history.append(
+            {
+                "epoch": int(self.current_epoch),
+                "train_loss": float(np.mean(self._epoch_losses)) if self._epoch_losses else float("nan"),
+                "val_loss": val_loss,
+                "val_first_step_accuracy": accuracy,
+                "seconds": time.perf_counter() - self._epoch_start,
+            }
+        )
+
+    def configure_optimizers(self):
+        from diffusers.optimization import get_cosine_schedule_with_warmup
+
+        tc = self.train_config
+        optimizer = torch.optim.AdamW(self.policy.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
+        total = max(int(self.trainer.estimated_stepping_batches), tc.warmup_steps + 1)
+        schedule = get_cosine_schedule_with_warmup(optimizer, num_warmup_steps=min(tc.warmup_steps, total // 4), num_training_steps=total)
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": schedule, "interval": "step"}}
+
+    def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        checkpoint["history"] = self.history
+
+    def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
+        self.history = list(checkpoint.get("history", []))
+
+
+def export_policy(policy: DiffusionPolicy, path: str | Path, **extra: Any) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save({"config": policy.config.to_dict(), "state_dict": policy.state_dict(), **extra}, tmp)
+    tmp.replace(path)
+    return path
+
+
+def read_policy_export(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no planner checkpoint there")
+    data = torch.load(path, map_location="cpu", weights_only=False)
+    if not isinstance(data, dict) or "config" not in data or "state_dict" not in data:
+        raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
+    return data
+
+
+def load_policy(path: str | Path) -> tuple[DiffusionPolicy, dict[str, Any]]:
+    """(the exported EMA policy in eval mode, the export's metadata)."""
+    data = read_policy_export(path)
+    policy = DiffusionPolicy(DiffusionPolicyConfig.from_dict(data["config"]))
+    policy.load_state_dict(data["state_dict"])
+    meta = {k: v for k, v in data.items() if k not in ("state_dict",)}
+    return policy.eval(), meta
+
+
+def train_planner(
+    observations: str | Path,
+    out_dir: str | Path,
+    model_config: DiffusionPolicyConfig | dict[str, Any] | None = None,
+    train_config: PlannerTrainConfig | dict[str, Any] | None = None,
+    *,
+    accelerator: str = "cpu",
+    devices: int | str = 1,
+    resume: bool = False,
+    tracking_uri: Optional[str] = None,
+    mlflow: bool = True,
+    experiment_name: str = "planner",
+    run_name: Optional[str] = None,
+    progress: bool = False,
+    num_threads: Optional[int] = None,
+) -> Path:
+    """Train on an observation file (build_observations stage); returns the exported policy.pt.
+
+    `resume=True` continues from out_dir/last.ckpt (optimiser, EMA and history included)
+    when it exists; otherwise stale checkpoints are removed first.
+    """
+    from pipeline.tracking import resolve_tracking_uri
+
+    tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
+    mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
+    arrays, meta = load_observations(observations)
+    n_max = arrays["features"].shape[1]
+    if n_max != mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
+        raise ValueError(
+            f"{observations}: observations have {n_max} nodes x {arrays['neighbors'].shape[2]} neighbours but the model "
+            f"expects {mc.max_nodes} x {mc.max_neighbors}; rebuild the observations or change the model config"
+        )
+    if arrays["actions"].shape[1] < mc.horizon:
+        raise ValueError(f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}")
+    arrays["actions"] = arrays["actions"][:, : mc.horizon]
+    previous_threads = torch.get_num_threads()
+    if num_threads:
+        torch.set_num_threads(int(num_threads))
+    try:
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        last = out_dir / LAST_CKPT
+        ckpt_path = str(last) if resume and last.is_file() else None
+        if resume and ckpt_path is None:
+            warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
+        if ckpt_path is None:
+            for stale in list(out_dir.glob("*.ckpt")):
+                stale.unlink()
+        L.seed_everything(tc.seed, workers=True, verbose=False)
+        train_rows, val_rows = split_episodes(arrays["episode"], tc.val_fraction, tc.seed)
+        train_set = PlannerDataset(arrays, mc.obs_steps, train_rows, augment=tc.augment, seed=tc.seed)
+        val_set = PlannerDataset(arrays, mc.obs_steps, val_rows if len(val_rows) else train_rows[:1])
+        generator = torch.Generator().manual_seed(tc.seed)
+        train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
+        val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
+        module = PlannerLightning(mc.to_dict(), asdict(tc))
+        checkpoint = ModelCheckpoint(dirpath=out_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
+                                     save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
+        logger: Any = False
+        if mlflow:
+            os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+            from lightning.pytorch.loggers import MLFlowLogger
+
+            logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name, tracking_uri=resolve_tracking_uri(tracking_uri))
+            logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
+                                    "observations": str(observations), "samples": len(arrays["episode"])})
+        trainer = L.Trainer(
+            max_epochs=tc.max_epochs, accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
+            default_root_dir=str(out_dir), enable_progress_bar=progress, enable_model_summary=False,
+            num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0,
+        )
+        started = time.perf_counter()
+        trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
+        seconds = time.perf_counter() - started
+        export_path = out_dir / EXPORT_NAME
+        if trainer.is_global_zero:
+            history = list(module.history)
+            export_policy(
+                module.ema.module.cpu().eval(), export_path,
+                train_config=asdict(tc), history=history, train_seconds=round(seconds, 2),
+                epochs=int(trainer.current_epoch), samples={"train": len(train_rows), "val": len(val_rows)},
+                observations=meta,
+            )
+            if logger:
+                logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
+                logger.experiment.log_metric(logger.run_id, "num_parameters", module.policy.num_parameters())
+                logger.experiment.log_artifact(logger.run_id, str(export_path))
+        return export_path
+    finally:
+        torch.set_num_threads(previous_threads)

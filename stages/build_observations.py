@@ -1,0 +1,106 @@
+"""DVC stage: replay the Stage II expert episodes into graph observations with the frozen predictor.
+
+Reads only the `build_observations` section of params.yaml (and the shared `protocol`).
+For every stored expert step it rebuilds the belief, runs the trained inpainter once
+(models/inpainter/inpainter.pt unless `inpainter` names another export) and writes two
+observation sets: data/observations/guide.npz (region-evaluated global graph) and
+data/observations/dare.npz (observed graph only), plus reports/observations_summary.json.
+Its own stage, so retraining the planner never re-runs the predictor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import yaml
+from tqdm import tqdm
+
+EXPERT_DIR = Path("data/expert")
+OUT_DIR = Path("data/observations")
+SUMMARY = Path("reports/observations_summary.json")
+DEFAULT_INPAINTER = Path("models/inpainter/inpainter.pt")
+
+
+def _shard_observations(task: tuple) -> dict:
+    """Observations for every episode of one expert shard (runs in a worker process)."""
+    shard, first_episode_id, protocol_dict, inpainter, threshold, min_component, max_nodes, max_neighbors = task
+    import torch
+
+    torch.set_num_threads(1)
+    from pipeline.collect import load_expert_episodes
+    from pipeline.node_predictor import NodePredictor, NodePredictorConfig
+    from pipeline.planner_data import ObservationConfig, concatenate, episode_observations
+    from pipeline.planners.global_graph_planners import cached_inpainter
+    from pipeline.protocol import Protocol
+
+    protocol = Protocol.from_dict(protocol_dict)
+    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(threshold, min_component))
+    config = ObservationConfig(max_nodes, max_neighbors)
+    parts = [
+        episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k)
+        for k, episode in enumerate(load_expert_episodes(shard))
+    ]
+    return {variant: concatenate(p[variant] for p in parts) for variant in ("guide", "dare")}
+
+
+def main(params_path: str = "params.yaml") -> dict:
+    from pipeline.collect import load_expert_episodes
+    from pipeline.planner_data import concatenate, save_observations
+    from pipeline.protocol import Protocol
+
+    params = yaml.safe_load(Path(params_path).read_text())
+    section = params["build_observations"]
+    protocol = Protocol.from_dict(params.get("protocol") or {})
+    inpainter = Path(section.get("inpainter") or DEFAULT_INPAINTER)
+    if not inpainter.is_file():
+        raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
+    shards = sorted(EXPERT_DIR.glob("shard_*.npz"))
+    if not shards:
+        raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
+    counts = [len(load_expert_episodes(s)) for s in shards]
+    firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    tasks = [
+        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), int(section["min_component"]),
+         int(section["max_nodes"]), int(section["max_neighbors"]))
+        for s, f in zip(shards, firsts)
+    ]
+    started = time.perf_counter()
+    workers = max(1, int(section.get("workers", 1)))
+    results: list[dict | None] = [None] * len(tasks)
+    with tqdm(total=len(tasks), desc="expert shards", unit="shard") as bar:
+        if workers == 1:
+            for i, task in enumerate(tasks):
+                results[i] = _shard_observations(task)
+                bar.update()
+        else:
+            with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
+                for i, result in enumerate(pool.map(_shard_observations, tasks)):
+                    results[i] = result
+                    bar.update()
+    seconds = time.perf_counter() - started
+    summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
+    for variant in ("guide", "dare"):
+        arrays = concatenate(r[variant] for r in results if r is not None)
+        save_observations(OUT_DIR / f"{variant}.npz", arrays, {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")}})
+        mask = arrays["node_mask"]
+        summary[variant] = {
+            "samples": int(len(arrays["episode"])),
+            "nodes_median": float(np.median(mask.sum(axis=1))),
+            "predicted_nodes_median": float(np.median(arrays["features"][..., 5].astype(np.float32).sum(axis=1))),
+            "truncated_share": float(mask.all(axis=1).mean()),  # steps whose graph filled every padded row
+        }
+    SUMMARY.parent.mkdir(parents=True, exist_ok=True)
+    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {OUT_DIR}/")
+    return summary
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--params", default="params.yaml")
+    main(parser.parse_args().params)

@@ -1,0 +1,105 @@
+"""DVC stage: Stage II training of the diffusion planner (one run per variant: guide, dare).
+
+Reads only the `train_planner` section of params.yaml. Trains on
+data/observations/<variant>.npz and writes models/planner_<variant>/ (policy.pt, the EMA
+weights for inference; last.ckpt and best.ckpt for resuming),
+reports/planner_<variant>_metrics.json and reports/planner_<variant>_curves.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import yaml
+
+VARIANTS = ("guide", "dare")
+OBSERVATIONS = Path("data/observations")
+
+
+def out_dir(variant: str) -> Path:
+    return Path(f"models/planner_{variant}")
+
+
+def plot_curves(history: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    epochs = [h["epoch"] + 1 for h in history]
+    fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(10, 3.6))
+    ax_loss.plot(epochs, [h["train_loss"] for h in history], label="train")
+    ax_loss.plot(epochs, [h["val_loss"] for h in history], label="val (EMA)")
+    ax_loss.set_xlabel("epoch")
+    ax_loss.set_ylabel("DDPM noise MSE")
+    ax_loss.set_yscale("log")
+    ax_loss.legend()
+    ax_loss.grid(alpha=0.3)
+    ax_acc.plot(epochs, [h["val_first_step_accuracy"] for h in history], color="#c44e52")
+    ax_acc.set_xlabel("epoch")
+    ax_acc.set_ylabel("first sampled step = expert's (val)")
+    ax_acc.set_ylim(0, 1)
+    ax_acc.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: str | None = None,
+         devices: str | None = None, resume: bool = False, max_epochs: int | None = None) -> dict:
+    from pipeline.training.planner import load_policy, train_planner
+
+    if variant not in VARIANTS:
+        raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")
+    params = yaml.safe_load(Path(params_path).read_text())
+    section = params["train_planner"]
+    train = dict(section.get("train") or {})
+    if max_epochs is not None:
+        train["max_epochs"] = int(max_epochs)
+    export = train_planner(
+        OBSERVATIONS / f"{variant}.npz",
+        out_dir(variant),
+        dict(section.get("model") or {}),
+        train,
+        accelerator=accelerator or section.get("accelerator", "cpu"),
+        devices=devices or section.get("devices", 1),
+        resume=resume,
+        experiment_name=str(section.get("experiment", "planner")),
+        run_name=variant,
+        num_threads=section.get("threads"),
+    )
+    policy, meta = load_policy(export)
+    history = meta.get("history", [])
+    last = history[-1] if history else {}
+    metrics = {
+        "variant": variant,
+        "num_parameters": policy.num_parameters(),
+        "epochs": meta.get("epochs"),
+        "train_seconds": meta.get("train_seconds"),
+        "samples": meta.get("samples"),
+        "val_loss": last.get("val_loss"),
+        "val_first_step_accuracy": last.get("val_first_step_accuracy"),
+    }
+    Path("reports").mkdir(exist_ok=True)
+    Path(f"reports/planner_{variant}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    if history:
+        plot_curves(history, Path(f"reports/planner_{variant}_curves.png"), f"{variant} diffusion planner")
+    print(f"{variant} planner: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "
+          f"{metrics['train_seconds']} s; val loss {metrics['val_loss']}, first-step accuracy {metrics['val_first_step_accuracy']} -> {export}")
+    return metrics
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--params", default="params.yaml")
+    parser.add_argument("--variant", default="guide", choices=VARIANTS)
+    parser.add_argument("--accelerator")
+    parser.add_argument("--devices")
+    parser.add_argument("--resume", action="store_true")
+    parser.add_argument("--max-epochs", type=int)
+    a = parser.parse_args()
+    main(a.params, a.variant, a.accelerator, a.devices, a.resume, a.max_epochs)
