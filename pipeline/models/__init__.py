@@ -1,6 +1,15 @@
-"""Neural models: the Stage I node-image inpainter (LaMa's FFC ResNet generator)."""
+"""Neural models: the Stage I node-image inpainter (LaMa's FFC ResNet generator) and the diffusion policy."""
 
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.configuration_inpainter import INPUT_ENCODINGS, InpainterConfig
+from pipeline.models.modeling_diffusion import (
+    DiffusionPolicy,
+    GraphEncoder,
+    NoisePredictionNet,
+    build_attention_mask,
+    decode_actions,
+    encode_actions,
+)
 from pipeline.models.modeling_inpainter import (
     FFC,
     FFC_BN_ACT,
@@ -15,6 +24,13 @@ from pipeline.models.modeling_inpainter import (
 )
 
 __all__ = [
+    "DiffusionPolicy",
+    "DiffusionPolicyConfig",
+    "GraphEncoder",
+    "NoisePredictionNet",
+    "build_attention_mask",
+    "decode_actions",
+    "encode_actions",
     "FFC",
     "FFC_BN_ACT",
     "FFCResnetBlock",
