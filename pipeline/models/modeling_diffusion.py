@@ -304,16 +304,22 @@ class DiffusionPolicy(nn.Module):
     @torch.no_grad()
     def sample(
         self,
-        obs: Mapping[str, torch.Tensor],
+        obs: Mapping[str, torch.Tensor] | None,
         num_inference_steps: int | None = None,
         generator: torch.Generator | None = None,
+        obs_z: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Denoise Gaussian noise into encoded actions (B, T_p, action_dim) in [-1, 1].
 
-        The observations are encoded once, and the memory tokens of all K steps are built in one
-        batched call before the loop, which then runs only the decoder layers and the scheduler.
+        The observations are encoded once (or given already encoded as `obs_z` (B, T_o, d), which
+        a receding-horizon planner uses to encode each graph only once), and the memory tokens of
+        all K steps are built in one batched call before the loop, which then runs only the
+        decoder layers and the scheduler.
         """
-        obs_z = self._encode_obs_dict(obs)
+        if obs_z is None:
+            if obs is None:
+                raise ValueError("give the observations or their encoding obs_z")
+            obs_z = self._encode_obs_dict(obs)
         batch = obs_z.shape[0]
         shape = (batch, self.config.horizon, self.config.action_dim)
         x = torch.randn(shape, generator=generator, device=obs_z.device, dtype=obs_z.dtype)
@@ -332,11 +338,12 @@ class DiffusionPolicy(nn.Module):
     @torch.no_grad()
     def predict_action(
         self,
-        obs: Mapping[str, torch.Tensor],
+        obs: Mapping[str, torch.Tensor] | None,
         num_inference_steps: int | None = None,
         generator: torch.Generator | None = None,
+        obs_z: torch.Tensor | None = None,
     ) -> dict[str, torch.Tensor]:
         """Sample and decode: {"deltas": (B, T_p, 2) long, "expected": (B, T_p, 2), "raw": (B, T_p, action_dim)}."""
-        raw = self.sample(obs, num_inference_steps=num_inference_steps, generator=generator)
+        raw = self.sample(obs, num_inference_steps=num_inference_steps, generator=generator, obs_z=obs_z)
         deltas, expected = decode_actions(raw, self.config)
         return {"deltas": deltas, "expected": expected, "raw": raw}

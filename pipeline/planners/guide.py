@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.global_graph import GlobalGraph, GlobalGraphConfig
-from pipeline.graph_observation import GraphObservation, observe, stack_history
+from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import Waypoint, register_planner
 from pipeline.planners.global_graph_planners import InpaintFn, _PredictingPlanner
@@ -147,6 +147,7 @@ class _DiffusionPlanner(_PredictingPlanner):
         assert self.graph is not None
         self.global_graph = GlobalGraph(self.graph, self.graph_config)
         self.history: list[GraphObservation] = []
+        self.encodings: list = []
         self.queue: list[np.ndarray] = []
         self.moves_without_news = 0
         self.decisions = 0
@@ -159,17 +160,33 @@ class _DiffusionPlanner(_PredictingPlanner):
         self.global_graph.update(observation.belief, observation.position, predicted, self.visited)
         obs = observe(self.global_graph, observation.position, self.policy.config.max_neighbors)
         self.history.append(obs)
+        self.encodings.append(None)
         del self.history[: -self.policy.config.obs_steps]
+        del self.encodings[: -self.policy.config.obs_steps]
         return obs
+
+    def encode(self, index: int):
+        """z of history entry `index`, encoded once and kept (a graph is encoded for at most T_o decisions)."""
+        import torch
+
+        if self.encodings[index] is None:
+            o = self.history[index]
+            with torch.inference_mode():
+                self.encodings[index] = self.policy.encoder(
+                    torch.from_numpy(o.features)[None], torch.from_numpy(o.node_mask)[None],
+                    torch.from_numpy(o.neighbors.astype(np.int64))[None], torch.tensor([o.robot]),
+                )
+        return self.encodings[index]
 
     def sample_steps(self) -> tuple[np.ndarray, np.ndarray]:
         """(T_p, 2) lattice steps and (T_p, 2) soft directions for the current history."""
         import torch
 
-        stacked = stack_history(self.history, self.policy.config.obs_steps)
-        batch = {k: torch.from_numpy(v) for k, v in stacked.items()}
+        steps = self.policy.config.obs_steps
+        picked = [max(0, len(self.history) - steps + k) for k in range(steps)]  # the first observation repeats
+        obs_z = torch.stack([self.encode(i)[0] for i in picked])[None]
         with torch.inference_mode():
-            out = self.policy.predict_action(batch, num_inference_steps=self.num_inference_steps, generator=self.generator)
+            out = self.policy.predict_action(None, num_inference_steps=self.num_inference_steps, generator=self.generator, obs_z=obs_z)
         return out["deltas"][0].numpy(), out["expected"][0].numpy()
 
     def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:
@@ -209,8 +226,10 @@ class _DiffusionPlanner(_PredictingPlanner):
         self.observe_step(observation)
         self.decisions += 1
         move = None
+        sampled = False
         if self.moves_without_news < self.stall_steps:
             if not self.queue:
+                sampled = True
                 steps, directions = self.sample_steps()
                 self.queue = [np.concatenate([s, d]) for s, d in zip(steps[: self.action_steps], directions[: self.action_steps])]
             planned = self.queue.pop(0)
@@ -222,9 +241,9 @@ class _DiffusionPlanner(_PredictingPlanner):
             self.fallbacks += 1
             self.queue = []
             waypoints = self.nearest_useful_step(robot)
-            self.last_decision = {"fallback": True, "fallback_share": self.fallbacks / self.decisions}
+            self.last_decision = {"fallback": True, "sampled": sampled, "fallback_share": self.fallbacks / self.decisions}
             return waypoints
-        self.last_decision = {"fallback": False, "fallback_share": self.fallbacks / self.decisions}
+        self.last_decision = {"fallback": False, "sampled": sampled, "fallback_share": self.fallbacks / self.decisions}
         return [tuple(map(float, graph.node_world[move]))]
 
 

@@ -1,0 +1,76 @@
+"""Time `guide` (and `dare`) decisions at several denoising-step counts K.
+
+Usage: python benchmarks/bench_planner.py [--maps data/mazes/test] [--count 2] [--k 10 30 50 100]
+                                          [--planner guide --planner dare] [--steps 60]
+Runs each planner for up to `--steps` waypoints on the first `--count` test mazes and
+times every plan() call. A *full decision* is one that sampled a new action chunk: graph
+update, node prediction, region evaluation, observation, K denoising steps; the other calls
+execute the cached second step (T_a = 2) and only update the graph. Prints the median and
+p95 of full decisions and of all calls, per planner and K. One torch thread, as in the
+benchmark workers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from pipeline.maps import list_maps, load_map
+from pipeline.planners import make_planner
+from pipeline.protocol import Protocol
+from pipeline.simulator import run_episode
+
+
+class TimedPlanner:
+    """Wraps a planner and records (milliseconds, sampled) per plan() call."""
+
+    def __init__(self, planner):
+        self.planner = planner
+        self.calls: list[tuple[float, bool]] = []
+
+    def __getattr__(self, name):
+        return getattr(self.planner, name)
+
+    def reset(self, *args, **kwargs):
+        return self.planner.reset(*args, **kwargs)
+
+    def plan(self, observation):
+        t0 = time.perf_counter()
+        out = self.planner.plan(observation)
+        self.calls.append(((time.perf_counter() - t0) * 1e3, bool(self.planner.last_decision.get("sampled", False))))
+        return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--maps", default="data/mazes/test")
+    parser.add_argument("--count", type=int, default=2)
+    parser.add_argument("--k", type=int, nargs="+", default=[10, 30, 50, 100])
+    parser.add_argument("--planner", action="append", default=None)
+    parser.add_argument("--steps", type=int, default=60)
+    parser.add_argument("--checkpoint", default=None)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    maps = list_maps(Path(args.maps))[: args.count]
+    protocol = Protocol(max_steps=args.steps)
+    print(f"{'planner':<8} {'K':>4} {'full decision ms (median / p95)':>32} {'all calls ms (median)':>22} {'full decisions':>15}")
+    for name in args.planner or ["guide", "dare"]:
+        for k in args.k:
+            options = {"num_inference_steps": k}
+            if args.checkpoint:
+                options["checkpoint"] = args.checkpoint
+            full, every = [], []
+            for path in maps:
+                timed = TimedPlanner(make_planner(name, **options))
+                run_episode(load_map(path), timed, protocol)
+                full += [ms for ms, sampled in timed.calls[1:] if sampled]  # the first call also loads the model
+                every += [ms for ms, _ in timed.calls[1:]]
+            print(f"{name:<8} {k:>4} {np.median(full):>18.1f} / {np.percentile(full, 95):>8.1f} {np.median(every):>22.1f} {len(full):>15}")
+
+
+if __name__ == "__main__":
+    main()

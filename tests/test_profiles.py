@@ -1,0 +1,33 @@
+"""The paper profile is a complete params file: the same keys as the default, valid model configs."""
+
+from pathlib import Path
+
+import yaml
+
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.configuration_inpainter import InpainterConfig
+from pipeline.training.planner import PlannerTrainConfig
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def key_paths(tree, prefix=()):
+    if isinstance(tree, dict):
+        for key, value in tree.items():
+            yield from key_paths(value, prefix + (key,))
+    else:
+        yield prefix
+
+
+def test_paper_profile_has_the_default_keys_and_parses():
+    default = yaml.safe_load((ROOT / "params.yaml").read_text())
+    paper = yaml.safe_load((ROOT / "profiles" / "paper.yaml").read_text())
+    assert set(key_paths(default)) == set(key_paths(paper))
+    for params in (default, paper):
+        DiffusionPolicyConfig.from_dict(params["train_planner"]["model"])
+        PlannerTrainConfig.from_dict(params["train_planner"]["train"])
+        InpainterConfig.from_dict(params["train_inpainter"]["model"])
+        assert params["train_planner"]["model"]["max_nodes"] == params["build_observations"]["max_nodes"]
+    assert paper["collect_expert"]["episodes"] == 4000 and paper["collect_pairs"]["pairs"] == 10000
+    assert paper["mazes"]["test"]["count"] == 100
+    assert DiffusionPolicyConfig.from_dict(paper["train_planner"]["model"]).d_model == DiffusionPolicyConfig.paper().d_model
