@@ -25,6 +25,15 @@ from pipeline.shards import ShardJob, shard_path, write_shard
 from pipeline.simulator import Episode, run_episode
 
 
+# The library files whose code determines each data set: the shard fingerprints hash them
+# and dvc.yaml lists them as the stages' dependencies (a test keeps the two in step), so
+# editing an unrelated module (a learned planner, say) never throws collected data away.
+WORLD_SOURCES = ("collect.py", "shards.py", "simulator.py", "sensor.py", "geometry.py", "graph.py", "frontier.py",
+                 "maps.py", "protocol.py", "planners/base.py")
+PAIRS_SOURCES = WORLD_SOURCES + ("node_image.py", "planners/frontier.py", "planners/nbvp.py", "planners/tare.py")
+EXPERT_SOURCES = WORLD_SOURCES + ("coverage.py", "planners/coverage.py")
+
+
 def lattice_graph_for(ground_truth: GroundTruthMap, protocol: Protocol) -> LatticeGraph:
     return LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
 

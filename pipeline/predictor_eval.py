@@ -39,15 +39,18 @@ InpaintFactory = Callable[[GroundTruthMap, LatticeGraph], InpaintFn]
 
 # ----------------------------------------------------------------------------- inpainters
 def load_inpaint_fn(checkpoint: str | Path | None = None, threads: int | None = 1) -> InpaintFn:
-    """The trained inpainter as an InpaintFn: `checkpoint`, else models/inpainter/inpainter.pt."""
+    """The trained inpainter as an InpaintFn: `checkpoint`, else models/inpainter/inpainter.pt, else the shipped default."""
+    from pipeline.planners.global_graph_planners import SHIPPED_CHECKPOINT
+
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
+    if not checkpoint and not path.is_file() and SHIPPED_CHECKPOINT.is_file():
+        path = SHIPPED_CHECKPOINT
     if not path.is_file():
         if checkpoint:
             raise FileNotFoundError(f"inpainter checkpoint {path} not found")
         raise FileNotFoundError(
-            f"no inpainter checkpoint given and {DEFAULT_CHECKPOINT} does not exist; no default model is "
-            "shipped: train one with `python -m stages.train_inpainter` (or `dvc repro train_inpainter`) "
-            "or pass --checkpoint PATH"
+            f"no inpainter checkpoint given, {DEFAULT_CHECKPOINT} does not exist and no default is shipped "
+            f"({SHIPPED_CHECKPOINT}): train one with `dvc repro train_inpainter` or pass --checkpoint PATH"
         )
     import torch
 

@@ -34,19 +34,24 @@ class ShardJob:
     params: dict[str, Any]
 
 
-def source_digest() -> str:
-    """A hash of the library's source: data made by other code is never resumed from."""
+def source_digest(sources: Sequence[str] | None = None) -> str:
+    """A hash of the library's source: data made by other code is never resumed from.
+
+    `sources` are the package-relative files that determine the data (every .py file when
+    None), so that editing an unrelated module does not throw a data set away.
+    """
     digest = hashlib.sha256()
     root = Path(__file__).resolve().parent
-    for path in sorted(root.rglob("*.py")):
+    paths = sorted(root.rglob("*.py")) if sources is None else sorted(root / s for s in sources)
+    for path in paths:
         digest.update(path.relative_to(root).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
-def fingerprint(params: dict[str, Any]) -> str:
+def fingerprint(params: dict[str, Any], sources: Sequence[str] | None = None) -> str:
     """A short stable hash of what determines a data set's content: parameters and code."""
-    payload = json.dumps(params, sort_keys=True, default=str) + source_digest()
+    payload = json.dumps(params, sort_keys=True, default=str) + source_digest(sources)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
@@ -102,16 +107,18 @@ def run_shards(
     backend: str = "process",
     description: str = "shards",
     progress: bool = True,
+    sources: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Make every missing shard (in parallel), then write the manifest; returns it.
 
     `make_shard(job)` writes `shard_path(job.out_dir, job.index)` (with a `fingerprint`
     array) and returns its summary (counts, bytes). Shards from other params and stray
     temp files are removed first, so the folder ends up holding exactly this data set.
+    `sources` names the library files whose code the shards depend on (see `fingerprint`).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fp = fingerprint(params)
+    fp = fingerprint(params, sources)
     manifest_path = out_dir / MANIFEST
     if manifest_path.exists():
         manifest_path.unlink()  # stale until this run finishes

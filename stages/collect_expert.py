@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from pipeline.collect import ExpertConfig, collect_expert_shard, load_expert_episodes
+from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard, load_expert_episodes
 from pipeline.maps import GroundTruthMap, list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_path
@@ -60,7 +60,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     started = time.perf_counter()
     manifest = run_shards(
         collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
-        backend=backend or section.get("backend", "process"), description="expert shards",
+        backend=backend or section.get("backend", "process"), description="expert shards", sources=EXPERT_SOURCES,
     )
     seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)

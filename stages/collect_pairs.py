@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import yaml
 
-from pipeline.collect import PairsConfig, collect_pairs_shard, load_pairs
+from pipeline.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard, load_pairs
 from pipeline.maps import list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_path
@@ -71,7 +71,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     started = time.perf_counter()
     manifest = run_shards(
         collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
-        backend=backend or section.get("backend", "process"), description="pair shards",
+        backend=backend or section.get("backend", "process"), description="pair shards", sources=PAIRS_SOURCES,
     )
     seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)

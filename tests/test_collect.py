@@ -73,3 +73,20 @@ def test_ray_backend_writes_the_same_shards(generated_maze_dir, tmp_path):
     run_shards(collect_pairs_shard, 2, tmp_path / "r", {"config": config}, workers=2, backend="ray", progress=False)
     for k in range(2):
         assert shard_path(tmp_path / "p", k).read_bytes() == shard_path(tmp_path / "r", k).read_bytes()
+
+
+def test_collection_sources_exist_and_are_the_stages_dvc_deps():
+    from pathlib import Path
+
+    import yaml
+
+    from pipeline.collect import EXPERT_SOURCES, PAIRS_SOURCES
+    from pipeline.shards import source_digest
+
+    root = Path(__file__).resolve().parent.parent
+    stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]
+    for stage, sources in (("collect_pairs", PAIRS_SOURCES), ("collect_expert", EXPERT_SOURCES)):
+        assert {f"pipeline/{s}" for s in sources} <= set(stages[stage]["deps"]), stage
+        assert all((root / "pipeline" / s).is_file() for s in sources)
+    # The digest of a subset differs from the whole package's, and is stable.
+    assert source_digest(PAIRS_SOURCES) == source_digest(PAIRS_SOURCES) != source_digest()

@@ -74,6 +74,9 @@ def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match="not found"):
         load_inpaint_fn(str(tmp_path / "nope.pt"))
     monkeypatch.chdir(tmp_path)
+    import pipeline.planners.global_graph_planners as planners_module
+
+    monkeypatch.setattr(planners_module, "SHIPPED_CHECKPOINT", tmp_path / "no_shipped.pt")
     with pytest.raises(FileNotFoundError, match="train_inpainter"):
         load_inpaint_fn(None)
 
