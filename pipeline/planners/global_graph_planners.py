@@ -53,6 +53,7 @@ from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Observation
 
 DEFAULT_CHECKPOINT = Path("models/inpainter/inpainter.pt")
+SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "inpainter.pt"  # small default shipped with the package
 InpaintFn = Callable[[np.ndarray], np.ndarray]
 
 _MODEL_CACHE: dict[str, InpaintFn] = {}
@@ -87,6 +88,8 @@ def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tupl
         return cached_inpainter(checkpoint), f"trained inpainter {checkpoint}"
     if DEFAULT_CHECKPOINT.is_file():
         return cached_inpainter(DEFAULT_CHECKPOINT), f"trained inpainter {DEFAULT_CHECKPOINT}"
+    if SHIPPED_CHECKPOINT.is_file():
+        return cached_inpainter(SHIPPED_CHECKPOINT), "shipped default inpainter"
     return None, "no inpainter found: nothing predicted (frontier-only fallback)"
 
 
