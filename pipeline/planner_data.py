@@ -109,6 +109,25 @@ def load_observations(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     return arrays, meta
 
 
+def crop_observations(arrays: dict[str, np.ndarray], max_nodes: int) -> dict[str, np.ndarray]:
+    """The same observations limited to their `max_nodes` nearest rows (rows are sorted nearest first).
+
+    Neighbour indices into dropped rows become padding; the robot's row is the nearest, row 0.
+    Lets one observation set train models of several sizes.
+    """
+    stored = arrays["features"].shape[1]
+    if max_nodes > stored:
+        raise ValueError(f"cannot crop observations of {stored} nodes to {max_nodes}")
+    if max_nodes == stored:
+        return arrays
+    if (arrays["robot"] >= max_nodes).any():
+        raise ValueError("the robot's row lies beyond the crop")
+    neighbors = arrays["neighbors"][:, :max_nodes].copy()
+    neighbors[neighbors >= max_nodes] = -1
+    return {**arrays, "features": arrays["features"][:, :max_nodes], "node_mask": arrays["node_mask"][:, :max_nodes],
+            "neighbors": neighbors}
+
+
 def history_index(episode: np.ndarray, step: np.ndarray, obs_steps: int) -> np.ndarray:
     """(S, T_o) sample rows making each sample's observation history (the episode's first repeats)."""
     rows = np.arange(len(episode))[:, None] + np.arange(-obs_steps + 1, 1)[None, :]

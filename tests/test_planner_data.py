@@ -8,6 +8,7 @@ from pipeline.planner_data import (
     ObservationConfig,
     PlannerDataset,
     concatenate,
+    crop_observations,
     episode_observations,
     history_index,
     load_observations,
@@ -82,3 +83,14 @@ def test_dataset_augments_positions_and_actions_together(observations, tmp_path)
         np.testing.assert_array_equal(a["actions"].abs().sum(-1).sort().values, b["actions"].abs().sum(-1).sort().values)
     with pytest.raises(FileNotFoundError, match="build_observations"):
         load_observations(tmp_path / "missing.npz")
+
+
+def test_cropping_keeps_the_nearest_rows_and_drops_links_to_the_rest(observations):
+    _, obs = observations
+    cropped = crop_observations(obs["guide"], 40)
+    assert cropped["features"].shape[1] == 40 and cropped["neighbors"].max() < 40
+    np.testing.assert_array_equal(cropped["features"], obs["guide"]["features"][:, :40])
+    kept = obs["guide"]["neighbors"][:, :40]
+    np.testing.assert_array_equal(cropped["neighbors"][kept < 40], kept[kept < 40])
+    with pytest.raises(ValueError, match="cannot crop"):
+        crop_observations(obs["guide"], 200)

@@ -24,7 +24,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
-from pipeline.planner_data import PlannerDataset, load_observations
+from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -206,11 +206,12 @@ def train_planner(
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
     arrays, meta = load_observations(observations)
     n_max = arrays["features"].shape[1]
-    if n_max != mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
+    if n_max < mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
         raise ValueError(
             f"{observations}: observations have {n_max} nodes x {arrays['neighbors'].shape[2]} neighbours but the model "
             f"expects {mc.max_nodes} x {mc.max_neighbors}; rebuild the observations or change the model config"
         )
+    arrays = crop_observations(arrays, mc.max_nodes)  # larger stored graphs train a smaller model
     if arrays["actions"].shape[1] < mc.horizon:
         raise ValueError(f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}")
     arrays["actions"] = arrays["actions"][:, : mc.horizon]

@@ -60,7 +60,7 @@ def test_resume_continues_from_the_last_checkpoint(trained, mlflow_uri):
 def test_mismatched_model_and_observations_fail_clearly(trained):
     root, _ = trained
     with pytest.raises(ValueError, match="96 nodes"):
-        train_planner(root / "guide.npz", root / "bad", {**TINY_MODEL, "max_nodes": 64}, TINY_TRAIN, mlflow=False)
+        train_planner(root / "guide.npz", root / "bad", {**TINY_MODEL, "max_nodes": 128}, TINY_TRAIN, mlflow=False)
 
 
 def test_episode_split_holds_out_whole_episodes():
