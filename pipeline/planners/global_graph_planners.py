@@ -125,11 +125,35 @@ class _PredictingPlanner(GraphPlanner):
 
 @register_planner("guide_tsp")
 class GuideTspPlanner(_PredictingPlanner):
-    """GUIDE without the diffusion policy: frontier clusters of the global graph ordered by an open TSP path."""
+    """GUIDE without the diffusion policy: frontier clusters of the global graph ordered by an open TSP path.
+
+    Every decision: update the lattice graph, predict V_p, build the region-evaluated
+    global graph (boosted utilities), then
+    1. cluster *all* reachable useful known nodes: highest boosted utility first, a node
+       within `spread` metres of a cluster's seed (straight line and path distance from the
+       robot) joins it; a cluster's weight is its summed boosted utility and its target is
+       its member nearest the robot along the known graph. Clusters lighter than
+       `min_weight` are dropped (the robot clears such frontier slivers on the way);
+    2. shortest-path distances between robot and targets on the global graph (predicted
+       nodes shape them) and an open TSP path from the robot (`tsp_path`: exact when small);
+    3. the first target: among the `first_k` best by weight per metre plus the TSP's own
+       first, the one with the most weight per metre of (its distance + `beta` x how much
+       longer the best tour starting there is than the best tour); the rest of the tour is
+       the TSP order after it. Hysteresis: the previous first target, while still useful,
+       is forgiven `hysteresis` metres of tour length;
+    4. one lattice step toward the first target along the known-graph shortest path.
+
+    Defaults measured on 18 dev mazes of 100 m (seeds [99, 0..17], trained inpainter, never
+    the test mazes): 472 m mean vs greedy_utility 499 m, nearest_frontier 545 m.
+    Alternatives, 18 maps: beta 1 / 2: 478 / 477 m, min_weight 45: 479 m, spread 8: 498 m;
+    12 maps (greedy 492 m): beta 0 (cluster greedy) 519 m, pure TSP first target 515 m,
+    cluster seeds as targets 512 m, min_weight 0: 471 m, hysteresis 0 / 20: 467 / 475 m.
+    The previous version (top-12 utility targets, TSP's first) made 594 m on the first 6 (544 m greedy).
+    """
 
     base_description = (
         "GUIDE w/o diffusion: boosted-utility frontier clusters of the global graph (predicted nodes), "
-        "open TSP over global-graph distances with hysteresis, one known-graph step to the first"
+        "open TSP over global-graph distances, tour-regret-aware first target, one known-graph step to it"
     )
     description = base_description
 
@@ -140,7 +164,9 @@ class GuideTspPlanner(_PredictingPlanner):
         inpaint: InpaintFn | None = None,
         top_k: int = 0,
         spread: float = 10.0,
-        min_weight: float = 0.0,
+        min_weight: float = 30.0,
+        beta: float = 1.5,
+        first_k: int = 5,
         hysteresis: float = 8.0,
         exact_max: int = 9,
         max_moves: int = 200,
@@ -153,9 +179,13 @@ class GuideTspPlanner(_PredictingPlanner):
             raise ValueError(f"top_k must be >= 0 (0 = every cluster), got {top_k}")
         if spread <= 0:
             raise ValueError(f"spread must be positive, got {spread}")
+        if beta < 0:
+            raise ValueError(f"beta must be >= 0, got {beta}")
         self.top_k = int(top_k)
         self.spread = float(spread)
         self.min_weight = float(min_weight)
+        self.beta = float(beta)
+        self.first_k = max(1, int(first_k))
         self.hysteresis = float(hysteresis)
         self.exact_max = int(exact_max)
         self.max_moves = int(max_moves)
@@ -171,13 +201,13 @@ class GuideTspPlanner(_PredictingPlanner):
     def select_targets(
         self, candidates: np.ndarray, utility: np.ndarray, dist: np.ndarray, keep: int | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Cluster centres (the best node of each cluster) and cluster weights (summed boosted utility).
+        """(cluster targets, cluster weights); `keep` (the previous first target) seeds the first cluster.
 
-        Candidates are taken highest utility first (nearer on a tie); one within `spread` metres
-        (straight line, and within `spread` of its path distance from the robot, so a wall does
-        not merge two rooms) of a centre joins it, else it starts a cluster. `keep` (the previous
-        first target) is seeded as the first centre. With `top_k` > 0 only that many centres
-        (heaviest first) are kept.
+        Clusters are seeded highest utility first (nearer on a tie); a candidate within
+        `spread` metres of a seed, straight and in path distance from the robot (so a wall
+        does not merge two rooms), joins it. Targets are the members nearest the robot
+        (`keep` for its own cluster). Clusters under `min_weight` are dropped (unless all are,
+        or it is `keep`'s); with `top_k` > 0 only the heaviest `top_k` stay.
         """
         graph = self.graph
         assert graph is not None
@@ -186,44 +216,48 @@ class GuideTspPlanner(_PredictingPlanner):
             where = np.nonzero(candidates[order] == keep)[0]
             if where.size:
                 order = np.concatenate([order[where], np.delete(order, where)])
+        kept = keep is not None and candidates[order[0]] == keep
         xy = graph.node_world[candidates]
         d_robot = dist[candidates]
-        centres: list[int] = []  # indices into candidates
+        seeds: list[int] = []  # indices into candidates
+        members: list[list[int]] = []
         weight: list[float] = []
         for k in order:
-            if centres:
-                c = np.asarray(centres)
-                near = (np.hypot(*(xy[c] - xy[k]).T) < self.spread) & (np.abs(d_robot[c] - d_robot[k]) < self.spread)
+            if seeds:
+                s = np.asarray(seeds)
+                near = (np.hypot(*(xy[s] - xy[k]).T) < self.spread) & (np.abs(d_robot[s] - d_robot[k]) < self.spread)
                 if near.any():
                     j = int(np.nonzero(near)[0][0])
                     weight[j] += float(utility[k])
+                    members[j].append(int(k))
                     continue
-            centres.append(int(k))
+            seeds.append(int(k))
+            members.append([int(k)])
             weight.append(float(utility[k]))
-        centres_arr = candidates[np.asarray(centres, dtype=np.int64)]
-        weight_arr = np.asarray(weight)
-        mask = weight_arr >= self.min_weight
-        if keep is not None and centres_arr.size and centres_arr[0] == keep:
+        picks = [m[0] if (kept and j == 0) else m[int(np.argmin(d_robot[m]))] for j, m in enumerate(members)]
+        targets = candidates[np.asarray(picks, dtype=np.int64)]
+        weights = np.asarray(weight)
+        mask = weights >= self.min_weight
+        if kept:
             mask[0] = True
         if not mask.any():
             mask[:] = True
-        centres_arr, weight_arr = centres_arr[mask], weight_arr[mask]
-        if self.top_k and centres_arr.size > self.top_k:
-            top = np.argsort(-weight_arr, kind="stable")[: self.top_k]
-            if keep is not None and centres_arr[0] == keep and 0 not in top:
+        targets, weights = targets[mask], weights[mask]
+        if self.top_k and targets.size > self.top_k:
+            top = np.argsort(-weights, kind="stable")[: self.top_k]
+            if kept and 0 not in top:
                 top[-1] = 0
             top = np.sort(top)
-            centres_arr, weight_arr = centres_arr[top], weight_arr[top]
-        return centres_arr, weight_arr
+            targets, weights = targets[top], weights[top]
+        return targets, weights
 
     def _tour(self, d: np.ndarray, first: int | None = None) -> tuple[list[int], float]:
-        """Open TSP path over `d` from point 0 (optionally forced through `first` next); (order, length)."""
+        """Open TSP path over `d` from point 0 (through `first` next when given); (order, length)."""
         if first is None:
             order = tsp_path(d, None, self.exact_max, self.max_moves)
         else:
             rest = [i for i in range(len(d)) if i not in (0, first)]
-            sub = d[np.ix_([first] + rest, [first] + rest)]
-            tail = tsp_path(sub, None, self.exact_max, self.max_moves)
+            tail = tsp_path(d[np.ix_([first] + rest, [first] + rest)], None, self.exact_max, self.max_moves)
             order = [0, first] + [rest[i - 1] for i in tail[1:]]
         return order, float(sum(d[a, b] for a, b in zip(order[:-1], order[1:])))
 
@@ -241,20 +275,36 @@ class GuideTspPlanner(_PredictingPlanner):
         utility = gg.utility[np.searchsorted(known_ids, candidates)]
         keep = self.previous if self.previous is not None and self.previous in set(candidates.tolist()) else None
         targets, weight = self.select_targets(candidates, utility, dist, keep)
+        kept = keep is not None and targets[0] == keep
         points = np.concatenate([[int(np.searchsorted(known_ids, robot))], np.searchsorted(known_ids, targets)])
         d = dijkstra(gg.adjacency, directed=False, indices=points)[:, points]
         d = np.minimum(d, d.T)
         if not np.isfinite(d).all():  # cannot happen (known edges are in the global graph); be safe
             d = np.where(np.isfinite(d), d, 1e6)
         order, length = self._tour(d)
-        if keep is not None and order[1] != 1:  # targets[0] is `keep`: stay unless the new tour is clearly shorter
-            kept_order, kept_length = self._tour(d, 1)
-            if kept_length <= length + self.hysteresis:
-                order, length = kept_order, kept_length
+        if len(targets) > 1:
+            per_metre = weight / np.maximum(d[0, 1:], 1e-6)
+            firsts = set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist()) | {order[1]}
+            if kept:
+                firsts.add(1)
+            best_score, best = -np.inf, (order, length)
+            for j in sorted(firsts):
+                o_j, l_j = (order, length) if j == order[1] else self._tour(d, j)
+                slack = self.hysteresis if kept and j == 1 else 0.0
+                score = weight[j - 1] / (d[0, j] + self.beta * max(0.0, l_j - length - slack) + 1e-6)
+                if score > best_score:
+                    best_score, best = score, (o_j, l_j)
+            order, length = best
         tour = [int(targets[k - 1]) for k in order[1:]]
         first = tour[0]
         self.previous = first
-        self.last_decision = {"targets": targets, "tour": tour, "length": length, "predicted": int(len(predicted))}
+        self.last_decision = {
+            "targets": targets,
+            "weights": weight,
+            "tour": tour,
+            "length": length,
+            "predicted": int(len(predicted)),
+        }
         return self.waypoints_along(graph.path_from_predecessors(pred, first))
 
 

@@ -76,17 +76,46 @@ def test_oracle_predictions_are_used_and_steps_follow_known_edges(maze, name):
     assert predicted_seen > 0
 
 
-def test_guide_tsp_targets_are_spread_and_bounded(maze):
-    planner = make_planner("guide_tsp", inpaint=oracle_inpainter(maze), top_k=3, spread=8.0)
+def test_guide_tsp_targets_are_clusters_of_useful_nodes_and_bounded(maze):
+    planner = make_planner("guide_tsp", inpaint=oracle_inpainter(maze), top_k=3, spread=8.0, min_weight=0.0)
     episode = Episode(maze, PROTOCOL)
     planner.reset(maze, PROTOCOL, 0)
-    planner.plan(episode.observe())
-    targets = planner.last_decision["targets"]
+    observation = episode.observe()
+    planner.plan(observation)
+    decision = planner.last_decision
+    targets = decision["targets"]
     assert 1 <= len(targets) <= 3
-    xy = planner.graph.node_world[targets]
-    d = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-    assert (d[~np.eye(len(targets), dtype=bool)] >= 8.0).all()
-    assert sorted(planner.last_decision["tour"]) == sorted(targets.tolist())
+    assert len(set(targets.tolist())) == len(targets)
+    useful = set(planner.useful_nodes().tolist())
+    assert set(targets.tolist()) <= useful
+    assert sorted(decision["tour"]) == sorted(targets.tolist())
+    assert decision["length"] > 0
+
+
+def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze):
+    planner = make_planner("guide_tsp", spread=10.0, min_weight=5.0)
+    planner.reset(maze, PROTOCOL, 0)
+    xy = planner.graph.node_world
+    a = int(planner.graph.nearest_node((0.0, 0.0)))
+    b = int(planner.graph.nearest_node((4.0, 0.0)))  # one lattice step from a: same cluster
+    c = int(planner.graph.nearest_node((20.0, 0.0)))  # far: its own cluster, too light to keep
+    assert np.hypot(*(xy[b] - xy[a])) < 10.0 <= np.hypot(*(xy[c] - xy[a]))
+    candidates = np.array(sorted([a, b, c]))
+    dist = np.zeros(planner.graph.node_count)
+    dist[[a, b, c]] = [8.0, 4.0, 20.0]
+    utility = np.array([{a: 10.0, b: 3.0, c: 2.0}[n] for n in candidates])
+    targets, weights = planner.select_targets(candidates, utility, dist)
+    assert targets.tolist() == [b]  # a's cluster {a, b}: weight 13, target = the member nearer the robot
+    assert weights.tolist() == [13.0]
+    targets, weights = planner.select_targets(candidates, utility, dist, keep=c)
+    assert targets[0] == c  # the previous first target seeds a cluster and survives the weight filter
+
+
+def test_guide_tsp_rejects_bad_options():
+    with pytest.raises(ValueError, match="top_k"):
+        make_planner("guide_tsp", top_k=-1)
+    with pytest.raises(ValueError, match="beta"):
+        make_planner("guide_tsp", beta=-1.0)
 
 
 def test_mapex_paints_only_unknown_cells_near_predicted_nodes(maze):
