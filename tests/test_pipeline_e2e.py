@@ -34,6 +34,10 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     params["collect_pairs"].update(pairs=12, pairs_per_shard=6, stop_steps=[3, 10])
     params["collect_expert"].update(episodes=2, episodes_per_shard=1)
     params["train_inpainter"].update(max_epochs=2, batch_size=4)
+    params["build_observations"].update(max_nodes=64)
+    params["train_planner"]["model"].update(max_nodes=64, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
+    params["train_planner"]["train"].update(max_epochs=1, batch_size=16, warmup_steps=2)
+    params["report"].update(k_values=[2, 4], k_maps=1)
     (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     git(project, "init", "-q")
     git(project, "add", "-A")
@@ -52,8 +56,15 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path):
     assert "val_precision" in (project / "reports/inpainter_metrics.json").read_text()
     precision = (project / "reports/predictor/precision.csv").read_text().splitlines()
     assert precision[0] == "step,precision,predicted_nodes,maps,prediction_ms_median"
+    for variant in ("guide", "dare"):
+        assert (project / f"models/planner_{variant}/policy.pt").is_file()
+        assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 1
+    report = (project / "reports/report.md").read_text()
+    assert "Table II" in report and "Table IV" in report
+    assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
-               "reports/pairs_preview.png", "reports/expert_episode.png")
+               "reports/pairs_preview.png", "reports/expert_episode.png", "reports/trajectories.png",
+               "reports/planner_guide_curves.png")
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()

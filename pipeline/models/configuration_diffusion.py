@@ -40,10 +40,14 @@ class DiffusionPolicyConfig:
     action_steps: int = 2  # T_a: executed action steps before replanning
     # Action lattice: the step per axis, in node units
     step_values: tuple[int, ...] = (-2, -1, 0, 1, 2)
+    # The robot's 5 x 5 lattice window as slots of z (see GraphEncoder): feature units (dx, dy)
+    # per lattice step, i.e. position_scale / node_resolution of the observation (40 m / 4 m).
+    window_scale: float = 10.0
+    slot_width: int = 8  # width of each window slot in z
     # Noise schedule (diffusers scheduler arguments)
     num_train_timesteps: int = 100
     beta_schedule: str = "squaredcos_cap_v2"
-    prediction_type: str = "epsilon"
+    prediction_type: str = "sample"  # x0: measured to make the net use the observation (see params.yaml)
     clip_sample: bool = True
     # Sampling
     num_inference_steps: int = 30  # K
@@ -54,7 +58,7 @@ class DiffusionPolicyConfig:
         object.__setattr__(self, "step_values", tuple(self.step_values))
         for name in ("feature_dim", "max_nodes", "max_neighbors", "d_model", "heads", "encoder_layers",
                      "denoiser_layers", "horizon", "obs_steps", "action_steps", "num_train_timesteps",
-                     "num_inference_steps"):
+                     "num_inference_steps", "slot_width"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -82,6 +86,8 @@ class DiffusionPolicyConfig:
             raise ValueError(
                 f"num_inference_steps ({self.num_inference_steps}) must not exceed num_train_timesteps ({self.num_train_timesteps})"
             )
+        if not self.window_scale > 0:
+            raise ValueError(f"window_scale must be > 0, got {self.window_scale!r}")
         if self.sampler not in SAMPLERS:
             raise ValueError(f"sampler {self.sampler!r}: use one of {list(SAMPLERS)}")
 

@@ -112,7 +112,16 @@ class MaskedSelfAttentionLayer(nn.Module):
 
 
 class GraphEncoder(nn.Module):
-    """Node features -> edge-masked self-attention -> robot node cross-attends all valid nodes -> z (B, d_model)."""
+    """Node features -> edge-masked self-attention -> z (B, d_model) from three views of the robot's graph.
+
+    z = project([robot node, robot's attention over all valid nodes, the window slots]). The
+    window slots are the encoded nodes at each of the 5 x 5 lattice offsets around the robot
+    (a learned "absent" vector where no neighbour sits), laid out in the same order as the
+    action steps. Without them, the attention context of a freshly initialised encoder is
+    close to an average over all nodes, nearly the same for every observation, and the
+    denoiser learns only the actions' prior: measured on 128 expert steps, 400 full-batch
+    steps reached 12 % first-step accuracy, with z's spread across samples 2 % of its size.
+    """
 
     def __init__(self, config: DiffusionPolicyConfig) -> None:
         super().__init__()
@@ -124,7 +133,34 @@ class GraphEncoder(nn.Module):
         )
         self.norm = nn.LayerNorm(d)
         self.robot_attention = nn.MultiheadAttention(d, config.heads, dropout=config.dropout, batch_first=True)
-        self.project = nn.Linear(2 * d, d)  # [robot node, attended context] -> z
+        self.radius = max(abs(v) for v in config.step_values)
+        self.slots = (2 * self.radius + 1) ** 2
+        self.slot_proj = nn.Linear(d, config.slot_width)
+        self.absent = nn.Parameter(torch.zeros(self.slots, config.slot_width))
+        self.project = nn.Linear(2 * d + self.slots * config.slot_width, d)  # [robot, context, slots] -> z
+
+    def window_slots(self, h: torch.Tensor, features: torch.Tensor, node_mask: torch.Tensor,
+                     neighbors: torch.Tensor, robot: torch.Tensor) -> torch.Tensor:
+        """(B, slots * slot_width): the robot's neighbours' encodings placed at their lattice offsets."""
+        batch = h.shape[0]
+        rows = torch.arange(batch, device=h.device)
+        listed = neighbors[rows, robot.long()].long()  # (B, M)
+        present = (listed >= 0) & node_mask.gather(1, listed.clamp(min=0))
+        index = listed.clamp(min=0)
+        offsets = torch.round(features[rows[:, None], index, 0:2].float() * self.config.window_scale).long()  # (B, M, 2)
+        inside = present & (offsets.abs() <= self.radius).all(-1)
+        width = 2 * self.radius + 1
+        slot = (offsets[..., 1] + self.radius) * width + (offsets[..., 0] + self.radius)
+        slot = torch.where(inside, slot, torch.full_like(slot, self.slots))  # a spare slot swallows the rest
+        values = self.slot_proj(h[rows[:, None], index])  # (B, M, slot_width)
+        filled = torch.zeros(batch, self.slots + 1, values.shape[-1], device=h.device, dtype=values.dtype)
+        filled = filled.scatter(1, slot.unsqueeze(-1).expand_as(values), values)
+        seen = torch.zeros(batch, self.slots + 1, dtype=torch.bool, device=h.device).scatter(1, slot, inside)
+        centre = self.slot_proj(h[rows, robot.long()])  # the robot's own node sits at the centre slot
+        filled[:, self.slots // 2] = centre
+        seen[:, self.slots // 2] = True
+        slots = torch.where(seen[:, : self.slots, None], filled[:, : self.slots], self.absent.expand(batch, -1, -1))
+        return slots.flatten(1)
 
     def forward(
         self, features: torch.Tensor, node_mask: torch.Tensor, neighbors: torch.Tensor, robot: torch.Tensor
@@ -142,7 +178,8 @@ class GraphEncoder(nn.Module):
         context, _ = self.robot_attention(
             robot_h.unsqueeze(1), h, h, key_padding_mask=~node_mask, need_weights=False
         )  # key_padding_mask: True = ignore
-        return self.project(torch.cat([robot_h, context.squeeze(1)], dim=-1))
+        slots = self.window_slots(h, features, node_mask, neighbors, robot)
+        return self.project(torch.cat([robot_h, context.squeeze(1), slots], dim=-1))
 
 
 # ----------------------------------------------------------------------------- denoiser
@@ -207,6 +244,10 @@ class NoisePredictionNet(nn.Module):
         self.step_mlp = nn.Sequential(nn.Linear(d, 4 * d), nn.Mish(), nn.Linear(4 * d, d))
         self.obs_pos = nn.Parameter(torch.zeros(1, config.obs_steps, d))
         self.memory_norm = nn.LayerNorm(d)
+        # Every action token also receives the whole conditioning additively (as FiLM does in
+        # Diffusion Policy's U-Net): with cross-attention alone the net learned the actions'
+        # prior and ignored the observation (shuffling z moved its output by 2 %).
+        self.condition_in = nn.Linear((1 + config.obs_steps) * d, d)
         self.layers = nn.ModuleList(DenoiserLayer(d, config.heads, config.dropout) for _ in range(config.denoiser_layers))
         self.norm = nn.LayerNorm(d)
         self.action_out = nn.Linear(d, config.action_dim)
@@ -226,7 +267,7 @@ class NoisePredictionNet(nn.Module):
         """noisy_actions (B, T_p, A) and memory from `condition` -> predicted noise (B, T_p, A)."""
         if noisy_actions.shape[1] != self.config.horizon:
             raise ValueError(f"expected T_p={self.config.horizon} actions, got {noisy_actions.shape[1]}")
-        x = self.action_in(noisy_actions) + self.action_pos
+        x = self.action_in(noisy_actions) + self.action_pos + self.condition_in(memory.flatten(1)).unsqueeze(1)
         for layer in self.layers:
             x = layer(x, memory)
         return self.action_out(self.norm(x))

@@ -299,3 +299,25 @@ def test_paper_config():
     assert (paper.d_model, paper.heads, paper.encoder_layers, paper.denoiser_layers) == (256, 8, 6, 8)
     assert paper.horizon == DiffusionPolicyConfig().horizon
     assert DiffusionPolicyConfig.paper(sampler="ddim").sampler == "ddim"
+
+
+def test_window_slots_place_neighbours_at_their_lattice_offsets():
+    config = DiffusionPolicyConfig(max_nodes=4, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
+    encoder = GraphEncoder(config).eval()
+    features = torch.zeros(1, 4, config.feature_dim)
+    features[0, 1, 0] = 0.1  # one lattice step east of the robot (4 m / 40 m)
+    features[0, 2, 1] = -0.2  # two steps south
+    features[0, 3, 0] = 0.5  # far away: not in the window, though listed as a neighbour
+    neighbors = torch.full((1, 4, 25), -1)
+    neighbors[0, 0, :3] = torch.tensor([1, 2, 3])
+    with torch.no_grad():
+        h = torch.randn(1, 4, 32)
+        slots = encoder.window_slots(h, features, torch.ones(1, 4, dtype=torch.bool), neighbors, torch.tensor([0]))
+    slots = slots.view(25, config.slot_width)
+    projected = encoder.slot_proj(h[0])
+    with torch.no_grad():
+        torch.testing.assert_close(slots[12], projected[0])  # the robot at the centre
+        torch.testing.assert_close(slots[2 * 5 + 3], projected[1])  # (dx, dy) = (+1, 0)
+        torch.testing.assert_close(slots[0 * 5 + 2], projected[2])  # (0, -2)
+        empty = [k for k in range(25) if k not in (12, 13, 2)]
+        torch.testing.assert_close(slots[empty], encoder.absent[empty])
