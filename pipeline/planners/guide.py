@@ -7,6 +7,13 @@ sample T_p lattice steps with K denoising steps. The first T_a steps are execute
 (receding horizon), one waypoint per simulator call so that every intermediate position is
 observed, as in the expert data.
 
+Sample and rank: each decision samples `candidates` plans in one batched denoising pass
+(the same K steps, different noise) and drives the one whose feasible path reaches the most
+new frontier utility per metre (`rank_candidates`). With the small CPU-trained policy a
+single sample wanders (1078 m mean on the default test mazes against 624 m with 8); with
+a well-trained policy the samples agree and the ranking changes little. `candidates=1` is
+the plain receding-horizon policy of the paper.
+
 Each predicted step becomes a feasible move: the lattice neighbour it names when that edge
 is known free, else the known-free neighbour whose direction best matches the policy's
 soft (expected) direction. A step that stays put, or a plan that has revealed nothing for
@@ -93,7 +100,8 @@ class _DiffusionPlanner(_PredictingPlanner):
         min_utility: int = 2,
         threshold: float = 0.5,
         min_component: int = 3,
-        stall_steps: int = 6,
+        stall_steps: int = 3,  # dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
+        candidates: int = 8,  # plans sampled per decision, ranked by rank_candidates; 1 = the plain policy (dev: 8 -> 673 m)
     ):
         if self.predicts:
             super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold, min_component)
@@ -119,6 +127,9 @@ class _DiffusionPlanner(_PredictingPlanner):
         if not 1 <= self.action_steps <= config.horizon:
             raise ValueError(f"action_steps must be in 1..{config.horizon}, got {action_steps}")
         self.stall_steps = int(stall_steps)
+        if candidates < 1:
+            raise ValueError(f"candidates must be >= 1, got {candidates}")
+        self.candidates = int(candidates)
         self.graph_config = GlobalGraphConfig(max_nodes=config.max_nodes, use_region_evaluation=self.region_evaluation)
         self.description = (
             f"{self.base_description} [policy {self.policy_source}; {self.predictor_source}; K={self.num_inference_steps}]"
@@ -184,10 +195,37 @@ class _DiffusionPlanner(_PredictingPlanner):
 
         steps = self.policy.config.obs_steps
         picked = [max(0, len(self.history) - steps + k) for k in range(steps)]  # the first observation repeats
-        obs_z = torch.stack([self.encode(i)[0] for i in picked])[None]
+        obs_z = torch.stack([self.encode(i)[0] for i in picked])[None].expand(self.candidates, -1, -1)
         with torch.inference_mode():
             out = self.policy.predict_action(None, num_inference_steps=self.num_inference_steps, generator=self.generator, obs_z=obs_z)
-        return out["deltas"][0].numpy(), out["expected"][0].numpy()
+        deltas, expected = out["deltas"].numpy(), out["expected"].numpy()
+        best = self.rank_candidates(deltas, expected) if self.candidates > 1 else 0
+        return deltas[best], expected[best]
+
+    def rank_candidates(self, deltas: np.ndarray, expected: np.ndarray) -> int:
+        """Index of the sampled plan that sees the most new frontier per metre when driven on the known graph.
+
+        Each candidate's T_p steps are mapped to feasible moves as they would be executed;
+        its score is the frontier utility of the distinct unvisited nodes it reaches, with
+        each later step weighted less (0.8 per step), over its length. Ties keep the first sample.
+        """
+        graph = self.graph
+        assert graph is not None
+        robot = int(np.argmin(np.hypot(*(graph.node_world - self.history[-1].positions[0]).T)))
+        scores = np.zeros(len(deltas))
+        for c in range(len(deltas)):
+            node, seen, gain, length = robot, set(), 0.0, 0.0
+            for k in range(len(deltas[c])):
+                nxt = self.feasible_move(node, deltas[c, k], expected[c, k])
+                if nxt is None:
+                    break
+                length += float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
+                if nxt not in seen and not self.visited[nxt]:
+                    gain += (0.8**k) * float(graph.utility[nxt])
+                seen.add(nxt)
+                node = nxt
+            scores[c] = gain / (length + 1.0)
+        return int(np.argmax(scores))
 
     def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:
         """The lattice node reached by `step` from `node` if that edge is known free, else the best-matching neighbour."""

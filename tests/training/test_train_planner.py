@@ -71,11 +71,11 @@ def test_episode_split_holds_out_whole_episodes():
     assert len(train) + len(val) == 50
 
 
-@pytest.mark.parametrize("name", ["guide", "guide_noregion", "dare"])
-def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, generated_maze_dir, name):
+@pytest.mark.parametrize("name, candidates", [("guide", 8), ("guide", 1), ("guide_noregion", 8), ("dare", 8)])
+def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, generated_maze_dir, name, candidates):
     _, paths = trained
     checkpoint = paths["dare" if name == "dare" else "guide"]
-    options = {} if name == "dare" else {"inpaint": wall_aware_inpaint}
+    options = {"candidates": candidates} if name == "dare" else {"inpaint": wall_aware_inpaint, "candidates": candidates}
     planner = make_planner(name, checkpoint=str(checkpoint), num_inference_steps=3, **options)
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
     result = run_episode(ground_truth, planner, Protocol())
