@@ -1,6 +1,6 @@
 """DVC stage: precision of structural inference on the test mazes (paper Table I and Fig. 3).
 
-Reads only the `eval_predictor` section (steps, threshold, min_component, checkpoint) and
+Reads only the `eval_predictor` section (steps, threshold, min_component, keep_share, checkpoint) and
 the shared `protocol` section of params.yaml. Explores each test maze with nearest_frontier,
 runs the Global Node Predictor with the trained inpainter at each step and region
 evaluation, and writes reports/predictor/precision.csv, reports/predictor/table1.md (ours
@@ -16,7 +16,8 @@ from typing import Any, Optional
 import pandas as pd
 import yaml
 
-from pipeline.global_graph import GlobalGraphConfig
+from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
+from pipeline.predictor_eval import TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
 from pipeline.maps import list_maps
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
@@ -24,7 +25,7 @@ from pipeline.protocol import Protocol
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/predictor")
 EXPERIMENT = "table1"
-SECTION_KEYS = {"steps", "threshold", "min_component", "checkpoint"}
+SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "checkpoint"}
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -34,8 +35,9 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     if unknown:
         raise ValueError(f"{params_path}: unknown eval_predictor parameter(s): {sorted(unknown)}")
     section.setdefault("steps", [15, 30, 45, 60])
-    section.setdefault("threshold", NodePredictorConfig.threshold)
-    section.setdefault("min_component", NodePredictorConfig.min_component)
+    section.setdefault("threshold", TABLE1_THRESHOLD)
+    section.setdefault("min_component", TABLE1_MIN_COMPONENT)
+    section.setdefault("keep_share", TABLE1_KEEP_SHARE)
     section.setdefault("checkpoint", None)
     if not section["steps"]:
         raise ValueError(f"{params_path}: eval_predictor.steps must list at least one step")
@@ -50,6 +52,7 @@ def run(
     predictor_config: NodePredictorConfig,
     protocol: Protocol,
     figure: bool = True,
+    graph_config: GlobalGraphConfig = GlobalGraphConfig(),
 ) -> pd.DataFrame:
     """Evaluate on every map in `maps_dir`; writes precision.csv, table1.md and (optionally) fig3.png."""
     from pipeline.predictor_eval import evaluate_predictor, load_inpaint_fn, prediction_figure, table1_markdown
@@ -60,7 +63,7 @@ def run(
     inpaint = load_inpaint_fn(checkpoint)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, GlobalGraphConfig(), protocol)
+    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol)
     frame.to_csv(out_dir / "precision.csv", index=False)
     (out_dir / "table1.md").write_text(table1_markdown(frame))
     if figure:
@@ -68,7 +71,7 @@ def run(
         figure_step = steps_sorted[min(1, len(steps_sorted) - 1)]  # the paper's Fig. 3 is mid-exploration
         for candidate in (figure_step, steps_sorted[0]):
             done = any(
-                prediction_figure(m, candidate, inpaint, predictor_config, GlobalGraphConfig(), protocol,
+                prediction_figure(m, candidate, inpaint, predictor_config, graph_config, protocol,
                                   out_path=out_dir / "fig3.png") is not None
                 for m in maps[:3]
             )
@@ -103,7 +106,8 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
-    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol)
+    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol,
+                graph_config=table1_graph_config(float(section["keep_share"])))
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame
@@ -113,7 +117,15 @@ def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str
     """`guide eval-predictor`: default steps and predictor settings, OUT/precision.csv (+ table1.md, fig3.png)."""
     from pipeline.predictor_eval import PAPER_STEPS
 
-    return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, NodePredictorConfig(), Protocol())
+    config = NodePredictorConfig(threshold=TABLE1_THRESHOLD, min_component=TABLE1_MIN_COMPONENT)
+    return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=table1_graph_config(TABLE1_KEEP_SHARE))
+
+
+def table1_graph_config(keep_share: float) -> GlobalGraphConfig:
+    """The global graph of Table I: region evaluation keeping the best `keep_share` of scored regions."""
+    if not 0.0 < keep_share <= 1.0:
+        raise ValueError(f"eval_predictor.keep_share must lie in (0, 1], got {keep_share}")
+    return GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=keep_share))
 
 
 if __name__ == "__main__":
