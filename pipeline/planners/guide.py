@@ -207,11 +207,21 @@ class _DiffusionPlanner(_PredictingPlanner):
 
         Each candidate's T_p steps are mapped to feasible moves as they would be executed;
         its score is the frontier utility of the distinct unvisited nodes it reaches, with
-        each later step weighted less (0.8 per step), over its length. Ties keep the first sample.
+        each later step weighted less (0.8 per step), over its length. Plans that reach no
+        frontier are ordered by how close they end to the nearest useful node (shortest path
+        on the known graph), so that in explored space the policy's proposal that heads
+        toward unexplored space wins. Ties keep the first sample.
         """
+        from scipy.sparse.csgraph import dijkstra
+
         graph = self.graph
         assert graph is not None
         robot = int(np.argmin(np.hypot(*(graph.node_world - self.history[-1].positions[0]).T)))
+        useful = self.useful_nodes()
+        to_useful = (
+            dijkstra(graph.adjacency(), directed=False, indices=useful, min_only=True)
+            if useful.size else np.zeros(graph.node_count)
+        )
         scores = np.zeros(len(deltas))
         for c in range(len(deltas)):
             node, seen, gain, length = robot, set(), 0.0, 0.0
@@ -224,7 +234,8 @@ class _DiffusionPlanner(_PredictingPlanner):
                     gain += (0.8**k) * float(graph.utility[nxt])
                 seen.add(nxt)
                 node = nxt
-            scores[c] = gain / (length + 1.0)
+            remaining = float(to_useful[node]) if np.isfinite(to_useful[node]) else 1e6
+            scores[c] = gain / (length + 1.0) - 1e-6 * remaining
         return int(np.argmax(scores))
 
     def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:

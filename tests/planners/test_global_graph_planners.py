@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
+from pathlib import Path
+
 import pytest
 
 from pipeline.graph import LatticeGraph, LatticeSpec
@@ -38,6 +40,16 @@ def oracle_inpainter(ground_truth: GroundTruthMap):
 def no_default_model(monkeypatch, tmp_path):
     """Tests never pick up a trained model from the working tree."""
     monkeypatch.setattr(ggp, "DEFAULT_CHECKPOINT", tmp_path / "absent" / "inpainter.pt")
+    monkeypatch.setattr(ggp, "SHIPPED_CHECKPOINT", tmp_path / "absent" / "shipped.pt")
+
+
+def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkeypatch):
+    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+    if not shipped.is_file():
+        pytest.fail("the package ships pipeline/assets/inpainter.pt")
+    monkeypatch.setattr(ggp, "SHIPPED_CHECKPOINT", shipped)
+    planner = make_planner("guide_tsp")
+    assert "shipped default inpainter" in planner.description and planner.predictor is not None
 
 
 def test_both_planners_are_registered():

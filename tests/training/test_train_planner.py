@@ -92,3 +92,14 @@ def test_diffusion_planner_options_are_checked(trained):
         make_planner("dare", checkpoint="/nonexistent/policy.pt")
     ddim = make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, sampler="ddim")
     assert type(ddim.policy.inference_scheduler).__name__ == "DDIMScheduler"
+
+
+def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_path):
+    import pipeline.planners.guide as guide_module
+
+    monkeypatch.setattr(guide_module, "PIPELINE_POLICY", {k: tmp_path / f"{k}.pt" for k in ("guide", "dare")})
+    planner = make_planner("dare")
+    assert planner.policy_source.endswith("planner_dare.pt") and "assets" in planner.policy_source
+    monkeypatch.setattr(guide_module, "SHIPPED_POLICY", {k: tmp_path / f"shipped_{k}.pt" for k in ("guide", "dare")})
+    with pytest.raises(FileNotFoundError, match="train_planner"):
+        make_planner("guide")
