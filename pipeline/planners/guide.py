@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.global_graph import GlobalGraph, GlobalGraphConfig
+from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import Waypoint, register_planner
@@ -206,7 +206,8 @@ class _DiffusionPlanner(_PredictingPlanner):
         """Index of the sampled plan that sees the most new frontier per metre when driven on the known graph.
 
         Each candidate's T_p steps are mapped to feasible moves as they would be executed;
-        its score is the frontier utility of the distinct unvisited nodes it reaches, with
+        its score is the global graph's utility u(v) (frontier utility boosted by the predicted
+        nodes in range; plain frontier utility for `dare`) of the distinct unvisited nodes it reaches, with
         each later step weighted less (0.8 per step), over its length. Plans that reach no
         frontier are ordered by how close they end to the nearest useful node (shortest path
         on the known graph), so that in explored space the policy's proposal that heads
@@ -222,6 +223,11 @@ class _DiffusionPlanner(_PredictingPlanner):
             dijkstra(graph.adjacency(), directed=False, indices=useful, min_only=True)
             if useful.size else np.zeros(graph.node_count)
         )
+        # u(v) of the global graph (Sec. IV-B.3): frontier utility boosted by predicted nodes in range.
+        utility = np.zeros(graph.node_count)
+        gg = self.global_graph
+        known = gg.types == KNOWN
+        utility[gg.lattice_ids[known]] = gg.utility[known]
         scores = np.zeros(len(deltas))
         for c in range(len(deltas)):
             node, seen, gain, length = robot, set(), 0.0, 0.0
@@ -231,7 +237,7 @@ class _DiffusionPlanner(_PredictingPlanner):
                     break
                 length += float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
                 if nxt not in seen and not self.visited[nxt]:
-                    gain += (0.8**k) * float(graph.utility[nxt])
+                    gain += (0.8**k) * float(utility[nxt])
                 seen.add(nxt)
                 node = nxt
             remaining = float(to_useful[node]) if np.isfinite(to_useful[node]) else 1e6
