@@ -108,7 +108,7 @@ class PlannerLightning(L.LightningModule):
             torch.manual_seed(batch_idx)
             loss = ema_policy.compute_loss(batch)
         self._val["loss"].append(float(loss))
-        seen = sum(self._val["first_step_count"])
+        seen = int(sum(self._val["first_step_count"]))
         budget = self.train_config.val_accuracy_samples - seen
         if budget > 0:
             obs = {k: v[:budget] for k, v in batch.items() if k != "actions"}
