@@ -229,6 +229,11 @@ class GlobalGraph:
     def shortest_paths(self, source: int) -> tuple[np.ndarray, np.ndarray]:
         return dijkstra(self.adjacency, directed=False, indices=source, return_predecessors=True)
 
+    def row_order(self, robot_xy) -> np.ndarray:
+        """Node indices in the order of the policy's rows: nearest to the robot first, at most max_nodes."""
+        distance = np.hypot(*(self.positions - np.asarray(robot_xy, dtype=np.float64)).T)
+        return np.argsort(distance, kind="stable")[: self.config.max_nodes]
+
     def features(self, robot_xy) -> tuple[np.ndarray, np.ndarray, int]:
         """Policy input: (max_nodes, len(FEATURE_NAMES)) features, a validity mask, the robot's row.
 
@@ -245,7 +250,7 @@ class GlobalGraph:
             while node >= 0:
                 guidepost[node] = True
                 node = int(pred[node])
-        order = np.argsort(np.hypot(*(self.positions - robot_xy).T), kind="stable")[:n_max]
+        order = self.row_order(robot_xy)
         feats = np.zeros((n_max, len(FEATURE_NAMES)), dtype=np.float32)
         mask = np.zeros(n_max, dtype=bool)
         k = len(order)

@@ -31,8 +31,7 @@ def observe(graph: GlobalGraph, robot_xy, max_neighbors: int = 25) -> GraphObser
     """The padded observation of `graph` (its config's max_nodes, nearest nodes first)."""
     features, mask, robot_row = graph.features(robot_xy)
     n_max = len(mask)
-    robot_xy = np.asarray(robot_xy, dtype=np.float64)
-    order = np.argsort(np.hypot(*(graph.positions - robot_xy).T), kind="stable")[:n_max]
+    order = graph.row_order(robot_xy)
     row_of = np.full(graph.node_count, -1, dtype=np.int64)
     row_of[order] = np.arange(len(order))
     neighbors = np.full((n_max, max_neighbors), -1, dtype=np.int16)
