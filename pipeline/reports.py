@@ -303,7 +303,9 @@ def table4_markdown(table: pd.DataFrame, title: str = "Table IV: denoising steps
     lines = [
         f"## {title}",
         "",
-        "Decision time: median over episodes of each episode's median (p95) planning time. "
+        "Decision time: median over episodes of each episode's median (p95) planning time, over every plan() call; "
+        "with T_a = 2 about half the calls of the diffusion planners execute a step already sampled, so the median "
+        "understates a full decision (graph update, prediction, K denoising steps): `benchmarks/bench_planner.py` times those alone. "
         "Paper numbers are from Gazebo scenes, ours from the test mazes of the sweep, so compare trends, not values.",
         "",
         "| planner | K | episodes | decision ms (median) | decision ms (p95) | distance (m) | complete "
