@@ -261,6 +261,50 @@ class GuideTspPlanner(_PredictingPlanner):
             order = [0, first] + [rest[i - 1] for i in tail[1:]]
         return order, float(sum(d[a, b] for a, b in zip(order[:-1], order[1:])))
 
+    def first_target_scores(self, robot: int, dist: np.ndarray, candidates: np.ndarray) -> dict:
+        """Cluster the useful nodes, tour them, and score the possible first targets (steps 1-3).
+
+        Needs the global graph already updated for this decision. Returns `targets` and
+        `weights` (the clusters), `firsts` (indices into targets of the first-target options),
+        `scores` (their weight per metre of distance + beta x tour regret), `tours` (each
+        option's tour as lattice ids) and `target_distance` (global-graph distances from every
+        target to every global-graph row, for callers that compare other routes to them).
+        """
+        gg = self.global_graph
+        known_ids = gg.lattice_ids[gg.types == KNOWN]  # sorted: the first rows of the global graph
+        utility = gg.utility[np.searchsorted(known_ids, candidates)]
+        keep = self.previous if self.previous is not None and self.previous in set(candidates.tolist()) else None
+        targets, weight = self.select_targets(candidates, utility, dist, keep)
+        kept = keep is not None and targets[0] == keep
+        points = np.concatenate([[int(np.searchsorted(known_ids, robot))], np.searchsorted(known_ids, targets)])
+        rows = dijkstra(gg.adjacency, directed=False, indices=points)
+        d = rows[:, points]
+        d = np.minimum(d, d.T)
+        if not np.isfinite(d).all():  # cannot happen (known edges are in the global graph); be safe
+            d = np.where(np.isfinite(d), d, 1e6)
+        order, length = self._tour(d)
+        options: dict[int, tuple[float, list[int]]] = {order[1]: (np.inf, order)}
+        if len(targets) > 1:
+            per_metre = weight / np.maximum(d[0, 1:], 1e-6)
+            firsts = set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist()) | {order[1]}
+            if kept:
+                firsts.add(1)
+            options = {}
+            for j in sorted(firsts):
+                o_j, l_j = (order, length) if j == order[1] else self._tour(d, j)
+                slack = self.hysteresis if kept and j == 1 else 0.0
+                options[j] = (weight[j - 1] / (d[0, j] + self.beta * max(0.0, l_j - length - slack) + 1e-6), o_j)
+        firsts = sorted(options)
+        return {
+            "targets": targets,
+            "weights": weight,
+            "firsts": np.asarray([j - 1 for j in firsts], dtype=np.int64),
+            "scores": np.asarray([options[j][0] for j in firsts]),
+            "tours": [[int(targets[k - 1]) for k in options[j][1][1:]] for j in firsts],
+            "length": length,
+            "target_distance": rows[1:],
+        }
+
     def plan(self, observation: Observation) -> list[Waypoint]:
         graph = self.update_graph(observation)
         robot = self.robot_node(observation)
@@ -269,40 +313,17 @@ class GuideTspPlanner(_PredictingPlanner):
         if candidates.size == 0:
             return []
         predicted = self.predict()
-        gg = self.global_graph
-        gg.update(observation.belief, observation.position, predicted, self.visited)
-        known_ids = gg.lattice_ids[gg.types == KNOWN]  # sorted: the first rows of the global graph
-        utility = gg.utility[np.searchsorted(known_ids, candidates)]
-        keep = self.previous if self.previous is not None and self.previous in set(candidates.tolist()) else None
-        targets, weight = self.select_targets(candidates, utility, dist, keep)
-        kept = keep is not None and targets[0] == keep
-        points = np.concatenate([[int(np.searchsorted(known_ids, robot))], np.searchsorted(known_ids, targets)])
-        d = dijkstra(gg.adjacency, directed=False, indices=points)[:, points]
-        d = np.minimum(d, d.T)
-        if not np.isfinite(d).all():  # cannot happen (known edges are in the global graph); be safe
-            d = np.where(np.isfinite(d), d, 1e6)
-        order, length = self._tour(d)
-        if len(targets) > 1:
-            per_metre = weight / np.maximum(d[0, 1:], 1e-6)
-            firsts = set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist()) | {order[1]}
-            if kept:
-                firsts.add(1)
-            best_score, best = -np.inf, (order, length)
-            for j in sorted(firsts):
-                o_j, l_j = (order, length) if j == order[1] else self._tour(d, j)
-                slack = self.hysteresis if kept and j == 1 else 0.0
-                score = weight[j - 1] / (d[0, j] + self.beta * max(0.0, l_j - length - slack) + 1e-6)
-                if score > best_score:
-                    best_score, best = score, (o_j, l_j)
-            order, length = best
-        tour = [int(targets[k - 1]) for k in order[1:]]
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited)
+        options = self.first_target_scores(robot, dist, candidates)
+        best = int(np.argmax(options["scores"]))  # the first option wins a tie (lowest target index)
+        tour = options["tours"][best]
         first = tour[0]
         self.previous = first
         self.last_decision = {
-            "targets": targets,
-            "weights": weight,
+            "targets": options["targets"],
+            "weights": options["weights"],
             "tour": tour,
-            "length": length,
+            "length": options["length"],
             "predicted": int(len(predicted)),
         }
         return self.waypoints_along(graph.path_from_predecessors(pred, first))

@@ -3,24 +3,37 @@
 Every decision: update the lattice graph, predict V_p (GUIDE only), build the global
 graph (region-evaluated, or keeping every prediction for `guide_noregion`, or the observed
 graph alone for `dare`), make the padded observation, stack the last T_o observations, and
-sample T_p lattice steps with K denoising steps. The first T_a steps are executed
-(receding horizon), one waypoint per simulator call so that every intermediate position is
-observed, as in the expert data.
+sample T_p lattice steps with K denoising steps for `candidates` noise draws in one batched
+pass. The first T_a steps are executed (receding horizon), one waypoint per simulator call
+so that every intermediate position is observed, as in the expert data.
 
-Sample and rank: each decision samples `candidates` plans in one batched denoising pass
-(the same K steps, different noise) and drives the one whose feasible path reaches the most
-new frontier utility per metre (`rank_candidates`). With the small CPU-trained policy a
-single sample wanders (1078 m mean on the default test mazes against 624 m with 8); with
-a well-trained policy the samples agree and the ranking changes little. `candidates=1` is
-the plain receding-horizon policy of the paper.
+How a sampled plan becomes motion, `mode`:
 
-Each predicted step becomes a feasible move: the lattice neighbour it names when that edge
-is known free, else the known-free neighbour whose direction best matches the policy's
-soft (expected) direction. A step that stays put, or a plan that has revealed nothing for
-`stall_steps` moves, hands over to one step along the shortest path to the nearest useful
-node (Yamauchi's rule) until new cells appear: a safety net that keeps a weak policy from
-circling forever; the benchmark metrics count how often it fired (`fallback_share` in
-`last_decision`). The robot moves only along known-free lattice edges.
+- `tour` (default). The global graph proposes, the policy votes. The first-target options
+  are `guide_tsp`'s (clusters of the global graph's boosted utilities, each scored by weight
+  per metre of distance plus tour regret); each option's score is multiplied by
+  1 + `prior_weight` x the share of the sampled plans heading for it (`target_votes`). The
+  executed chunk is the first T_a steps of the sample that makes the most progress toward
+  the chosen target, cut where it leaves a shortest known path to it, or that path itself
+  when no sample heads there (`fallback_share`). Measured on 6 dev mazes (never the test
+  mazes): 491 m against 610 m for mode `policy`, 508 m for `guide_tsp`, 544 m for
+  `greedy_utility`; on 8 further dev mazes 455 m (prior_weight 0: 444 m, 3: 455 m) against
+  `guide_tsp` 426 m and `greedy_utility` 450 m. A stronger prior hurts (6 dev mazes:
+  prior_weight 10 / 30 -> 511 / 538 m): the small CPU-trained policy (28 % first-step
+  accuracy on held-out expert steps) is a weak guide, and with it `guide` is `guide_tsp`
+  up to the order of ties, so its distances differ from `guide_tsp`'s by the chaos of
+  exploration (one dev maze: 654 vs 500 m from tie-breaking alone), not by skill.
+- `policy`: the plans themselves are driven. Sample and rank: the plan whose feasible path
+  reaches the most new frontier utility per metre wins (`rank_candidates`); `candidates=1`
+  is the plain receding-horizon policy of the paper. Each predicted step becomes a
+  feasible move: the lattice neighbour it names when that edge is known free, else the
+  known-free neighbour whose direction best matches the policy's soft (expected)
+  direction. A step that stays put, or a plan that has revealed nothing for `stall_steps`
+  moves, hands over to one step along the shortest path to the nearest useful node
+  (Yamauchi's rule) until new cells appear. With the small policy a single sample wanders
+  (1078 m mean on the default test mazes against 604 m with 8).
+
+The robot moves only along known-free lattice edges in both modes.
 
 Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/planner_dare/ for
 `dare`) from the pipeline; else the default shipped in pipeline/assets/ when present.
@@ -37,7 +50,7 @@ from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import Waypoint, register_planner
-from pipeline.planners.global_graph_planners import InpaintFn, _PredictingPlanner
+from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.protocol import Protocol
 from pipeline.simulator import Observation
 
@@ -80,8 +93,8 @@ def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
     )
 
 
-class _DiffusionPlanner(_PredictingPlanner):
-    """Shared receding-horizon loop of the diffusion planners."""
+class _DiffusionPlanner(GuideTspPlanner):
+    """Shared receding-horizon loop of the diffusion planners (modes `tour` and `policy`)."""
 
     kind = "guide"  # which trained policy (guide or dare)
     needs_policy = True
@@ -97,16 +110,26 @@ class _DiffusionPlanner(_PredictingPlanner):
         inpainter_checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
         policy=None,
+        mode: str = "tour",
+        prior_weight: float = 1.0,
         min_utility: int = 2,
         threshold: float = 0.5,
         min_component: int = 3,
-        stall_steps: int = 3,  # dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
-        candidates: int = 8,  # plans sampled per decision, ranked by rank_candidates; 1 = the plain policy (dev: 8 -> 673 m)
+        stall_steps: int = 3,  # mode policy; dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
+        candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
+        **tour_options,
     ):
+        if mode not in ("tour", "policy"):
+            raise ValueError(f"mode must be tour or policy, got {mode!r}")
+        if prior_weight < 0:
+            raise ValueError(f"prior_weight must be >= 0, got {prior_weight}")
         if self.predicts:
-            super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold, min_component)
+            super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold=threshold, min_component=min_component, **tour_options)
         else:
-            super().__init__(min_utility, None, lambda image: np.zeros(np.shape(image), np.float32), threshold, min_component)
+            super().__init__(
+                min_utility, None, lambda image: np.zeros(np.shape(image), np.float32),
+                threshold=threshold, min_component=min_component, **tour_options,
+            )
             self.predictor = None
             self.predictor_source = "no prediction (observed graph only)"
         if policy is None:
@@ -130,9 +153,13 @@ class _DiffusionPlanner(_PredictingPlanner):
         if candidates < 1:
             raise ValueError(f"candidates must be >= 1, got {candidates}")
         self.candidates = int(candidates)
+        self.mode = mode
+        self.prior_weight = float(prior_weight)
         self.graph_config = GlobalGraphConfig(max_nodes=config.max_nodes, use_region_evaluation=self.region_evaluation)
+        self.global_config = self.graph_config
         self.description = (
-            f"{self.base_description} [policy {self.policy_source}; {self.predictor_source}; K={self.num_inference_steps}]"
+            f"{self.base_description} [mode {mode}; policy {self.policy_source}; {self.predictor_source}; "
+            f"K={self.num_inference_steps}]"
         )
 
     @staticmethod
@@ -189,8 +216,8 @@ class _DiffusionPlanner(_PredictingPlanner):
                 )
         return self.encodings[index]
 
-    def sample_steps(self) -> tuple[np.ndarray, np.ndarray]:
-        """(T_p, 2) lattice steps and (T_p, 2) soft directions for the current history."""
+    def sample_plans(self) -> tuple[np.ndarray, np.ndarray]:
+        """(C, T_p, 2) lattice steps and (C, T_p, 2) soft directions: `candidates` samples, one batched pass."""
         import torch
 
         steps = self.policy.config.obs_steps
@@ -198,14 +225,31 @@ class _DiffusionPlanner(_PredictingPlanner):
         obs_z = torch.stack([self.encode(i)[0] for i in picked])[None].expand(self.candidates, -1, -1)
         with torch.inference_mode():
             out = self.policy.predict_action(None, num_inference_steps=self.num_inference_steps, generator=self.generator, obs_z=obs_z)
-        deltas, expected = out["deltas"].numpy(), out["expected"].numpy()
+        return out["deltas"].numpy(), out["expected"].numpy()
+
+    def sample_steps(self) -> tuple[np.ndarray, np.ndarray]:
+        """(T_p, 2) lattice steps and (T_p, 2) soft directions for the current history (mode policy)."""
+        deltas, expected = self.sample_plans()
         best = self.rank_candidates(deltas, expected) if self.candidates > 1 else 0
         return deltas[best], expected[best]
+
+    def candidate_paths(self, robot: int, deltas: np.ndarray, expected: np.ndarray) -> list[list[int]]:
+        """Each sampled plan driven on the known graph: its lattice nodes from `robot` (feasible moves only)."""
+        paths = []
+        for c in range(len(deltas)):
+            path = [robot]
+            for k in range(len(deltas[c])):
+                nxt = self.feasible_move(path[-1], deltas[c, k], expected[c, k])
+                if nxt is None:
+                    break
+                path.append(nxt)
+            paths.append(path)
+        return paths
 
     def rank_candidates(self, deltas: np.ndarray, expected: np.ndarray) -> int:
         """Index of the sampled plan that sees the most new frontier per metre when driven on the known graph.
 
-        Each candidate's T_p steps are mapped to feasible moves as they would be executed;
+        Mode policy. Each candidate's T_p steps are mapped to feasible moves as they would be executed;
         its score is the global graph's utility u(v) (frontier utility boosted by the predicted
         nodes in range; plain frontier utility for `dare`) of the distinct unvisited nodes it reaches, with
         each later step weighted less (0.8 per step), over its length. Plans that reach no
@@ -229,20 +273,39 @@ class _DiffusionPlanner(_PredictingPlanner):
         known = gg.types == KNOWN
         utility[gg.lattice_ids[known]] = gg.utility[known]
         scores = np.zeros(len(deltas))
-        for c in range(len(deltas)):
-            node, seen, gain, length = robot, set(), 0.0, 0.0
-            for k in range(len(deltas[c])):
-                nxt = self.feasible_move(node, deltas[c, k], expected[c, k])
-                if nxt is None:
-                    break
+        for c, path in enumerate(self.candidate_paths(robot, deltas, expected)):
+            seen, gain, length = set(), 0.0, 0.0
+            for k, (node, nxt) in enumerate(zip(path[:-1], path[1:])):
                 length += float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
                 if nxt not in seen and not self.visited[nxt]:
                     gain += (0.8**k) * float(utility[nxt])
                 seen.add(nxt)
-                node = nxt
-            remaining = float(to_useful[node]) if np.isfinite(to_useful[node]) else 1e6
+            end = path[-1]
+            remaining = float(to_useful[end]) if np.isfinite(to_useful[end]) else 1e6
             scores[c] = gain / (length + 1.0) - 1e-6 * remaining
         return int(np.argmax(scores))
+
+    def target_votes(self, robot: int, paths: list[list[int]], options: dict) -> np.ndarray:
+        """How much the sampled plans head for each first-target option, in [0, 1] (mode tour).
+
+        A plan's progress toward a target is how much shorter its global-graph distance is at
+        the plan's last node than at the robot, per metre driven (1 = straight at it). The
+        vote of an option is the plans' mean progress toward it.
+        """
+        graph = self.graph
+        assert graph is not None
+        gg = self.global_graph
+        known_ids = gg.lattice_ids[gg.types == KNOWN]
+        distance = options["target_distance"][options["firsts"]]  # (options, global-graph rows)
+        start = distance[:, np.searchsorted(known_ids, robot)]
+        votes = np.zeros(len(options["firsts"]))
+        for path in paths:
+            if len(path) < 2:
+                continue
+            length = float(np.hypot(*np.diff(graph.node_world[path], axis=0).T).sum())
+            end = distance[:, np.searchsorted(known_ids, path[-1])]
+            votes += np.clip((start - end) / length, 0.0, 1.0)
+        return votes / max(len(paths), 1)
 
     def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:
         """The lattice node reached by `step` from `node` if that edge is known free, else the best-matching neighbour."""
@@ -272,12 +335,79 @@ class _DiffusionPlanner(_PredictingPlanner):
     def plan(self, observation: Observation) -> list[Waypoint]:
         graph = self.update_graph(observation)
         robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        useful = self.reachable_useful(robot, dist)
+        if useful.size == 0:
+            return []  # nothing reachable is left to explore
+        if self.mode == "tour":
+            return self.plan_tour(observation, robot, dist, pred, useful)
+        return self.plan_policy(observation, robot)
+
+    def plan_tour(self, observation: Observation, robot: int, dist: np.ndarray, pred: np.ndarray, useful: np.ndarray) -> list[Waypoint]:
+        """Mode tour: the policy's samples vote on the frontier-tour first target; T_a steps of the best-aligned sample run.
+
+        The first-target options and their scores are `guide_tsp`'s (clusters of the global
+        graph's boosted utilities, weight per metre of distance + tour regret). Each option's
+        score is multiplied by 1 + `prior_weight` x its vote (`target_votes`): the learned
+        prior says which way the expert would go, the global graph says what is worth going
+        for. The executed chunk is the first T_a steps of the sample that makes the most
+        progress toward the chosen target, cut where it leaves a shortest known path to it;
+        when no sample heads there, the shortest known path itself.
+        """
+        graph = self.graph
+        assert graph is not None
+        self.observe_step(observation)
+        self.decisions += 1
+        target = self.previous
+        if self.queue and target is not None and target in set(useful.tolist()):
+            nxt = int(self.queue.pop(0))
+            if nxt in set(graph.neighbours(robot).tolist()) and dist[nxt] < np.inf:
+                self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
+                return [tuple(map(float, graph.node_world[nxt]))]
+        self.queue = []
+        options = self.first_target_scores(robot, dist, useful)
+        deltas, expected = self.sample_plans()
+        paths = self.candidate_paths(robot, deltas, expected)
+        votes = self.target_votes(robot, paths, options)
+        scores = options["scores"] * (1.0 + self.prior_weight * votes)
+        best = int(np.argmax(scores))
+        tour = options["tours"][best]
+        target = tour[0]
+        self.previous = target
+        # The chunk: a sample's steps while each one shortens the known-graph distance to the target by its length.
+        to_target, _ = graph.shortest_paths(target)
+        chunk: list[int] = []
+        for path in sorted(paths, key=lambda q: to_target[q[min(len(q) - 1, self.action_steps)]]):
+            run = []
+            for node, nxt in zip(path[: self.action_steps], path[1 : self.action_steps + 1]):
+                step = float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
+                if not to_target[nxt] < to_target[node] - step + 1e-6:
+                    break
+                run.append(nxt)
+            if run:
+                chunk = run
+                break
+        aligned = bool(chunk)
+        if not chunk:
+            self.fallbacks += 1
+            chunk = graph.path_from_predecessors(pred, target)[1 : 1 + self.action_steps]
+        self.queue = chunk[1:]
+        self.last_decision = {
+            "target": target,
+            "tour": tour,
+            "votes": votes,
+            "sampled": True,
+            "fallback": not aligned,
+            "fallback_share": self.fallbacks / self.decisions,
+        }
+        return [tuple(map(float, graph.node_world[chunk[0]]))]
+
+    def plan_policy(self, observation: Observation, robot: int) -> list[Waypoint]:
+        """Mode policy: the sampled plans ranked by `rank_candidates`, stall guard as the safety net."""
+        graph = self.graph
+        assert graph is not None
         new_free = observation.changed is None or bool(np.any(observation.belief.reshape(-1)[observation.changed] == 255))
         self.moves_without_news = 0 if new_free else self.moves_without_news + 1
-        dist, pred = graph.shortest_paths(robot)
-        useful = self.useful_nodes()
-        if not (np.isfinite(dist[useful]) & (useful != robot)).any():
-            return []  # nothing reachable is left to explore
         self.observe_step(observation)
         self.decisions += 1
         move = None

@@ -11,7 +11,7 @@ from pipeline.planner_data import ObservationConfig, concatenate, episode_observ
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
 from pipeline.shards import shard_path
-from pipeline.simulator import run_episode
+from pipeline.simulator import Episode, run_episode
 from pipeline.training.planner import load_policy, read_policy_export, split_episodes, train_planner
 
 TINY_MODEL = dict(max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1,
@@ -71,17 +71,76 @@ def test_episode_split_holds_out_whole_episodes():
     assert len(train) + len(val) == 50
 
 
-@pytest.mark.parametrize("name, candidates", [("guide", 8), ("guide", 1), ("guide_noregion", 8), ("dare", 8)])
-def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, generated_maze_dir, name, candidates):
+@pytest.mark.parametrize(
+    "name, mode, candidates",
+    [("guide", "tour", 8), ("guide", "policy", 8), ("guide", "policy", 1), ("guide_noregion", "tour", 4), ("dare", "tour", 4),
+     ("dare", "policy", 4)],
+)
+def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, generated_maze_dir, name, mode, candidates):
     _, paths = trained
     checkpoint = paths["dare" if name == "dare" else "guide"]
-    options = {"candidates": candidates} if name == "dare" else {"inpaint": wall_aware_inpaint, "candidates": candidates}
+    options = {"candidates": candidates, "mode": mode}
+    if name != "dare":
+        options["inpaint"] = wall_aware_inpaint
     planner = make_planner(name, checkpoint=str(checkpoint), num_inference_steps=3, **options)
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
     result = run_episode(ground_truth, planner, Protocol())
-    assert result.complete, result.failure  # the stall guard guarantees progress even for a 2-epoch policy
+    assert result.complete, result.failure  # tour targets / the stall guard guarantee progress even for a 2-epoch policy
     assert result.motion_violations == 0
     assert 0.0 <= planner.last_decision["fallback_share"] <= 1.0
+
+
+def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_the_target(trained, generated_maze_dir):
+    _, paths = trained
+    planner = make_planner("guide", checkpoint=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint)
+    ground_truth = load_map(list_maps(generated_maze_dir)[0])
+    checked = []
+
+    def check(episode) -> None:
+        decision = planner.last_decision
+        if not decision.get("sampled") or len(checked) >= 5:
+            return
+        graph = planner.graph
+        position = np.asarray(episode.trajectory[-1])
+        previous = graph.nearest_node(np.asarray(episode.trajectory[-2]))
+        moved_to = graph.nearest_node(position)
+        to_target, _ = graph.shortest_paths(decision["target"])
+        step = float(np.hypot(*(graph.node_world[moved_to] - graph.node_world[previous])))
+        assert to_target[moved_to] == pytest.approx(to_target[previous] - step)  # on a shortest known path
+        assert decision["target"] == decision["tour"][0]
+        assert np.all((decision["votes"] >= 0) & (decision["votes"] <= 1))
+        checked.append(True)
+
+    result = run_episode(ground_truth, planner, Protocol(), on_step=check)
+    assert result.complete and len(checked) == 5
+
+    # Votes: a plan driven straight along the shortest path to an option votes 1 for it, a plan that stays votes 0.
+    planner.reset(ground_truth, Protocol(), 0)
+    episode = Episode(ground_truth, Protocol())
+    observation = episode.observe()
+    graph = planner.update_graph(observation)
+    robot = planner.robot_node(observation)
+    dist, pred = graph.shortest_paths(robot)
+    useful = planner.reachable_useful(robot, dist)
+    planner.observe_step(observation)
+    options = planner.first_target_scores(robot, dist, useful)
+    target = int(options["targets"][options["firsts"][0]])
+    straight = graph.path_from_predecessors(pred, target)[:4]
+    votes = planner.target_votes(robot, [straight, [robot]], options)
+    assert votes[0] == pytest.approx(0.5)  # one plan of two heads straight at it, the other does not move
+
+
+def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated_maze_dir):
+    _, paths = trained
+    ground_truth = load_map(list_maps(generated_maze_dir)[0])
+    planner = make_planner("guide", checkpoint=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint, prior_weight=0.0)
+    planner.reset(ground_truth, Protocol(), 0)
+    observation = Episode(ground_truth, Protocol()).observe()
+    planner.plan(observation)
+    reference = make_planner("guide_tsp", inpaint=wall_aware_inpaint, global_graph=planner.graph_config)
+    reference.reset(ground_truth, Protocol(), 0)
+    reference.plan(observation)
+    assert planner.last_decision["target"] == reference.last_decision["tour"][0]
 
 
 def test_diffusion_planner_options_are_checked(trained):
@@ -90,6 +149,10 @@ def test_diffusion_planner_options_are_checked(trained):
         make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, action_steps=20)
     with pytest.raises(FileNotFoundError, match="no planner checkpoint"):
         make_planner("dare", checkpoint="/nonexistent/policy.pt")
+    with pytest.raises(ValueError, match="mode"):
+        make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, mode="greedy")
+    with pytest.raises(ValueError, match="prior_weight"):
+        make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, prior_weight=-1.0)
     ddim = make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, sampler="ddim")
     assert type(ddim.policy.inference_scheduler).__name__ == "DDIMScheduler"
 
