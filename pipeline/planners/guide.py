@@ -304,7 +304,9 @@ class _DiffusionPlanner(GuideTspPlanner):
                 continue
             length = float(np.hypot(*np.diff(graph.node_world[path], axis=0).T).sum())
             end = distance[:, np.searchsorted(known_ids, path[-1])]
-            votes += np.clip((start - end) / length, 0.0, 1.0)
+            with np.errstate(invalid="ignore"):  # an unreachable option (inf - inf) gets no vote
+                progress = np.where(np.isfinite(start) & np.isfinite(end), start - end, 0.0)
+            votes += np.clip(progress / length, 0.0, 1.0)
         return votes / max(len(paths), 1)
 
     def feasible_move(self, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:

@@ -128,6 +128,8 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
     straight = graph.path_from_predecessors(pred, target)[:4]
     votes = planner.target_votes(robot, [straight, [robot]], options)
     assert votes[0] == pytest.approx(0.5)  # one plan of two heads straight at it, the other does not move
+    unreachable = dict(options, target_distance=np.full_like(options["target_distance"], np.inf))
+    assert np.all(planner.target_votes(robot, [straight], unreachable) == 0.0)  # no vote, no NaN
 
 
 def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated_maze_dir):
