@@ -304,8 +304,10 @@ def table4_markdown(table: pd.DataFrame, title: str = "Table IV: denoising steps
         f"## {title}",
         "",
         "Decision time: median over episodes of each episode's median (p95) planning time, over every plan() call; "
-        "with T_a = 2 about half the calls of the diffusion planners execute a step already sampled, so the median "
-        "understates a full decision (graph update, prediction, K denoising steps): `benchmarks/bench_planner.py` times those alone. "
+        "with T_a = 2 some calls of the diffusion planners execute a step already sampled (about 1 in 5 in the default "
+        "tour mode, where a queued step is dropped once its target is reached; about half in mode policy), so the median "
+        "slightly understates a full decision (graph update, prediction, K denoising steps): `benchmarks/bench_planner.py` "
+        "times those alone. "
         "Paper numbers are from Gazebo scenes, ours from the test mazes of the sweep, so compare trends, not values.",
         "",
         "| planner | K | episodes | decision ms (median) | decision ms (p95) | distance (m) | complete "
