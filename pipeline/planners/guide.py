@@ -22,10 +22,12 @@ How a sampled plan becomes motion, `mode`:
   prior_weight 10 / 30 -> 511 / 538 m): the small CPU-trained policy (28 % first-step
   accuracy on held-out expert steps) is a weak guide, and with it `guide` is `guide_tsp`
   up to the order of ties, so its distances differ from `guide_tsp`'s by the chaos of
-  exploration (one dev maze: 654 vs 500 m from tie-breaking alone), not by skill. Even the
-  ground-truth expert's own planned path as the only vote does not help (6 dev mazes:
-  522 / 519 / 527 m at prior_weight 1 / 3 / 10), so in this mode the policy's ceiling is
-  `guide_tsp`'s. One DAgger round (24 policy-mode rollouts on the training mazes, every state
+  exploration (one dev maze: 654 vs 500 m from tie-breaking alone), not by skill. The
+  ground-truth expert's own planned path (its known-free prefix) as the only vote did not
+  help either (6 dev mazes: 522 / 519 / 527 m at prior_weight 1 / 3 / 10), and forcing the
+  option nearest the expert's next viewpoint made the robot oscillate (over 3,000 m): a
+  prior can only re-weight the tour's options, so in this mode the policy's ceiling is close
+  to `guide_tsp`'s. One DAgger round (24 policy-mode rollouts on the training mazes, every state
   relabelled by the replanning expert, 6,104 states added to the 3,716 expert steps) gave
   16 % held-out first-step accuracy, 669 m in mode policy (610 m before) and 490 m in mode
   tour (491 m): no gain at this scale.
