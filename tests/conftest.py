@@ -96,3 +96,14 @@ def expert_shard_dir(generated_maze_dir, tmp_path_factory) -> Path:
                           planner="expert", horizon=8, seed=3)
     run_shards(collect_expert_shard, 2, directory, {"config": config}, progress=False)
     return directory
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Small networks run fastest on one torch thread (many threads stall on a busy 2-core machine)."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)

@@ -19,13 +19,7 @@ from pipeline.models import (
 TINY = InpainterConfig(ngf=4, n_blocks=1)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small convolutions run fastest on one thread (many threads stall on a busy machine)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def node_batch(batch: int, size: int, seed: int = 0) -> torch.Tensor:

@@ -28,13 +28,7 @@ TINY = DiffusionPolicyConfig(
 )
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny networks run fastest on one thread (many threads stall on a busy machine)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def lattice_graph() -> tuple[torch.Tensor, torch.Tensor]:

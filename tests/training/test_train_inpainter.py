@@ -34,13 +34,7 @@ TINY = {"ngf": 4, "n_blocks": 1}
 FAST = {"batch_size": 8, "val_fraction": 0.25, "lr": 0.005, "split": "rollout"}  # fixed batch counts
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny images train fastest on one thread (and many threads stall on a busy machine)."""
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def synthetic_maze(rng: np.random.Generator, side: int) -> np.ndarray:
