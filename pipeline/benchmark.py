@@ -117,6 +117,13 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
                     f"planner {spec.label!r}: {spec.name} does not accept options {sorted(spec.options)} ({error}); "
                     f"it accepts: {', '.join(accepted) or 'no options'}"
                 ) from None
+            try:  # build it once so a bad value fails now, not after the other episodes have run
+                cls(**spec.options)
+            except (TypeError, ValueError) as error:
+                hint = ""
+                if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
+                    hint = " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
+                raise ValueError(f"planner {spec.label!r}: {error}{hint}") from None
     return specs
 
 

@@ -23,6 +23,7 @@ from pipeline.protocol import Protocol
 DASH = "—"
 NOT_RUN = "not run"
 REFERENCE_PLANNER = "optimal"
+PAIRED_BASELINE = "greedy_utility"  # the issues' yardstick: Table II compares every planner with it map by map
 ABLATION_PLANNERS = ("guide", "guide_noregion", "guide_tsp", "dare")
 K_PLANNERS = ("guide", "dare")
 FIGURE_MAPS = 2
@@ -127,22 +128,46 @@ def _gap(mean: float, optimal: float) -> float:
     return mean / optimal - 1.0 if np.isfinite(optimal) and optimal > 0 and np.isfinite(mean) else float("nan")
 
 
+def paired_difference(frame: pd.DataFrame, planner: str, baseline: str = PAIRED_BASELINE) -> tuple[float, float, int]:
+    """(mean, 95 % half-width, maps) of planner minus baseline distance over the maps both ran,
+    as fractions of the baseline's mean there. NaNs when they share no map (half-width: < 2 maps).
+
+    Per-maze spread (about 65 m on 100 m mazes) swamps most differences between planners on a
+    handful of mazes; pairing by map removes the mazes' own difficulty, and the interval says
+    which differences the test set can resolve.
+    """
+    by_map = frame.groupby(["planner", "map"])["distance_m"].mean()
+    if planner not in by_map.index.get_level_values(0) or baseline not in by_map.index.get_level_values(0):
+        return float("nan"), float("nan"), 0
+    ours, theirs = by_map.loc[planner], by_map.loc[baseline]
+    maps = ours.index.intersection(theirs.index)
+    base = float(theirs.loc[maps].mean()) if len(maps) else float("nan")
+    if not len(maps) or not base > 0:
+        return float("nan"), float("nan"), 0
+    diff = (ours.loc[maps] - theirs.loc[maps]).astype(float).to_numpy()
+    half = 1.96 * diff.std(ddof=1) / math.sqrt(len(diff)) / base if len(diff) > 1 else float("nan")
+    return float(diff.mean() / base), float(half), int(len(diff))
+
+
 # --------------------------------------------------------------------------- Table II
 TABLE2_COLUMNS = [
     "planner", "paper_row", "episodes", "distance_mean_m", "distance_std_m", "completion_rate",
-    "gap_to_optimal", "decision_ms_median", "decision_ms_p95", "paper_distance_m", "paper_gap_pct", "paper_source",
+    "gap_to_optimal", "vs_baseline", "vs_baseline_ci95", "decision_ms_median", "decision_ms_p95",
+    "paper_distance_m", "paper_gap_pct", "paper_source",
 ]
 
 
 def table2(frame: pd.DataFrame) -> pd.DataFrame:
     """Per planner: mean/std distance, completion, gap to `optimal` (mean / optimal mean - 1,
-    NaN when optimal was not run), decision ms, and the paper's distance and gap (%): Table II,
-    or Table III for the ablations (guide_noregion, guide_tsp); sorted by distance."""
+    NaN when optimal was not run), the paired difference to `greedy_utility` with its 95 %
+    half-width (`paired_difference`), decision ms, and the paper's distance and gap (%):
+    Table II, or Table III for the ablations (guide_noregion, guide_tsp); sorted by distance."""
     frame = check_metrics(frame)
     optimal = _optimal_mean(frame)
     rows = []
     for planner, group in frame.groupby("planner", sort=True):
         stats = _planner_stats(group)
+        paired = paired_difference(frame, str(planner))
         paper_distance, paper_gap, source = _paper_table2_or_3(str(planner), prefer="Table II")
         rows.append(
             {
@@ -150,6 +175,8 @@ def table2(frame: pd.DataFrame) -> pd.DataFrame:
                 "paper_row": paper_row(planner),
                 **stats,
                 "gap_to_optimal": _gap(stats["distance_mean_m"], optimal),
+                "vs_baseline": paired[0],
+                "vs_baseline_ci95": paired[1],
                 "paper_distance_m": paper_distance,
                 "paper_gap_pct": paper_gap,
                 "paper_source": source,
@@ -183,16 +210,22 @@ def table2_markdown(table: pd.DataFrame, title: str = "Table II: exploration dis
         f"## {title}",
         "",
         "Mean +- std distance (m) to complete exploration over the test mazes; gap = mean / mean(optimal) - 1. "
+        f"`vs {PAIRED_BASELINE}`: the mean map-by-map difference to `{PAIRED_BASELINE}` as a share of its mean, "
+        "+- the 95 % half-width (1.96 standard errors of the paired differences); an interval that spans 0 "
+        "is a difference the test set cannot resolve. "
         "Paper: 100 test mazes (Table II; the ablations' numbers from Table III).",
         "",
-        "| planner | paper row | episodes | distance (m) | gap to optimal | complete | decision ms (median) "
-        "| paper distance (m) | paper gap |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|",
+        f"| planner | paper row | episodes | distance (m) | gap to optimal | vs {PAIRED_BASELINE} (paired) | complete "
+        "| decision ms (median) | paper distance (m) | paper gap |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for row in table.itertuples(index=False):
+        paired = DASH
+        if row.planner != PAIRED_BASELINE and _finite(row.vs_baseline) is not None:
+            paired = _pct(row.vs_baseline) + (f" +- {_num(row.vs_baseline_ci95 * 100)}" if _finite(row.vs_baseline_ci95) is not None else "")
         lines.append(
             f"| {row.planner} | {row.paper_row} | {int(row.episodes)} "
-            f"| {_num(row.distance_mean_m)} +- {_num(row.distance_std_m)} | {_pct(row.gap_to_optimal)} "
+            f"| {_num(row.distance_mean_m)} +- {_num(row.distance_std_m)} | {_pct(row.gap_to_optimal)} | {paired} "
             f"| {_pct(row.completion_rate, signed=False)} | {_num(row.decision_ms_median, '{:.2f}')} "
             f"| {_num(row.paper_distance_m, '{:.0f}')}{' (Table III)' if row.paper_source == 'Table III' else ''} "
             f"| {_paper_gap(row.paper_gap_pct)} |"

@@ -69,6 +69,10 @@ def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path):
         run_benchmark([small_maze_path], ["x=no_such_planner:a=1"], Protocol(), tmp_path)
     with pytest.raises(ValueError, match="does not accept options.*min_utility"):
         run_benchmark([small_maze_path], ["x=nearest_frontier:no_such_option=1"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="'x'.*spread must be positive"):
+        run_benchmark([small_maze_path], ["x=guide_tsp:spread=-1"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="separated by ','"):  # a ':' where a ',' belongs
+        run_benchmark([small_maze_path], ["x=guide_tsp:spread=2:beta=3"], Protocol(), tmp_path)
     with pytest.raises(ValueError, match="used twice"):
         run_benchmark([small_maze_path], ["nearest_frontier", "nearest_frontier=greedy_utility"], Protocol(), tmp_path)
     assert not (tmp_path / "metrics.csv").exists()
@@ -134,10 +138,28 @@ def test_table2_gap_and_paper_columns(bench_frame):
     assert rows.loc["nearest_frontier", "paper_row"] == "—" and np.isnan(rows.loc["nearest_frontier", "paper_distance_m"])
     assert (rows.loc["guide_tsp", "paper_distance_m"], rows.loc["guide_tsp", "paper_source"]) == (580.0, "Table III")
     text = reports.table2_markdown(table)
-    assert "| guide | GUIDE | 2 | 115.0 +- 5.0 | +15.0 % | 100 % | 4.00 | 545 | 8.8 % |" in text
-    assert "| nearest_frontier | — | 2 | 140.0 +- 10.0 | +40.0 % | 50 % | 1.00 | — | — |" in text
-    assert "| guide_tsp | w/o diffusion | 2 | 125.0 +- 0.0 | +25.0 % | 100 % | 1.00 | 580 (Table III) | 15.7 % |" in text
+    assert "| guide | GUIDE | 2 | 115.0 +- 5.0 | +15.0 % | — | 100 % | 4.00 | 545 | 8.8 % |" in text
+    assert "| nearest_frontier | — | 2 | 140.0 +- 10.0 | +40.0 % | — | 50 % | 1.00 | — | — |" in text
+    assert "| guide_tsp | w/o diffusion | 2 | 125.0 +- 0.0 | +25.0 % | — | 100 % | 1.00 | 580 (Table III) | 15.7 % |" in text
     assert reports.table2_markdown(bench_frame) == text  # a raw metrics frame works too
+
+
+def test_table2_paired_difference_to_greedy_utility():
+    frame = pd.DataFrame(
+        metrics_rows("greedy_utility", [100, 200, 300])
+        + metrics_rows("guide", [90, 170, 280])  # 10, 30, 20 m shorter
+        + metrics_rows("guide_tsp", [120])  # one shared map only
+    )
+    mean, half, maps = reports.paired_difference(frame, "guide")
+    assert maps == 3 and mean == pytest.approx(-20 / 200)
+    assert half == pytest.approx(1.96 * 10 / np.sqrt(3) / 200)  # std of (-10, -30, -20) is 10
+    assert reports.paired_difference(frame, "guide_tsp")[::2] == (pytest.approx(0.2), 1)
+    assert np.isnan(reports.paired_difference(frame, "guide_tsp")[1])  # no interval from one map
+    assert np.isnan(reports.paired_difference(frame, "optimal")[0])  # did not run
+    text = reports.table2_markdown(frame)
+    assert "| guide | GUIDE | 3 | 180.0 +- 77.9 | — | -10.0 % +- 5.7 |" in text
+    assert "| greedy_utility | — | 3 | 200.0 +- 81.6 | — | — |" in text
+    assert "| guide_tsp | w/o diffusion | 1 | 120.0 +- 0.0 | — | +20.0 % |" in text
 
 
 def test_table2_without_optimal_has_no_gap(bench_frame):
