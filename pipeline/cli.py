@@ -164,6 +164,8 @@ def benchmark(
     mlflow_log: bool = typer.Option(True, "--mlflow/--no-mlflow", help="Log one MLflow run per planner."),
     checkpoint: Optional[Path] = typer.Option(
         None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) [default: models/, else shipped]."),
+    baseline: str = typer.Option(
+        "greedy_utility", help="Label to compare every planner with, map by map, in summary.md ('' for none)."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
@@ -179,14 +181,14 @@ def benchmark(
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
         specs = [_with_checkpoint(p, checkpoint) for p in planner]
-        frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed)
+        frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:
         _fail(str(error.args[0]))
     except (ValueError, FileNotFoundError) as error:  # a malformed "label=name:key=value" spec, unknown option, no model
         _fail(str(error))
-    typer.echo(summary_markdown(frame, protocol))
+    typer.echo(summary_markdown(frame, protocol, baseline or None))
     if mlflow_log:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
     typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md and {len(frame)} trajectories")

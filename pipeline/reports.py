@@ -18,6 +18,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from pipeline.benchmark import paired_difference
 from pipeline.protocol import Protocol
 
 DASH = "—"
@@ -128,27 +129,6 @@ def _gap(mean: float, optimal: float) -> float:
     return mean / optimal - 1.0 if np.isfinite(optimal) and optimal > 0 and np.isfinite(mean) else float("nan")
 
 
-def paired_difference(frame: pd.DataFrame, planner: str, baseline: str = PAIRED_BASELINE) -> tuple[float, float, int]:
-    """(mean, 95 % half-width, maps) of planner minus baseline distance over the maps both ran,
-    as fractions of the baseline's mean there. NaNs when they share no map (half-width: < 2 maps).
-
-    Per-maze spread (about 65 m on 100 m mazes) swamps most differences between planners on a
-    handful of mazes; pairing by map removes the mazes' own difficulty, and the interval says
-    which differences the test set can resolve.
-    """
-    by_map = frame.groupby(["planner", "map"])["distance_m"].mean()
-    if planner not in by_map.index.get_level_values(0) or baseline not in by_map.index.get_level_values(0):
-        return float("nan"), float("nan"), 0
-    ours, theirs = by_map.loc[planner], by_map.loc[baseline]
-    maps = ours.index.intersection(theirs.index)
-    base = float(theirs.loc[maps].mean()) if len(maps) else float("nan")
-    if not len(maps) or not base > 0:
-        return float("nan"), float("nan"), 0
-    diff = (ours.loc[maps] - theirs.loc[maps]).astype(float).to_numpy()
-    half = 1.96 * diff.std(ddof=1) / math.sqrt(len(diff)) / base if len(diff) > 1 else float("nan")
-    return float(diff.mean() / base), float(half), int(len(diff))
-
-
 # --------------------------------------------------------------------------- Table II
 TABLE2_COLUMNS = [
     "planner", "paper_row", "episodes", "distance_mean_m", "distance_std_m", "completion_rate",
@@ -167,7 +147,7 @@ def table2(frame: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for planner, group in frame.groupby("planner", sort=True):
         stats = _planner_stats(group)
-        paired = paired_difference(frame, str(planner))
+        paired = paired_difference(frame, str(planner), PAIRED_BASELINE)
         paper_distance, paper_gap, source = _paper_table2_or_3(str(planner), prefer="Table II")
         rows.append(
             {

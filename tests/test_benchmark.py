@@ -24,6 +24,23 @@ def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_p
     assert set(frame["planner"]) == {"nearest_frontier", "greedy_utility"}
 
 
+def test_summary_compares_with_the_baseline_map_by_map():
+    from pipeline.benchmark import summary_markdown
+
+    rows = []
+    for planner, distances in (("greedy_utility", [100, 200, 300]), ("nf", [110, 220, 330])):
+        for i, d in enumerate(distances):
+            rows.append({"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True,
+                         "explored_ratio": 1.0, "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0})
+    frame = pd.DataFrame(rows)
+    text = summary_markdown(frame, Protocol())
+    assert "vs greedy_utility (paired, 95 %)" in text
+    assert "| nf | 3 | 220.0 +- 89.8 | +10.0 % +- 5.7 |" in text  # differences 10, 20, 30 m over a 200 m mean
+    assert "| greedy_utility | 3 | 200.0 +- 81.6 | — |" in text
+    assert "vs " not in summary_markdown(frame, Protocol(), baseline=None)
+    assert "vs " not in summary_markdown(frame[frame.planner == "nf"], Protocol())  # the baseline did not run
+
+
 def test_benchmark_rejects_unknown_planner_and_bad_maps(generated_maze_dir, tmp_path):
     with pytest.raises(KeyError, match="unknown planner"):
         run_benchmark(list_maps(generated_maze_dir), ["no_such_planner"], Protocol(), tmp_path)
