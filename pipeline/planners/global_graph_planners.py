@@ -43,7 +43,7 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
-from pipeline.graph import visible_counts
+from pipeline.graph import LatticeGraph, visible_counts
 from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
@@ -121,6 +121,14 @@ class _PredictingPlanner(GraphPlanner):
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         targets = self.useful_nodes()
         return targets[np.isfinite(dist[targets]) & (targets != robot)]
+
+    def locate(self, observation: Observation) -> tuple[LatticeGraph, int, np.ndarray, np.ndarray, np.ndarray]:
+        """Every decision's start: the updated graph, the robot's node, known-graph distances and
+        predecessors from it, and the useful nodes it can reach (empty: nothing left to explore)."""
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        return graph, robot, dist, pred, self.reachable_useful(robot, dist)
 
 
 @register_planner("guide_tsp")
@@ -315,10 +323,7 @@ class GuideTspPlanner(_PredictingPlanner):
         }
 
     def plan(self, observation: Observation) -> list[Waypoint]:
-        graph = self.update_graph(observation)
-        robot = self.robot_node(observation)
-        dist, pred = graph.shortest_paths(robot)
-        candidates = self.reachable_useful(robot, dist)
+        graph, robot, dist, pred, candidates = self.locate(observation)
         if candidates.size == 0:
             return []
         predicted = self.predict()
@@ -381,10 +386,7 @@ class MapExPlanner(_PredictingPlanner):
         return painted
 
     def plan(self, observation: Observation) -> list[Waypoint]:
-        graph = self.update_graph(observation)
-        robot = self.robot_node(observation)
-        dist, pred = graph.shortest_paths(robot)
-        candidates = self.reachable_useful(robot, dist)
+        graph, robot, dist, pred, candidates = self.locate(observation)
         if candidates.size == 0:
             return []
         belief = observation.belief

@@ -343,10 +343,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         return int(neighbours[best])
 
     def plan(self, observation: Observation) -> list[Waypoint]:
-        graph = self.update_graph(observation)
-        robot = self.robot_node(observation)
-        dist, pred = graph.shortest_paths(robot)
-        useful = self.reachable_useful(robot, dist)
+        _, robot, dist, pred, useful = self.locate(observation)
         if useful.size == 0:
             return []  # nothing reachable is left to explore
         if self.mode == "tour":
