@@ -18,13 +18,12 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from pipeline.benchmark import paired_difference
+from pipeline.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE, paired_difference
 from pipeline.protocol import Protocol
 
 DASH = "—"
 NOT_RUN = "not run"
 REFERENCE_PLANNER = "optimal"
-PAIRED_BASELINE = "greedy_utility"  # the issues' yardstick: Table II compares every planner with it map by map
 ABLATION_PLANNERS = ("guide", "guide_noregion", "guide_tsp", "dare")
 K_PLANNERS = ("guide", "dare")
 FIGURE_MAPS = 2
