@@ -91,9 +91,9 @@ def evaluate_regions(
 @dataclass(frozen=True)
 class GlobalGraphConfig:
     region: RegionEvaluationConfig = RegionEvaluationConfig()
-    centroid_link_range: float = 30.0  # metres: centroids link to nodes this close ...
+    centroid_link_nodes: float = 7.5  # node spacings (30 m at d_n = 4 m): centroids link to nodes this close ...
     centroid_links: int = 4  # ... at most this many
-    position_scale: float = 40.0  # metres: dx, dy features are divided by this
+    position_scale_nodes: float = 10.0  # node spacings (40 m at d_n = 4 m): dx, dy features are divided by this
     utility_scale: float = 100.0  # utility feature = min(u / utility_scale, 1)
     max_nodes: int = 512  # features() pads or trims to this many nodes
     use_region_evaluation: bool = True  # False: keep every prediction (the paper's ablation)
@@ -196,12 +196,13 @@ class GlobalGraph:
         if len(centroid_xy):
             all_xy = np.concatenate([lattice.node_world[known], lattice.node_world[kept], centroid_xy])
             cells_all = lattice.spec.world_to_cell(all_xy)
+            link_range = self.config.centroid_link_nodes * lattice.spec.node_resolution
             for c, xy in enumerate(centroid_xy):
                 d = np.hypot(*(all_xy - xy).T)
                 d[offset + c] = np.inf
                 links = 0
                 for j in np.argsort(d):
-                    if d[j] > self.config.centroid_link_range or links >= self.config.centroid_links:
+                    if d[j] > link_range or links >= self.config.centroid_links:
                         break
                     if self._segment_clear(belief, cells_all[offset + c], cells_all[j]):
                         rows.append(np.array([offset + c]))
@@ -254,7 +255,7 @@ class GlobalGraph:
         feats = np.zeros((n_max, len(FEATURE_NAMES)), dtype=np.float32)
         mask = np.zeros(n_max, dtype=bool)
         k = len(order)
-        rel = (self.positions[order] - robot_xy) / self.config.position_scale
+        rel = (self.positions[order] - robot_xy) / (self.config.position_scale_nodes * self.lattice.spec.node_resolution)
         feats[:k, 0:2] = rel
         feats[:k, 2] = np.minimum(self.utility[order] / self.config.utility_scale, 1.0)
         feats[:k, 3] = guidepost[order]

@@ -72,8 +72,9 @@ def ground_truth_states(graph: LatticeGraph, ground_free: np.ndarray) -> np.ndar
     return states
 
 
-WALL_RADIUS_M = 2.4
-"""Unknown nodes this close to a known obstacle cell are drawn as obstacles in the node image.
+WALL_RADIUS_NODES = 0.6
+"""Unknown nodes this close to a known obstacle cell (in node spacings: 2.4 m at d_n = 4 m) are
+drawn as obstacles in the node image.
 
 A node inside a 5 m wall is never observed (the lidar reveals wall surfaces only), so left
 unknown it teaches the inpainter that "unknown next to free" means wall. Measured on the
@@ -82,10 +83,10 @@ are walls in the ground truth.
 """
 
 
-def observed_node_states(belief: np.ndarray, graph: LatticeGraph, wall_radius_m: float = WALL_RADIUS_M) -> np.ndarray:
+def observed_node_states(belief: np.ndarray, graph: LatticeGraph, wall_radius_nodes: float = WALL_RADIUS_NODES) -> np.ndarray:
     """Node states for the observed node image: the belief at each node, plus inferred walls."""
     states = node_states_in(belief, graph.node_flat)
-    radius = int(round(wall_radius_m / graph.spec.cell_size))
+    radius = int(round(wall_radius_nodes * graph.spec.node_step_cells))
     if radius >= 1:
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
         near_wall = cv2.dilate((belief == OCCUPIED).astype(np.uint8), kernel).reshape(-1)[graph.node_flat] > 0

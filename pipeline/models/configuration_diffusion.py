@@ -41,7 +41,7 @@ class DiffusionPolicyConfig:
     # Action lattice: the step per axis, in node units
     step_values: tuple[int, ...] = (-2, -1, 0, 1, 2)
     # The robot's 5 x 5 lattice window as slots of z (see GraphEncoder): feature units (dx, dy)
-    # per lattice step, i.e. position_scale / node_resolution of the observation (40 m / 4 m).
+    # per lattice step: GlobalGraphConfig.position_scale_nodes (dx, dy are in units of 10 node spacings).
     window_scale: float = 10.0
     slot_width: int = 8  # width of each window slot in z
     # Noise schedule (diffusers scheduler arguments)

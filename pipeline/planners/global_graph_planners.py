@@ -55,6 +55,10 @@ from pipeline.simulator import Observation
 DEFAULT_CHECKPOINT = Path("models/inpainter/inpainter.pt")
 SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "inpainter.pt"  # small default shipped with the package
 InpaintFn = Callable[[np.ndarray], np.ndarray]
+# guide_tsp's lengths in node spacings, so that a map drawn at another scale (a 1 m lattice on a
+# 0.1 m grid, say) is explored exactly as the 4 m benchmark lattice is: 10 m and 8 m at d_n = 4 m.
+SPREAD_NODES = 2.5
+HYSTERESIS_NODES = 2.0
 
 _MODEL_CACHE: dict[str, InpaintFn] = {}
 _MODEL_LOCK = threading.Lock()
@@ -151,6 +155,9 @@ class GuideTspPlanner(_PredictingPlanner):
        is forgiven `hysteresis` metres of tour length;
     4. one lattice step toward the first target along the known-graph shortest path.
 
+    `spread` and `hysteresis` default to 2.5 and 2 node spacings (10 m and 8 m on the 4 m
+    benchmark lattice), so the planner behaves the same on a map drawn at any scale.
+
     Defaults measured on 18 dev mazes of 100 m (seeds [99, 0..17], trained inpainter, never
     the test mazes): 472 m mean vs greedy_utility 499 m, nearest_frontier 545 m.
     Alternatives, 18 maps: beta 1 / 2: 478 / 477 m, min_weight 45: 479 m, spread 8: 498 m;
@@ -180,11 +187,11 @@ class GuideTspPlanner(_PredictingPlanner):
         checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
         top_k: int = 0,
-        spread: float = 10.0,
+        spread: float | None = None,
         min_weight: float = 30.0,
         beta: float = 1.5,
         first_k: int = 5,
-        hysteresis: float = 8.0,
+        hysteresis: float | None = None,
         exact_max: int = 9,
         max_moves: int = 200,
         global_graph: GlobalGraphConfig = GlobalGraphConfig(),
@@ -194,16 +201,15 @@ class GuideTspPlanner(_PredictingPlanner):
         super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
         if top_k < 0:
             raise ValueError(f"top_k must be >= 0 (0 = every cluster), got {top_k}")
-        if spread <= 0:
+        if spread is not None and spread <= 0:
             raise ValueError(f"spread must be positive, got {spread}")
         if beta < 0:
             raise ValueError(f"beta must be >= 0, got {beta}")
         self.top_k = int(top_k)
-        self.spread = float(spread)
+        self.spread_option, self.hysteresis_option = spread, hysteresis  # metres; None: scaled to d_n in reset()
         self.min_weight = float(min_weight)
         self.beta = float(beta)
         self.first_k = max(1, int(first_k))
-        self.hysteresis = float(hysteresis)
         self.exact_max = int(exact_max)
         self.max_moves = int(max_moves)
         self.global_config = global_graph
@@ -212,6 +218,9 @@ class GuideTspPlanner(_PredictingPlanner):
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         super().reset(ground_truth, protocol, seed)
         assert self.graph is not None
+        d_n = protocol.node_resolution
+        self.spread = SPREAD_NODES * d_n if self.spread_option is None else float(self.spread_option)
+        self.hysteresis = HYSTERESIS_NODES * d_n if self.hysteresis_option is None else float(self.hysteresis_option)
         self.global_graph = GlobalGraph(self.graph, self.global_config)
         self.previous = None
 

@@ -281,6 +281,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         known = gg.types == KNOWN
         utility[gg.lattice_ids[known]] = gg.utility[known]
         scores = np.zeros(len(deltas))
+        scale = graph.spec.node_resolution / 4.0  # lengths in metres of the 4 m benchmark lattice, at any scale
         for c, path in enumerate(self.candidate_paths(robot, deltas, expected)):
             seen, gain, length = set(), 0.0, 0.0
             for k, (node, nxt) in enumerate(zip(path[:-1], path[1:])):
@@ -290,7 +291,7 @@ class _DiffusionPlanner(GuideTspPlanner):
                 seen.add(nxt)
             end = path[-1]
             remaining = float(to_useful[end]) if np.isfinite(to_useful[end]) else 1e6
-            scores[c] = gain / (length + 1.0) - 1e-6 * remaining
+            scores[c] = gain / (length / scale + 1.0) - 1e-6 * remaining / scale
         return int(np.argmax(scores))
 
     def target_votes(self, robot: int, paths: list[list[int]], options: dict) -> np.ndarray:

@@ -24,9 +24,9 @@ Adaptation to the lattice and the protocol:
   cell, the grid edge, or before its end cell, as the real sensor does. Because the fan is
   a subset of the real sensor's rays, a vertex the robot has sensed from has gain 0.
 - Branch value as Bircher: Gain(n_k) = Gain(n_{k-1}) + G(n_k) exp(-lambda c(n_k)), with
-  c the path length (metres) from the root along the tree. The default lambda = 0.125 /m
-  weighs a view one sensor range (20 m) away by exp(-2.5) ~ 0.08; the unit-free product
-  lambda x sensor range is what carries over to other protocols.
+  c the path length (metres) from the root along the tree. The default lambda = 2.5 /
+  sensor range (0.125 /m at 20 m) weighs a view one sensor range away by exp(-2.5) ~ 0.08
+  under any protocol: the unit-free product lambda x sensor range is what carries over.
 - Defaults: tree_size N = 40 vertices (the robot's node included), at most
   `max_attempts_factor` x N samples per decision (a small known-free area may hold fewer
   than N lattice nodes), `gain_threshold` = 20 cells, gains from every 4th lidar ray.
@@ -50,6 +50,7 @@ from pipeline.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Observation
 
 WINDOW = 2 * WINDOW_RADIUS + 1
+LAM_TIMES_RANGE = 2.5  # Bircher's lambda x sensor range: a view one range away counts exp(-2.5)
 
 
 class ViewGain:
@@ -126,7 +127,7 @@ class NBVPPlanner(GraphPlanner):
     def __init__(
         self,
         tree_size: int = 40,
-        lam: float = 0.125,
+        lam: float | None = None,
         gain_threshold: float = 20.0,
         sample_radius_factor: float = 2.0,
         ray_stride: int = 4,
@@ -137,7 +138,7 @@ class NBVPPlanner(GraphPlanner):
         super().__init__(min_utility=min_utility)
         if tree_size < 2:
             raise ValueError(f"tree_size must be >= 2, got {tree_size}")
-        if lam < 0:
+        if lam is not None and lam < 0:
             raise ValueError(f"lam must be >= 0, got {lam}")
         if sample_radius_factor <= 0:
             raise ValueError(f"sample_radius_factor must be positive, got {sample_radius_factor}")
@@ -146,7 +147,8 @@ class NBVPPlanner(GraphPlanner):
         if max_attempts_factor < 1:
             raise ValueError(f"max_attempts_factor must be >= 1, got {max_attempts_factor}")
         self.tree_size = int(tree_size)
-        self.lam = float(lam)
+        self.lam_option = lam  # 1/m; None: LAM_TIMES_RANGE / the protocol's sensor range, set in reset()
+        self.lam = 0.0 if lam is None else float(lam)
         self.gain_threshold = float(gain_threshold)
         self.sample_radius_factor = float(sample_radius_factor)
         self.ray_stride = int(ray_stride)
@@ -160,6 +162,7 @@ class NBVPPlanner(GraphPlanner):
         super().reset(ground_truth, protocol, seed)
         graph = self.graph
         assert graph is not None
+        self.lam = LAM_TIMES_RANGE / protocol.sensor_range if self.lam_option is None else float(self.lam_option)
         self.view_gain = ViewGain(ground_truth.shape, protocol.sensor_range_cells, self.ray_stride)
         # edge_of[node, window slot] = id of the candidate edge to that neighbour, -1 if none.
         self._edge_of = np.full((graph.node_count, WINDOW * WINDOW), -1, dtype=np.int64)

@@ -1,0 +1,48 @@
+"""Every exploring planner explores a map drawn at another scale exactly as the benchmark's.
+
+The same maze PNG read at 0.1 m per cell, with a 1 m lattice, 5 m sensor, 2.5 m utility
+range and 5 m regions, is the 0.4 m / 4 m / 20 m benchmark world shrunk by four: every
+cell-level quantity is unchanged. A planner whose lengths are tied to the lattice (not to
+metres) must then take the same waypoints, and travel exactly a quarter of the distance.
+Scaling by a power of two is exact in floating point, so the check can be strict.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pipeline.maps import load_maze_png
+from pipeline.planners import make_planner
+from pipeline.planners.global_graph_planners import SHIPPED_CHECKPOINT
+from pipeline.planners.guide import SHIPPED_POLICY
+from pipeline.protocol import Protocol
+from pipeline.simulator import run_episode
+
+BENCHMARK = Protocol()
+QUARTER = Protocol(cell_size=0.1, node_resolution=1.0, sensor_range=5.0, utility_range=2.5, region_size=5.0)
+INPAINTER = str(SHIPPED_CHECKPOINT)
+
+PLANNERS = {
+    "nearest_frontier": {},
+    "greedy_utility": {},
+    "tare": {},
+    "nbvp": {},
+    "guide_tsp": {"checkpoint": INPAINTER},
+    "mapex": {"checkpoint": INPAINTER},
+    "guide": {"checkpoint": str(SHIPPED_POLICY["guide"]), "inpainter_checkpoint": INPAINTER},
+    "guide_noregion": {"checkpoint": str(SHIPPED_POLICY["guide"]), "inpainter_checkpoint": INPAINTER},
+    "dare": {"checkpoint": str(SHIPPED_POLICY["dare"])},
+}
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_a_quarter_scale_map_is_explored_on_the_same_waypoints(name, small_maze_path):
+    runs = []
+    for protocol in (BENCHMARK, QUARTER):
+        ground_truth = load_maze_png(small_maze_path, cell_size=protocol.cell_size)
+        result = run_episode(ground_truth, make_planner(name, **PLANNERS[name]), protocol, seed=0)
+        runs.append(result)
+    full, quarter = runs
+    assert full.complete and quarter.complete
+    assert quarter.steps == full.steps
+    assert quarter.distance_m * 4 == pytest.approx(full.distance_m, rel=1e-12)
