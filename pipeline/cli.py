@@ -67,6 +67,32 @@ def planners() -> None:
 
 
 @app.command()
+def mazes(
+    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png into (created if missing)."),
+    count: int = typer.Option(..., min=1, help="How many mazes."),
+    seed: int = typer.Option(0, min=0, help="Maze i is drawn from seed sequence [seed, i]."),
+    side: float = typer.Option(100.0, help="Side length in metres (a multiple of the block size)."),
+    cell_size: float = CellSize,
+) -> None:
+    """Draw mazes like the benchmark's (the pipeline's generator and defaults) into a folder.
+
+    More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
+    `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
+    """
+    from pipeline.mazes import MazeConfig, generate_maze_set
+
+    try:
+        config = MazeConfig(side_m=(side, side), cell_size=cell_size)
+    except ValueError as error:
+        _fail(str(error))
+    stale = sorted(out.glob("maze_*.png")) if out.is_dir() else []
+    if stale:
+        _fail(f"{out} already holds {len(stale)} maze PNGs: pick an empty folder, so no old maze mixes into a set")
+    paths = generate_maze_set(config, count, out, seed=seed)
+    typer.echo(f"wrote {len(paths)} mazes of {config.side_m[0]:g} m to {out}")
+
+
+@app.command()
 def explore(
     map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
     planner: str = typer.Option("nearest_frontier", help="Planner name (see `guide planners`)."),
