@@ -18,7 +18,7 @@ def test_planners_lists_every_name():
 
 
 def test_every_command_has_help():
-    for command in (["--help"], ["explore", "--help"], ["benchmark", "--help"], ["replay", "--help"], ["stage", "--help"]):
+    for command in (["--help"], ["explore", "--help"], ["benchmark", "--help"], ["replay", "--help"], ["mazes", "--help"], ["stage", "--help"]):
         result = runner.invoke(app, command)
         assert result.exit_code == 0 and "Usage" in result.output
 
@@ -74,3 +74,22 @@ def test_benchmark_command_logs_one_mlflow_run_per_planner(generated_maze_dir, t
     runs = mlflow.search_runs(experiment_names=["cli-test"])
     assert sorted(runs["tags.mlflow.runName"]) == ["greedy_utility", "nearest_frontier"]
     assert (runs["metrics.completion_rate"] == 1.0).all()
+
+
+def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path):
+    from pipeline.maps import load_map
+
+    out = tmp_path / "set"
+    result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "30"])
+    assert result.exit_code == 0, result.output
+    paths = sorted(out.glob("maze_*.png"))
+    assert [p.name for p in paths] == ["maze_0000.png", "maze_0001.png"]
+    first = load_map(paths[0])
+    assert first.free.shape == (75, 75) and first.free.any()  # 30 m at 0.4 m cells
+    again = runner.invoke(app, ["mazes", "--out", str(tmp_path / "again"), "--count", "1", "--seed", "5", "--side", "30"])
+    assert again.exit_code == 0
+    assert (tmp_path / "again" / "maze_0000.png").read_bytes() == paths[0].read_bytes()  # the seed fixes the maze
+    used = runner.invoke(app, ["mazes", "--out", str(out), "--count", "1"])
+    assert used.exit_code == 2 and "already holds 2 maze PNGs" in used.output
+    odd = runner.invoke(app, ["mazes", "--out", str(tmp_path / "odd"), "--count", "1", "--side", "7"])
+    assert odd.exit_code == 2 and "whole number" in odd.output
