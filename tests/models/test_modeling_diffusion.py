@@ -213,6 +213,27 @@ def test_sample_matches_a_plain_denoising_loop(sampler):
     assert torch.allclose(got, x.clamp(-1, 1), atol=1e-5)
 
 
+def test_traced_denoiser_samples_what_the_eager_net_samples():
+    """trace_denoiser() only changes how the net runs: same samples, per batch size; train() drops the traces."""
+    torch.manual_seed(0)
+    policy = DiffusionPolicy(TINY).eval()
+    samples = {}
+    for batch in (1, 3):
+        obs = observation(TINY, batch=batch)
+        samples[batch] = policy.sample(obs, 6, generator=torch.Generator().manual_seed(4))
+    policy.trace_denoiser()
+    for batch in (1, 3, 1):  # a second shape gets its own trace; the first is reused
+        got = policy.sample(observation(TINY, batch=batch), 6, generator=torch.Generator().manual_seed(4))
+        assert torch.allclose(got, samples[batch], atol=1e-5)
+    assert len(policy.traced_denoiser._traces) == 2
+    with torch.no_grad():
+        policy.noise_net.action_out.bias.add_(1.0)  # new weights (as training would make) ...
+    policy.train()
+    assert policy.traced_denoiser is None  # ... so the frozen traces are gone
+    changed = policy.eval().sample(observation(TINY, batch=1), 6, generator=torch.Generator().manual_seed(4))
+    assert not torch.allclose(changed, samples[1], atol=1e-3)
+
+
 @pytest.fixture(scope="module")
 def overfit():
     """A DDIM policy trained for 200 Adam steps on one observation/action pair repeated 32 times."""
