@@ -18,7 +18,9 @@ How a sampled plan becomes motion, `mode`:
   when no sample heads there (`fallback_share`). Measured on 6 dev mazes (never the test
   mazes): 491 m against 610 m for mode `policy`, 508 m for `guide_tsp`, 544 m for
   `greedy_utility`; on 8 further dev mazes 455 m (prior_weight 0: 444 m, 3: 455 m) against
-  `guide_tsp` 426 m and `greedy_utility` 450 m. A stronger prior hurts (6 dev mazes:
+  `guide_tsp` 426 m and `greedy_utility` 450 m; on 100 fresh mazes `guide` is level with
+  `guide_tsp` (-0.4 % +- 1.0, paired) and `greedy_utility` (-0.3 % +- 2.7) and 3.5 % +- 2.7
+  shorter than `dare`. A stronger prior hurts (6 dev mazes:
   prior_weight 10 / 30 -> 511 / 538 m): the small CPU-trained policy (28 % first-step
   accuracy on held-out expert steps) is a weak guide, and with it `guide` is `guide_tsp`
   up to the order of ties, so its distances differ from `guide_tsp`'s by the chaos of
