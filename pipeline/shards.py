@@ -109,12 +109,17 @@ def run_shards(
     progress: bool = True,
     sources: Sequence[str] | None = None,
 ) -> dict[str, Any]:
-    """Make every missing shard (in parallel), then write the manifest; returns it.
+    """Make every missing shard (in parallel), then write the manifest; returns it with this run's provenance.
 
     `make_shard(job)` writes `shard_path(job.out_dir, job.index)` (with a `fingerprint`
-    array) and returns its summary (counts, bytes). Shards from other params and stray
+    array and its counts as `summary_*` arrays). Shards from other params and stray
     temp files are removed first, so the folder ends up holding exactly this data set.
     `sources` names the library files whose code the shards depend on (see `fingerprint`).
+
+    The manifest on disk holds only what the data are (params, fingerprint, shards, totals),
+    so the folder's bytes, and DVC's hash of it, do not change with the git commit or with
+    a resume. The returned dict adds `code_version` and `made_this_run` (the shard indices
+    this run made) for the caller's run summary.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -130,42 +135,30 @@ def run_shards(
             old.unlink()
     jobs = [ShardJob(k, str(out_dir), fp, params) for k in range(shard_count)]
     todo = [job for job in jobs if not shard_path(out_dir, job.index).is_file()]
-    summaries: dict[int, dict[str, Any]] = {}
-    for job in jobs:
-        if job not in todo:
-            summaries[job.index] = summarise_shard(shard_path(out_dir, job.index))
     bar = tqdm(total=shard_count, initial=shard_count - len(todo), desc=description, unit="shard", disable=not progress)
     if backend == "ray":
-        for index, summary in _run_ray(make_shard, todo, workers):
-            summaries[index] = summary
+        for _ in _run_ray(make_shard, todo, workers):
             bar.update()
     elif backend == "process":
         if workers <= 1 or len(todo) <= 1:
             for job in todo:
-                summaries[job.index] = make_shard(job)
+                make_shard(job)
                 bar.update()
         else:
             with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
-                futures = {pool.submit(make_shard, job): job.index for job in todo}
-                for future in as_completed(futures):
-                    summaries[futures[future]] = future.result()
+                for future in as_completed([pool.submit(make_shard, job) for job in todo]):
+                    future.result()  # re-raises a worker's error
                     bar.update()
     else:
         raise ValueError(f"unknown backend {backend!r}: use 'process' or 'ray'")
     bar.close()
-    shards = [{"file": shard_path(out_dir, k).name, **summaries[k]} for k in range(shard_count)]
-    manifest = {
-        "params": params,
-        "fingerprint": fp,
-        "code_version": code_version(),
-        "shards": shards,
-        "totals": _totals(shards),
-        "made_this_run": [job.index for job in todo],
-    }
+    # Counts read back from every shard file, made now or earlier, so a resume writes the same manifest.
+    shards = [{"file": shard_path(out_dir, k).name, **summarise_shard(shard_path(out_dir, k))} for k in range(shard_count)]
+    manifest = {"params": params, "fingerprint": fp, "shards": shards, "totals": _totals(shards)}
     tmp = manifest_path.with_name(MANIFEST + ".tmp")
     tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
     os.replace(tmp, manifest_path)
-    return manifest
+    return {**manifest, "code_version": code_version(), "made_this_run": [job.index for job in todo]}
 
 
 def summarise_shard(path: Path) -> dict[str, Any]:
@@ -186,7 +179,7 @@ def _totals(shards: Sequence[dict[str, Any]]) -> dict[str, int]:
 
 
 def rate_per_minute(manifest: dict[str, Any], key: str, seconds: float) -> float | None:
-    """Items of `key` made per minute by the run that wrote the manifest (None if it made none)."""
+    """Items of `key` made per minute by the run that returned `manifest` (`run_shards`; None if it made none)."""
     made = [manifest["shards"][k].get(key, 0) for k in manifest["made_this_run"]]
     if not made or seconds <= 0:
         return None

@@ -74,6 +74,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
         "seconds": round(seconds, 1),
         # Rate over the shards made by this run (a resumed run reuses finished shards).
         "episodes_per_minute": rate_per_minute(manifest, "episodes", seconds),
+        "code_version": manifest["code_version"],  # provenance here, not in the data folder
     }
     SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
     print(

@@ -62,7 +62,15 @@ def test_unfinished_collection_has_no_manifest(tmp_path):
         read_manifest(tmp_path / "d")
 
 
-def test_manifest_is_json_with_code_version(tmp_path):
-    run_shards(make_counting_shard, 1, tmp_path / "m", {"seed": 1, "size": 2}, progress=False)
-    manifest = json.loads((tmp_path / "m" / MANIFEST).read_text())
-    assert {"params", "fingerprint", "code_version", "shards", "totals"} <= set(manifest)
+def test_manifest_bytes_depend_only_on_the_data_and_provenance_is_returned(tmp_path):
+    """A fresh run and a resumed one write the same manifest bytes (DVC hashes the folder); the run's
+    code version and the shards it made come back to the caller instead."""
+    params = {"seed": 1, "size": 2}
+    fresh = run_shards(make_counting_shard, 2, tmp_path / "m", params, progress=False)
+    written = (tmp_path / "m" / MANIFEST).read_bytes()
+    assert {"params", "fingerprint", "shards", "totals"} == set(json.loads(written))
+    assert fresh["made_this_run"] == [0, 1] and isinstance(fresh["code_version"], str) and fresh["code_version"]
+    shard_path(tmp_path / "m", 1).unlink()
+    resumed = run_shards(make_counting_shard, 2, tmp_path / "m", params, progress=False)
+    assert resumed["made_this_run"] == [1]
+    assert (tmp_path / "m" / MANIFEST).read_bytes() == written
