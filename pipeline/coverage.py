@@ -122,7 +122,9 @@ class CoverageModel:
         self.column[self.cells] = np.arange(len(self.cells))
         self.cover = full[:, self.cells].tocsr()  # nodes x coverable cells
         self.cover.sort_indices()
-        self.dense = self.cover.toarray()
+        # Each node's scan as a bitset over the coverable cells (64 cells per word): the
+        # objectives select words from it instead of re-packing a dense boolean matrix.
+        self.cover_bits = pack_bits(self.cover.toarray())
         self.free_cell_count = ground_truth.free_cell_count
         self.world = graph.node_world[self.nodes].astype(np.float64)
         self.node_cells = graph.node_cells[self.nodes]
@@ -198,6 +200,13 @@ def coverage_model(ground_truth: GroundTruthMap, protocol: Protocol) -> Coverage
     return model
 
 
+def pack_bits(rows: np.ndarray) -> np.ndarray:
+    """Boolean rows (n, m) as uint64 bitsets (n, ceil(m / 64)), bit j of a row in word j // 64."""
+    packed = np.packbits(rows, axis=1, bitorder="little")
+    packed = np.pad(packed, ((0, 0), (0, (-packed.shape[1]) % 8)))
+    return np.ascontiguousarray(packed).view(np.uint64)
+
+
 class CoverageObjective:
     """The cells a plan must still see, with each node's scan packed as a bitset over them.
 
@@ -207,15 +216,16 @@ class CoverageObjective:
     def __init__(self, model: CoverageModel, uncovered: np.ndarray):
         self.model = model
         self.uncovered = uncovered
-        columns = np.nonzero(uncovered)[0]
-        self.total = len(columns)
+        self.total = int(np.count_nonzero(uncovered))
         self.slack = model.slack()
         # Whether the done rule can be met at all (the never-seen cells alone may exceed it).
         self.achievable = model.free_cell_count - len(model.cells) <= model.protocol.done_unknown_cells
-        packed = np.packbits(model.dense[:, columns], axis=1, bitorder="little")
-        pad = (-packed.shape[1]) % 8 or (8 if packed.shape[1] == 0 else 0)
-        packed = np.pad(packed, ((0, 0), (0, pad)))
-        self.bits = np.ascontiguousarray(packed).view(np.uint64)
+        # The model's scan bitsets masked to the uncovered cells, keeping only the words that
+        # hold some (at least one word, so that empty objectives keep their shapes). Only
+        # counts of set bits are ever read, so which bit a cell has does not matter.
+        mask = pack_bits(np.asarray(uncovered, dtype=bool)[None, :])[0]
+        words = np.nonzero(mask)[0] if mask.any() else np.zeros(1, dtype=np.int64)
+        self.bits = np.ascontiguousarray(model.cover_bits[:, words] & mask[words])
         self.gain = np.bitwise_count(self.bits).sum(axis=1).astype(np.int64)
 
     @property

@@ -125,6 +125,26 @@ def test_objective_simulation_matches_the_sensor(maze):
     assert length == pytest.approx(model.path_length(path[:needed]))
 
 
+def test_pack_bits_puts_bit_j_in_word_j_over_64():
+    rows = np.zeros((2, 130), dtype=bool)
+    rows[0, [0, 63, 64, 129]] = True
+    bits = cov.pack_bits(rows)
+    assert bits.shape == (2, 3) and bits.dtype == np.uint64
+    assert bits[0].tolist() == [1 | (1 << 63), 1, 2] and not bits[1].any()
+
+
+def test_objective_counts_only_uncovered_cells_and_survives_an_empty_set(maze):
+    model = cov.coverage_model(maze, PROTOCOL)
+    uncovered = cov.uncovered_after_scan(model, model.start)
+    objective = cov.CoverageObjective(model, uncovered)
+    # A node's gain is exactly its scan's uncovered cells (bits of covered cells are masked out).
+    expected = [int(uncovered[model.row(k)].sum()) for k in range(model.node_count)]
+    assert objective.gain.tolist() == expected
+    empty = cov.CoverageObjective(model, np.zeros_like(uncovered))
+    assert empty.total == 0 and not empty.gain.any()
+    assert empty.simulate([model.start])[2] == 0
+
+
 # --------------------------------------------------------------------------- TSP
 def brute_force_open(dist: np.ndarray) -> float:
     n = len(dist)
