@@ -190,7 +190,7 @@ def table2_markdown(table: pd.DataFrame, title: str = "Table II: exploration dis
         "",
         "Mean +- std distance (m) to complete exploration over the test mazes; gap = mean / mean(optimal) - 1. "
         f"`vs {PAIRED_BASELINE}`: the mean map-by-map difference to `{PAIRED_BASELINE}` as a share of its mean, "
-        "+- the 95 % half-width (1.96 standard errors of the paired differences); an interval that spans 0 "
+        "+- the 95 % half-width (Student's t on the paired differences); an interval that spans 0 "
         "is a difference the test set cannot resolve. "
         "Paper: 100 test mazes (Table II; the ablations' numbers from Table III).",
         "",
