@@ -1,8 +1,9 @@
-"""Benchmark many maps x planners in parallel processes and write PROTOCOL.md's outputs."""
+"""Benchmark many maps x planners in parallel processes and write docs/protocol.md's outputs."""
 
 from __future__ import annotations
 
 import inspect
+import json
 import math
 import os
 import re
@@ -16,7 +17,7 @@ import pandas as pd
 import scipy.stats
 from tqdm import tqdm
 
-from pipeline.maps import GroundTruthMap, load_map
+from pipeline.maps import GroundTruthMap, MapError, load_map
 from pipeline.planners import make_planner, planner_class
 from pipeline.protocol import Protocol
 from pipeline.simulator import EpisodeResult, run_episode
@@ -24,6 +25,7 @@ from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_traj
 
 
 REFERENCE_PLANNER = "optimal"
+RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
 _LABEL = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")  # a label names a folder and an MLflow run
 
@@ -99,9 +101,51 @@ def parse_planner_spec(text: str) -> PlannerSpec:
     return PlannerSpec(label, name, options)
 
 
+_SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
+
+
+def planner_options(cls: type) -> dict[str, inspect.Parameter]:
+    """The keyword options a planner class accepts, following `**options` up to the base class
+    that receives them (the diffusion planners pass the tour's settings on that way)."""
+    accepted: dict[str, inspect.Parameter] = {}
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        parameters = list(inspect.signature(init).parameters.values())[1:]  # drop self
+        for parameter in parameters:
+            if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY):
+                accepted.setdefault(parameter.name, parameter)
+        if not any(p.kind == p.VAR_KEYWORD for p in parameters):
+            break
+    return accepted
+
+
+def option_kinds(parameter: inspect.Parameter) -> set[str] | None:
+    """The kinds ('bool', 'int', 'float', 'str') an option's annotation allows; None for an option
+    that takes Python objects (an injected policy, an inpaint function, a config), which no spec sets."""
+    names = set(re.findall(r"[A-Za-z_]\w*", str(parameter.annotation))) - {"None", "Optional"}
+    return names if names and names <= set(_SPEC_KINDS) else None
+
+
+def check_option_value(label: str, key: str, value: Any, parameter: inspect.Parameter) -> None:
+    """ValueError when a spec's value is not of a kind the option's annotation allows."""
+    kinds = option_kinds(parameter)
+    if kinds is None:
+        raise ValueError(f"planner {label!r}: option {key!r} takes a Python object; set it from Python, not a spec")
+    kind = "bool" if isinstance(value, bool) else type(value).__name__
+    if kind in kinds or (kind == "int" and "float" in kinds):
+        return
+    wanted = {"bool": "true or false", "int": "an integer", "float": "a number", "str": "text"}
+    expected = " or ".join(wanted[k] for k in _SPEC_KINDS if k in kinds)
+    raise ValueError(f"planner {label!r}: option {key}={value!r} must be {expected}")
+
+
 def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
     """Parse every entry, check the names are registered (KeyError listing the known ones),
-    the options are accepted by the planner's constructor and the labels are unique (ValueError)."""
+    the options are accepted by the planner's constructor with values of the right kind, and
+    the labels are unique (ValueError); each planner with options is built once, so a bad
+    value fails now rather than after the other episodes have run."""
     specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
     seen: set[str] = set()
     for spec in specs:
@@ -109,25 +153,25 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
         if spec.label in seen:
             raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
         seen.add(spec.label)
-        if spec.options:
-            try:
-                inspect.signature(cls).bind(**spec.options)
-            except TypeError as error:
-                accepted = [
-                    p.name for p in inspect.signature(cls).parameters.values()
-                    if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
-                ]
-                raise ValueError(
-                    f"planner {spec.label!r}: {spec.name} does not accept options {sorted(spec.options)} ({error}); "
-                    f"it accepts: {', '.join(accepted) or 'no options'}"
-                ) from None
-            try:  # build it once so a bad value fails now, not after the other episodes have run
-                cls(**spec.options)
-            except (TypeError, ValueError) as error:
-                hint = ""
-                if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
-                    hint = " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
-                raise ValueError(f"planner {spec.label!r}: {error}{hint}") from None
+        if not spec.options:
+            continue
+        accepted = planner_options(cls)
+        unknown = sorted(set(spec.options) - set(accepted))
+        if unknown:
+            settable = [name for name, p in accepted.items() if option_kinds(p) is not None]
+            raise ValueError(
+                f"planner {spec.label!r}: {spec.name} has no option {', '.join(unknown)}; "
+                f"it accepts: {', '.join(settable) or 'no options'}"
+            )
+        try:
+            for key, value in spec.options.items():
+                check_option_value(spec.label, key, value, accepted[key])
+            cls(**spec.options)
+        except (TypeError, ValueError) as error:
+            message = str(error) if str(error).startswith(f"planner {spec.label!r}") else f"planner {spec.label!r}: {error}"
+            if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
+                message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
+            raise ValueError(message) from None
     return specs
 
 
@@ -145,6 +189,7 @@ class EpisodeTask:
     seed: int
     label: str = ""
     options: dict[str, Any] = field(default_factory=dict, hash=False)
+    start: tuple[float, float] | None = None  # load_map's start override (None: the map's own)
 
     def __post_init__(self) -> None:
         if not self.label:
@@ -152,14 +197,25 @@ class EpisodeTask:
 
 
 def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protocol:
-    """A ROS map carries its own cell size; every other protocol value stays."""
+    """A ROS map carries its own cell size; every other protocol value stays.
+
+    MapError for a map with no more free cells than `done_unknown_cells`: every episode on it
+    would count as complete at 0 m (e.g. a PNG whose free space is drawn in a colour read as wall).
+    """
+    if ground_truth.free_cell_count <= protocol.done_unknown_cells:
+        raise MapError(
+            ground_truth.name,
+            f"only {ground_truth.free_cell_count} free cells, not more than done_unknown_cells="
+            f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves "
+            "(in a maze PNG, free is a grey value above 150 or within 50-80)",
+        )
     if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
         return protocol.with_cell_size(ground_truth.cell_size)
     return protocol
 
 
 def run_task(task: EpisodeTask) -> EpisodeResult:
-    ground_truth = load_map(task.map_path, cell_size=task.protocol.cell_size)
+    ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
     protocol = protocol_for_map(task.protocol, ground_truth)
     result = run_episode(ground_truth, make_planner(task.planner, **task.options), protocol, seed=task.seed)
     result.planner = task.label
@@ -179,6 +235,7 @@ def run_benchmark(
     seed: int = 0,
     progress: bool = True,
     baseline: str | None = DEFAULT_BASELINE,
+    start: tuple[float, float] | None = None,
 ) -> pd.DataFrame:
     """Run every map with every planner; write trajectories, metrics.csv and summary.md.
 
@@ -188,14 +245,16 @@ def run_benchmark(
     Planner specs and maps are checked up front so a typo or a malformed map fails before
     any work starts. Failed episodes are kept in the metrics (complete = False), never dropped.
     summary.md compares every planner with `baseline` map by map when it ran too.
+    `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
     """
     specs = resolve_planner_specs(planners)
     for path in map_paths:
-        load_map(path, cell_size=protocol.cell_size)
+        protocol_for_map(protocol, load_map(path, start=start, cell_size=protocol.cell_size))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    write_run_record(out_dir / RUN_RECORD, specs, seed, start)
     tasks = [
-        EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options))
+        EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
         for spec in specs
         for p in map_paths
     ]
@@ -217,6 +276,27 @@ def run_benchmark(
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
     (out_dir / "summary.md").write_text(summary_markdown(frame, protocol, baseline))
     return frame
+
+
+def write_run_record(
+    path: Path, specs: Sequence[PlannerSpec], seed: int, start: tuple[float, float] | None
+) -> dict[str, Any]:
+    """What ran: per label the planner, its options and its description (which names the policy
+    and predictor files a learned planner loaded), with the seed and any start override."""
+    record = {
+        "seed": seed,
+        "start": list(start) if start is not None else None,
+        "planners": {
+            spec.label: {
+                "name": spec.name,
+                "options": dict(spec.options),
+                "description": make_planner(spec.name, **spec.options).description,
+            }
+            for spec in specs
+        },
+    }
+    path.write_text(json.dumps(record, indent=2) + "\n")
+    return record
 
 
 def _write_result(result: EpisodeResult, task: EpisodeTask, out_dir: Path) -> EpisodeResult:

@@ -17,14 +17,30 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help texts hold literal brackets: [default: ...], '.[ray]'
 )
-stage_app = typer.Typer(help="Run one DVC pipeline stage (what `dvc repro` calls).", no_args_is_help=True)
+stage_app = typer.Typer(help="Run one DVC pipeline stage (what `dvc repro` calls).", no_args_is_help=True,
+                        rich_markup_mode=None)
 app.add_typer(stage_app, name="stage")
 
 
 def _fail(message: str) -> None:
     typer.echo(f"error: {message}", err=True)
     raise typer.Exit(code=2)
+
+
+def _run_stage(main, *args) -> None:
+    """A stage's main(); a missing input (no params file, no upstream output) is one error line."""
+    try:
+        main(*args)
+    except (MapError, FileNotFoundError) as error:
+        _fail(f"{error} (run the upstream stages first: `dvc repro`)")
+
+
+def _check_out_dir(out: Path) -> None:
+    """Fail before any work when --out names something other than a folder."""
+    if out.exists() and not out.is_dir():
+        _fail(f"{out}: exists and is not a folder; --out takes a folder (created if missing)")
 
 
 def _protocol(
@@ -81,6 +97,7 @@ def mazes(
     """
     from pipeline.mazes import MazeConfig, generate_maze_set
 
+    _check_out_dir(out)
     try:
         config = MazeConfig(side_m=(side, side), cell_size=cell_size)
     except ValueError as error:
@@ -99,29 +116,31 @@ def explore(
     out: Path = typer.Option(Path("runs/explore"), help="Output folder."),
     gif: bool = typer.Option(False, "--gif", help="Also write an animation of the episode."),
     start: Optional[tuple[float, float]] = typer.Option(
-        None, help="Start: COL ROW for a .npy grid, X Y metres for a ROS map (else its YAML 'start')."
+        None, help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "
+                   "X Y metres for a ROS map (else its YAML 'start')."
     ),
     seed: int = typer.Option(0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = typer.Option(
-        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) [default: models/, else shipped]."),
+        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
+                   "[default: models/ under the current folder, else the shipped one]."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
 ) -> None:
     """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF)."""
-    from pipeline.benchmark import protocol_for_map
+    from pipeline.benchmark import protocol_for_map, resolve_planner_specs
     from pipeline.maps import load_map
     from pipeline.planners import make_planner
     from pipeline.render import EpisodeRecorder, render_final
     from pipeline.simulator import run_episode
     from pipeline.trajectories import write_metrics_csv, write_trajectory_csv
 
+    _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
-        from pipeline.benchmark import parse_planner_spec
-
-        spec = parse_planner_spec(_with_checkpoint(planner, checkpoint))
+        protocol = protocol_for_map(protocol, ground_truth)
+        (spec,) = resolve_planner_specs(_with_checkpoint([planner], checkpoint))
         agent = make_planner(spec.name, **spec.options)
     except MapError as error:
         _fail(str(error))
@@ -129,9 +148,10 @@ def explore(
         _fail(str(error.args[0]))
     except (ValueError, FileNotFoundError, TypeError) as error:
         _fail(str(error))
-    protocol = protocol_for_map(protocol, ground_truth)
-    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=planner) if gif else None
+    typer.echo(f"{spec.label}: {agent.description}")
+    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=spec.label) if gif else None
     result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=recorder)
+    result.planner = spec.label
     out.mkdir(parents=True, exist_ok=True)
     write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)
     write_metrics_csv(out / "metrics.csv", [result.metrics_row()])
@@ -143,7 +163,7 @@ def explore(
         recorder.save_gif(out / f"{ground_truth.name}.gif")
     status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"
     typer.echo(
-        f"{ground_truth.name} {planner}: {status}, {result.distance_m:.1f} m in {result.steps} waypoints, "
+        f"{ground_truth.name} {spec.label}: {status}, {result.distance_m:.1f} m in {result.steps} waypoints, "
         f"explored {result.explored_ratio * 100:.1f} %, decision {result.metrics_row()['decision_ms_median']} ms median"
     )
     typer.echo(f"wrote {out}/")
@@ -161,20 +181,33 @@ def _final_belief(ground_truth, result, protocol):
     return episode.belief.grid
 
 
-def _with_checkpoint(spec: str, checkpoint: Optional[Path]) -> str:
-    """`spec` with checkpoint=PATH added when it names a diffusion planner and a checkpoint is given."""
+def _with_checkpoint(specs: list[str], checkpoint: Optional[Path]) -> list[str]:
+    """`specs` with checkpoint=PATH added to each diffusion planner's; ValueError when a checkpoint
+    is given but no planner uses a policy, or a spec names its own checkpoint too."""
     from pipeline.benchmark import parse_planner_spec
     from pipeline.planners import planner_class
 
     if checkpoint is None:
-        return spec
-    parsed = parse_planner_spec(spec)
-    if not planner_class(parsed.name).needs_policy:
-        return spec
+        return specs
     if not checkpoint.is_file():
-        raise FileNotFoundError(f"{checkpoint}: no planner checkpoint there")
-    options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "checkpoint": str(checkpoint)}.items())
-    return f"{parsed.label}={parsed.name}:{options}"
+        raise FileNotFoundError(f"{checkpoint}: file not found (expected a planner checkpoint)")
+    out, used = [], False
+    for spec in specs:
+        parsed = parse_planner_spec(spec)
+        if not planner_class(parsed.name).needs_policy:
+            out.append(spec)
+            continue
+        if "checkpoint" in parsed.options:
+            raise ValueError(f"planner {parsed.label!r} names its own checkpoint; drop it or --checkpoint")
+        used = True
+        options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "checkpoint": str(checkpoint)}.items())
+        out.append(f"{parsed.label}={parsed.name}:{options}")
+    if not used:
+        raise ValueError(
+            "--checkpoint is a diffusion policy for guide, guide_noregion or dare, and no planner given uses one "
+            "(guide_tsp and mapex take an inpainter as label=name:checkpoint=PATH)"
+        )
+    return out
 
 
 @app.command()
@@ -189,9 +222,13 @@ def benchmark(
     experiment: str = typer.Option("benchmark", help="MLflow experiment name."),
     mlflow_log: bool = typer.Option(True, "--mlflow/--no-mlflow", help="Log one MLflow run per planner."),
     checkpoint: Optional[Path] = typer.Option(
-        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) [default: models/, else shipped]."),
-    baseline: str = typer.Option(
-        "greedy_utility", help="Label to compare every planner with, map by map, in summary.md ('' for none)."),
+        None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
+                   "[default: models/ under the current folder, else the shipped one]."),
+    baseline: Optional[str] = typer.Option(
+        None, help="Label to compare every planner with, map by map, in summary.md ('' for none) "
+                   "[default: greedy_utility when it runs]."),
+    start: Optional[tuple[float, float]] = typer.Option(
+        None, help="One start for every map, as in `explore` (needed for .npy grids and ROS maps without 'start')."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
@@ -201,13 +238,22 @@ def benchmark(
     from pipeline.maps import list_maps
     from pipeline.tracking import log_benchmark
 
+    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec
+
+    _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
-        specs = [_with_checkpoint(p, checkpoint) for p in planner]
-        frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None)
+        specs = _with_checkpoint(list(planner), checkpoint)
+        labels = [parse_planner_spec(spec).label for spec in specs]
+        if baseline is None:
+            baseline = DEFAULT_BASELINE if DEFAULT_BASELINE in labels else ""
+        elif baseline and baseline not in labels:
+            _fail(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
+        frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
+                              start=start)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:
@@ -229,7 +275,10 @@ def replay(
     done_unknown_cells: int = DoneCells,
     oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
 ) -> None:
-    """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON."""
+    """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON.
+
+    Exits 1 when the trajectory breaks the motion rule or does not complete the map.
+    """
     from pipeline.benchmark import protocol_for_map
     from pipeline.maps import load_map
     from pipeline.simulator import replay as replay_trajectory
@@ -255,6 +304,8 @@ def replay(
             }
         )
     )
+    if not result.complete or result.motion_violations:
+        raise typer.Exit(code=1)  # as `explore`: scripts can test the exit status
 
 
 @app.command("eval-predictor")
@@ -266,9 +317,10 @@ def eval_predictor(
     """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
     from stages import eval_predictor as eval_stage
 
+    _check_out_dir(out)
     try:
         frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None)
-    except (MapError, FileNotFoundError) as error:
+    except (MapError, FileNotFoundError, ValueError) as error:
         _fail(str(error))
     typer.echo(frame.to_string(index=False))
     typer.echo(f"wrote {out}/precision.csv")
@@ -279,7 +331,7 @@ def stage_generate_mazes(params: Path = typer.Option(Path("params.yaml"), help="
     """DVC stage: training and test mazes from params.yaml's `mazes` section."""
     from stages import generate_mazes
 
-    generate_mazes.main(str(params))
+    _run_stage(generate_mazes.main, str(params))
 
 
 @stage_app.command("benchmark")
@@ -287,7 +339,7 @@ def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Param
     """DVC stage: the configured planners on the test mazes, reports in reports/benchmark/."""
     from stages import benchmark as benchmark_stage
 
-    benchmark_stage.main(str(params))
+    _run_stage(benchmark_stage.main, str(params))
 
 
 @stage_app.command("collect-pairs")
@@ -298,7 +350,7 @@ def stage_collect_pairs(
     """DVC stage: Stage I node-image pairs from rollouts in the training mazes."""
     from stages import collect_pairs
 
-    collect_pairs.main(str(params), backend)
+    _run_stage(collect_pairs.main, str(params), backend)
 
 
 @stage_app.command("collect-expert")
@@ -309,7 +361,7 @@ def stage_collect_expert(
     """DVC stage: Stage II expert episodes on the training mazes."""
     from stages import collect_expert
 
-    collect_expert.main(str(params), backend)
+    _run_stage(collect_expert.main, str(params), backend)
 
 
 @stage_app.command("train-inpainter")
@@ -327,8 +379,8 @@ def stage_train_inpainter(
     from stages import train_inpainter
 
     device_count = int(devices) if devices and devices.isdigit() else devices
-    train_inpainter.main(str(params), accelerator, device_count, resume,
-                         str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
+    _run_stage(train_inpainter.main, str(params), accelerator, device_count, resume,
+               str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
 
 
 @stage_app.command("build-observations")
@@ -336,7 +388,7 @@ def stage_build_observations(params: Path = typer.Option(Path("params.yaml"), he
     """DVC stage: expert episodes replayed into graph observations with the frozen predictor."""
     from stages import build_observations
 
-    build_observations.main(str(params))
+    _run_stage(build_observations.main, str(params))
 
 
 def _train_planner(params: Path, variant: str, accelerator: Optional[str], devices: Optional[str], resume: bool,
@@ -377,7 +429,7 @@ def stage_report(params: Path = typer.Option(Path("params.yaml"), help="Paramete
     """DVC stage: Tables I-IV beside the paper's (runs the K sweep), reports/report.md and reports/tables/."""
     from stages import report as report_stage
 
-    report_stage.main(str(params))
+    _run_stage(report_stage.main, str(params))
 
 
 @stage_app.command("eval-predictor")
@@ -385,7 +437,7 @@ def stage_eval_predictor(params: Path = typer.Option(Path("params.yaml"), help="
     """DVC stage: Table I precision on the test mazes, reports in reports/predictor/."""
     from stages import eval_predictor as eval_stage
 
-    eval_stage.main(str(params))
+    _run_stage(eval_stage.main, str(params))
 
 
 def main() -> None:  # pragma: no cover - console entry point

@@ -1,4 +1,4 @@
-"""Ground-truth coverage tours: the `Optimal` reference of PROTOCOL.md and DARE's expert.
+"""Ground-truth coverage tours: the `Optimal` reference of docs/protocol.md and DARE's expert.
 
 Everything here looks at the ground truth; it is the oracle side of the project.
 

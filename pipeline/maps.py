@@ -1,4 +1,4 @@
-"""Ground-truth maps: loading the three formats of PROTOCOL.md into one `GroundTruthMap`.
+"""Ground-truth maps: loading the three formats of docs/protocol.md into one `GroundTruthMap`.
 
 Every loader fails with `MapError` (file + reason) rather than a traceback, so the CLI
 can print one line and exit 2 on any malformed input.
@@ -171,7 +171,7 @@ def _check_cell_size(cell_size: float, path: Path) -> float:
 
 
 def maze_cells_from_image(image: np.ndarray) -> np.ndarray:
-    """Downsample a maze image by 2, taking the minimum of each 2x2 block (PROTOCOL.md)."""
+    """Downsample a maze image by 2, taking the minimum of each 2x2 block (docs/protocol.md)."""
     rows, cols = image.shape[0] // 2, image.shape[1] // 2
     cropped = image[: rows * 2, : cols * 2]
     return cropped.reshape(rows, 2, cols, 2).min(axis=(1, 3))
@@ -182,8 +182,14 @@ def maze_free_mask(cells: np.ndarray) -> np.ndarray:
     return (cells > MAZE_FREE_MIN) | ((cells >= low) & (cells <= high))
 
 
-def load_maze_png(path: str | Path, cell_size: float = 0.4) -> GroundTruthMap:
-    """Load a DARE/GUIDE maze PNG (twice the grid resolution, start marked by value 208)."""
+def load_maze_png(
+    path: str | Path, cell_size: float = 0.4, start_cell: tuple[int, int] | None = None
+) -> GroundTruthMap:
+    """Load a DARE/GUIDE maze PNG (twice the grid resolution, start marked by value 208).
+
+    `start_cell` (col, row on the reduced grid) overrides the marker, e.g. to explore one maze
+    from several starts; the marker is still required, so the file stays a benchmark map.
+    """
     path = Path(path)
     cell_size = _check_cell_size(cell_size, path)
     image = _read_gray_image(path)
@@ -198,6 +204,8 @@ def load_maze_png(path: str | Path, cell_size: float = 0.4) -> GroundTruthMap:
             f"after the 2x2 reduction, found {rows.size}",
         )
     start = (int(cols[MAZE_START_INDEX]), int(rows[MAZE_START_INDEX]))
+    if start_cell is not None:
+        start = _start_cell(start_cell, path)
     free = maze_free_mask(cells)
     validate_grid(free, start, path)
     return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem)
@@ -397,8 +405,9 @@ def load_map(
 ) -> GroundTruthMap:
     """Load any supported map by its suffix.
 
-    `start` is (col, row) for a .npy grid and (x, y) metres for a ROS map; a maze PNG
-    carries its own start. `cell_size` applies to maze PNGs and grids (a ROS map has its own).
+    `start` is (col, row) for a .npy grid or a maze PNG (where it overrides the PNG's own
+    marked start) and (x, y) metres for a ROS map. `cell_size` applies to maze PNGs and grids
+    (a ROS map has its own).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -407,7 +416,9 @@ def load_map(
     if suffix in NPY_SUFFIXES:
         return load_npy_grid(path, start, cell_size)
     if suffix in MAZE_PNG_SUFFIXES:
-        return load_maze_png(path, cell_size)
+        return load_maze_png(path, cell_size, start)
+    if path.is_dir():
+        raise MapError(path, "is a folder; pass one map file (`guide benchmark --maps` takes folders)")
     if not _is_file(path):
         raise MapError(path, "file not found")
     raise MapError(path, f"unknown map format '{suffix}' (expected a maze .png, a ROS map .yaml or a .npy grid)")

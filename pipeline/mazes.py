@@ -390,6 +390,7 @@ def write_maze_png(image: np.ndarray, path: str | Path) -> Path:
     try:
         with os.fdopen(handle, "wb") as stream:
             stream.write(encoded.tobytes())
+        os.chmod(temp_name, 0o644)  # mkstemp makes 0600; a map is for sharing, like any file the user writes
         os.replace(temp_name, path)
     except BaseException:
         Path(temp_name).unlink(missing_ok=True)

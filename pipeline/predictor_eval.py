@@ -228,6 +228,7 @@ def evaluate_predictor(
         for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol, explorer):
             if predictor is None:
                 predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
+                predictor.predict(checkpoint.lattice)  # untimed: a traced network compiles on its first image size
             prediction = predict_at(checkpoint, predictor, graph_config)
             kept = prediction.kept
             s = checkpoint.step

@@ -1,4 +1,4 @@
-"""The benchmark protocol's values (PROTOCOL.md), one frozen object passed everywhere."""
+"""The benchmark protocol's values (docs/protocol.md), one frozen object passed everywhere."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""DARE's 2D lidar (PROTOCOL.md "Sensor"), vectorised over rays and ray cells.
+"""DARE's 2D lidar (docs/protocol.md, "Sensor"), vectorised over rays and ray cells.
 
 All 720 rays are walked at once on a padded table of precomputed walks; the first
 stopping cell of each ray is found with one argmax. A plain per-cell loop lives in the

@@ -55,7 +55,7 @@ class EpisodeResult:
     complete_after_waypoint: int | None = None  # 1-based row of the trajectory, start = 1
 
     def metrics_row(self) -> dict:
-        """One row of PROTOCOL.md's metrics.csv."""
+        """One row of docs/protocol.md's metrics.csv."""
         ms = np.asarray(self.decision_ms, dtype=np.float64)
         return {
             "map": self.map_name,
@@ -144,7 +144,7 @@ class Episode:
     def move(self, waypoint: Sequence[float], oracle: bool = False) -> None:
         """Move to a lattice waypoint through known-free cells, then sense there.
 
-        `oracle=True` is the ground-truth planner's rule (PROTOCOL.md "Reference figures"):
+        `oracle=True` is the ground-truth planner's rule (docs/protocol.md, "The reference"):
         the segment need only be free in the ground truth, observed or not.
         """
         cell = self.waypoint_cell(waypoint)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -25,23 +26,35 @@ def log_benchmark(
     tracking_uri: str | None = None,
     experiment: str = "benchmark",
 ) -> list[str]:
-    """One MLflow run per planner: protocol params, summary metrics, summary and metrics.csv.
+    """One MLflow run per planner: protocol params, the planner's name, options and description
+    (from the benchmark's run.json), summary metrics, summary and metrics.csv.
 
     Returns the run ids.
     """
     os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
     import mlflow  # slow to import; only when tracking is asked for
 
-    from pipeline.benchmark import summarise
+    from pipeline.benchmark import RUN_RECORD, summarise
 
     out_dir = Path(out_dir)
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     mlflow.set_experiment(experiment)
     summary = summarise(frame)
+    record_path = out_dir / RUN_RECORD
+    record = json.loads(record_path.read_text()) if record_path.is_file() else {}
     run_ids = []
     for planner, row in summary.iterrows():
         with mlflow.start_run(run_name=str(planner)) as run:
-            mlflow.log_params({**protocol.to_dict(), "planner": planner, "maps": maps, "episodes": int(row.episodes)})
+            ran = record.get("planners", {}).get(str(planner), {})
+            variant = {
+                "planner_name": ran.get("name", planner),
+                "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+                "planner_description": str(ran.get("description", ""))[:500],
+                "seed": record.get("seed"),
+            } if ran else {}
+            mlflow.log_params(
+                {**protocol.to_dict(), "planner": planner, "maps": maps, "episodes": int(row.episodes), **variant}
+            )
             mlflow.log_metrics(
                 {
                     "distance_mean_m": float(row.distance_mean_m),

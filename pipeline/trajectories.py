@@ -1,4 +1,4 @@
-"""Trajectory and metrics files in PROTOCOL.md's layout (what outside checks replay)."""
+"""Trajectory and metrics files in docs/protocol.md's layout (what outside checks replay)."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
 
 
 def write_metrics_csv(path: str | Path, rows: Iterable[dict]) -> Path:
-    """Write metrics.csv with PROTOCOL.md's columns, in that order."""
+    """Write metrics.csv with docs/protocol.md's columns, in that order."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")

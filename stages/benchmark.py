@@ -1,7 +1,7 @@
 """DVC stage: benchmark the configured planners on the test mazes.
 
 Reads the `benchmark` section (planners, seed, workers) and the shared `protocol`
-section of params.yaml. Writes PROTOCOL.md's outputs under reports/benchmark/, the
+section of params.yaml. Writes docs/protocol.md's outputs under reports/benchmark/, the
 DVC metrics file reports/benchmark.json, a PNG bar chart and a side-by-side trajectory
 figure, and one MLflow run per planner.
 """

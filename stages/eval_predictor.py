@@ -18,7 +18,7 @@ import yaml
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
 from pipeline.predictor_eval import TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
-from pipeline.maps import list_maps
+from pipeline.maps import MapError, list_maps
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
 
@@ -59,7 +59,7 @@ def run(
 
     maps = list_maps(maps_dir)
     if not maps:
-        raise SystemExit(f"error: {maps_dir}: no maps; run the generate_mazes stage first")
+        raise MapError(maps_dir, "no maps in this folder (maze .png, .npy or ROS .yaml)")
     inpaint = load_inpaint_fn(checkpoint)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

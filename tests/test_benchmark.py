@@ -69,3 +69,37 @@ def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze
         ("greedy_utility", "greedy_utility", {}),
         ("nf_u1", "nearest_frontier", {"min_utility": 1}),
     ]
+
+
+def test_benchmark_records_what_ran_and_applies_one_start(generated_maze_dir, tmp_path):
+    import json
+
+    maps = list_maps(generated_maze_dir)[:1]
+    own = load_map(maps[0])
+    col, row = own.start_cell
+    start = next((c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10))
+                 if own.free[r, c])  # a free cell 4 m from the marked start
+    run_benchmark(maps, ["nf=nearest_frontier:min_utility=3"], Protocol(), tmp_path, workers=1, progress=False,
+                  start=start)
+    record = json.loads((tmp_path / "run.json").read_text())
+    assert record["start"] == list(start) and record["seed"] == 0
+    assert record["planners"]["nf"]["name"] == "nearest_frontier"
+    assert record["planners"]["nf"]["options"] == {"min_utility": 3}
+    assert record["planners"]["nf"]["description"]
+    points = read_trajectory_csv(tmp_path / "nf" / f"{maps[0].stem}.csv")
+    moved = load_map(maps[0], start=start)
+    assert replay(moved, points, Protocol()).complete  # the trajectory is relative to the given start
+    assert not replay(own, points, Protocol()).complete  # and breaks the rules from the marked one
+
+
+def test_a_map_with_too_few_free_cells_is_refused(tmp_path):
+    import numpy as np
+
+    grid = np.zeros((40, 40), dtype=np.uint8)
+    grid[10:20, 10:20] = 1  # 100 free cells: complete under done_unknown_cells=250 before any move
+    np.save(tmp_path / "tiny.npy", grid)
+    with pytest.raises(MapError, match="only 100 free cells, not more than done_unknown_cells=250"):
+        run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(), tmp_path / "out", start=(12, 12))
+    frame = run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(done_unknown_cells=10),
+                          tmp_path / "out", workers=1, progress=False, start=(12, 12))
+    assert frame["complete"].all()

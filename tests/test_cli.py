@@ -63,17 +63,21 @@ def test_benchmark_command_logs_one_mlflow_run_per_planner(generated_maze_dir, t
     out = tmp_path / "bench"
     result = runner.invoke(
         app,
-        ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier", "--planner", "greedy_utility",
+        ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
+         "--planner", "greedy=greedy_utility:min_utility=3",
          "--out", str(out), "--workers", "2", "--tracking-uri", mlflow_uri, "--experiment", "cli-test"],
     )
     assert result.exit_code == 0, result.output
-    assert (out / "metrics.csv").is_file() and (out / "summary.md").is_file()
+    assert (out / "metrics.csv").is_file() and (out / "summary.md").is_file() and (out / "run.json").is_file()
     import mlflow
 
     mlflow.set_tracking_uri(mlflow_uri)
-    runs = mlflow.search_runs(experiment_names=["cli-test"])
-    assert sorted(runs["tags.mlflow.runName"]) == ["greedy_utility", "nearest_frontier"]
+    runs = mlflow.search_runs(experiment_names=["cli-test"]).set_index("tags.mlflow.runName")
+    assert sorted(runs.index) == ["greedy", "nearest_frontier"]
     assert (runs["metrics.completion_rate"] == 1.0).all()
+    assert runs.loc["greedy", "params.planner_name"] == "greedy_utility"
+    assert json.loads(runs.loc["greedy", "params.planner_options"]) == {"min_utility": 3}
+    assert runs.loc["nearest_frontier", "params.planner_description"].startswith("Yamauchi")
 
 
 def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path):
@@ -84,6 +88,7 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
     assert result.exit_code == 0, result.output
     paths = sorted(out.glob("maze_*.png"))
     assert [p.name for p in paths] == ["maze_0000.png", "maze_0001.png"]
+    assert paths[0].stat().st_mode & 0o777 == 0o644  # readable by others, unlike mkstemp's 0600
     first = load_map(paths[0])
     assert first.free.shape == (75, 75) and first.free.any()  # 30 m at 0.4 m cells
     again = runner.invoke(app, ["mazes", "--out", str(tmp_path / "again"), "--count", "1", "--seed", "5", "--side", "30"])
@@ -93,3 +98,68 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
     assert used.exit_code == 2 and "already holds 2 maze PNGs" in used.output
     odd = runner.invoke(app, ["mazes", "--out", str(tmp_path / "odd"), "--count", "1", "--side", "7"])
     assert odd.exit_code == 2 and "whole number" in odd.output
+
+
+def _one_error_line(result) -> str:
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [line for line in result.output.strip().splitlines() if line]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    return lines[0]
+
+
+def test_an_out_path_that_is_a_file_fails_before_any_work(small_maze_path, generated_maze_dir, tmp_path):
+    taken = tmp_path / "taken"
+    taken.write_text("x")
+    for command in (
+        ["explore", "--map", str(small_maze_path), "--out", str(taken)],
+        ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier", "--out", str(taken)],
+        ["eval-predictor", "--maps", str(generated_maze_dir), "--out", str(taken)],
+        ["mazes", "--out", str(taken), "--count", "1"],
+    ):
+        assert "exists and is not a folder" in _one_error_line(runner.invoke(app, command))
+
+
+def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp_path):
+    fake = tmp_path / "fake.pt"
+    fake.write_text("not a checkpoint")
+    explore = ["explore", "--map", str(small_maze_path), "--out", str(tmp_path / "o")]
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(fake)]))
+    assert "not a planner checkpoint (not a file written by torch.save)" in line
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"g=guide_tsp:checkpoint={fake}"]))
+    assert "not an inpainter export" in line
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide_tsp", "--checkpoint", str(fake)]))
+    assert "no planner given uses one" in line  # --checkpoint is a policy; guide_tsp has none
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path / "nope.pt")]))
+    assert "file not found" in line
+    line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out",
+                                               str(tmp_path / "p"), "--checkpoint", str(fake)]))
+    assert "not an inpainter export" in line
+
+
+def test_benchmark_baseline_must_name_a_planner(generated_maze_dir, tmp_path):
+    result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
+                                 "--baseline", "nope", "--out", str(tmp_path / "b"), "--no-mlflow"])
+    assert "--baseline 'nope' is not among the planners' labels: nearest_frontier" in _one_error_line(result)
+
+
+def test_replay_exits_1_when_the_trajectory_does_not_complete(small_maze_path, tmp_path):
+    partial = tmp_path / "partial.csv"
+    partial.write_text("x,y\n0,0\n")
+    result = runner.invoke(app, ["replay", "--map", str(small_maze_path), "--trajectory", str(partial)])
+    assert result.exit_code == 1 and json.loads(result.output)["complete"] is False
+
+
+def test_stage_commands_without_their_inputs_print_one_line(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a fresh folder: no params.yaml, no data
+    line = _one_error_line(runner.invoke(app, ["stage", "generate-mazes", "--params", "nope.yaml"]))
+    assert "nope.yaml" in line
+    (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier]}\n")
+    line = _one_error_line(runner.invoke(app, ["stage", "benchmark"]))
+    assert "data/mazes/test" in line and "dvc repro" in line
+
+
+def test_help_keeps_literal_brackets():
+    result = runner.invoke(app, ["stage", "collect-pairs", "--help"])
+    assert "'.[ray]'" in result.output
+    assert "[default: all cores]" in runner.invoke(app, ["benchmark", "--help"]).output

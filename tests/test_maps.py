@@ -117,6 +117,21 @@ def test_maze_start_is_eleventh_marker_cell(tmp_path):
     assert not grid.free[0].any() and not grid.free[:, 0].any()
 
 
+def test_maze_start_can_be_overridden_by_a_cell(tmp_path):
+    path = write_maze(tmp_path / "maze.png", maze_cells())
+    assert load_map(path, start=(2, 1)).start_cell == (2, 1)
+    assert load_map(path).start_cell == (5, 4)  # the marker otherwise
+    with pytest.raises(MapError, match="occupied"):
+        load_map(path, start=(0, 0))
+    with pytest.raises(MapError, match="two integers"):
+        load_map(path, start=(2.5, 1))
+
+
+def test_a_folder_is_not_a_map(tmp_path):
+    with pytest.raises(MapError, match="is a folder; pass one map file"):
+        load_map(tmp_path / ".")
+
+
 def test_maze_start_uses_row_major_order_not_column_major(tmp_path):
     cells = np.full((6, 16), FREE, dtype=np.uint8)
     cells[1, 1:8] = START  # 7 markers on row 1

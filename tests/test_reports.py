@@ -67,8 +67,20 @@ def test_parse_planner_spec_bad(text, message):
 def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path):
     with pytest.raises(KeyError, match="unknown planner"):
         run_benchmark([small_maze_path], ["x=no_such_planner:a=1"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="does not accept options.*min_utility"):
+    with pytest.raises(ValueError, match="has no option no_such_option; it accepts: min_utility$"):
         run_benchmark([small_maze_path], ["x=nearest_frontier:no_such_option=1"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="guide has no option k; it accepts: .*num_inference_steps.*beta"):
+        run_benchmark([small_maze_path], ["x=guide:k=1"], Protocol(), tmp_path)  # tour options reach guide by **
+    with pytest.raises(ValueError, match="option prior_weight='abc' must be a number"):
+        run_benchmark([small_maze_path], ["x=guide:prior_weight=abc"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="option num_inference_steps=2.5 must be an integer"):
+        run_benchmark([small_maze_path], ["x=guide:num_inference_steps=2.5"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="num_inference_steps must be >= 1, got 0"):
+        run_benchmark([small_maze_path], ["x=guide:num_inference_steps=0"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="replan_on_change=1 must be true or false"):
+        run_benchmark([small_maze_path], ["x=expert:replan_on_change=1"], Protocol(), tmp_path)
+    with pytest.raises(ValueError, match="'inpaint' takes a Python object"):
+        run_benchmark([small_maze_path], ["x=guide_tsp:inpaint=zeros"], Protocol(), tmp_path)
     with pytest.raises(ValueError, match="'x'.*spread must be positive"):
         run_benchmark([small_maze_path], ["x=guide_tsp:spread=-1"], Protocol(), tmp_path)
     with pytest.raises(ValueError, match="separated by ','"):  # a ':' where a ',' belongs

@@ -6,7 +6,7 @@ from pipeline.sensor import FREE, OCCUPIED, UNKNOWN, Belief, scan
 
 
 def reference_scan(ground_free: np.ndarray, x0: int, y0: int, range_cells: float) -> np.ndarray:
-    """PROTOCOL.md's sensor written as the plain per-ray, per-cell loop."""
+    """docs/protocol.md's sensor written as the plain per-ray, per-cell loop."""
     rows, cols = ground_free.shape
     belief = np.full(ground_free.shape, UNKNOWN, dtype=np.uint8)
     angle, step = 0.0, 0.5 / 180 * np.pi

@@ -1,4 +1,4 @@
-"""Ground-truth coverage planners: `optimal` (PROTOCOL.md's reference) and DARE's `expert`.
+"""Ground-truth coverage planners: `optimal` (docs/protocol.md's reference) and DARE's `expert`.
 
 Both are oracles (`uses_ground_truth = True`) built on `pipeline.coverage`:
 
@@ -39,7 +39,7 @@ from pipeline.simulator import Observation
 class OptimalPlanner(Planner):
     """The ground-truth coverage tour, executed in one go (oracle motion rule)."""
 
-    description = "oracle: ground-truth coverage tour (viewpoints + open TSP), PROTOCOL.md's Optimal"
+    description = "oracle: ground-truth coverage tour (viewpoints + open TSP), the protocol's reference"
     uses_ground_truth = True
     ignores_motion_rule = True
 

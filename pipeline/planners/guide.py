@@ -68,12 +68,13 @@ ASSETS = Path(__file__).resolve().parent.parent / "assets"
 PIPELINE_POLICY = {"guide": Path("models/planner_guide/policy.pt"), "dare": Path("models/planner_dare/policy.pt")}
 SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
 
-_POLICY_CACHE: dict[str, object] = {}
+_POLICY_CACHE: dict[str, tuple[object, str | None]] = {}
 _POLICY_LOCK = threading.Lock()
 
 
 def cached_policy(path: str | Path):
-    """The exported policy at `path`, loaded once per process (eval mode, traced denoiser)."""
+    """(the exported policy at `path`, the observation variant it was trained on or None), loaded
+    once per process (eval mode, traced denoiser)."""
     key = str(Path(path).resolve())
     with _POLICY_LOCK:
         if key not in _POLICY_CACHE:
@@ -84,15 +85,16 @@ def cached_policy(path: str | Path):
             # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
             # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
             torch.set_num_threads(1)
-            policy, _ = load_policy(path)
-            _POLICY_CACHE[key] = policy.trace_denoiser()
+            policy, meta = load_policy(path)
+            variant = (meta.get("observations") or {}).get("variant")
+            _POLICY_CACHE[key] = (policy.trace_denoiser(), variant)
     return _POLICY_CACHE[key]
 
 
 def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
     if checkpoint is not None:
         if not Path(checkpoint).is_file():
-            raise FileNotFoundError(f"{checkpoint}: no planner checkpoint there")
+            raise FileNotFoundError(f"{checkpoint}: file not found (expected a planner checkpoint)")
         return Path(checkpoint)
     for path in (PIPELINE_POLICY[kind], SHIPPED_POLICY[kind]):
         if path.is_file():
@@ -144,19 +146,24 @@ class _DiffusionPlanner(GuideTspPlanner):
             self.predictor_source = "no prediction (observed graph only)"
         if policy is None:
             path = resolve_policy_path(self.kind, checkpoint)
-            policy = cached_policy(path)
+            policy, variant = cached_policy(path)
+            if variant is not None and variant != self.kind:
+                raise ValueError(
+                    f"{path}: a {variant} policy (trained on {variant} observations); "
+                    f"{self.name} needs a {self.kind} policy"
+                )
             self.policy_source = str(path)
         else:
             self.policy_source = "injected policy"
         self.policy = policy
         config = policy.config
-        self.num_inference_steps = int(num_inference_steps or config.num_inference_steps)
+        self.num_inference_steps = int(config.num_inference_steps if num_inference_steps is None else num_inference_steps)
         if self.num_inference_steps < 1:
             raise ValueError(f"num_inference_steps must be >= 1, got {num_inference_steps}")
         if sampler is not None and sampler != config.sampler:
             policy = self._with_sampler(policy, sampler)
             self.policy = policy
-        self.action_steps = int(action_steps or config.action_steps)
+        self.action_steps = int(config.action_steps if action_steps is None else action_steps)
         if not 1 <= self.action_steps <= config.horizon:
             raise ValueError(f"action_steps must be in 1..{config.horizon}, got {action_steps}")
         self.stall_steps = int(stall_steps)

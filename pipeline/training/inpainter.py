@@ -51,6 +51,7 @@ from pipeline.models.modeling_inpainter import (
     read_checkpoint,
 )
 from pipeline.shards import read_manifest
+from pipeline.training.exports import read_weights_file
 
 EXPORT_FORMAT = "guide-inpainter/1"
 EXPORT_NAME = "inpainter.pt"
@@ -540,15 +541,18 @@ def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) 
 
 def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
     """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
-    payload = torch.load(path, map_location=map_location, weights_only=True)
-    if "config" in payload and "state_dict" in payload:
-        config = InpainterConfig.from_dict(payload["config"])
-        state = payload["state_dict"]
-    elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
-        config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
-        state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
-    else:
-        raise ValueError(f"{path}: neither an exported inpainter nor an inpainter training checkpoint")
+    payload = read_weights_file(path, "an inpainter export", map_location)
+    try:
+        if "config" in payload and "state_dict" in payload:
+            config = InpainterConfig.from_dict(payload["config"])
+            state = payload["state_dict"]
+        elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
+            config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
+            state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
+        else:
+            raise ValueError("neither an exported inpainter nor an inpainter training checkpoint")
+    except (KeyError, TypeError, ValueError) as error:  # e.g. a planner checkpoint: another model's config
+        raise ValueError(f"{path}: not an inpainter export ({str(error)[:200]})") from None
     model = InpainterModel(config)
     model.load_state_dict(state)
     return model.eval(), config
@@ -556,7 +560,7 @@ def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -
 
 def read_export(path: str | Path) -> dict[str, Any]:
     """The whole exported payload (config, state_dict, metrics, history, timings)."""
-    return torch.load(path, map_location="cpu", weights_only=True)
+    return read_weights_file(path, "an inpainter export")
 
 
 # ----------------------------------------------------------------------------- entry point

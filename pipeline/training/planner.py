@@ -25,6 +25,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
+from pipeline.training.exports import read_weights_file
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -161,11 +162,9 @@ def export_policy(policy: DiffusionPolicy, path: str | Path, **extra: Any) -> Pa
 
 
 def read_policy_export(path: str | Path) -> dict[str, Any]:
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no planner checkpoint there")
-    data = torch.load(path, map_location="cpu", weights_only=False)
-    if not isinstance(data, dict) or "config" not in data or "state_dict" not in data:
+    """The export's dict (config, EMA state_dict, metadata); loads tensors only, never pickled code."""
+    data = read_weights_file(path, "a planner checkpoint")
+    if "config" not in data or "state_dict" not in data:
         raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
     return data
 

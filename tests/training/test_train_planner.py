@@ -149,8 +149,12 @@ def test_diffusion_planner_options_are_checked(trained):
     _, paths = trained
     with pytest.raises(ValueError, match="action_steps"):
         make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, action_steps=20)
-    with pytest.raises(FileNotFoundError, match="no planner checkpoint"):
+    with pytest.raises(FileNotFoundError, match=r"file not found \(expected a planner checkpoint\)"):
         make_planner("dare", checkpoint="/nonexistent/policy.pt")
+    with pytest.raises(ValueError, match="a guide policy .* dare needs a dare policy"):
+        make_planner("dare", checkpoint=str(paths["guide"]))
+    with pytest.raises(ValueError, match="a dare policy .* guide needs a guide policy"):
+        make_planner("guide", checkpoint=str(paths["dare"]), inpaint=wall_aware_inpaint)
     with pytest.raises(ValueError, match="mode"):
         make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, mode="greedy")
     with pytest.raises(ValueError, match="prior_weight"):

@@ -1,0 +1,36 @@
+"""Reading exported model files: tensors and plain containers only, with one-line errors.
+
+`weights_only=True` refuses pickled code, so a file from elsewhere cannot run anything on
+load; a file that is not a model export fails with a ValueError naming it, not a traceback.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import torch
+
+
+def read_weights_file(path: str | Path, what: str, map_location: str | torch.device = "cpu") -> dict[str, Any]:
+    """The dict saved in `path` ("what" names the expected file, article included, for errors).
+
+    FileNotFoundError if absent; ValueError if it is not a `torch.save` archive, holds pickled
+    objects beyond tensors and plain containers, or holds something other than a dict.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: file not found (expected {what})")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path}: not {what} (not a file written by torch.save)")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception:  # noqa: BLE001 - a weights-only refusal or a damaged archive
+        raise ValueError(
+            f"{path}: not {what} (it is damaged or holds pickled objects beyond tensors and plain "
+            "containers, which are refused because loading them would run code from the file)"
+        ) from None
+    if not isinstance(payload, dict):
+        raise ValueError(f"{path}: not {what} (it holds a {type(payload).__name__}, not a dict)")
+    return payload
