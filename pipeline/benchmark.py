@@ -128,17 +128,17 @@ def option_kinds(parameter: inspect.Parameter) -> set[str] | None:
     return names if names and names <= set(_SPEC_KINDS) else None
 
 
-def check_option_value(label: str, key: str, value: Any, parameter: inspect.Parameter) -> None:
+def check_option_value(key: str, value: Any, parameter: inspect.Parameter) -> None:
     """ValueError when a spec's value is not of a kind the option's annotation allows."""
     kinds = option_kinds(parameter)
     if kinds is None:
-        raise ValueError(f"planner {label!r}: option {key!r} takes a Python object; set it from Python, not a spec")
+        raise ValueError(f"option {key!r} takes a Python object; set it from Python, not a spec")
     kind = "bool" if isinstance(value, bool) else type(value).__name__
     if kind in kinds or (kind == "int" and "float" in kinds):
         return
     wanted = {"bool": "true or false", "int": "an integer", "float": "a number", "str": "text"}
     expected = " or ".join(wanted[k] for k in _SPEC_KINDS if k in kinds)
-    raise ValueError(f"planner {label!r}: option {key}={value!r} must be {expected}")
+    raise ValueError(f"option {key}={value!r} must be {expected}")
 
 
 def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
@@ -165,10 +165,10 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
             )
         try:
             for key, value in spec.options.items():
-                check_option_value(spec.label, key, value, accepted[key])
+                check_option_value(key, value, accepted[key])
             cls(**spec.options)
         except (TypeError, ValueError) as error:
-            message = str(error) if str(error).startswith(f"planner {spec.label!r}") else f"planner {spec.label!r}: {error}"
+            message = f"planner {spec.label!r}: {error}"
             if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
                 message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
             raise ValueError(message) from None

@@ -234,11 +234,9 @@ def benchmark(
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
 ) -> None:
     """Run every map in a folder with each planner, in parallel, and summarise."""
-    from pipeline.benchmark import run_benchmark, summary_markdown
+    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec, run_benchmark, summary_markdown
     from pipeline.maps import list_maps
     from pipeline.tracking import log_benchmark
-
-    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec
 
     _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
