@@ -29,10 +29,16 @@ def _fail(message: str) -> None:
     raise typer.Exit(code=2)
 
 
-def _run_stage(main, *args) -> None:
-    """A stage's main(); a missing input (no params file, no upstream output) is one error line."""
+def _check_params(params: Path) -> None:
+    if not params.is_file():
+        _fail(f"{params}: no parameters file (run from the project folder, or pass --params PATH)")
+
+
+def _run_stage(main, params: Path, *args) -> None:
+    """A stage's main(params, ...); a missing params file or upstream output is one error line."""
+    _check_params(params)
     try:
-        main(*args)
+        main(str(params), *args)
     except (MapError, FileNotFoundError) as error:
         _fail(f"{error} (run the upstream stages first: `dvc repro`)")
 
@@ -329,7 +335,7 @@ def stage_generate_mazes(params: Path = typer.Option(Path("params.yaml"), help="
     """DVC stage: training and test mazes from params.yaml's `mazes` section."""
     from stages import generate_mazes
 
-    _run_stage(generate_mazes.main, str(params))
+    _run_stage(generate_mazes.main, params)
 
 
 @stage_app.command("benchmark")
@@ -337,7 +343,7 @@ def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Param
     """DVC stage: the configured planners on the test mazes, reports in reports/benchmark/."""
     from stages import benchmark as benchmark_stage
 
-    _run_stage(benchmark_stage.main, str(params))
+    _run_stage(benchmark_stage.main, params)
 
 
 @stage_app.command("collect-pairs")
@@ -348,7 +354,7 @@ def stage_collect_pairs(
     """DVC stage: Stage I node-image pairs from rollouts in the training mazes."""
     from stages import collect_pairs
 
-    _run_stage(collect_pairs.main, str(params), backend)
+    _run_stage(collect_pairs.main, params, backend)
 
 
 @stage_app.command("collect-expert")
@@ -359,7 +365,7 @@ def stage_collect_expert(
     """DVC stage: Stage II expert episodes on the training mazes."""
     from stages import collect_expert
 
-    _run_stage(collect_expert.main, str(params), backend)
+    _run_stage(collect_expert.main, params, backend)
 
 
 @stage_app.command("train-inpainter")
@@ -377,7 +383,7 @@ def stage_train_inpainter(
     from stages import train_inpainter
 
     device_count = int(devices) if devices and devices.isdigit() else devices
-    _run_stage(train_inpainter.main, str(params), accelerator, device_count, resume,
+    _run_stage(train_inpainter.main, params, accelerator, device_count, resume,
                str(init_checkpoint) if init_checkpoint else None, tracking_uri, progress)
 
 
@@ -386,13 +392,14 @@ def stage_build_observations(params: Path = typer.Option(Path("params.yaml"), he
     """DVC stage: expert episodes replayed into graph observations with the frozen predictor."""
     from stages import build_observations
 
-    _run_stage(build_observations.main, str(params))
+    _run_stage(build_observations.main, params)
 
 
 def _train_planner(params: Path, variant: str, accelerator: Optional[str], devices: Optional[str], resume: bool,
                    max_epochs: Optional[int]) -> None:
     from stages import train_planner
 
+    _check_params(params)
     try:
         train_planner.main(str(params), variant, accelerator, devices, resume, max_epochs)
     except (FileNotFoundError, ValueError) as error:
@@ -427,7 +434,7 @@ def stage_report(params: Path = typer.Option(Path("params.yaml"), help="Paramete
     """DVC stage: Tables I-IV beside the paper's (runs the K sweep), reports/report.md and reports/tables/."""
     from stages import report as report_stage
 
-    _run_stage(report_stage.main, str(params))
+    _run_stage(report_stage.main, params)
 
 
 @stage_app.command("eval-predictor")
@@ -435,7 +442,7 @@ def stage_eval_predictor(params: Path = typer.Option(Path("params.yaml"), help="
     """DVC stage: Table I precision on the test mazes, reports in reports/predictor/."""
     from stages import eval_predictor as eval_stage
 
-    _run_stage(eval_stage.main, str(params))
+    _run_stage(eval_stage.main, params)
 
 
 def main() -> None:  # pragma: no cover - console entry point
