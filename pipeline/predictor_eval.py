@@ -26,7 +26,7 @@ from pipeline.node_predictor import InpaintFn, NodePredictor, NodePredictorConfi
 from pipeline.protocol import Protocol
 from pipeline.simulator import Episode, MotionError
 
-COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")
+COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median", "centroids", "predictions_precision")
 PAPER_STEPS = (15, 30, 45, 60)
 PAPER_PRECISION = {15: 75.92, 30: 79.73, 45: 79.24, 60: 84.61}  # % (Table I)
 PAPER_PREDICTION_MS = (5.4, 6.3)
@@ -162,6 +162,11 @@ class Prediction:
         """Lattice ids of V_u's predicted nodes."""
         return self.global_graph.lattice_ids[self.global_graph.types == PREDICTED]
 
+    def centroid_cells(self) -> np.ndarray:
+        """(col, row) cells of V_u's centroid placeholders (a centroid need not be a lattice node)."""
+        gg = self.global_graph
+        return gg.lattice.spec.world_to_cell(gg.positions[gg.types == CENTROID]).reshape(-1, 2)
+
 
 def predict_at(
     checkpoint: Checkpoint, predictor: NodePredictor, graph_config: GlobalGraphConfig
@@ -178,6 +183,16 @@ def free_in_truth(lattice: LatticeGraph, ground_truth: GroundTruthMap, ids: np.n
     """Whether each lattice node's cell is free in the ground truth."""
     ids = np.asarray(ids, dtype=np.int64)
     return ground_truth.free.reshape(-1)[lattice.node_flat[ids]]
+
+
+def cells_free_in_truth(ground_truth: GroundTruthMap, cells: np.ndarray) -> np.ndarray:
+    """Whether each (col, row) cell is free in the ground truth; a cell off the map is not."""
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
+    rows, cols = ground_truth.free.shape
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < cols) & (cells[:, 1] >= 0) & (cells[:, 1] < rows)
+    free = np.zeros(len(cells), dtype=bool)
+    free[inside] = ground_truth.free[cells[inside, 1], cells[inside, 0]]
+    return free
 
 
 def _resolve_inpaint(
@@ -208,9 +223,11 @@ def evaluate_predictor(
     inpaint_for: InpaintFactory | None = None,
     explorer: str = EXPLORER,
 ) -> pd.DataFrame:
-    """Pooled precision of V_u's predicted nodes per step, one row per step (COLUMNS).
+    """Pooled precision of V_u per step, one row per step (COLUMNS).
 
-    Give the network as `inpaint_fn` (image -> probabilities) or as `inpaint_for`, a
+    `precision` is the paper's Pre(k) = |V_u ∩ free| / |V_u| over V_u's kept predictions and its
+    centroid placeholders (`predicted_nodes` = |V_u|, `centroids` of them placeholders);
+    `predictions_precision` counts the kept predictions alone. Give the network as `inpaint_fn` (image -> probabilities) or as `inpaint_for`, a
     factory (ground truth, lattice) -> inpaint function built per map. A step no map
     reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
     (rasterise, inpaint, threshold, component filter).
@@ -219,6 +236,8 @@ def evaluate_predictor(
     steps = sorted({int(s) for s in steps})
     tp = {s: 0 for s in steps}
     total = {s: 0 for s in steps}
+    centroid_tp = {s: 0 for s in steps}
+    centroids = {s: 0 for s in steps}
     reached = {s: 0 for s in steps}
     times: dict[int, list[float]] = {s: [] for s in steps}
     for path in map_paths:
@@ -234,17 +253,23 @@ def evaluate_predictor(
             s = checkpoint.step
             tp[s] += int(free_in_truth(checkpoint.lattice, ground_truth, kept).sum())
             total[s] += int(kept.size)
+            placeholders = prediction.centroid_cells()
+            centroid_tp[s] += int(cells_free_in_truth(ground_truth, placeholders).sum())
+            centroids[s] += len(placeholders)
             reached[s] += 1
             times[s].append(prediction.milliseconds)
     rows = []
     for s in steps:
+        v_u = total[s] + centroids[s]
         rows.append(
             {
                 "step": s,
-                "precision": tp[s] / total[s] if total[s] else float("nan"),
-                "predicted_nodes": total[s],
+                "precision": (tp[s] + centroid_tp[s]) / v_u if v_u else float("nan"),
+                "predicted_nodes": v_u,
                 "maps": reached[s],
                 "prediction_ms_median": float(np.median(times[s])) if times[s] else float("nan"),
+                "centroids": centroids[s],
+                "predictions_precision": tp[s] / total[s] if total[s] else float("nan"),
             }
         )
     return pd.DataFrame(rows, columns=list(COLUMNS))
@@ -255,8 +280,9 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
     lines = [
         f"# {title}",
         "",
-        "Predicted nodes of V_u (after region evaluation) that are free in the ground truth, pooled over maps; "
-        f"exploration by `{EXPLORER}`.",
+        "Nodes of V_u (region-evaluated predictions and centroid placeholders) that are free in the ground "
+        "truth, pooled over maps, as the paper's Pre(k) = |V_u ∩ free| / |V_u|; `predictions only` leaves the "
+        f"centroids out. Exploration by `{EXPLORER}`.",
         "",
         "Paper (100 mazes): step "
         + "/".join(str(s) for s in PAPER_PRECISION)
@@ -264,14 +290,25 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
         + "/".join(f"{v:.2f}" for v in PAPER_PRECISION.values())
         + f" %, prediction {PAPER_PREDICTION_MS[0]}-{PAPER_PREDICTION_MS[1]} ms.",
         "",
-        "| step | precision (ours) | precision (paper) | predicted nodes | maps | prediction ms (median, ours) |",
-        "|---:|---:|---:|---:|---:|---:|",
+        "| step | precision (ours) | precision (paper) | V_u nodes | of them centroids | predictions only "
+        "| maps | prediction ms (median, ours) |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
+
+    def percent(value: float) -> str:
+        return "n/a" if not np.isfinite(value) else f"{100.0 * value:.2f} %"
+
+    def count(value: float) -> str:
+        return "n/a" if not np.isfinite(value) else str(int(value))
+
+    frame = frame.reindex(columns=list(COLUMNS))  # a precision.csv from before the centroid columns reads as n/a
     for row in frame.itertuples(index=False):
-        ours = "n/a" if not np.isfinite(row.precision) else f"{100.0 * row.precision:.2f} %"
         paper = f"{PAPER_PRECISION[row.step]:.2f} %" if row.step in PAPER_PRECISION else "-"
         ms = "n/a" if not np.isfinite(row.prediction_ms_median) else f"{row.prediction_ms_median:.2f}"
-        lines.append(f"| {row.step} | {ours} | {paper} | {row.predicted_nodes} | {row.maps} | {ms} |")
+        lines.append(
+            f"| {row.step} | {percent(row.precision)} | {paper} | {count(row.predicted_nodes)} | {count(row.centroids)} "
+            f"| {percent(row.predictions_precision)} | {row.maps} | {ms} |"
+        )
     return "\n".join(lines) + "\n"
 
 

@@ -92,7 +92,8 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
         mlflow.log_params({**protocol.to_dict(), **{f"eval_predictor.{k}": v for k, v in section.items()}, "maps": maps})
         metrics = {}
         for row in frame.itertuples(index=False):
-            for name in ("precision", "predicted_nodes", "maps", "prediction_ms_median"):
+            for name in ("precision", "predicted_nodes", "maps", "prediction_ms_median", "centroids",
+                         "predictions_precision"):
                 value = float(getattr(row, name))
                 if value == value:  # skip NaN
                     metrics[f"{name}_step{row.step}"] = value

@@ -38,8 +38,31 @@ def test_oracle_predictions_are_all_free(maze_paths):
     assert frame["step"].tolist() == list(STEPS)
     assert (frame["maps"] == 2).all()
     assert (frame["predicted_nodes"] > 0).all()
-    assert (frame["precision"] == 1.0).all()
+    assert (frame["predictions_precision"] == 1.0).all()  # every kept prediction is a true free node
+    assert (frame["precision"] <= 1.0).all() and (frame["centroids"] <= frame["predicted_nodes"]).all()
     assert (frame["prediction_ms_median"] > 0).all()
+
+
+def test_precision_counts_centroid_placeholders_of_v_u(maze_paths, monkeypatch):
+    """Pre(k) is over all of V_u: a centroid on a wall counts against it, as in the paper."""
+    import pipeline.predictor_eval as predictor_eval
+
+    monkeypatch.setattr(predictor_eval.Prediction, "centroid_cells",
+                        lambda self: np.array([[0, 0], [-5, 3]]))  # a border wall and a cell off the map
+    frame = evaluate_predictor(maze_paths[:1], steps=STEPS, inpaint_for=oracle_inpaint_for)
+    kept = frame["predicted_nodes"] - frame["centroids"]
+    assert (frame["centroids"] == 2).all() and (frame["predictions_precision"] == 1.0).all()
+    assert np.allclose(frame["precision"], kept / frame["predicted_nodes"])
+
+
+def test_cells_free_in_truth_is_false_off_the_map(maze_paths):
+    from pipeline.maps import load_map
+    from pipeline.predictor_eval import cells_free_in_truth
+
+    ground_truth = load_map(maze_paths[0])
+    col, row = ground_truth.start_cell
+    cells = np.array([[col, row], [0, 0], [-1, row], [col, 10**6]])
+    assert cells_free_in_truth(ground_truth, cells).tolist() == [True, False, False, False]
 
 
 def test_an_all_free_predictor_is_not_precise(maze_paths):

@@ -226,8 +226,15 @@ def test_table4_from_sweep():
 def precision_frame() -> pd.DataFrame:
     return pd.DataFrame(
         {"step": [15, 30], "precision": [0.8, 0.9], "predicted_nodes": [10, 20], "maps": [2, 2],
-         "prediction_ms_median": [5.0, 6.0]}
+         "prediction_ms_median": [5.0, 6.0], "centroids": [1, 0], "predictions_precision": [0.85, 0.9]}
     )
+
+
+def test_table1_reads_a_precision_csv_from_before_the_centroid_columns():
+    old = precision_frame().drop(columns=["centroids", "predictions_precision"])
+    text = reports.table1_markdown(old)
+    assert "| 15 | 80.00 % | 75.92 % | 10 | n/a | n/a | 2 | 5.00 |" in text
+    assert "| 15 | 80.00 % | 75.92 % | 10 | 1 | 85.00 % | 2 | 5.00 |" in reports.table1_markdown(precision_frame())
 
 
 def test_report_markdown_has_every_table(bench_frame):
