@@ -96,6 +96,8 @@ class GlobalGraphConfig:
     position_scale_nodes: float = 10.0  # node spacings (40 m at d_n = 4 m): dx, dy features are divided by this
     utility_scale: float = 100.0  # utility feature = min(u / utility_scale, 1)
     max_nodes: int = 512  # features() pads or trims to this many nodes
+    guidepost_min_utility: float = 2.0  # the guidepost leads to the nearest unvisited node with this utility, as
+    # the planners' useful_nodes (min_utility 2): with "utility > 0" the robot's own node won 71 % of steps
     use_region_evaluation: bool = True  # False: keep every prediction (the paper's ablation)
 
 
@@ -245,7 +247,10 @@ class GlobalGraph:
         robot = self.nearest(robot_xy)
         dist, pred = self.shortest_paths(robot)
         guidepost = np.zeros(self.node_count, dtype=bool)
-        useful = np.nonzero((self.utility > 0) & np.isfinite(dist))[0]
+        reachable_unvisited = np.isfinite(dist) & ~self.visited
+        useful = np.nonzero(reachable_unvisited & (self.utility >= self.config.guidepost_min_utility))[0]
+        if useful.size == 0:
+            useful = np.nonzero(reachable_unvisited & (self.utility > 0))[0]
         if useful.size:
             node = int(useful[np.argmin(dist[useful])])
             while node >= 0:

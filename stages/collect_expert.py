@@ -56,6 +56,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
         horizon=int(section.get("horizon", 8)),
         seed=int(section["seed"]),
         protocol=protocol,
+        random_starts=bool(section.get("random_starts", False)),
     )
     started = time.perf_counter()
     manifest = run_shards(

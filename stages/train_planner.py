@@ -33,7 +33,7 @@ def plot_curves(history: list[dict], path: Path, title: str) -> None:
     ax_loss.plot(epochs, [h["train_loss"] for h in history], label="train")
     ax_loss.plot(epochs, [h["val_loss"] for h in history], label="val (EMA)")
     ax_loss.set_xlabel("epoch")
-    ax_loss.set_ylabel("DDPM noise MSE")
+    ax_loss.set_ylabel("DDPM loss (MSE)")
     ax_loss.set_yscale("log")
     ax_loss.legend()
     ax_loss.grid(alpha=0.3)

@@ -8,6 +8,7 @@ from pipeline.collect import (
     collect_pairs_shard,
     future_waypoints,
     load_expert_episodes,
+    random_open_start,
     load_pairs,
 )
 from pipeline.maps import list_maps, load_map
@@ -57,6 +58,26 @@ def test_expert_episodes_rebuild_the_belief_exactly(generated_maze_dir, tmp_path
         replayed.move(position)
         assert (belief == replayed.belief.grid).all()
     assert manifest["totals"]["steps"] == len(episode.positions)
+
+
+def test_random_starts_give_distinct_expert_episodes_from_open_cells(generated_maze_dir, tmp_path):
+    from dataclasses import replace
+
+    maps = tuple(str(p) for p in list_maps(generated_maze_dir))[:1]
+    config = ExpertConfig(maps=maps, episodes_per_shard=2, planner="nearest_frontier", horizon=4, seed=3,
+                          random_starts=True)
+    run_shards(collect_expert_shard, 1, tmp_path / "e", {"config": config}, progress=False)
+    episodes = load_expert_episodes(shard_path(tmp_path / "e", 0))
+    ground_truth = load_map(maps[0])
+    starts = {episode.start_cell for episode in episodes}
+    assert len(starts) == 2 and ground_truth.start_cell not in starts
+    for col, row in starts:
+        assert ground_truth.free[row - 2: row + 3, col - 2: col + 3].all()  # 0.8 m clear on every side
+    for episode in episodes:  # each replays exactly from its own start
+        replayed = Episode(replace(ground_truth, start_cell=episode.start_cell), Protocol())
+        assert (next(episode.beliefs()) == replayed.belief.grid).all()
+    walled = replace(ground_truth, free=np.zeros_like(ground_truth.free))
+    assert random_open_start(walled, np.random.default_rng(0)) is walled  # nowhere open: the map as it was
 
 
 def test_future_waypoints_repeat_the_last():

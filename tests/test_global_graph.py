@@ -102,3 +102,20 @@ def test_features_are_padded_with_a_mask(partial):
     assert np.allclose(features[robot_row, :2], 0.0)
     assert (features[~mask] == 0).all()
     assert features[mask, 3].any()  # a guidepost path exists while frontiers remain
+
+
+def test_guidepost_leads_to_the_nearest_unvisited_useful_node(partial):
+    ground_truth, episode, planner, graph = partial
+    global_graph = GlobalGraph(graph, GlobalGraphConfig(max_nodes=512))
+    global_graph.update(episode.belief.grid, episode.position, None, planner.visited)
+    robot = global_graph.nearest(episode.position)
+    global_graph.utility[robot] = 50.0  # the robot's own node sees frontier: it must not be the target
+    features, mask, robot_row = global_graph.features(episode.position)
+    order = global_graph.row_order(np.asarray(episode.position, dtype=np.float64))
+    on_path = order[features[: len(order), 3] > 0]
+    dist, _ = global_graph.shortest_paths(robot)
+    useful = np.nonzero(~global_graph.visited & np.isfinite(dist)
+                        & (global_graph.utility >= global_graph.config.guidepost_min_utility))[0]
+    target = useful[np.argmin(dist[useful])]
+    assert global_graph.visited[robot] and target != robot
+    assert robot in on_path and target in on_path and len(on_path) >= 2  # a path, not the robot's node alone

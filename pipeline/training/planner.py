@@ -1,7 +1,7 @@
 """Stage II training of the diffusion planner in Lightning.
 
-DDPM loss (epsilon prediction, squared-cosine schedule from `diffusers`) on expert action
-chunks given T_o graph observations; AdamW with linear warm-up and cosine decay (the
+DDPM loss (the model config's prediction type: clean actions by default, epsilon as DARE;
+squared-cosine schedule from `diffusers`) on expert action chunks given T_o graph observations; AdamW with linear warm-up and cosine decay (the
 `diffusers` schedule helper); EMA weights (`torch.optim.swa_utils`), which are what gets
 exported and what validation measures. Validation holds out whole episodes and reports the
 loss and how often the first sampled step equals the expert's.
@@ -230,7 +230,10 @@ def train_planner(
         L.seed_everything(tc.seed, workers=True, verbose=False)
         train_rows, val_rows = split_episodes(arrays["episode"], tc.val_fraction, tc.seed)
         train_set = PlannerDataset(arrays, mc.obs_steps, train_rows, augment=tc.augment, seed=tc.seed)
-        val_set = PlannerDataset(arrays, mc.obs_steps, val_rows if len(val_rows) else train_rows[:1])
+        # Validation samples first steps from its first `val_accuracy_samples` rows: shuffled once (fixed seed),
+        # they spread over every held-out episode instead of the first steps of one.
+        val_rows = np.random.default_rng(tc.seed).permutation(val_rows) if len(val_rows) else train_rows[:1]
+        val_set = PlannerDataset(arrays, mc.obs_steps, val_rows)
         generator = torch.Generator().manual_seed(tc.seed)
         train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
