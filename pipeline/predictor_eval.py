@@ -26,7 +26,8 @@ from pipeline.node_predictor import InpaintFn, NodePredictor, NodePredictorConfi
 from pipeline.protocol import Protocol
 from pipeline.simulator import Episode, MotionError
 
-COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median", "centroids", "predictions_precision")
+COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")  # precision.csv, as the issue fixes it
+DETAIL_COLUMNS = COLUMNS + ("centroids", "predictions_precision")  # precision_detail.csv: V_u split up
 PAPER_STEPS = (15, 30, 45, 60)
 PAPER_PRECISION = {15: 75.92, 30: 79.73, 45: 79.24, 60: 84.61}  # % (Table I)
 PAPER_PREDICTION_MS = (5.4, 6.3)
@@ -223,7 +224,7 @@ def evaluate_predictor(
     inpaint_for: InpaintFactory | None = None,
     explorer: str = EXPLORER,
 ) -> pd.DataFrame:
-    """Pooled precision of V_u per step, one row per step (COLUMNS).
+    """Pooled precision of V_u per step, one row per step (DETAIL_COLUMNS).
 
     `precision` is the paper's Pre(k) = |V_u ∩ free| / |V_u| over V_u's kept predictions and its
     centroid placeholders (`predicted_nodes` = |V_u|, `centroids` of them placeholders);
@@ -272,7 +273,7 @@ def evaluate_predictor(
                 "predictions_precision": tp[s] / total[s] if total[s] else float("nan"),
             }
         )
-    return pd.DataFrame(rows, columns=list(COLUMNS))
+    return pd.DataFrame(rows, columns=list(DETAIL_COLUMNS))
 
 
 def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference precision (paper Table I)") -> str:
@@ -301,7 +302,7 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
     def count(value: float) -> str:
         return "n/a" if not np.isfinite(value) else str(int(value))
 
-    frame = frame.reindex(columns=list(COLUMNS))  # a precision.csv from before the centroid columns reads as n/a
+    frame = frame.reindex(columns=list(DETAIL_COLUMNS))  # precision.csv alone: the centroid columns read n/a
     for row in frame.itertuples(index=False):
         paper = f"{PAPER_PRECISION[row.step]:.2f} %" if row.step in PAPER_PRECISION else "-"
         ms = "n/a" if not np.isfinite(row.prediction_ms_median) else f"{row.prediction_ms_median:.2f}"

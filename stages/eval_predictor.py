@@ -3,8 +3,9 @@
 Reads only the `eval_predictor` section (steps, threshold, min_component, keep_share, checkpoint) and
 the shared `protocol` section of params.yaml. Explores each test maze with nearest_frontier,
 runs the Global Node Predictor with the trained inpainter at each step and region
-evaluation, and writes reports/predictor/precision.csv, reports/predictor/table1.md (ours
-beside the paper's) and reports/predictor/fig3.png; logs one MLflow run in experiment "table1".
+evaluation, and writes reports/predictor/precision.csv (with precision_detail.csv: V_u split
+into predictions and centroids), reports/predictor/table1.md (ours beside the paper's) and
+reports/predictor/fig3.png; logs one MLflow run in experiment "table1".
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import pandas as pd
 import yaml
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
-from pipeline.predictor_eval import TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
+from pipeline.predictor_eval import COLUMNS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
 from pipeline.maps import MapError, list_maps
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
@@ -64,7 +65,8 @@ def run(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     frame = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol)
-    frame.to_csv(out_dir / "precision.csv", index=False)
+    frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
+    frame.to_csv(out_dir / "precision_detail.csv", index=False)
     (out_dir / "table1.md").write_text(table1_markdown(frame))
     if figure:
         steps_sorted = sorted(int(s) for s in steps)
@@ -98,7 +100,7 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
                 if value == value:  # skip NaN
                     metrics[f"{name}_step{row.step}"] = value
         mlflow.log_metrics(metrics)
-        for name in ("precision.csv", "table1.md", "fig3.png"):
+        for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png"):
             if (out_dir / name).is_file():
                 mlflow.log_artifact(str(out_dir / name))
         return active.info.run_id

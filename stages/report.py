@@ -10,7 +10,7 @@ Reads only the `report` section and the shared `protocol` section of params.yaml
 - workers, seed: for the sweep.
 
 Reads reports/benchmark/metrics.csv (the benchmark stage, Tables II and III) and, when it
-exists, reports/predictor/precision.csv (the eval_predictor stage, Table I). Writes
+exists, reports/predictor/precision_detail.csv or precision.csv (the eval_predictor stage, Table I). Writes
 reports/tables/table{1,2,3,4}.md, reports/report.md, reports/report.json (DVC metrics)
 and reports/trajectories.png, and logs one MLflow experiment per table.
 """
@@ -49,6 +49,7 @@ TEST_MAZES = Path("data/mazes/test")
 BENCHMARK_DIR = Path("reports/benchmark")
 METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
 PRECISION_CSV = Path("reports/predictor/precision.csv")
+PRECISION_DETAIL_CSV = Path("reports/predictor/precision_detail.csv")  # the same rows with V_u split up
 SWEEP_DIR = Path("reports/denoising_steps")
 TABLES_DIR = Path("reports/tables")
 REPORT_MD = Path("reports/report.md")
@@ -126,7 +127,9 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
     frame = read_metrics(METRICS_CSV)
     sweep_maps = maps[: section["k_maps"]]
     sweep = run_sweep(sweep_maps, section, protocol)
-    precision = read_precision(PRECISION_CSV)
+    precision = read_precision(PRECISION_DETAIL_CSV)
+    if precision is None:
+        precision = read_precision(PRECISION_CSV)
 
     tables = {
         "table1": precision,

@@ -7,6 +7,7 @@ import yaml
 from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.predictor_eval import (
     COLUMNS,
+    DETAIL_COLUMNS,
     all_free_inpaint,
     evaluate_predictor,
     load_inpaint_fn,
@@ -34,7 +35,7 @@ def maze_paths(maze_dir):
 
 def test_oracle_predictions_are_all_free(maze_paths):
     frame = evaluate_predictor(maze_paths, steps=STEPS, inpaint_for=oracle_inpaint_for)
-    assert tuple(frame.columns) == COLUMNS
+    assert tuple(frame.columns) == DETAIL_COLUMNS
     assert frame["step"].tolist() == list(STEPS)
     assert (frame["maps"] == 2).all()
     assert (frame["predicted_nodes"] > 0).all()
@@ -67,7 +68,7 @@ def test_cells_free_in_truth_is_false_off_the_map(maze_paths):
 
 def test_an_all_free_predictor_is_not_precise(maze_paths):
     frame = evaluate_predictor(maze_paths, all_free_inpaint, steps=STEPS)
-    assert tuple(frame.columns) == COLUMNS
+    assert tuple(frame.columns) == DETAIL_COLUMNS
     assert (frame["precision"] < 1.0).all() and (frame["precision"] > 0.0).all()
     table = table1_markdown(frame)
     assert "| 3 |" in table and "%" in table
@@ -124,8 +125,10 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     frame = stage.main("params.yaml")
     out = tmp_path / "reports" / "predictor"
     written = pd.read_csv(out / "precision.csv")
-    assert tuple(written.columns) == COLUMNS and len(written) == 2
+    assert tuple(written.columns) == COLUMNS and len(written) == 2  # the columns, exactly
     assert np.allclose(written["precision"], frame["precision"])
+    detail = pd.read_csv(out / "precision_detail.csv")
+    assert tuple(detail.columns) == DETAIL_COLUMNS and np.allclose(detail["precision"], written["precision"])
     assert "75.92" in (out / "table1.md").read_text()
     assert (out / "fig3.png").is_file()
 
