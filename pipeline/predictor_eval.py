@@ -164,7 +164,7 @@ class Prediction:
         return self.global_graph.lattice_ids[self.global_graph.types == PREDICTED]
 
     def centroid_cells(self) -> np.ndarray:
-        """(col, row) cells of V_u's centroid placeholders (a centroid need not be a lattice node)."""
+        """(col, row) cells of V_u's centroid nodes (a centroid need not be a lattice node)."""
         gg = self.global_graph
         return gg.lattice.spec.world_to_cell(gg.positions[gg.types == CENTROID]).reshape(-1, 2)
 
@@ -227,10 +227,10 @@ def evaluate_predictor(
     """Pooled precision of V_u per step, one row per step (DETAIL_COLUMNS).
 
     `precision` is the paper's Pre(k) = |V_u ∩ free| / |V_u| over V_u's kept predictions and its
-    centroid placeholders (`predicted_nodes` = |V_u|, `centroids` of them placeholders);
-    `predictions_precision` counts the kept predictions alone. Give the network as `inpaint_fn` (image -> probabilities) or as `inpaint_for`, a
-    factory (ground truth, lattice) -> inpaint function built per map. A step no map
-    reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
+    centroid nodes (`predicted_nodes` = |V_u|, `centroids` of them centroid nodes);
+    `predictions_precision` counts the kept predictions alone. Give the network as `inpaint_fn`
+    (image -> probabilities) or as `inpaint_for`, a factory (ground truth, lattice) -> inpaint
+    function built per map. A step no map reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
     (rasterise, inpaint, threshold, component filter).
     """
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
@@ -254,9 +254,9 @@ def evaluate_predictor(
             s = checkpoint.step
             tp[s] += int(free_in_truth(checkpoint.lattice, ground_truth, kept).sum())
             total[s] += int(kept.size)
-            placeholders = prediction.centroid_cells()
-            centroid_tp[s] += int(cells_free_in_truth(ground_truth, placeholders).sum())
-            centroids[s] += len(placeholders)
+            centroid_cells = prediction.centroid_cells()
+            centroid_tp[s] += int(cells_free_in_truth(ground_truth, centroid_cells).sum())
+            centroids[s] += len(centroid_cells)
             reached[s] += 1
             times[s].append(prediction.milliseconds)
     rows = []
@@ -281,7 +281,7 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
     lines = [
         f"# {title}",
         "",
-        "Nodes of V_u (region-evaluated predictions and centroid placeholders) that are free in the ground "
+        "Nodes of V_u (region-evaluated predictions and centroid nodes) that are free in the ground "
         "truth, pooled over maps, as the paper's Pre(k) = |V_u ∩ free| / |V_u|; `predictions only` leaves the "
         f"centroids out. Exploration by `{EXPLORER}`.",
         "",

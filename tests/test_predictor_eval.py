@@ -44,7 +44,7 @@ def test_oracle_predictions_are_all_free(maze_paths):
     assert (frame["prediction_ms_median"] > 0).all()
 
 
-def test_precision_counts_centroid_placeholders_of_v_u(maze_paths, monkeypatch):
+def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
     """Pre(k) is over all of V_u: a centroid on a wall counts against it, as in the paper."""
     import pipeline.predictor_eval as predictor_eval
 
