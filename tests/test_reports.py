@@ -64,29 +64,25 @@ def test_parse_planner_spec_bad(text, message):
         parse_planner_spec(text)
 
 
-def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path):
-    with pytest.raises(KeyError, match="unknown planner"):
-        run_benchmark([small_maze_path], ["x=no_such_planner:a=1"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="has no option no_such_option; it accepts: min_utility$"):
-        run_benchmark([small_maze_path], ["x=nearest_frontier:no_such_option=1"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="guide has no option k; it accepts: .*num_inference_steps.*beta"):
-        run_benchmark([small_maze_path], ["x=guide:k=1"], Protocol(), tmp_path)  # tour options reach guide by **
-    with pytest.raises(ValueError, match="option prior_weight='abc' must be a number"):
-        run_benchmark([small_maze_path], ["x=guide:prior_weight=abc"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="option num_inference_steps=2.5 must be an integer"):
-        run_benchmark([small_maze_path], ["x=guide:num_inference_steps=2.5"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="num_inference_steps must be >= 1, got 0"):
-        run_benchmark([small_maze_path], ["x=guide:num_inference_steps=0"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="replan_on_change=1 must be true or false"):
-        run_benchmark([small_maze_path], ["x=expert:replan_on_change=1"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="'inpaint' takes a Python object"):
-        run_benchmark([small_maze_path], ["x=guide_tsp:inpaint=zeros"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="'x'.*spread must be positive"):
-        run_benchmark([small_maze_path], ["x=guide_tsp:spread=-1"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="separated by ','"):  # a ':' where a ',' belongs
-        run_benchmark([small_maze_path], ["x=guide_tsp:spread=2:beta=3"], Protocol(), tmp_path)
-    with pytest.raises(ValueError, match="used twice"):
-        run_benchmark([small_maze_path], ["nearest_frontier", "nearest_frontier=greedy_utility"], Protocol(), tmp_path)
+@pytest.mark.parametrize(
+    "planners, error, message",
+    [
+        (["x=no_such_planner:a=1"], KeyError, "unknown planner"),
+        (["x=nearest_frontier:no_such_option=1"], ValueError, "has no option no_such_option; it accepts: min_utility$"),
+        (["x=guide:k=1"], ValueError, "guide has no option k; it accepts: .*num_inference_steps.*beta"),  # tour options via **
+        (["x=guide:prior_weight=abc"], ValueError, "option prior_weight='abc' must be a number"),
+        (["x=guide:num_inference_steps=2.5"], ValueError, "option num_inference_steps=2.5 must be an integer"),
+        (["x=guide:num_inference_steps=0"], ValueError, "num_inference_steps must be >= 1, got 0"),
+        (["x=expert:replan_on_change=1"], ValueError, "replan_on_change=1 must be true or false"),
+        (["x=guide_tsp:inpaint=zeros"], ValueError, "'inpaint' takes a Python object"),
+        (["x=guide_tsp:spread=-1"], ValueError, "'x'.*spread must be positive"),
+        (["x=guide_tsp:spread=2:beta=3"], ValueError, "separated by ','"),  # a ':' where a ',' belongs
+        (["nearest_frontier", "nearest_frontier=greedy_utility"], ValueError, "used twice"),
+    ],
+)
+def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path, planners, error, message):
+    with pytest.raises(error, match=message):
+        run_benchmark([small_maze_path], planners, Protocol(), tmp_path)
     assert not (tmp_path / "metrics.csv").exists()
 
 
