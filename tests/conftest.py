@@ -78,10 +78,39 @@ def write_ros_map(directory: Path, free: np.ndarray, resolution: float, start_xy
     return yaml_path
 
 
+@pytest.fixture(autouse=True)
+def no_pipeline_models(monkeypatch, tmp_path):
+    """Tests never pick up models a `dvc repro` left in the working tree (models/...): a learned
+    planner built without a checkpoint gets the shipped default, as in a fresh clone."""
+    from pipeline import predictor_eval
+    from pipeline.planners import global_graph_planners, guide
+
+    absent = tmp_path / "no-pipeline-models"
+    monkeypatch.setattr(global_graph_planners, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
+    monkeypatch.setattr(predictor_eval, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
+    monkeypatch.setattr(guide, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
+
+
+TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner")  # "inpainter-test" sets its own location
+
+
 @pytest.fixture(scope="session")
 def mlflow_uri(tmp_path_factory) -> str:
-    """One sqlite MLflow store for the whole session (creating one costs seconds)."""
-    return f"sqlite:///{tmp_path_factory.mktemp('mlflow') / 'mlflow.db'}"
+    """One sqlite MLflow store for the whole session (creating one costs seconds).
+
+    The experiments the tests log to are created here with their artifacts in the same
+    temporary folder: on a sqlite store MLflow would otherwise put them in ./mlruns.
+    """
+    import mlflow
+
+    from pipeline.reports import TABLE_EXPERIMENTS
+
+    folder = tmp_path_factory.mktemp("mlflow")
+    uri = f"sqlite:///{folder / 'mlflow.db'}"
+    client = mlflow.MlflowClient(tracking_uri=uri)
+    for name in sorted(set(TEST_EXPERIMENTS) | set(TABLE_EXPERIMENTS.values())):
+        client.create_experiment(name, artifact_location=(folder / "artifacts" / name).as_uri())
+    return uri
 
 
 @pytest.fixture(scope="session")

@@ -41,6 +41,23 @@ def test_summary_compares_with_the_baseline_map_by_map():
     assert "vs " not in summary_markdown(frame[frame.planner == "nf"], Protocol())  # the baseline did not run
 
 
+def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
+    from pipeline.benchmark import summarise, summary_markdown
+
+    rows = []
+    for planner, distances in (("optimal", [80, 160, 240]), ("nf", [110, 220, 330])):
+        for i, d in enumerate(distances):
+            rows.append({"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True,
+                         "explored_ratio": 1.0, "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0})
+    frame = pd.DataFrame(rows)
+    summary = summarise(frame)
+    assert summary.loc["nf", "gap_to_optimal"] == pytest.approx(220 / 160 - 1.0)
+    assert summary.loc["optimal", "gap_to_optimal"] == pytest.approx(0.0)
+    text = summary_markdown(frame, Protocol(), baseline=None)
+    assert "| nf | 3 | 220.0 +- 89.8 | +37.5 % |" in text and "| optimal | 3 | 160.0 +- 65.3 | +0.0 % |" in text
+    assert "gap to optimal" not in summary_markdown(frame[frame.planner == "nf"], Protocol(), baseline=None)
+
+
 def test_benchmark_rejects_unknown_planner_and_bad_maps(generated_maze_dir, tmp_path):
     with pytest.raises(KeyError, match="unknown planner"):
         run_benchmark(list_maps(generated_maze_dir), ["no_such_planner"], Protocol(), tmp_path)

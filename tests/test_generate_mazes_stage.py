@@ -43,7 +43,8 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     assert test == ["maze_0000.png"]
     for path in (tmp_path / "data/mazes").rglob("*.png"):
         load_maze_png(path)
-    assert cv2.imread(str(tmp_path / "reports/mazes_preview.png"), cv2.IMREAD_GRAYSCALE) is not None
+    preview = cv2.imread(str(tmp_path / "reports/mazes_preview.png"), cv2.IMREAD_GRAYSCALE)
+    assert preview is not None and min(preview.shape) >= 100 and preview.std() > 10  # an image of mazes, not a blank
     # Train and test use different seed sequences.
     assert (tmp_path / "data/mazes/train/maze_0000.png").read_bytes() != (
         tmp_path / "data/mazes/test/maze_0000.png"

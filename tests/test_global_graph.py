@@ -5,7 +5,7 @@ from scipy.sparse.csgraph import connected_components
 from pipeline.global_graph import CENTROID, KNOWN, PREDICTED, GlobalGraph, GlobalGraphConfig, RegionEvaluationConfig, region_scores
 from pipeline.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_EXPLORED, REGION_UNOBSERVED
 from pipeline.geometry import walk_cells
-from pipeline.node_image import ground_truth_states, node_states_image
+from pipeline.node_image import ground_truth_states, node_states_image, observed_node_states
 from pipeline.node_predictor import NodePredictor, NodePredictorConfig, drop_small_components, pad_to_multiple
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
@@ -90,7 +90,16 @@ def test_region_evaluation_trims_far_predictions(partial):
     filtered = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=0.2, centroid_density=0.0)))
     filtered.update(episode.belief.grid, episode.position, predicted)
     assert (filtered.types == PREDICTED).sum() < (everything.types == PREDICTED).sum()
-    assert (filtered.types == CENTROID).sum() >= 0
+    # With no density bar, every unobserved region whose predictions were all dropped stands in as its centroid.
+    node_region = graph.region_of_cells(graph.node_cells)
+    kept_regions = {tuple(node_region[n]) for n in filtered.lattice_ids[filtered.types == PREDICTED]}
+    labels, centroids = graph.region_labels(), graph.region_centroids()
+    dropped_unobserved = {tuple(node_region[n]) for n in predicted} - kept_regions
+    dropped_unobserved = {r for r in dropped_unobserved if labels[r] == REGION_UNOBSERVED}
+    expected = np.array(sorted(tuple(centroids[r]) for r in dropped_unobserved)).reshape(-1, 2)
+    got = filtered.positions[filtered.types == CENTROID]
+    assert len(expected) > 0
+    assert np.allclose(got[np.lexsort(got.T[::-1])], expected)
 
 
 def test_features_are_padded_with_a_mask(partial):
@@ -119,3 +128,35 @@ def test_guidepost_leads_to_the_nearest_unvisited_useful_node(partial):
     target = useful[np.argmin(dist[useful])]
     assert global_graph.visited[robot] and target != robot
     assert robot in on_path and target in on_path and len(on_path) >= 2  # a path, not the robot's node alone
+
+
+def test_features_keep_the_nearest_nodes_with_their_flags(partial):
+    """Trimmed to max_nodes, the rows are the nearest nodes, nearest first, and carry their visited flags."""
+    ground_truth, episode, planner, graph = partial
+    global_graph = GlobalGraph(graph, GlobalGraphConfig(max_nodes=6))
+    global_graph.update(episode.belief.grid, episode.position, None, planner.visited)
+    assert global_graph.node_count > 6 and global_graph.visited.sum() >= 2
+    features, mask, robot_row = global_graph.features(episode.position)
+    robot_xy = np.asarray(episode.position, dtype=np.float64)
+    distance = np.hypot(*(global_graph.positions - robot_xy).T)
+    nearest = np.argsort(distance, kind="stable")[:6]
+    scale = global_graph.config.position_scale_nodes * graph.spec.node_resolution
+    assert mask.all() and robot_row == 0
+    assert np.allclose(features[:, :2] * scale, global_graph.positions[nearest] - robot_xy, atol=1e-4)
+    assert (features[:, 4] == global_graph.visited[nearest]).all() and features[:, 4].any()
+    assert (np.diff(np.hypot(*(features[:, :2].T))) >= -1e-6).all()
+
+
+def test_predictor_binarises_at_tau(partial):
+    """P(free) >= tau is predicted, below it is not (graded probabilities, not just 0 and 1)."""
+    _, _, _, graph = partial
+    rows, cols = graph.lattice_shape
+    levels = np.array([0.3, 0.5, 0.7], dtype=np.float32)
+    graded = levels[(np.arange(rows)[:, None] + np.arange(cols)[None, :]) % 3]  # every level in every region
+    padded, (r0, c0) = pad_to_multiple(graded, 8, 0)
+    predictor = NodePredictor(lambda image: padded, NodePredictorConfig(threshold=0.5, min_component=1))
+    predicted = predictor.predict(graph)
+    probability = graded.reshape(-1)
+    unknown = np.nonzero(observed_node_states(graph.belief, graph) == NODE_UNKNOWN)[0]  # walls inferred: not unknown
+    assert set(predicted) == set(unknown[probability[unknown] >= 0.5])
+    assert (probability[predicted] >= 0.5).all() and (probability[predicted] == 0.5).any()

@@ -135,8 +135,10 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     import mlflow
 
     mlflow.set_tracking_uri(mlflow_uri)
-    runs = mlflow.search_runs(experiment_names=["table1"])
-    assert len(runs) >= 1 and "metrics.precision_step3" in runs.columns
+    runs = mlflow.search_runs(experiment_names=["table1"], order_by=["attributes.start_time DESC"])
+    assert len(runs) >= 1  # the session's store may hold other tests' runs: the newest is this one
+    assert runs.iloc[0]["metrics.precision_step3"] == pytest.approx(float(frame["precision"].iloc[0]))
+    assert runs.iloc[0]["metrics.precision_step6"] == pytest.approx(float(frame["precision"].iloc[1]))
 
 
 def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):

@@ -3,10 +3,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.maps import load_map
+from pipeline.geometry import walk_cells
+from pipeline.maps import GroundTruthMap, load_map
 from pipeline.planners import make_planner, planner_class, planner_names
+from pipeline.planners.base import Planner, Waypoint
 from pipeline.protocol import PAPER_REAL_ROBOT, Protocol
-from pipeline.simulator import Episode, MotionError, replay, run_episode
+from pipeline.sensor import UNKNOWN
+from pipeline.simulator import Episode, MotionError, Observation, replay, run_episode
 from pipeline.trajectories import read_trajectory_csv, write_trajectory_csv
 from tests.conftest import write_ros_map
 
@@ -25,6 +28,25 @@ def test_moves_through_unknown_space_are_refused(small_maze):
     with pytest.raises(MotionError, match="not known to be free"):
         episode.move((0.0, 40.0))
     assert episode.steps == 0 and episode.distance == 0.0
+
+
+# From the start (0, 0) of SMALL_MAZE the left corridor runs 20 m straight down, all of it free
+# in the ground truth; the 20 m sensor has not seen its far end yet.
+UNSENSED_CORRIDOR_END = (0.0, 20.0)
+
+
+def test_moves_free_in_the_ground_truth_but_unsensed_need_the_oracle_rule(small_maze):
+    """The motion rule checks the belief, not the ground truth; only `oracle=True` uses the latter."""
+    episode = Episode(small_maze, Protocol())
+    corridor = walk_cells(episode.cell, episode.waypoint_cell(UNSENSED_CORRIDOR_END))
+    assert small_maze.free[corridor[:, 1], corridor[:, 0]].all()  # no wall on the way
+    assert (episode.belief.grid[corridor[:, 1], corridor[:, 0]] == UNKNOWN).any()  # not sensed yet
+    with pytest.raises(MotionError, match="not known to be free"):
+        episode.move(UNSENSED_CORRIDOR_END)
+    assert episode.steps == 0 and episode.distance == 0.0
+    episode.move(UNSENSED_CORRIDOR_END, oracle=True)
+    assert episode.trajectory == [(0.0, 0.0), UNSENSED_CORRIDOR_END]
+    assert episode.distance == pytest.approx(20.0)
 
 
 def test_a_known_free_move_senses_and_counts_distance(small_maze):
@@ -64,6 +86,80 @@ def test_replay_reports_a_motion_violation(small_maze):
     assert not replayed.complete and replayed.motion_violations == 1
 
 
+def test_replay_ignores_waypoints_after_completion(small_maze):
+    """Legal rows after the done rule fired count for neither distance nor steps."""
+    result = run_episode(small_maze, make_planner("nearest_frontier"), Protocol())
+    assert result.complete and len(result.trajectory) >= 2
+    last, before_last = result.trajectory[-1], result.trajectory[-2]
+    padded = [*result.trajectory, before_last, last, before_last]  # known-free moves back and forth
+    replayed = replay(small_maze, padded, Protocol())
+    trimmed = replay(small_maze, result.trajectory, Protocol())
+    assert replayed.complete and replayed.motion_violations == 0
+    assert replayed.distance_m == pytest.approx(trimmed.distance_m, abs=1e-9)
+    assert replayed.distance_m == pytest.approx(result.distance_m, abs=1e-6)
+    assert replayed.steps == trimmed.steps == len(result.trajectory) - 1
+    assert replayed.trajectory == trimmed.trajectory == result.trajectory
+
+
+def test_replay_rejects_a_trajectory_without_its_start_row(small_maze):
+    with pytest.raises(ValueError, match="at least its start row"):
+        replay(small_maze, [], Protocol())
+    # (4, 0) is a legal first move, so only the start-row check can refuse this trajectory.
+    with pytest.raises(ValueError, match="first row must be the start"):
+        replay(small_maze, [(4.0, 0.0), (8.0, 0.0)], Protocol())
+
+
+class ScriptedPlanner(Planner):
+    """Proposes fixed batches of waypoints, one batch per decision, then []."""
+
+    name = "scripted"
+
+    def __init__(self, batches: list[list[Waypoint]], ignores_motion_rule: bool = False):
+        self.batches = batches
+        self.ignores_motion_rule = ignores_motion_rule
+        self.decisions = 0
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.decisions = 0
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        self.decisions += 1
+        return list(self.batches[self.decisions - 1]) if self.decisions <= len(self.batches) else []
+
+
+def test_a_planner_breaking_the_motion_rule_fails_the_episode(small_maze):
+    """The legal first waypoint counts; the one through walls stops the episode as a violation."""
+    planner = ScriptedPlanner([[(4.0, 0.0), (0.0, 40.0), (8.0, 0.0)]])
+    result = run_episode(small_maze, planner, Protocol())
+    assert not result.complete and result.complete_after_waypoint is None
+    assert result.motion_violations == 1
+    assert result.failure.startswith("motion rule: ") and "not known to be free" in result.failure
+    assert result.trajectory == [(0.0, 0.0), (4.0, 0.0)]
+    assert result.steps == 1 and result.distance_m == pytest.approx(4.0)
+    assert planner.decisions == 1 and len(result.decision_ms) == 1
+    assert result.planner == "scripted"
+
+
+def test_a_planner_with_nothing_to_propose_ends_the_episode_early(small_maze):
+    planner = ScriptedPlanner([])
+    result = run_episode(small_maze, planner, Protocol())
+    assert not result.complete
+    assert result.failure == "no reachable target left"
+    assert result.motion_violations == 0
+    assert result.steps == 0 and result.distance_m == 0.0 and result.trajectory == [(0.0, 0.0)]
+    assert planner.decisions == 1 and len(result.decision_ms) == 1
+
+
+def test_run_episode_applies_the_oracle_rule_only_to_planners_that_ignore_it(small_maze):
+    """`ignores_motion_rule` lets a planner cross unsensed ground-truth-free space; others may not."""
+    oracle = run_episode(small_maze, ScriptedPlanner([[UNSENSED_CORRIDOR_END]], ignores_motion_rule=True), Protocol())
+    assert oracle.motion_violations == 0 and oracle.failure == "no reachable target left"
+    assert oracle.trajectory == [(0.0, 0.0), UNSENSED_CORRIDOR_END]
+    honest = run_episode(small_maze, ScriptedPlanner([[UNSENSED_CORRIDOR_END]]), Protocol())
+    assert honest.motion_violations == 1 and honest.failure.startswith("motion rule: ")
+    assert honest.trajectory == [(0.0, 0.0)]
+
+
 def office_grid(resolution: float = 0.2) -> tuple[np.ndarray, tuple[float, float]]:
     """A 24 m x 14 m office: a corridor and six rooms behind 0.8 m doors in 0.2 m walls."""
     cells = lambda metres: int(round(metres / resolution))  # noqa: E731
@@ -95,7 +191,6 @@ def test_real_robot_setting_explores_an_office_with_narrow_doors(tmp_path):
     assert result.explored_ratio > 0.99
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("planner", [p for p in planner_names() if not planner_class(p).uses_ground_truth and not planner_class(p).needs_policy])
 def test_every_planner_completes_generated_mazes(generated_maze_dir, planner):
     for path in sorted(generated_maze_dir.glob("*.png")):

@@ -37,9 +37,9 @@ def oracle_inpainter(ground_truth: GroundTruthMap):
 
 
 @pytest.fixture(autouse=True)
-def no_default_model(monkeypatch, tmp_path):
-    """Tests never pick up a trained model from the working tree."""
-    monkeypatch.setattr(ggp, "DEFAULT_CHECKPOINT", tmp_path / "absent" / "inpainter.pt")
+def no_shipped_model(monkeypatch, tmp_path):
+    """These tests build the predictor planners without any inpainter unless they give one
+    (conftest already hides models/ in the working tree)."""
     monkeypatch.setattr(ggp, "SHIPPED_CHECKPOINT", tmp_path / "absent" / "shipped.pt")
 
 

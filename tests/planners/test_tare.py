@@ -187,7 +187,7 @@ def test_one_lattice_step_per_decision(maze):
     planner.reset(maze, PROTOCOL, 0)
     episode = Episode(maze, PROTOCOL)
     modes = set()
-    while not episode.complete:
+    while not episode.complete and episode.steps < PROTOCOL.max_steps:  # a regression fails, not hangs
         waypoints = planner.plan(episode.observe())
         assert len(waypoints) == 1
         step = np.subtract(waypoints[0], episode.position) / PROTOCOL.node_resolution
@@ -199,6 +199,7 @@ def test_one_lattice_step_per_decision(maze):
             if decision["global_tour"]:  # the local path joins the global tour
                 assert decision["local_tour"][-1] == decision["global_tour"][0]
         episode.move(waypoints[0])
+    assert episode.complete, f"not complete after {episode.steps} steps"
     assert {"local", "global"} <= modes
 
 

@@ -239,7 +239,11 @@ def test_training_reduces_the_loss(pairs_dir, tmp_path):
     _, val = split_pairs(pairs_dir, 0.25)
     assert pair_count(val) == 6  # 24 pairs, each its own maze: a quarter held out
     metrics = evaluate_inpainter(model, val, (0.5,))[0.5]
-    assert set(metrics) >= {"precision", "recall", "f1"}
+    precision, recall, f1 = metrics["precision"], metrics["recall"], metrics["f1"]
+    assert 0 <= precision <= 1 and 0 <= recall <= 1
+    assert f1 == pytest.approx(2 * precision * recall / (precision + recall) if precision + recall else 0.0, abs=1e-6)
+    everything_free = evaluate_inpainter(lambda images: torch.ones(images.shape, dtype=torch.float32), val, (0.5,))[0.5]
+    assert everything_free["recall"] == pytest.approx(1.0)  # predicting every hole pixel free finds every free one
 
 
 def test_adversarial_training_runs(pairs_dir, tmp_path):
