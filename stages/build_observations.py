@@ -49,7 +49,7 @@ def _shard_observations(task: tuple) -> dict:
 
 
 def main(params_path: str = "params.yaml") -> dict:
-    from pipeline.collect import load_expert_episodes
+    from pipeline.shards import MANIFEST, read_manifest
     from pipeline.planner_data import concatenate, save_observations
     from pipeline.protocol import Protocol
 
@@ -59,10 +59,16 @@ def main(params_path: str = "params.yaml") -> dict:
     inpainter = Path(section.get("inpainter") or DEFAULT_INPAINTER)
     if not inpainter.is_file():
         raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
-    shards = sorted(EXPERT_DIR.glob("shard_*.npz"))
+    # The manifest, not a folder listing: it is written last, so a collection that never
+    # finished (shards but no manifest) is refused instead of silently used in part.
+    if not (EXPERT_DIR / MANIFEST).is_file():
+        raise SystemExit(f"error: {EXPERT_DIR}: no finished expert data set (no {MANIFEST}); "
+                         "run the collect_expert stage first")
+    entries = read_manifest(EXPERT_DIR)["shards"]
+    shards = [EXPERT_DIR / entry["file"] for entry in entries]
     if not shards:
         raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
-    counts = [len(load_expert_episodes(s)) for s in shards]
+    counts = [int(entry["episodes"]) for entry in entries]
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
     tasks = [
         (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), int(section["min_component"]),

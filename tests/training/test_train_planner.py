@@ -1,5 +1,8 @@
 """Stage II training on a few real expert episodes, and the diffusion planners driving with the result."""
 
+import shutil
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -49,12 +52,23 @@ def test_training_exports_an_ema_policy_with_its_history(trained):
     assert (root / "guide" / "last.ckpt").is_file()
 
 
-def test_resume_continues_from_the_last_checkpoint(trained, mlflow_uri):
-    root, _ = trained
-    path = train_planner(root / "guide.npz", root / "guide", TINY_MODEL, {**TINY_TRAIN, "max_epochs": 3}, resume=True,
-                         tracking_uri=mlflow_uri, experiment_name="test_planner")
+def test_resume_continues_from_the_last_checkpoint(trained, tmp_path, mlflow_uri):
+    """Resuming restores the checkpoint's history and epoch count; it works in a copy so the shared export stays as made."""
+    root, paths = trained
+    out_dir = tmp_path / "guide"
+    shutil.copytree(root / "guide", out_dir)
+    first_history = read_policy_export(paths["guide"])["history"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        path = train_planner(root / "guide.npz", out_dir, TINY_MODEL, {**TINY_TRAIN, "max_epochs": 3}, resume=True,
+                             tracking_uri=mlflow_uri, experiment_name="test_planner")
+    assert not [w for w in caught if "training from scratch" in str(w.message)]
     export = read_policy_export(path)
-    assert export["epochs"] == 3 and len(export["history"]) == 3  # epochs 1-2 came from the checkpoint
+    assert export["epochs"] == 3 and [h["epoch"] for h in export["history"]] == [0, 1, 2]
+    # Epochs 0-1 are the first run's records as the checkpoint stored them (wall-clock seconds included, which a
+    # run from scratch could not reproduce); only epoch 2 was trained now.
+    assert export["history"][:2] == first_history
+    assert read_policy_export(paths["guide"])["history"] == first_history  # the shared export is untouched
 
 
 def test_mismatched_model_and_observations_fail_clearly(trained):
