@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
+import cv2
 import numpy as np
 import pandas as pd
 import scipy.stats
@@ -26,6 +27,7 @@ from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_traj
 
 REFERENCE_PLANNER = "optimal"
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
+OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
 _LABEL = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")  # a label names a folder and an MLflow run
 
@@ -83,6 +85,8 @@ def parse_planner_spec(text: str) -> PlannerSpec:
         raise ValueError(
             f"planner spec {raw!r}: label {label!r} must be letters, digits, '_', '-' or '.' (it names a folder)"
         )
+    if label.lower() in OUTPUT_FILES or label.lower().endswith(".tmp"):
+        raise ValueError(f"planner spec {raw!r}: label {label!r} is the name of a benchmark output file; pick another")
     if not name or not name.isidentifier() or name != name.lower():
         raise ValueError(f"planner spec {raw!r}: planner name {name!r} must be a lower-case identifier")
     options: dict[str, Any] = {}
@@ -134,6 +138,8 @@ def check_option_value(key: str, value: Any, parameter: inspect.Parameter) -> No
     if kinds is None:
         raise ValueError(f"option {key!r} takes a Python object; set it from Python, not a spec")
     kind = "bool" if isinstance(value, bool) else type(value).__name__
+    if kind == "float" and not math.isfinite(value):
+        raise ValueError(f"option {key}={value!r} must be a finite number")
     if kind in kinds or (kind == "int" and "float" in kinds):
         return
     wanted = {"bool": "true or false", "int": "an integer", "float": "a number", "str": "text"}
@@ -206,12 +212,38 @@ def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protoc
         raise MapError(
             ground_truth.name,
             f"only {ground_truth.free_cell_count} free cells, not more than done_unknown_cells="
-            f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves "
-            "(in a maze PNG, free is a grey value above 150 or within 50-80)",
+            f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves"
+            + (f" ({ground_truth.free_rule})" if ground_truth.free_rule else ""),
         )
     if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
-        return protocol.with_cell_size(ground_truth.cell_size)
+        protocol = protocol.with_cell_size(ground_truth.cell_size)
+    rows, cols = ground_truth.free.shape
+    diagonal_m = math.hypot(rows, cols) * protocol.cell_size
+    if protocol.sensor_range > 2 * diagonal_m:  # a ray table that long costs minutes and gigabytes, and sees nothing more
+        raise MapError(
+            ground_truth.name,
+            f"sensor range {protocol.sensor_range:g} m is more than twice the map's diagonal ({diagonal_m:.1f} m); "
+            "a longer lidar sees nothing more: use a shorter --sensor-range",
+        )
     return protocol
+
+
+def unreachable_free_cells(ground_truth: GroundTruthMap) -> int:
+    """Free cells not 8-connected to the start: more than `done_unknown_cells` of them and no
+    planner can complete the map (stray free pixels outside a SLAM map's walls do this)."""
+    count, labels = cv2.connectedComponents(ground_truth.free.astype(np.uint8), connectivity=8)
+    col, row = ground_truth.start_cell
+    return int(ground_truth.free.sum() - (labels == labels[row, col]).sum())
+
+
+def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]) -> None:
+    """MapError when two maps share a name (a.png and a.yaml): their trajectory files would overwrite each other."""
+    seen: dict[str, str | Path] = {}
+    for path, name in zip(map_paths, names):
+        if name in seen:
+            raise MapError(path, f"has the same name {name!r} as {seen[name]}: their trajectories would overwrite "
+                                 "each other in OUT/<label>/<name>.csv; rename one")
+        seen[name] = path
 
 
 def run_task(task: EpisodeTask) -> EpisodeResult:
@@ -248,8 +280,12 @@ def run_benchmark(
     `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
     """
     specs = resolve_planner_specs(planners)
+    names = []
     for path in map_paths:
-        protocol_for_map(protocol, load_map(path, start=start, cell_size=protocol.cell_size))
+        ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
+        protocol_for_map(protocol, ground_truth)
+        names.append(ground_truth.name)
+    check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_run_record(out_dir / RUN_RECORD, specs, seed, start)

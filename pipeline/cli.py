@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import tempfile
 from pathlib import Path
 from typing import Optional
 
@@ -35,18 +36,52 @@ def _check_params(params: Path) -> None:
 
 
 def _run_stage(main, params: Path, *args) -> None:
-    """A stage's main(params, ...); a missing params file or upstream output is one error line."""
+    """A stage's main(params, ...); a missing params file or upstream output, a bad setting, is one
+    error line (exit 2)."""
     _check_params(params)
     try:
         main(str(params), *args)
     except (MapError, FileNotFoundError) as error:
-        _fail(f"{error} (run the upstream stages first: `dvc repro`)")
+        upstream = any(part in str(error) for part in ("data/", "models/"))
+        _fail(f"{error}" + (" (run the upstream stages first: `dvc repro`)" if upstream else ""))
+    except ValueError as error:
+        _fail(str(error))
+    except SystemExit as error:  # a stage's own "error: ..." exit, as `python -m stages.x` prints it
+        if isinstance(error.code, str):
+            _fail(error.code.removeprefix("error: "))
+        raise
+
+
+def _check_backend(backend: Optional[str]) -> None:
+    if backend not in (None, "process", "ray"):
+        _fail(f"--backend {backend!r}: choose process or ray")
 
 
 def _check_out_dir(out: Path) -> None:
-    """Fail before any work when --out names something other than a folder."""
+    """Fail before any work when --out names something other than a folder, or one that cannot be
+    made or written (a file on its path, a read-only disk); the folder exists afterwards."""
     if out.exists() and not out.is_dir():
         _fail(f"{out}: exists and is not a folder; --out takes a folder (created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()
+    except OSError as error:
+        _fail(f"{out}: cannot create or write the output folder ({error.strerror or error})")
+
+
+def _warn(message: str) -> None:
+    typer.echo(f"warning: {message}", err=True)
+
+
+def _warn_unreachable(ground_truth, protocol: Protocol) -> None:
+    """A map whose free cells beyond the start's reach outnumber the done rule's slack can never complete."""
+    from pipeline.benchmark import unreachable_free_cells
+
+    cut_off = unreachable_free_cells(ground_truth)
+    if cut_off > protocol.done_unknown_cells:
+        _warn(f"{ground_truth.name}: {cut_off} free cells are not connected to the start, more than "
+              f"done_unknown_cells={protocol.done_unknown_cells}: no planner can complete this map "
+              "(erase stray free pixels outside the walls, or raise --done-unknown-cells)")
 
 
 def _protocol(
@@ -117,31 +152,34 @@ def mazes(
 
 @app.command()
 def explore(
+    ctx: typer.Context,
     map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
     planner: str = typer.Option("nearest_frontier", help="Planner name (see `guide planners`)."),
-    out: Path = typer.Option(Path("runs/explore"), help="Output folder."),
+    out: Optional[Path] = typer.Option(None, help="Output folder [default: runs/explore/<planner label>]."),
     gif: bool = typer.Option(False, "--gif", help="Also write an animation of the episode."),
     start: Optional[tuple[float, float]] = typer.Option(
         None, help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "
                    "X Y metres for a ROS map (else its YAML 'start')."
     ),
-    seed: int = typer.Option(0, help="Seed for randomised planners."),
+    seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = typer.Option(
         None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
                    "[default: models/ under the current folder, else the shipped one]."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
 ) -> None:
-    """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF)."""
+    """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF), run.json."""
     from pipeline.benchmark import protocol_for_map, resolve_planner_specs
     from pipeline.maps import load_map
     from pipeline.planners import make_planner
     from pipeline.render import EpisodeRecorder, render_final
+    from tqdm import tqdm
+
     from pipeline.simulator import run_episode
     from pipeline.trajectories import write_metrics_csv, write_trajectory_csv
 
-    _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
@@ -154,27 +192,58 @@ def explore(
         _fail(str(error.args[0]))
     except (ValueError, FileNotFoundError, TypeError) as error:
         _fail(str(error))
+    ros_map = map_path.suffix.lower() in (".yaml", ".yml")
+    if ros_map and _given(ctx, "cell_size") and abs(cell_size - ground_truth.cell_size) > 1e-12:
+        _warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
+    out = out if out is not None else Path("runs/explore") / spec.label
+    _check_out_dir(out)  # before the episode: a long run is not lost to an unwritable folder
+    _warn_unreachable(ground_truth, protocol)
     typer.echo(f"{spec.label}: {agent.description}")
-    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=spec.label) if gif else None
-    result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=recorder)
+    recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=spec.label,
+                               y_up=ros_map) if gif else None
+    with tqdm(total=100.0, desc=f"{ground_truth.name}: explored", disable=not progress, leave=False,
+              bar_format="{desc} {percentage:3.0f}%|{bar}|") as bar:
+
+        def on_step(episode) -> None:
+            bar.n = round(100.0 * episode.explored_ratio, 1)
+            bar.set_description_str(f"{ground_truth.name}: {episode.distance:.0f} m, {episode.steps} waypoints, explored",
+                                    refresh=True)
+            if recorder is not None:
+                recorder(episode)
+
+        result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=on_step)
     result.planner = spec.label
-    out.mkdir(parents=True, exist_ok=True)
-    write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)
+    written = [write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)]
     write_metrics_csv(out / "metrics.csv", [result.metrics_row()])
+    written.append(out / "metrics.csv")
     render_final(
         result, ground_truth, _final_belief(ground_truth, result, protocol),
-        graph=getattr(agent, "graph", None), path=out / f"{ground_truth.name}.png",
+        graph=getattr(agent, "graph", None), path=out / f"{ground_truth.name}.png", y_up=ros_map,
     )
+    written.append(out / f"{ground_truth.name}.png")
     if recorder is not None:
-        recorder.save_gif(out / f"{ground_truth.name}.gif")
+        written.append(recorder.save_gif(out / f"{ground_truth.name}.gif"))
+    record = {"map": str(map_path), "start": list(start) if start is not None else None, "seed": seed,
+              "planner": {"label": spec.label, "name": spec.name, "options": dict(spec.options),
+                          "description": agent.description},
+              "protocol": protocol.to_dict()}
+    (out / "run.json").write_text(json.dumps(record, indent=2) + "\n")
+    written.append(out / "run.json")
     status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"
     typer.echo(
         f"{ground_truth.name} {spec.label}: {status}, {result.distance_m:.1f} m in {result.steps} waypoints, "
         f"explored {result.explored_ratio * 100:.1f} %, decision {result.metrics_row()['decision_ms_median']} ms median"
     )
-    typer.echo(f"wrote {out}/")
+    typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:
         raise typer.Exit(code=1)
+
+
+def _given(ctx: Optional[typer.Context], name: str) -> bool:
+    """Whether the user set option `name` on the command line (not its default)."""
+    import click
+
+    return ctx is not None and ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
 
 
 def _final_belief(ground_truth, result, protocol):
@@ -222,8 +291,8 @@ def benchmark(
     planner: list[str] = typer.Option(
         ..., "--planner", help="Planner name or labelled variant label=name:key=value,...; repeat for several."),
     out: Path = typer.Option(Path("runs/bench"), help="Output folder (trajectories, metrics.csv, summary.md)."),
-    workers: Optional[int] = typer.Option(None, help="Parallel processes [default: all cores]."),
-    seed: int = typer.Option(0, help="Seed for randomised planners."),
+    workers: Optional[int] = typer.Option(None, min=1, help="Parallel processes [default: all cores]."),
+    seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
     experiment: str = typer.Option("benchmark", help="MLflow experiment name."),
     mlflow_log: bool = typer.Option(True, "--mlflow/--no-mlflow", help="Log one MLflow run per planner."),
@@ -239,17 +308,24 @@ def benchmark(
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
 ) -> None:
-    """Run every map in a folder with each planner, in parallel, and summarise."""
+    """Run every map in a folder with each planner, in parallel, and summarise.
+
+    Exits 1 when an episode did not complete (the files are written either way).
+    """
     from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec, run_benchmark, summary_markdown
-    from pipeline.maps import list_maps
-    from pipeline.tracking import log_benchmark
+    from pipeline.maps import list_maps, load_map
+    from pipeline.tracking import check_tracking_uri, log_benchmark
 
     _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
+        if mlflow_log:
+            check_tracking_uri(tracking_uri)  # now, not after every episode has run
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
+        for path in map_paths:
+            _warn_unreachable(load_map(path, start=start, cell_size=cell_size), protocol)
         specs = _with_checkpoint(list(planner), checkpoint)
         labels = [parse_planner_spec(spec).label for spec in specs]
         if baseline is None:
@@ -267,7 +343,11 @@ def benchmark(
     typer.echo(summary_markdown(frame, protocol, baseline or None))
     if mlflow_log:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
-    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md and {len(frame)} trajectories")
+    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md, {out}/run.json and {len(frame)} trajectories")
+    incomplete = int((~frame["complete"].astype(bool)).sum())
+    if incomplete:
+        typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
+        raise typer.Exit(code=1)
 
 
 @app.command()
@@ -319,15 +399,19 @@ def eval_predictor(
     checkpoint: Optional[Path] = typer.Option(None, help="Inpainter export [default: models/inpainter/inpainter.pt]."),
 ) -> None:
     """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
+    from pipeline.predictor_eval import inpainter_path
     from stages import eval_predictor as eval_stage
 
     _check_out_dir(out)
     try:
+        used = inpainter_path(checkpoint)
         frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None)
     except (MapError, FileNotFoundError, ValueError) as error:
         _fail(str(error))
+    typer.echo(f"inpainter: {used}")
     typer.echo(frame.to_string(index=False))
-    typer.echo(f"wrote {out}/precision.csv")
+    written = [out / name for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png")]
+    typer.echo("wrote " + ", ".join(str(path) for path in written if path.is_file()))
 
 
 @stage_app.command("generate-mazes")
@@ -354,6 +438,7 @@ def stage_collect_pairs(
     """DVC stage: Stage I node-image pairs from rollouts in the training mazes."""
     from stages import collect_pairs
 
+    _check_backend(backend)
     _run_stage(collect_pairs.main, params, backend)
 
 
@@ -365,6 +450,7 @@ def stage_collect_expert(
     """DVC stage: Stage II expert episodes on the training mazes."""
     from stages import collect_expert
 
+    _check_backend(backend)
     _run_stage(collect_expert.main, params, backend)
 
 
@@ -404,6 +490,10 @@ def _train_planner(params: Path, variant: str, accelerator: Optional[str], devic
         train_planner.main(str(params), variant, accelerator, devices, resume, max_epochs)
     except (FileNotFoundError, ValueError) as error:
         _fail(str(error))
+    except SystemExit as error:
+        if isinstance(error.code, str):
+            _fail(error.code.removeprefix("error: "))
+        raise
 
 
 _Variant = typer.Option("guide", help="guide (global graph with predictions) or dare (observed graph only).")

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+import threading
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -25,6 +27,12 @@ NPY_SUFFIXES = (".npy",)
 MAX_IMAGE_PIXELS = 1 << 26  # 64 Mpixel: beyond this an image is refused, not decoded
 MAX_GRID_CELLS = 1 << 26  # the same bound for .npy grids
 MAX_YAML_BYTES = 1 << 20  # a map_server YAML is a few lines
+MAX_ORIGIN_YAW = 1e-9  # radians: a ROS map rotated by more is refused (the grid is axis-aligned)
+MAZE_FREE_RULE = (
+    f"in a maze PNG, a cell (the minimum of a 2x2 pixel block) is free when its grey value is above "
+    f"{MAZE_FREE_MIN} or within {MAZE_FREE_BAND[0]}-{MAZE_FREE_BAND[1]}"
+)
+NPY_FREE_RULE = "in a .npy grid, 1 or True means free and 0 or any other value is an obstacle"
 
 
 class MapError(Exception):
@@ -44,6 +52,8 @@ class GroundTruthMap:
     start_cell: tuple[int, int]  # (col, row)
     cell_size: float
     name: str = "map"
+    # How this map's format decides free cells, for error messages ("in a .npy grid, 1 ..."); "" if unknown.
+    free_rule: str = field(default="", compare=False, repr=False)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -54,14 +64,17 @@ class GroundTruthMap:
         return int(self.free.sum())
 
 
-def validate_grid(free: np.ndarray, start_cell: tuple[int, int], path: str | Path) -> None:
-    """Reject grids the simulator cannot run: wrong rank, no free cell, bad start."""
+def validate_grid(free: np.ndarray, start_cell: tuple[int, int], path: str | Path, free_rule: str = "") -> None:
+    """Reject grids the simulator cannot run: wrong rank, no free cell, bad start.
+
+    `free_rule` (how the map's format marks free cells) is quoted when no cell is free.
+    """
     if free.ndim != 2:
         raise MapError(path, f"grid must be 2-D, got {free.ndim}-D array of shape {free.shape}")
     if free.shape[0] < 1 or free.shape[1] < 1:
         raise MapError(path, f"grid is empty (shape {free.shape})")
     if not free.any():
-        raise MapError(path, "map has no free cell")
+        raise MapError(path, f"map has no free cell: {free_rule}" if free_rule else "map has no free cell")
     col, row = start_cell
     if not (0 <= col < free.shape[1] and 0 <= row < free.shape[0]):
         raise MapError(path, f"start cell (col {col}, row {row}) lies outside the {free.shape[1]}x{free.shape[0]} grid")
@@ -109,6 +122,37 @@ def _is_file(path: Path) -> bool:
         return False
 
 
+_OPENCV_QUIET_LOCK = threading.Lock()
+_opencv_quiet_depth = 0
+_opencv_saved_level: int | None = None
+
+
+@contextmanager
+def _opencv_quiet():
+    """Silence OpenCV's own logging (its `[ WARN:0@...]` lines on a corrupt image) for the block.
+
+    Counted, so overlapping blocks in several threads restore the level saved by the first.
+    """
+    global _opencv_quiet_depth, _opencv_saved_level
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is None:  # an OpenCV build without the logging bindings
+        yield
+        return
+    with _OPENCV_QUIET_LOCK:
+        if _opencv_quiet_depth == 0:
+            _opencv_saved_level = logging.getLogLevel()
+            logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        _opencv_quiet_depth += 1
+    try:
+        yield
+    finally:
+        with _OPENCV_QUIET_LOCK:
+            _opencv_quiet_depth -= 1
+            if _opencv_quiet_depth == 0 and _opencv_saved_level is not None:
+                logging.setLogLevel(_opencv_saved_level)
+                _opencv_saved_level = None
+
+
 def _read_gray_image(path: Path) -> np.ndarray:
     """An image file as a 2-D uint8 array (colour converted to gray, 16-bit reduced to 8)."""
     if not _is_file(path):
@@ -125,7 +169,8 @@ def _read_gray_image(path: Path) -> np.ndarray:
             path, f"image of {declared[0]}x{declared[1]} pixels exceeds the limit of {MAX_IMAGE_PIXELS} pixels"
         )
     try:
-        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+        with _opencv_quiet():
+            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     except cv2.error as error:
         raise MapError(path, f"not a readable image (OpenCV: {_first_line(error)})") from None
     if image is None or image.size == 0:
@@ -207,8 +252,8 @@ def load_maze_png(
     if start_cell is not None:
         start = _start_cell(start_cell, path)
     free = maze_free_mask(cells)
-    validate_grid(free, start, path)
-    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem)
+    validate_grid(free, start, path, MAZE_FREE_RULE)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem, free_rule=MAZE_FREE_RULE)
 
 
 def _read_yaml(path: Path) -> object:
@@ -278,6 +323,12 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     if "origin" not in meta:
         raise MapError(path, "YAML is missing the key 'origin' as [x, y, yaw]")
     origin_x, origin_y = _yaml_pair(meta["origin"], "YAML key 'origin'", path)
+    if len(meta["origin"]) >= 3:
+        yaw = _as_float(meta["origin"][2], "YAML key 'origin' yaw", path)
+        if abs(yaw) >= MAX_ORIGIN_YAW:
+            raise MapError(
+                path, f"origin yaw {yaw:g} rad is not supported; rotate the image to be axis-aligned and set the yaw to 0"
+            )
     occupied_thresh = _yaml_number(meta, "occupied_thresh", path)
     free_thresh = _yaml_number(meta, "free_thresh", path)
     for key, value in (("occupied_thresh", occupied_thresh), ("free_thresh", free_thresh)):
@@ -313,14 +364,43 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     free_lut = ~(occupancy > occupied_thresh) & (occupancy < free_thresh)
     # map_server: image row 0 is the top (largest y); our rows grow with y, so flip.
     free = np.ascontiguousarray(free_lut[image][::-1, :])
+    free_rule = _ros_free_rule(free_lut, free_thresh, occupied_thresh, negate)
+    if not free.any():
+        raise MapError(path, f"map has no free cell: {free_rule}")
 
+    rows, cols = free.shape
     col_f = (start_x - origin_x) / resolution
     row_f = (start_y - origin_y) / resolution
-    if not (math.isfinite(col_f) and math.isfinite(row_f)):
-        raise MapError(path, f"start ({start_x}, {start_y}) lies outside the {free.shape[1]}x{free.shape[0]} grid")
+    start_text = f"start ({_metres(start_x)}, {_metres(start_y)}) m"
+    if not (math.isfinite(col_f) and math.isfinite(row_f) and 0 <= col_f < cols and 0 <= row_f < rows):
+        raise MapError(
+            path,
+            f"{start_text} lies outside the map, which spans x {_metres(origin_x)} to "
+            f"{_metres(origin_x + cols * resolution)} m and y {_metres(origin_y)} to "
+            f"{_metres(origin_y + rows * resolution)} m ({cols}x{rows} cells of {_metres(resolution)} m)",
+        )
     start = (math.floor(col_f), math.floor(row_f))
-    validate_grid(free, start, path)
-    return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem)
+    if 0 <= start[0] < cols and 0 <= start[1] < rows and not free[start[1], start[0]]:
+        raise MapError(path, f"{start_text}, cell (col {start[0]}, row {start[1]}), is on an occupied cell")
+    validate_grid(free, start, path, free_rule)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem, free_rule=free_rule)
+
+
+def _metres(value: float) -> str:
+    """A length in metres for a message: up to 6 decimals, no trailing zeros; %g when huge."""
+    if not math.isfinite(value) or abs(value) >= 1e9:
+        return f"{value:.6g}"
+    text = f"{value:.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def _ros_free_rule(free_lut: np.ndarray, free_thresh: float, occupied_thresh: float, negate: bool) -> str:
+    """Which pixel values a ROS map's thresholds make free, for error messages."""
+    values = np.flatnonzero(free_lut)
+    settings = f"with free_thresh {free_thresh:g}, occupied_thresh {occupied_thresh:g} and negate {int(negate)}"
+    if values.size == 0:
+        return f"in this ROS map, {settings}, no pixel value is free"
+    return f"in this ROS map, {settings}, a pixel is free when its value is within {values[0]}-{values[-1]}"
 
 
 def _read_npy(path: Path) -> np.ndarray:
@@ -394,8 +474,19 @@ def load_npy_grid(
         raise MapError(path, "a .npy grid needs its start cell: pass --start COL ROW")
     start = _start_cell(start_cell, path)
     free = np.ascontiguousarray(array == 1)
-    validate_grid(free, start, path)
-    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem)
+    if free.size and not free.any():
+        raise MapError(path, f"map has no free cell: {NPY_FREE_RULE}; {_values_found(array)}")
+    validate_grid(free, start, path, NPY_FREE_RULE)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem, free_rule=NPY_FREE_RULE)
+
+
+def _values_found(array: np.ndarray, shown: int = 5) -> str:
+    """'the grid holds the values 0, 255' (at most `shown` of them) for an error message."""
+    values = np.unique(array)
+    listed = ", ".join(str(int(v)) for v in values[:shown])
+    more = f" and {values.size - shown} more" if values.size > shown else ""
+    noun = "value" if values.size == 1 else "values"
+    return f"the grid holds the {noun} {listed}{more}"
 
 
 def load_map(

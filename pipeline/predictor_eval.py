@@ -17,7 +17,9 @@ from typing import Callable, Iterator, Sequence
 import cv2
 import numpy as np
 import pandas as pd
+from tqdm import tqdm
 
+from pipeline.benchmark import protocol_for_map
 from pipeline.global_graph import CENTROID, KNOWN, PREDICTED, GlobalGraph, GlobalGraphConfig
 from pipeline.graph import NODE_FREE, NODE_OCCUPIED, LatticeGraph, LatticeSpec
 from pipeline.maps import GroundTruthMap, load_map
@@ -51,8 +53,8 @@ InpaintFactory = Callable[[GroundTruthMap, LatticeGraph], InpaintFn]
 
 
 # ----------------------------------------------------------------------------- inpainters
-def load_inpaint_fn(checkpoint: str | Path | None = None, threads: int | None = 1) -> InpaintFn:
-    """The trained inpainter as an InpaintFn: `checkpoint`, else models/inpainter/inpainter.pt, else the shipped default."""
+def inpainter_path(checkpoint: str | Path | None = None) -> Path:
+    """`checkpoint`, else models/inpainter/inpainter.pt, else the shipped default; FileNotFoundError if none is there."""
     from pipeline.planners.global_graph_planners import SHIPPED_CHECKPOINT
 
     path = Path(checkpoint) if checkpoint else DEFAULT_CHECKPOINT
@@ -65,6 +67,12 @@ def load_inpaint_fn(checkpoint: str | Path | None = None, threads: int | None = 
             f"no inpainter checkpoint given, {DEFAULT_CHECKPOINT} does not exist and no default is shipped "
             f"({SHIPPED_CHECKPOINT}): train one with `dvc repro train_inpainter` or pass --checkpoint PATH"
         )
+    return path
+
+
+def load_inpaint_fn(checkpoint: str | Path | None = None, threads: int | None = 1) -> InpaintFn:
+    """The trained inpainter (`inpainter_path`) as an InpaintFn."""
+    path = inpainter_path(checkpoint)
     import torch
 
     from pipeline.models import TracedInpainter
@@ -206,12 +214,6 @@ def _resolve_inpaint(
     return lambda ground_truth, lattice: inpaint_fn  # type: ignore[return-value]
 
 
-def _protocol_for(protocol: Protocol, ground_truth: GroundTruthMap) -> Protocol:
-    if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
-        return protocol.with_cell_size(ground_truth.cell_size)
-    return protocol
-
-
 # ----------------------------------------------------------------------------- Table I
 def evaluate_predictor(
     map_paths: Sequence[str | Path],
@@ -223,6 +225,7 @@ def evaluate_predictor(
     *,
     inpaint_for: InpaintFactory | None = None,
     explorer: str = EXPLORER,
+    progress: bool = False,
 ) -> pd.DataFrame:
     """Pooled precision of V_u per step, one row per step (DETAIL_COLUMNS).
 
@@ -241,14 +244,15 @@ def evaluate_predictor(
     centroids = {s: 0 for s in steps}
     reached = {s: 0 for s in steps}
     times: dict[int, list[float]] = {s: [] for s in steps}
-    for path in map_paths:
+    for path in tqdm(map_paths, desc="maps", unit="map", disable=not progress):
         ground_truth = load_map(path, cell_size=protocol.cell_size)
-        map_protocol = _protocol_for(protocol, ground_truth)
+        map_protocol = protocol_for_map(protocol, ground_truth)
         predictor: NodePredictor | None = None
         for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol, explorer):
             if predictor is None:
                 predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
-                predictor.predict(checkpoint.lattice)  # untimed: a traced network compiles on its first image size
+                for _ in range(2):  # untimed: a traced network profiles, then optimises, on its first two calls per size
+                    predictor.predict(checkpoint.lattice)
             prediction = predict_at(checkpoint, predictor, graph_config)
             kept = prediction.kept
             s = checkpoint.step
@@ -423,7 +427,7 @@ def prediction_figure(
 
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
     ground_truth = load_map(map_path, cell_size=protocol.cell_size)
-    map_protocol = _protocol_for(protocol, ground_truth)
+    map_protocol = protocol_for_map(protocol, ground_truth)
     for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol, explorer):
         predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
         prediction = predict_at(checkpoint, predictor, graph_config)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
@@ -20,8 +21,9 @@ class Protocol:
 
     def __post_init__(self) -> None:
         for name in ("cell_size", "node_resolution", "sensor_range", "utility_range", "region_size"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"protocol.{name} must be positive, got {getattr(self, name)}")
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):  # NaN and inf fail here, not deep in a ray table
+                raise ValueError(f"protocol.{name} must be a positive finite number, got {value}")
         if self.node_resolution < self.cell_size:
             raise ValueError("protocol.node_resolution must be at least one cell")
         if self.max_steps < 1:

@@ -245,8 +245,12 @@ def render_frame(
     legend: bool = True,
     robot: Point | None = None,
     path_thickness: int | None = None,
+    y_up: bool = False,
 ) -> np.ndarray:
     """One figure: belief over the faint ground truth, frontiers, graph, path, markers, title bar.
+
+    `y_up=True` draws row 0 at the bottom, as a ROS map's image shows it (its loader turns
+    the image so that rows grow with y).
 
     `belief` is the uint8 FREE/OCCUPIED/UNKNOWN grid; `trajectory` the world waypoints from
     the start (0, 0). Frontier cells come from `frontier` when given, else from
@@ -278,6 +282,8 @@ def render_frame(
     else:
         robot_cell = path_cells[-1] if len(path_cells) else None
     _draw_markers(img, np.asarray(ground_truth.start_cell), robot_cell, scale)
+    if y_up:
+        img = np.ascontiguousarray(img[::-1])
     header = render_header(img.shape[1], title, legend, graph_shown=graph is not None)
     return img if header is None else np.concatenate([header, img], axis=0)
 
@@ -362,6 +368,7 @@ class EpisodeRecorder:
         scale: int = 2,
         label: str = "",
         legend: bool = True,
+        y_up: bool = False,
     ):
         if every < 1:
             raise ValueError("every must be at least 1")
@@ -373,6 +380,7 @@ class EpisodeRecorder:
         self.scale = int(scale)
         self.label = label
         self.legend = legend
+        self.y_up = y_up
         self.reset()
 
     def reset(self) -> None:
@@ -413,7 +421,7 @@ class EpisodeRecorder:
         )
         return render_frame(
             episode.map, belief, trajectory, graph, self.scale, title,
-            frontier=frontier_mask(belief, min_unknown), legend=self.legend,
+            frontier=frontier_mask(belief, min_unknown), legend=self.legend, y_up=self.y_up,
         )
 
     @property
@@ -449,17 +457,18 @@ def render_final(
     scale: int | None = None,
     path: str | Path | None = None,
     legend: bool = True,
+    y_up: bool = False,
 ) -> np.ndarray:
     """The final figure of an episode (written to `path` as PNG when given).
 
-    `scale=None` picks one that makes the figure about 800 px wide.
+    `scale=None` picks one that makes the figure about 800 px wide; `y_up` as in `render_frame`.
     """
     scale = auto_scale(ground_truth.shape) if scale is None else scale
     title = episode_title(result.map_name, result.planner, result.distance_m, result.steps,
                           result.explored_ratio, result.complete)
     min_unknown = graph.spec.frontier_min_unknown_neighbours if graph is not None else 2
     image = render_frame(ground_truth, belief, result.trajectory, graph, scale, title,
-                         frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend)
+                         frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend, y_up=y_up)
     if path is not None:
         save_png(image, path)
     return image

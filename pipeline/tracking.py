@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import logging
 import os
+import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -16,6 +18,51 @@ DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 def resolve_tracking_uri(uri: str | None = None) -> str:
     """The CLI's value, else MLFLOW_TRACKING_URI, else the local sqlite store."""
     return uri or os.environ.get("MLFLOW_TRACKING_URI") or DEFAULT_TRACKING_URI
+
+
+SERVER_SCHEMES = ("http", "https", "databricks", "postgresql", "mysql", "mssql")
+
+
+def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
+    """The resolved store, checked before any work: ValueError in one line when it cannot be used.
+
+    MLflow itself only finds out when the first run is logged, after a whole benchmark,
+    and then retries for minutes (a server that does not answer, a read-only folder).
+    """
+    uri = resolve_tracking_uri(uri)
+    scheme = uri.split(":", 1)[0].lower() if ":" in uri else ""
+    if scheme == "sqlite":
+        if not uri.startswith("sqlite:///"):
+            raise ValueError(f"tracking store {uri!r}: a sqlite store is sqlite:///RELATIVE/PATH.db or sqlite:////ABSOLUTE/PATH.db")
+        path = Path(uri[len("sqlite:///"):])
+        folder = path.parent if str(path.parent) else Path(".")
+        if not folder.is_dir():
+            raise ValueError(f"tracking store {uri!r}: folder {folder} does not exist")
+        try:  # sqlite writes its journal beside the database: the folder must take new files
+            tempfile.TemporaryFile(dir=folder).close()
+        except OSError as error:
+            raise ValueError(f"tracking store {uri!r}: cannot write in {folder} ({error.strerror})") from None
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"tracking store {uri!r}: {path} is not writable")
+        return uri
+    if scheme in ("http", "https"):
+        import urllib.error
+        import urllib.request
+
+        try:
+            urllib.request.urlopen(f"{uri.rstrip('/')}/health", timeout=timeout_s).close()
+        except urllib.error.HTTPError:
+            return uri  # something answers; MLflow reports what it thinks of it
+        except (urllib.error.URLError, OSError, ValueError) as error:
+            reason = getattr(error, "reason", error)
+            raise ValueError(f"tracking store {uri!r}: no MLflow server answers ({reason})") from None
+        return uri
+    if scheme in SERVER_SCHEMES:
+        return uri
+    raise ValueError(
+        f"tracking store {uri!r} is not one MLflow 3 can log to here: use sqlite:///mlflow.db (the default), "
+        "an http(s):// tracking server or a database URI"
+    )
 
 
 def log_benchmark(
@@ -37,6 +84,7 @@ def log_benchmark(
     from pipeline.benchmark import RUN_RECORD, summarise
 
     out_dir = Path(out_dir)
+    logging.getLogger("alembic").setLevel(logging.WARNING)  # a new sqlite store's schema migrations, one INFO line each
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     mlflow.set_experiment(experiment)
     summary = summarise(frame)

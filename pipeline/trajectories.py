@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import math
 import os
 from pathlib import Path
 from typing import Iterable, Sequence
@@ -20,6 +21,7 @@ METRICS_COLUMNS = [
     "decision_ms_p95",
     "seed",
 ]
+MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
 
 def _format_metres(value: float) -> str:
@@ -40,23 +42,72 @@ def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]
     return path
 
 
+def _is_file(path: Path) -> bool:
+    """Path.is_file that says False (not raises) for a name the OS rejects (too long, NUL byte)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _is_dir(path: Path) -> bool:
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def _quote(row: Sequence[str]) -> str:
+    """A CSV row as quoted text, cut short for a one-line error."""
+    text = ",".join(row)
+    return repr(text if len(text) <= 80 else text[:77] + "...")
+
+
 def read_trajectory_csv(path: str | Path) -> np.ndarray:
-    """Read a trajectory file; raises ValueError naming the file and the problem."""
+    """Read a trajectory file; raises ValueError naming the file and the problem.
+
+    Refused: a missing file or a folder, text that is not UTF-8 (a leading byte-order mark,
+    as Excel writes, is fine), a header other than `x,y`, a row that is not two finite numbers
+    of at most MAX_COORDINATE_M metres, no waypoint rows, or a first row that is not the start 0,0.
+    """
+    from pipeline.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
+
     path = Path(path)
-    if not path.is_file():
+    if _is_dir(path):
+        raise ValueError(f"{path}: is a folder, not a trajectory file (pass one CSV file)")
+    if not _is_file(path):
         raise ValueError(f"{path}: file not found")
-    with path.open(newline="") as handle:
-        rows = list(csv.reader(handle))
-    if not rows or [c.strip() for c in rows[0]] != ["x", "y"]:
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            reader = csv.reader(handle)
+            rows = [(reader.line_num, row) for row in reader]  # line_num: the row's (last) line
+    except UnicodeDecodeError as error:
+        raise ValueError(
+            f"{path}: not a UTF-8 text file (byte 0x{error.object[error.start]:02x} at offset {error.start}); "
+            "a trajectory file is a CSV with the header 'x,y'"
+        ) from None
+    except csv.Error as error:  # a NUL byte, a field over the csv module's size limit
+        raise ValueError(f"{path}: not a readable CSV file ({error})") from None
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read the file ({error.strerror or type(error).__name__})") from None
+    if not rows or [c.strip() for c in rows[0][1]] != ["x", "y"]:
         raise ValueError(f"{path}: a trajectory file starts with the header 'x,y'")
     points = []
-    for number, row in enumerate(rows[1:], start=2):
+    for number, row in rows[1:]:
         if not row:
             continue
         try:
             x, y = (float(v) for v in row)
         except ValueError:
-            raise ValueError(f"{path}: line {number} is not two numbers: {','.join(row)!r}") from None
+            raise ValueError(f"{path}: line {number} is not two numbers: {_quote(row)}") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"{path}: line {number} is not two finite numbers: {_quote(row)}")
+        if abs(x) > MAX_COORDINATE_M or abs(y) > MAX_COORDINATE_M:
+            raise ValueError(
+                f"{path}: line {number} has a coordinate beyond ±{MAX_COORDINATE_M:,.0f} m: {_quote(row)}"
+            )
+        if not points and (abs(x) > LATTICE_TOLERANCE_M or abs(y) > LATTICE_TOLERANCE_M):
+            raise ValueError(f"{path}: line {number}: the first row must be the start 0,0, got {_quote(row)}")
         points.append((x, y))
     if not points:
         raise ValueError(f"{path}: no waypoint rows (the first row must be the start 0,0)")

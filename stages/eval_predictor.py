@@ -54,8 +54,10 @@ def run(
     protocol: Protocol,
     figure: bool = True,
     graph_config: GlobalGraphConfig = GlobalGraphConfig(),
+    progress: bool = True,
 ) -> pd.DataFrame:
-    """Evaluate on every map in `maps_dir`; writes precision.csv, table1.md and (optionally) fig3.png."""
+    """Evaluate on every map in `maps_dir`; writes precision.csv, precision_detail.csv, table1.md
+    and (optionally) fig3.png."""
     from pipeline.predictor_eval import evaluate_predictor, load_inpaint_fn, prediction_figure, table1_markdown
 
     maps = list_maps(maps_dir)
@@ -64,7 +66,7 @@ def run(
     inpaint = load_inpaint_fn(checkpoint)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol)
+    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress)
     frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
     frame.to_csv(out_dir / "precision_detail.csv", index=False)
     (out_dir / "table1.md").write_text(table1_markdown(frame))

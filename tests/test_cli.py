@@ -163,3 +163,94 @@ def test_help_keeps_literal_brackets():
     result = runner.invoke(app, ["stage", "collect-pairs", "--help"])
     assert "'.[ray]'" in result.output
     assert "[default: all cores]" in runner.invoke(app, ["benchmark", "--help"]).output
+
+
+def test_explore_records_the_run_and_defaults_to_a_folder_per_planner(small_maze_path, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for planner in ("nearest_frontier", "nf3=nearest_frontier:min_utility=3"):
+        result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", planner, "--no-progress"])
+        assert result.exit_code == 0, result.output
+    for label, options in (("nearest_frontier", {}), ("nf3", {"min_utility": 3})):
+        out = tmp_path / "runs" / "explore" / label  # two planners, two folders: nothing overwritten
+        record = json.loads((out / "run.json").read_text())
+        assert record["planner"]["label"] == label and record["planner"]["options"] == options
+        assert record["map"] == str(small_maze_path) and record["protocol"]["sensor_range"] == 20.0
+        assert (out / "small.csv").is_file()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--sensor-range", "nan"], "sensor_range must be a positive finite number"),
+        (["--node-resolution", "inf"], "node_resolution must be a positive finite number"),
+        (["--sensor-range", "1000"], "more than twice the map's diagonal"),
+        (["--planner", "x=greedy_utility:min_utility=nan"], "must be a finite number"),
+    ],
+)
+def test_explore_refuses_values_that_make_no_sense(small_maze_path, tmp_path, extra, message):
+    args = ["explore", "--map", str(small_maze_path), "--out", str(tmp_path / "o"), *extra]
+    assert message in _one_error_line(runner.invoke(app, args))
+
+
+def test_an_out_folder_that_cannot_be_made_fails_before_any_work(small_maze_path, generated_maze_dir, tmp_path):
+    blocked = tmp_path / "a_file"
+    blocked.write_text("x")
+    for command in (["explore", "--map", str(small_maze_path)],
+                    ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier", "--no-mlflow"],
+                    ["mazes", "--count", "1"]):
+        line = _one_error_line(runner.invoke(app, [*command, "--out", str(blocked / "sub")]))
+        assert "cannot create or write the output folder" in line
+
+
+def test_benchmark_checks_the_tracking_store_and_labels_before_running(generated_maze_dir, tmp_path):
+    out = tmp_path / "bench"
+    base = ["benchmark", "--maps", str(generated_maze_dir), "--out", str(out)]
+    line = _one_error_line(runner.invoke(app, [*base, "--planner", "nearest_frontier", "--tracking-uri", "foo://bar"]))
+    assert "not one MLflow 3 can log to" in line
+    line = _one_error_line(runner.invoke(app, [*base, "--planner", "nearest_frontier",
+                                               "--tracking-uri", f"sqlite:///{tmp_path / 'missing' / 'm.db'}"]))
+    assert "does not exist" in line
+    line = _one_error_line(runner.invoke(app, [*base, "--planner", "metrics.csv=nearest_frontier", "--no-mlflow"]))
+    assert "name of a benchmark output file" in line
+    assert not (out / "metrics.csv").exists()
+
+
+def test_benchmark_exits_1_when_an_episode_does_not_complete(small_maze_path, tmp_path):
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    (maps / "small.png").write_bytes(small_maze_path.read_bytes())
+    result = runner.invoke(app, ["benchmark", "--maps", str(maps), "--planner", "nearest_frontier", "--no-mlflow",
+                                 "--out", str(tmp_path / "b"), "--max-steps", "2", "--workers", "1"])
+    assert result.exit_code == 1 and "1 of 1 episodes did not complete" in result.output
+    assert (tmp_path / "b" / "metrics.csv").is_file()
+
+
+def test_a_map_that_cannot_be_completed_is_warned_about(tmp_path):
+    grid = np.zeros((60, 60), dtype=np.uint8)
+    grid[5:30, 5:30] = 1
+    grid[40:58, 40:58] = 1  # 324 free cells the robot can never reach
+    np.save(tmp_path / "two_rooms.npy", grid)
+    result = runner.invoke(app, ["explore", "--map", str(tmp_path / "two_rooms.npy"), "--start", "10", "10",
+                                 "--out", str(tmp_path / "o"), "--no-progress", "--node-resolution", "2",
+                                 "--sensor-range", "8"])
+    assert "warning: two_rooms: 324 free cells are not connected to the start" in result.output
+    assert result.exit_code == 1  # incomplete, as the warning said
+
+
+def test_maps_with_one_name_are_refused(tmp_path):
+    from pipeline.benchmark import check_unique_map_names
+    from pipeline.maps import MapError
+
+    check_unique_map_names([tmp_path / "a.png", tmp_path / "b.png"], ["a", "b"])
+    with pytest.raises(MapError, match="same name 'a'.*overwrite"):
+        check_unique_map_names([tmp_path / "a.png", tmp_path / "a.yaml"], ["a", "a"])
+
+
+def test_tracking_store_check():
+    from pipeline.tracking import check_tracking_uri
+
+    assert check_tracking_uri("sqlite:///mlflow.db") == "sqlite:///mlflow.db"
+    with pytest.raises(ValueError, match="no MLflow server answers"):
+        check_tracking_uri("http://127.0.0.1:9", timeout_s=2)  # port 9 (discard): nothing listens
+    with pytest.raises(ValueError, match="not one MLflow 3 can log to"):
+        check_tracking_uri("./mlruns")

@@ -23,6 +23,7 @@ from pipeline.maps import (
     load_npy_grid,
     load_ros_map,
 )
+from tests.conftest import write_ros_map
 
 WALL, FREE, START = 127, 195, 208
 
@@ -688,3 +689,109 @@ def test_fuzz_yaml_values(tmp_path, values):
     path = tmp_path / "fuzz.yaml"
     path.write_text(yaml.safe_dump(meta, allow_unicode=True))
     load_or_map_error(path)
+
+
+# ----------------------------------------------------------------------------- format-specific messages
+
+
+def test_npy_image_style_grid_says_one_is_free_and_lists_values(tmp_path):
+    path = tmp_path / "image_style.npy"
+    np.save(path, np.where(np.eye(4, dtype=bool), 255, 0).astype(np.uint8))  # 0/255, as an image
+    error = assert_map_error(path, "no free cell", lambda: load_map(path, start=(0, 0)))
+    assert "in a .npy grid, 1 or True means free" in error.reason
+    assert "the values 0, 255" in error.reason
+    assert "grey" not in error.reason and "150" not in error.reason  # no PNG thresholds for a grid
+    many = tmp_path / "many.npy"
+    np.save(many, np.arange(2, 30).reshape(4, 7))
+    error = assert_map_error(many, "no free cell", lambda: load_map(many, start=(0, 0)))
+    assert "the values 2, 3, 4, 5, 6 and 23 more" in error.reason
+
+
+def test_ros_no_free_cell_names_the_free_pixel_values(tmp_path):
+    path = write_ros(tmp_path, np.zeros((3, 3), dtype=np.uint8), start=[0, 0])
+    error = assert_map_error(path, "no free cell", lambda: load_map(path))
+    # (255 - v) / 255 < 0.196  <=>  v >= 206
+    assert "a pixel is free when its value is within 206-255" in error.reason
+    assert "free_thresh 0.196" in error.reason and "grey value is above" not in error.reason
+    none_free = write_ros(tmp_path, ros_image(), name="none", free_thresh=0.0, start=[0.2, -1.9])
+    assert_map_error(none_free, "no pixel value is free", lambda: load_map(none_free))
+
+
+def test_loaded_maps_carry_their_format_free_rule(tmp_path):
+    maze = load_map(write_maze(tmp_path / "maze.png", maze_cells()))
+    assert "maze PNG" in maze.free_rule and "150" in maze.free_rule
+    np.save(tmp_path / "grid.npy", np.ones((3, 3), dtype=np.uint8))
+    grid = load_map(tmp_path / "grid.npy", start=(1, 1))
+    assert ".npy grid" in grid.free_rule and "150" not in grid.free_rule
+    ros = load_map(write_ros(tmp_path, ros_image(), start=[0.2, -1.9]))
+    assert "ROS map" in ros.free_rule and "206-255" in ros.free_rule
+
+
+# ----------------------------------------------------------------------------- corrupt images stay quiet
+
+
+@pytest.mark.parametrize("cut", [8, 40, None])
+def test_corrupt_png_prints_nothing_but_the_error(tmp_path, capfd, cut):
+    good = write_png(tmp_path / "good.png", upsample(maze_cells()))
+    data = good.read_bytes()
+    path = tmp_path / "corrupt.png"
+    path.write_bytes(data[:cut] if cut is not None else data[: len(data) // 2])
+    level = cv2.utils.logging.getLogLevel()
+    capfd.readouterr()
+    assert_map_error(path, "not a readable image", lambda: load_map(path))
+    captured = capfd.readouterr()
+    assert captured.err == "" and captured.out == "", captured.err  # no "[ WARN:0@...]" lines
+    assert cv2.utils.logging.getLogLevel() == level  # OpenCV's level is restored
+    # the image a ROS YAML names goes through the same decoder
+    (tmp_path / "map.pgm").write_bytes(path.read_bytes())
+    ros = tmp_path / "map.yaml"
+    ros.write_text(yaml.safe_dump({"image": "map.pgm", "resolution": 0.5, "origin": [0, 0, 0],
+                                   "occupied_thresh": 0.65, "free_thresh": 0.196, "start": [0.1, 0.1]}))
+    assert_map_error(ros, "not a readable image", lambda: load_map(ros))
+    assert capfd.readouterr().err == ""
+
+
+# ----------------------------------------------------------------------------- ROS origin yaw and start
+
+
+@pytest.mark.parametrize("yaw", [0.3, -1.5707963, 1e-6])
+def test_ros_origin_yaw_is_refused(tmp_path, yaw):
+    path = write_ros(tmp_path, ros_image(), origin=[-1.0, -2.0, yaw], start=[0.2, -1.9])
+    error = assert_map_error(path, "origin yaw", lambda: load_map(path))
+    assert "not supported" in error.reason and "rotate the image" in error.reason
+
+
+@pytest.mark.parametrize("origin", [[-1.0, -2.0, 0.0], [-1.0, -2.0, -0.0], [-1.0, -2.0, 1e-12], [-1.0, -2.0]])
+def test_ros_origin_without_yaw_still_loads(tmp_path, origin):
+    path = write_ros(tmp_path, ros_image(), origin=origin, start=[0.2, -1.9])
+    grid = load_map(path)
+    assert grid.start_cell == (2, 0)
+    np.testing.assert_array_equal(grid.free, (ros_image() == 254)[::-1, :])
+
+
+@pytest.mark.parametrize("yaw", ["east", float("nan"), float("inf"), None])
+def test_ros_origin_yaw_must_be_a_finite_number(tmp_path, yaw):
+    path = write_ros(tmp_path, ros_image(), origin=[-1.0, -2.0, yaw], start=[0.2, -1.9])
+    assert_map_error(path, "yaw", lambda: load_map(path))
+
+
+def test_ros_start_outside_is_reported_in_metres_with_the_map_extent(tmp_path):
+    free = np.zeros((70, 120), dtype=bool)
+    free[10:60, 10:110] = True
+    path = write_ros_map(tmp_path, free, 0.05, (100, 100))
+    error = assert_map_error(path, "outside", lambda: load_map(path))
+    assert "start (100, 100) m" in error.reason
+    assert "x 0 to 6 m and y 0 to 3.5 m" in error.reason and "120x70 cells of 0.05 m" in error.reason
+    assert "col" not in error.reason  # the user gave metres, not cells
+    # non-zero origin; an explicit start; one that overflows the cell arithmetic
+    shifted = write_ros(tmp_path, ros_image(), name="shifted", start=[0.2, -1.9])
+    error = assert_map_error(shifted, "outside", lambda: load_ros_map(shifted, start_xy=(0.9, 0.1)))
+    assert "start (0.9, 0.1) m" in error.reason and "x -1 to 1.5 m and y -2 to 0 m" in error.reason
+    error = assert_map_error(shifted, "outside", lambda: load_ros_map(shifted, start_xy=(1e308, 0)))
+    assert "start (1e+308, 0) m" in error.reason
+
+
+def test_ros_start_on_occupied_cell_is_reported_in_metres(tmp_path):
+    path = write_ros(tmp_path, ros_image(), start=[0.2, -0.9])
+    error = assert_map_error(path, "is on an occupied cell", lambda: load_map(path))
+    assert "start (0.2, -0.9) m" in error.reason and "(col 2, row 2)" in error.reason

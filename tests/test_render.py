@@ -86,6 +86,19 @@ def test_frame_shape_dtype_and_layers():
     assert cell_pixel(40, 10) == render.UNKNOWN_WALL_RGB  # unexplored wall, shown faintly
 
 
+def test_y_up_draws_the_map_upside_down_under_the_same_title():
+    """A ROS map's rows grow with y: drawn with y_up its image reads like the map file."""
+    ground_truth = small_map()
+    belief = np.full(ground_truth.shape, UNKNOWN, dtype=np.uint8)
+    belief[35:45, 5:15] = FREE
+    plain = render.render_frame(ground_truth, belief, [(0.0, 0.0), (4.0, 0.0)], None, scale=2, title="t")
+    flipped = render.render_frame(ground_truth, belief, [(0.0, 0.0), (4.0, 0.0)], None, scale=2, title="t", y_up=True)
+    top = header_height(COLS * 2, graph_shown=False)
+    assert np.array_equal(flipped[:top], plain[:top])
+    assert np.array_equal(flipped[top:], plain[top:][::-1])
+    assert not np.array_equal(flipped[top:], plain[top:])
+
+
 def test_frame_marks_frontier_cells():
     ground_truth = small_map()
     belief = np.full(ground_truth.shape, UNKNOWN, dtype=np.uint8)

@@ -29,7 +29,7 @@ from pipeline.coverage import (
 )
 from pipeline.geometry import segment_is_known_free
 from pipeline.maps import GroundTruthMap
-from pipeline.planners.base import GraphPlanner, Planner, Waypoint, register_planner
+from pipeline.planners.base import GraphPlanner, Planner, Waypoint, check_int, check_number, register_planner
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE
 from pipeline.simulator import Observation
@@ -49,6 +49,10 @@ class OptimalPlanner(Planner):
         lns_iterations: int = DEFAULT_LNS_ITERATIONS,
         time_limit_s: float | None = 60.0,
     ):
+        # With no warm start, 0 restarts would construct no plan at all: the episode would end at once.
+        check_int("restarts", restarts, 1)
+        check_int("lns_iterations", lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_number("time_limit_s", time_limit_s, 0.0, low_open=True, none="no limit")
         self.restarts = restarts
         self.lns_iterations = lns_iterations
         self.time_limit_s = time_limit_s
@@ -108,6 +112,14 @@ class ExpertPlanner(GraphPlanner):
         min_utility: int = 2,
     ):
         super().__init__(min_utility=min_utility)
+        # The first plan has no warm start, so it needs a fresh construction; replans refine the
+        # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
+        check_int("restarts", restarts, 1)
+        check_int("lns_iterations", lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_int("replan_restarts", replan_restarts, 0, note="0 = only refine the previous tour")
+        check_int("replan_lns_iterations", replan_lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_number("time_limit_s", time_limit_s, 0.0, low_open=True, none="no limit")
+        check_number("replan_time_limit_s", replan_time_limit_s, 0.0, low_open=True, none="no limit")
         self.restarts = restarts
         self.lns_iterations = lns_iterations
         self.replan_restarts = replan_restarts

@@ -46,7 +46,7 @@ from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph import LatticeGraph, visible_counts
 from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import NodePredictor, NodePredictorConfig
-from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.tare import tsp_path
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
@@ -111,6 +111,9 @@ class _PredictingPlanner(GraphPlanner):
         min_component: int = 3,
     ):
         super().__init__(min_utility=min_utility)
+        # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
+        check_number("threshold", threshold, 0.0, 1.0)
+        check_int("min_component", min_component, 0, note="0 or 1 = keep every prediction")
         fn, source = resolve_inpainter(inpaint, checkpoint)
         self.predictor = None if fn is None else NodePredictor(fn, NodePredictorConfig(threshold, int(min_component)))
         self.predictor_source = source
@@ -201,13 +204,16 @@ class GuideTspPlanner(_PredictingPlanner):
         threshold: float = 0.5,
         min_component: int = 3,
     ):
+        # Checked before the predictor is loaded (in super().__init__).
+        check_int("top_k", top_k, 0, note="0 = every cluster")
+        check_number("spread", spread, 0.0, low_open=True, none=f"{SPREAD_NODES:g} node spacings")
+        check_number("min_weight", min_weight, 0.0, note="0 = keep every cluster")
+        check_number("beta", beta, 0.0)
+        check_int("first_k", first_k, 1)
+        check_number("hysteresis", hysteresis, 0.0, note="0 = none", none=f"{HYSTERESIS_NODES:g} node spacings")
+        check_int("exact_max", exact_max, 1, 14)
+        check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
         super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
-        if top_k < 0:
-            raise ValueError(f"top_k must be >= 0 (0 = every cluster), got {top_k}")
-        if spread is not None and spread <= 0:
-            raise ValueError(f"spread must be positive, got {spread}")
-        if beta < 0:
-            raise ValueError(f"beta must be >= 0, got {beta}")
         self.top_k = int(top_k)
         self.spread_option, self.hysteresis_option = spread, hysteresis  # metres; None: scaled to d_n in reset()
         self.min_weight = float(min_weight)
@@ -374,9 +380,8 @@ class MapExPlanner(_PredictingPlanner):
         threshold: float = 0.5,
         min_component: int = 3,
     ):
+        check_int("wall_margin", wall_margin, 0, note="0 = off")
         super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
-        if wall_margin < 0:
-            raise ValueError(f"wall_margin must be >= 0, got {wall_margin}")
         self.wall_margin = int(wall_margin)
 
     def predicted_free_cells(self, belief: np.ndarray, predicted: np.ndarray) -> np.ndarray:

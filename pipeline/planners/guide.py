@@ -59,7 +59,7 @@ import numpy as np
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
-from pipeline.planners.base import Waypoint, register_planner
+from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.protocol import Protocol
 from pipeline.simulator import Observation
@@ -131,10 +131,14 @@ class _DiffusionPlanner(GuideTspPlanner):
         candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
         **tour_options,
     ):
+        # Options that need no model are checked before anything is loaded.
         if mode not in ("tour", "policy"):
             raise ValueError(f"mode must be tour or policy, got {mode!r}")
-        if prior_weight < 0:
-            raise ValueError(f"prior_weight must be >= 0, got {prior_weight}")
+        check_number("prior_weight", prior_weight, 0.0, note="0 = the policy does not vote")
+        check_int("stall_steps", stall_steps, 1)
+        check_int("candidates", candidates, 1)
+        if sampler is not None and sampler not in ("ddpm", "ddim"):
+            raise ValueError(f"sampler must be ddpm or ddim, got {sampler!r}")
         if self.predicts:
             super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold=threshold, min_component=min_component, **tour_options)
         else:
@@ -157,18 +161,18 @@ class _DiffusionPlanner(GuideTspPlanner):
             self.policy_source = "injected policy"
         self.policy = policy
         config = policy.config
-        self.num_inference_steps = int(config.num_inference_steps if num_inference_steps is None else num_inference_steps)
-        if self.num_inference_steps < 1:
-            raise ValueError(f"num_inference_steps must be >= 1, got {num_inference_steps}")
+        # Bounded by the loaded policy: K denoising steps pick K of its T training timesteps
+        # (diffusers fails deep in sampling otherwise), T_a executed steps come from its T_p.
+        steps = config.num_inference_steps if num_inference_steps is None else num_inference_steps
+        check_int("num_inference_steps", steps, 1, config.num_train_timesteps, note="the policy's num_train_timesteps")
+        self.num_inference_steps = int(steps)
         if sampler is not None and sampler != config.sampler:
             policy = self._with_sampler(policy, sampler)
             self.policy = policy
-        self.action_steps = int(config.action_steps if action_steps is None else action_steps)
-        if not 1 <= self.action_steps <= config.horizon:
-            raise ValueError(f"action_steps must be in 1..{config.horizon}, got {action_steps}")
+        steps = config.action_steps if action_steps is None else action_steps
+        check_int("action_steps", steps, 1, config.horizon, note="the policy's horizon")
+        self.action_steps = int(steps)
         self.stall_steps = int(stall_steps)
-        if candidates < 1:
-            raise ValueError(f"candidates must be >= 1, got {candidates}")
         self.candidates = int(candidates)
         self.mode = mode
         self.prior_weight = float(prior_weight)

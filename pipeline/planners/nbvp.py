@@ -44,7 +44,7 @@ import numpy as np
 from pipeline.geometry import RayTable, ray_table
 from pipeline.graph import NODE_FREE, WINDOW_RADIUS
 from pipeline.maps import GroundTruthMap
-from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.protocol import Protocol
 from pipeline.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Observation
@@ -136,16 +136,13 @@ class NBVPPlanner(GraphPlanner):
         min_utility: int = 2,
     ):
         super().__init__(min_utility=min_utility)
-        if tree_size < 2:
-            raise ValueError(f"tree_size must be >= 2, got {tree_size}")
-        if lam is not None and lam < 0:
-            raise ValueError(f"lam must be >= 0, got {lam}")
-        if sample_radius_factor <= 0:
-            raise ValueError(f"sample_radius_factor must be positive, got {sample_radius_factor}")
-        if ray_stride < 1:
-            raise ValueError(f"ray_stride must be >= 1, got {ray_stride}")
-        if max_attempts_factor < 1:
-            raise ValueError(f"max_attempts_factor must be >= 1, got {max_attempts_factor}")
+        check_int("tree_size", tree_size, 2, note="the robot's node and at least one more")
+        check_number("lam", lam, 0.0, none=f"{LAM_TIMES_RANGE:g} / sensor range")
+        # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
+        check_number("gain_threshold", gain_threshold, 0.0, allow_inf=True, note="inf = always the frontier fallback")
+        check_number("sample_radius_factor", sample_radius_factor, 0.0, low_open=True)
+        check_int("ray_stride", ray_stride, 1)
+        check_int("max_attempts_factor", max_attempts_factor, 1)
         self.tree_size = int(tree_size)
         self.lam_option = lam  # 1/m; None: LAM_TIMES_RANGE / the protocol's sensor range, set in reset()
         self.lam = 0.0 if lam is None else float(lam)

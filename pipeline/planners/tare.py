@@ -57,7 +57,7 @@ from scipy.sparse.csgraph import dijkstra
 from pipeline.geometry import ray_table
 from pipeline.graph import UTILITY_ANGLES
 from pipeline.maps import GroundTruthMap
-from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
+from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE
 from pipeline.simulator import Observation
@@ -283,16 +283,11 @@ class TarePlanner(GraphPlanner):
         loop_guard: bool = True,
     ):
         super().__init__(min_utility=min_utility)
-        if horizon_radius < 0:
-            raise ValueError(f"horizon_radius must be >= 0, got {horizon_radius}")
-        if min_cover < 1:
-            raise ValueError(f"min_cover must be >= 1, got {min_cover}")
-        if cover_range is not None and cover_range < 0:
-            raise ValueError(f"cover_range must be >= 0 (0 = off), got {cover_range}")
-        if not 1 <= exact_max <= 14:
-            raise ValueError(f"exact_max must be in 1..14, got {exact_max}")
-        if max_moves < 0:
-            raise ValueError(f"max_moves must be >= 0, got {max_moves}")
+        check_int("horizon_radius", horizon_radius, 0, note="0 = the robot's region only")
+        check_int("min_cover", min_cover, 1)
+        check_number("cover_range", cover_range, 0.0, note="0 = off", none="the utility range")
+        check_int("exact_max", exact_max, 1, 14)
+        check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
         self.horizon_radius = int(horizon_radius)
         self.min_cover = int(min_cover)
         self.cover_range = None if cover_range is None else float(cover_range)

@@ -1,0 +1,185 @@
+"""Every planner's constructor refuses options that make no sense, naming the option, the
+value and the valid range, and still builds with its defaults and with valid edge values."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import pytest
+
+from pipeline.planners import make_planner, planner_names
+from pipeline.planners.base import check_int, check_number
+
+NAN, INF = math.nan, math.inf
+LEARNED = ("guide", "guide_noregion", "dare")
+
+# (planner, bad options, a fragment of the message)
+BAD = [
+    # GraphPlanner's min_utility, shared by every lattice-graph planner
+    ("nearest_frontier", {"min_utility": 0}, "min_utility must be >= 1, got 0"),
+    ("greedy_utility", {"min_utility": -1}, "min_utility must be >= 1, got -1"),
+    ("greedy_utility", {"min_utility": 1.5}, "min_utility must be an integer >= 1, got 1.5"),
+    # nbvp
+    ("nbvp", {"lam": NAN}, "lam must be a finite number >= 0 (None = 2.5 / sensor range), got nan"),
+    ("nbvp", {"lam": INF}, "lam must be a finite number >= 0"),
+    ("nbvp", {"lam": -1.0}, "lam must be a finite number >= 0"),
+    ("nbvp", {"gain_threshold": NAN}, "gain_threshold must be a number >= 0"),
+    ("nbvp", {"gain_threshold": -1.0}, "gain_threshold must be a number >= 0"),
+    ("nbvp", {"tree_size": 1}, "tree_size must be >= 2"),
+    ("nbvp", {"sample_radius_factor": 0.0}, "sample_radius_factor must be a finite number > 0, got 0"),
+    ("nbvp", {"sample_radius_factor": INF}, "sample_radius_factor must be a finite number > 0, got inf"),
+    ("nbvp", {"ray_stride": 0}, "ray_stride must be >= 1, got 0"),
+    ("nbvp", {"max_attempts_factor": 0}, "max_attempts_factor must be >= 1, got 0"),
+    ("nbvp", {"min_utility": 0}, "min_utility must be >= 1"),
+    # tare
+    ("tare", {"horizon_radius": -1}, "horizon_radius must be >= 0"),
+    ("tare", {"min_cover": 0}, "min_cover must be >= 1, got 0"),
+    ("tare", {"cover_range": -1.0}, "cover_range must be a finite number >= 0"),
+    ("tare", {"cover_range": NAN}, "cover_range must be a finite number >= 0"),
+    ("tare", {"exact_max": 0}, "exact_max must be in 1..14, got 0"),
+    ("tare", {"exact_max": 15}, "exact_max must be in 1..14, got 15"),
+    ("tare", {"max_moves": -1}, "max_moves must be >= 0"),
+    ("tare", {"min_utility": 0}, "min_utility must be >= 1"),
+    # optimal
+    ("optimal", {"restarts": 0}, "restarts must be >= 1, got 0"),
+    ("optimal", {"lns_iterations": -1}, "lns_iterations must be >= 0"),
+    ("optimal", {"time_limit_s": -1}, "time_limit_s must be a finite number > 0 (None = no limit), got -1"),
+    ("optimal", {"time_limit_s": 0}, "time_limit_s must be a finite number > 0"),
+    ("optimal", {"time_limit_s": NAN}, "time_limit_s must be a finite number > 0"),
+    ("optimal", {"time_limit_s": INF}, "time_limit_s must be a finite number > 0"),
+    # expert
+    ("expert", {"restarts": 0}, "restarts must be >= 1, got 0"),
+    ("expert", {"lns_iterations": -1}, "lns_iterations must be >= 0"),
+    ("expert", {"replan_restarts": -1}, "replan_restarts must be >= 0"),
+    ("expert", {"replan_lns_iterations": -2}, "replan_lns_iterations must be >= 0"),
+    ("expert", {"time_limit_s": 0.0}, "time_limit_s must be a finite number > 0"),
+    ("expert", {"replan_time_limit_s": -5.0}, "replan_time_limit_s must be a finite number > 0"),
+    ("expert", {"min_utility": 0}, "min_utility must be >= 1"),
+    # guide_tsp
+    ("guide_tsp", {"top_k": -1}, "top_k must be >= 0 (0 = every cluster), got -1"),
+    ("guide_tsp", {"spread": 0.0}, "spread must be a finite number > 0"),
+    ("guide_tsp", {"spread": NAN}, "spread must be a finite number > 0"),
+    ("guide_tsp", {"min_weight": -1.0}, "min_weight must be a finite number >= 0"),
+    ("guide_tsp", {"min_weight": INF}, "min_weight must be a finite number >= 0"),
+    ("guide_tsp", {"beta": NAN}, "beta must be a finite number >= 0, got nan"),
+    ("guide_tsp", {"beta": -1.0}, "beta must be a finite number >= 0"),
+    ("guide_tsp", {"first_k": 0}, "first_k must be >= 1, got 0"),
+    ("guide_tsp", {"hysteresis": -1.0}, "hysteresis must be a finite number >= 0"),
+    ("guide_tsp", {"exact_max": 15}, "exact_max must be in 1..14"),
+    ("guide_tsp", {"max_moves": -1}, "max_moves must be >= 0"),
+    ("guide_tsp", {"threshold": 2}, "threshold must be a number in [0, 1], got 2"),
+    ("guide_tsp", {"threshold": NAN}, "threshold must be a number in [0, 1], got nan"),
+    ("guide_tsp", {"min_component": -1}, "min_component must be >= 0"),
+    ("guide_tsp", {"min_utility": 0}, "min_utility must be >= 1"),
+    # mapex
+    ("mapex", {"wall_margin": -1}, "wall_margin must be >= 0"),
+    ("mapex", {"threshold": -0.5}, "threshold must be a number in [0, 1]"),
+    ("mapex", {"min_component": -1}, "min_component must be >= 0"),
+    # guide (its own options, the tour's and the predictor's)
+    ("guide", {"threshold": 2}, "threshold must be a number in [0, 1], got 2"),
+    ("guide", {"prior_weight": NAN}, "prior_weight must be a finite number >= 0 (0 = the policy does not vote), got nan"),
+    ("guide", {"prior_weight": -1.0}, "prior_weight must be a finite number >= 0"),
+    ("guide", {"prior_weight": INF}, "prior_weight must be a finite number >= 0"),
+    ("guide", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100 (the policy's num_train_timesteps), got 101"),
+    ("guide", {"num_inference_steps": 0}, "num_inference_steps must be in 1..100 (the policy's num_train_timesteps), got 0"),
+    ("guide", {"num_inference_steps": 101, "sampler": "ddim"}, "num_inference_steps must be in 1..100"),
+    ("guide", {"action_steps": 0}, "action_steps must be in 1..8 (the policy's horizon), got 0"),
+    ("guide", {"action_steps": 9}, "action_steps must be in 1..8 (the policy's horizon), got 9"),
+    ("guide", {"candidates": 0}, "candidates must be >= 1, got 0"),
+    ("guide", {"stall_steps": 0}, "stall_steps must be >= 1, got 0"),
+    ("guide", {"sampler": "euler"}, "sampler must be ddpm or ddim, got 'euler'"),
+    ("guide", {"mode": "greedy"}, "mode must be tour or policy"),
+    ("guide", {"top_k": -1}, "top_k must be >= 0"),
+    ("guide", {"beta": NAN}, "beta must be a finite number >= 0"),
+    ("guide", {"min_utility": 0}, "min_utility must be >= 1"),
+    # guide_noregion and dare share the diffusion planners' checks
+    ("guide_noregion", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
+    ("guide_noregion", {"prior_weight": NAN}, "prior_weight must be a finite number >= 0"),
+    ("dare", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
+    ("dare", {"candidates": 0}, "candidates must be >= 1"),
+    ("dare", {"threshold": 1.5}, "threshold must be a number in [0, 1]"),
+]
+
+# Valid values at the edge of each range: still accepted (and the defaults' behaviour is untouched).
+GOOD = [
+    ("nearest_frontier", {"min_utility": 1}),
+    ("nbvp", {"lam": 0.0, "gain_threshold": 0.0}),
+    ("nbvp", {"gain_threshold": INF}),  # always the nearest-frontier fallback (tests/planners/test_nbvp.py)
+    ("nbvp", {"tree_size": 2, "ray_stride": 1, "max_attempts_factor": 1}),
+    ("tare", {"horizon_radius": 0, "min_cover": 1, "cover_range": 0.0, "exact_max": 14, "max_moves": 0}),
+    ("optimal", {"restarts": 1, "lns_iterations": 0, "time_limit_s": None}),
+    ("optimal", {"time_limit_s": 0.5}),
+    ("expert", {"replan_restarts": 0, "replan_lns_iterations": 0, "time_limit_s": None, "replan_time_limit_s": None}),
+    ("guide_tsp", {"top_k": 0, "min_weight": 0.0, "beta": 0.0, "hysteresis": 0.0, "first_k": 1, "exact_max": 1}),
+    ("guide_tsp", {"threshold": 0.0, "min_component": 0}),
+    ("mapex", {"threshold": 1.0, "wall_margin": 0, "min_component": 1}),
+    ("guide", {"num_inference_steps": 100, "action_steps": 8, "prior_weight": 0.0, "top_k": 0}),
+    ("guide", {"num_inference_steps": 1, "action_steps": 1, "candidates": 1, "stall_steps": 1, "sampler": "ddim"}),
+    ("guide_noregion", {"num_inference_steps": 100}),
+    ("dare", {"num_inference_steps": 100, "mode": "policy"}),
+]
+
+
+def case_id(case) -> str:
+    name, options = case[0], case[1]
+    return f"{name}-" + "-".join(f"{k}={v}" for k, v in options.items())
+
+
+@pytest.mark.parametrize("name,options,fragment", BAD, ids=[case_id(c) for c in BAD])
+def test_bad_option_is_refused(name, options, fragment):
+    with pytest.raises(ValueError, match=re.escape(fragment)):
+        make_planner(name, **options)
+
+
+def test_every_planner_has_bad_option_cases():
+    assert set(planner_names()) <= {name for name, _, _ in BAD}
+
+
+@pytest.mark.parametrize("name", planner_names())
+def test_every_planner_builds_with_its_defaults(name):
+    planner = make_planner(name)
+    assert planner.name == name
+
+
+def test_diffusion_defaults_come_from_the_policy():
+    for name in LEARNED:
+        planner = make_planner(name)
+        config = planner.policy.config
+        assert planner.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
+        assert planner.action_steps == config.action_steps
+
+
+@pytest.mark.parametrize("name,options", GOOD, ids=[case_id(c) for c in GOOD])
+def test_valid_edge_values_are_accepted(name, options):
+    make_planner(name, **options)
+
+
+def test_spec_errors_reach_the_benchmark_before_any_episode():
+    """`--planner label=name:key=value` goes through the constructor's checks (the CLI's one-line error)."""
+    from pipeline.benchmark import resolve_planner_specs
+
+    with pytest.raises(ValueError, match=re.escape("planner 'o': restarts must be >= 1, got 0")):
+        resolve_planner_specs(["o=optimal:restarts=0"])
+    with pytest.raises(ValueError, match=re.escape("planner 't': threshold must be a number in [0, 1], got 2")):
+        resolve_planner_specs(["t=guide_tsp:threshold=2"])
+
+
+def test_check_helpers():
+    check_int("n", 3, 1, 3)
+    check_int("n", 4.0, 1)  # a whole float is a whole number
+    check_number("x", 0.5, 0.0, 1.0)
+    check_number("x", None, 0.0, none="off")
+    check_number("x", INF, 0.0, allow_inf=True)
+    with pytest.raises(ValueError, match=re.escape("n must be in 1..3, got 4")):
+        check_int("n", 4, 1, 3)
+    with pytest.raises(ValueError, match=re.escape("n must be an integer >= 1, got nan")):
+        check_int("n", NAN)
+    with pytest.raises(ValueError, match=re.escape("x must be a finite number >= 0, got None")):
+        check_number("x", None, 0.0)
+    with pytest.raises(ValueError, match=re.escape("x must be a number in (0, 1), got 1")):
+        check_number("x", 1, 0.0, 1.0, low_open=True, high_open=True)
+    with pytest.raises(ValueError, match=re.escape("x must be a number >= 0 (inf = all), got nan")):
+        check_number("x", NAN, 0.0, allow_inf=True, note="inf = all")
+    with pytest.raises(ValueError, match=re.escape("x must be a finite number >= 0, got 'a'")):
+        check_number("x", "a", 0.0)
