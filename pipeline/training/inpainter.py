@@ -30,8 +30,10 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import pickle
 import time
 import warnings
+import zipfile
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterator, Optional, Sequence
@@ -48,7 +50,6 @@ from pipeline.models.modeling_inpainter import (
     PIXEL_OBSTACLE_MAX,
     InpainterModel,
     load_big_lama_generator,
-    read_checkpoint,
 )
 from pipeline.shards import read_manifest
 from pipeline.training.exports import read_weights_file
@@ -563,6 +564,131 @@ def read_export(path: str | Path) -> dict[str, Any]:
     return read_weights_file(path, "an inpainter export")
 
 
+# ----------------------------------------------------------------------------- settings checks
+def one_line(error: BaseException, limit: int = 200) -> str:
+    """An exception as one short line (its first line, or its type when it has no message)."""
+    lines = str(error).strip().splitlines()
+    text = lines[0].strip() if lines else type(error).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _parse_devices(devices: Any) -> int | list[int] | str:
+    """Lightning's `devices` as a count, a list of indices or "auto"; ValueError for anything else."""
+    if isinstance(devices, str):
+        text = devices.strip()
+        if text == "auto":
+            return text
+        try:
+            return int(text)
+        except ValueError:
+            pass
+        try:
+            return [int(part) for part in text.split(",") if part.strip()] or devices
+        except ValueError:
+            pass
+    elif isinstance(devices, int) and not isinstance(devices, bool):
+        return devices
+    elif isinstance(devices, (list, tuple)) and all(isinstance(d, int) and not isinstance(d, bool) for d in devices):
+        return list(devices)
+    raise ValueError(f"devices {devices!r}: use a number of devices (1, 2, ...), 'auto', or device indices such as '0,1'")
+
+
+def check_accelerator(accelerator: Any, devices: Any) -> None:
+    """ValueError (one line, naming the option and what is available) for training settings
+    Lightning would refuse: an unknown accelerator or one this machine lacks, or no devices."""
+    from lightning.pytorch.accelerators import Accelerator, AcceleratorRegistry
+
+    names = sorted({"auto", "gpu", *AcceleratorRegistry.available_accelerators()})
+    gpu = torch.cuda.is_available() or torch.backends.mps.is_available()
+    kind = accelerator
+    if isinstance(accelerator, Accelerator):
+        kind = None
+    elif not isinstance(accelerator, str) or accelerator not in names:
+        usable = ["auto", "cpu"] + [n for n in names if n not in ("auto", "cpu", "gpu")
+                                    and AcceleratorRegistry[n]["accelerator"].is_available()]
+        raise ValueError(f"accelerator {accelerator!r}: unknown; use one of {', '.join(names)} "
+                         f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})")
+    elif accelerator == "gpu":
+        if not gpu:
+            raise ValueError(f"accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
+                             "use cpu or auto")
+        kind = "cuda" if torch.cuda.is_available() else "mps"
+    elif accelerator == "cuda" and not torch.cuda.is_available():
+        raise ValueError("accelerator 'cuda': no CUDA GPU is visible to torch (torch.cuda.is_available() is False); "
+                         "use cpu or auto")
+    elif accelerator not in ("auto", "cpu", "cuda") and not AcceleratorRegistry[accelerator]["accelerator"].is_available():
+        hint = {"mps": "torch.backends.mps.is_available() is False", "tpu": "torch_xla is missing or finds no TPU"}.get(accelerator, "")
+        raise ValueError(f"accelerator {accelerator!r}: not available on this machine{f' ({hint})' if hint else ''}; "
+                         "use cpu or auto")
+    if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
+        kind = "cpu"  # what Lightning picks here
+    wanted = _parse_devices(devices)
+    if isinstance(wanted, int) and wanted <= 0:
+        raise ValueError(f"devices {devices!r}: need at least one device; use a positive number, 'auto', "
+                         "or device indices such as '0,1'")
+    if isinstance(wanted, list):
+        if not wanted or min(wanted) < 0:
+            raise ValueError(f"devices {devices!r}: device indices must be non-negative (such as '0,1')")
+        if kind == "cpu":
+            raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
+    if kind == "cuda":
+        count = torch.cuda.device_count()
+        asked = wanted if isinstance(wanted, int) else (max(wanted) + 1 if isinstance(wanted, list) else 0)
+        if asked > count:
+            raise ValueError(f"devices {devices!r}: torch sees {count} CUDA GPU{'s' if count != 1 else ''} here")
+
+
+def make_trainer(**options: Any) -> "L.Trainer":
+    """`L.Trainer(**options)`, with Lightning's refusal of the accelerator or devices as a one-line ValueError."""
+    from lightning.fabric.utilities.exceptions import MisconfigurationException
+
+    try:
+        return L.Trainer(**options)
+    except MisconfigurationException as error:
+        raise ValueError(f"training settings accelerator={options.get('accelerator')!r}, "
+                         f"devices={options.get('devices')!r}: {one_line(error)}") from None
+
+
+def remove_checkpoints(out_dir: Path) -> None:
+    """Delete the `*.ckpt` files in `out_dir` (a fresh run's stale `best` / `last`)."""
+    for stale in list(out_dir.glob("*.ckpt")):
+        stale.unlink()
+
+
+# What torch.save wrote before its zip format: a pickled magic number (protocol 2) opens the file.
+_LEGACY_TORCH_HEAD = pickle.dumps(0x1950A86A20F9469CFC6C, protocol=2)
+
+
+def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
+    """The dict in an (official Big-LaMa) checkpoint named by the user, checked before use.
+
+    FileNotFoundError if absent; ValueError if it is not a torch.save file or cannot be read.
+    Tensors-only loading first; a valid archive that holds other pickled objects (LaMa's
+    Lightning checkpoints keep config objects) is then unpickled fully, with a warning, since
+    that runs code from the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"init checkpoint {path} not found")
+    with open(path, "rb") as handle:
+        head = handle.read(len(_LEGACY_TORCH_HEAD))
+    if not (zipfile.is_zipfile(path) or head == _LEGACY_TORCH_HEAD):
+        raise ValueError(f"{path}: not a readable checkpoint (not a file written by torch.save)")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:  # refused by weights_only: e.g. OmegaConf objects in LaMa's hyper_parameters
+        warnings.warn(f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=3)
+        try:
+            payload = torch.load(path, map_location="cpu", weights_only=False)
+        except Exception as error:  # noqa: BLE001 - damaged, or its classes are not importable here
+            raise ValueError(f"{path}: not a readable checkpoint ({one_line(error)})") from None
+    except Exception as error:  # noqa: BLE001 - a damaged archive
+        raise ValueError(f"{path}: not a readable checkpoint ({one_line(error)})") from None
+    if not isinstance(payload, dict):
+        raise ValueError(f"{path}: not a readable checkpoint (it holds a {type(payload).__name__}, not a dict)")
+    return payload
+
+
 # ----------------------------------------------------------------------------- entry point
 def is_big_lama_layout(config: InpainterConfig) -> bool:
     reference = InpainterConfig.big_lama(in_channels=config.in_channels, out_channels=config.out_channels,
@@ -595,7 +721,9 @@ def train_inpainter(
 
     `max_epochs`, `batch_size` and `lr` override `train_config`. `resume=True` continues
     from `out_dir/last.ckpt` (epoch counter, optimiser and history included) when it
-    exists; otherwise stale checkpoints in `out_dir` are removed first. `init_checkpoint`
+    exists; otherwise stale checkpoints in `out_dir` are removed just before training starts,
+    once the settings, the init checkpoint and the data have been checked (a run that fails
+    early leaves them alone; bad settings raise a one-line ValueError). `init_checkpoint`
     is an official (Big-)LaMa checkpoint whose `generator.*` weights start the training
     (the model then takes the Big-LaMa layout). MLflow logs to `tracking_uri` (default:
     $MLFLOW_TRACKING_URI or sqlite:///mlflow.db). `num_threads` sets torch's CPU threads
@@ -618,32 +746,41 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
            init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location) -> Path:
     from pipeline.tracking import resolve_tracking_uri
 
+    # Everything that can fail is checked before a file is touched or an MLflow run is made: the
+    # settings, the init checkpoint and the data; old checkpoints go only just before fit().
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
     overrides = {k: v for k, v in (("max_epochs", max_epochs), ("batch_size", batch_size), ("lr", lr)) if v is not None}
     tc = TrainConfig(**{**asdict(tc), **overrides})
+    check_accelerator(accelerator, devices)
     if isinstance(model_config, dict):
         model_config = InpainterConfig.from_dict(model_config)
     model_config = model_config or InpainterConfig()
-    if init_checkpoint is not None and not is_big_lama_layout(model_config):
-        warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
-                      stacklevel=2)
-        model_config = InpainterConfig.big_lama()
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     last = out_dir / LAST_CKPT
     ckpt_path = str(last) if resume and last.is_file() else None
+    init_weights = None
+    if init_checkpoint is not None:
+        if ckpt_path is None:  # a resumed run continues from last.ckpt and ignores it
+            init_weights = read_init_checkpoint(init_checkpoint)
+        if not is_big_lama_layout(model_config):
+            warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
+                          stacklevel=2)
+            model_config = InpainterConfig.big_lama()
+    data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
+    data.setup("fit")  # the data check (no random state involved): before the MLflow logger exists
+    out_dir.mkdir(parents=True, exist_ok=True)
     if resume and ckpt_path is None:
         warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
-    if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
-        for stale in list(out_dir.glob("*.ckpt")):
-            stale.unlink()
 
     L.seed_everything(tc.seed, workers=True, verbose=False)
     module = InpainterLightning(model_config.to_dict(), asdict(tc))
-    if init_checkpoint is not None and ckpt_path is None:
-        summary = load_big_lama_generator(module.generator, read_checkpoint(init_checkpoint))
+    if init_weights is not None:
+        try:
+            summary = load_big_lama_generator(module.generator, init_weights)
+        except (KeyError, RuntimeError, ValueError) as error:
+            raise ValueError(f"{init_checkpoint}: {error}") from None
+        del init_weights
         print(f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}")
-    data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
 
     checkpoint = ModelCheckpoint(dirpath=out_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
                                  save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
@@ -654,7 +791,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
 
         logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
                               tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
-    trainer = L.Trainer(
+    trainer = make_trainer(
         max_epochs=tc.max_epochs,
         accelerator=accelerator,
         devices=devices,
@@ -667,6 +804,8 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         use_distributed_sampler=False,
         log_every_n_steps=1,
     )
+    if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
+        remove_checkpoints(out_dir)
     started = time.perf_counter()
     trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
     seconds = time.perf_counter() - started

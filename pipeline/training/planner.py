@@ -26,6 +26,7 @@ from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
 from pipeline.training.exports import read_weights_file
+from pipeline.training.inpainter import check_accelerator, make_trainer, remove_checkpoints
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -197,12 +198,14 @@ def train_planner(
     """Train on an observation file (build_observations stage); returns the exported policy.pt.
 
     `resume=True` continues from out_dir/last.ckpt (optimiser, EMA and history included)
-    when it exists; otherwise stale checkpoints are removed first.
+    when it exists; otherwise stale checkpoints are removed just before training starts, once
+    the settings and the data have been checked (a run that fails early leaves them alone).
     """
     from pipeline.tracking import resolve_tracking_uri
 
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
+    check_accelerator(accelerator, devices)  # before any file is touched or an MLflow run is made
     arrays, meta = load_observations(observations)
     n_max = arrays["features"].shape[1]
     if n_max < mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
@@ -224,9 +227,6 @@ def train_planner(
         ckpt_path = str(last) if resume and last.is_file() else None
         if resume and ckpt_path is None:
             warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
-        if ckpt_path is None:
-            for stale in list(out_dir.glob("*.ckpt")):
-                stale.unlink()
         L.seed_everything(tc.seed, workers=True, verbose=False)
         train_rows, val_rows = split_episodes(arrays["episode"], tc.val_fraction, tc.seed)
         train_set = PlannerDataset(arrays, mc.obs_steps, train_rows, augment=tc.augment, seed=tc.seed)
@@ -246,13 +246,16 @@ def train_planner(
             from lightning.pytorch.loggers import MLFlowLogger
 
             logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name, tracking_uri=resolve_tracking_uri(tracking_uri))
-            logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
-                                    "observations": str(observations), "samples": len(arrays["episode"])})
-        trainer = L.Trainer(
+        trainer = make_trainer(
             max_epochs=tc.max_epochs, accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
             default_root_dir=str(out_dir), enable_progress_bar=progress, enable_model_summary=False,
             num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0,
         )
+        if logger:  # makes the MLflow run: only once the trainer accepted the settings
+            logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
+                                    "observations": str(observations), "samples": len(arrays["episode"])})
+        if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
+            remove_checkpoints(out_dir)
         started = time.perf_counter()
         trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
         seconds = time.perf_counter() - started

@@ -16,6 +16,7 @@ from pipeline.shards import write_shard
 from pipeline.training.inpainter import (
     NodeImagePairDataset,
     SizeGroupedBatchSampler,
+    check_accelerator,
     dihedral,
     evaluate_inpainter,
     hole_counts,
@@ -26,6 +27,7 @@ from pipeline.training.inpainter import (
     pair_count,
     precision_recall_f1,
     read_export,
+    read_init_checkpoint,
     split_pairs,
     train_inpainter,
 )
@@ -262,6 +264,119 @@ def test_fresh_run_clears_stale_checkpoints(pairs_dir, tmp_path):
         warnings.simplefilter("ignore")
         train_inpainter(TINY, pairs_dir, out, max_epochs=1, mlflow=False, resume=True, train_config=FAST)
     assert not (out / "best-v1.ckpt").exists()
+
+
+def file_bytes(directory: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(directory.iterdir()) if p.is_file()}
+
+
+def test_a_failed_run_keeps_the_previous_checkpoints(pairs_dir, tmp_path):
+    """Bad settings, a missing or unreadable init checkpoint or missing data fail before the
+    fresh run's clean-up: best.ckpt / last.ckpt / inpainter.pt stay as the last run left them."""
+    out = tmp_path / "kept"
+    train_inpainter(TINY, pairs_dir, out, max_epochs=1, mlflow=False, train_config=FAST)
+    before = file_bytes(out)
+    assert {"best.ckpt", "last.ckpt", "inpainter.pt"} <= set(before)
+    corrupt = tmp_path / "corrupt.ckpt"
+    corrupt.write_bytes(np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8).tobytes())
+    failures = [
+        ({"accelerator": "foo"}, ValueError, r"accelerator 'foo': unknown; use one of auto, cpu, .*available here: "),
+        ({"devices": 0}, ValueError, r"devices 0: need at least one device"),
+        ({"devices": -2}, ValueError, r"devices -2: need at least one device"),
+        ({"devices": "0"}, ValueError, r"devices '0': need at least one device"),
+        ({"init_checkpoint": tmp_path / "missing.ckpt"}, FileNotFoundError, r"init checkpoint .*missing\.ckpt not found"),
+        ({"init_checkpoint": corrupt}, ValueError, r"corrupt\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"),
+        ({"data_dir": tmp_path / "no-data"}, FileNotFoundError, r"no manifest"),
+    ]
+    if not torch.cuda.is_available():  # "No supported gpu backend found!" from Lightning, after the clean-up, before
+        failures.append(({"accelerator": "gpu"}, ValueError,
+                         r"accelerator 'gpu': no GPU is visible to torch \(torch\.cuda\.is_available\(\) is False\); use cpu or auto"))
+    for options, error, message in failures:
+        settings = {"data_dir": pairs_dir, **options}
+        with warnings.catch_warnings(record=True) as caught, pytest.raises(error, match=message):
+            warnings.simplefilter("always")
+            train_inpainter(TINY, settings.pop("data_dir"), out, max_epochs=1, mlflow=False, train_config=FAST, **settings)
+        assert not [str(w.message) for w in caught if "Big-LaMa" in str(w.message) or "unpickling" in str(w.message)], options
+        assert file_bytes(out) == before, options
+
+
+def test_bad_settings_and_missing_data_fail_before_mlflow_and_files(pairs_dir, tmp_path, mlflow_uri):
+    import mlflow
+
+    client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
+    out = tmp_path / "never"
+    with pytest.raises(ValueError, match="accelerator 'foo'"):
+        train_inpainter(TINY, pairs_dir, out, accelerator="foo", tracking_uri=mlflow_uri,
+                        experiment_name="inpainter-bad-settings", train_config=FAST)
+    with pytest.raises(FileNotFoundError, match="no manifest"):
+        train_inpainter(TINY, tmp_path / "no-data", out, tracking_uri=mlflow_uri, experiment_name="inpainter-no-data",
+                        train_config=FAST)
+    assert client.get_experiment_by_name("inpainter-bad-settings") is None
+    assert client.get_experiment_by_name("inpainter-no-data") is None
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("accelerator, devices, message", [
+    ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
+    ("CPU", 1, r"accelerator 'CPU': unknown"),
+    ("cpu", 0, r"devices 0: need at least one device"),
+    ("auto", -1, r"devices -1: need at least one device"),
+    ("cpu", "two", r"devices 'two': use a number of devices"),
+    ("cpu", True, r"devices True: use a number of devices"),
+    ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
+])
+def test_training_settings_are_checked(accelerator, devices, message):
+    with pytest.raises(ValueError, match=message):
+        check_accelerator(accelerator, devices)
+
+
+def test_unavailable_accelerators_are_named():
+    from lightning.pytorch.accelerators import XLAAccelerator
+
+    for accelerator, devices in (("cpu", 1), ("cpu", "2"), ("auto", "auto"), ("auto", 1)):
+        check_accelerator(accelerator, devices)  # accepted
+    if not torch.cuda.is_available():
+        for name in ("gpu", "cuda"):
+            with pytest.raises(ValueError, match=rf"accelerator '{name}': no (CUDA )?GPU is visible to torch .*use cpu or auto"):
+                check_accelerator(name, 1)
+    else:
+        with pytest.raises(ValueError, match=r"devices 99: torch sees \d+ CUDA GPU"):
+            check_accelerator("gpu", 99)
+    if not XLAAccelerator.is_available():
+        with pytest.raises(ValueError, match=r"accelerator 'tpu': not available on this machine .*use cpu or auto"):
+            check_accelerator("tpu", 1)
+
+
+def test_init_checkpoint_reading(tmp_path):
+    import argparse
+
+    with pytest.raises(FileNotFoundError, match=r"init checkpoint .*nothing\.ckpt not found"):
+        read_init_checkpoint(tmp_path / "nothing.ckpt")
+    noise = tmp_path / "noise.ckpt"
+    noise.write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(ValueError, match=r"noise\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"):
+        read_init_checkpoint(noise)
+    weights = {"state_dict": {"generator.model.1.weight": torch.ones(2, 2)}}
+    plain = tmp_path / "plain.ckpt"
+    torch.save(weights, plain)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # tensors only: no full unpickling
+        assert torch.equal(read_init_checkpoint(plain)["state_dict"]["generator.model.1.weight"], torch.ones(2, 2))
+    # A Lightning checkpoint holding config objects (as LaMa's do): unpickled fully, with a warning.
+    lama = tmp_path / "lama.ckpt"
+    torch.save({**weights, "hyper_parameters": argparse.Namespace(generator="ffc_resnet")}, lama)
+    with pytest.warns(UserWarning, match="unpickling it fully"):
+        payload = read_init_checkpoint(lama)
+    assert payload["hyper_parameters"].generator == "ffc_resnet"
+    # A damaged archive (cut short) and an archive holding something other than a dict: one-line errors.
+    damaged = tmp_path / "damaged.ckpt"
+    damaged.write_bytes(plain.read_bytes()[:-200])
+    with pytest.raises(ValueError, match=r"damaged\.ckpt: not a readable checkpoint \("):
+        read_init_checkpoint(damaged)
+    listed = tmp_path / "list.ckpt"
+    torch.save([torch.ones(1)], listed)
+    with pytest.raises(ValueError, match=r"list\.ckpt: not a readable checkpoint \(it holds a list, not a dict\)"):
+        read_init_checkpoint(listed)
 
 
 def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow_uri):

@@ -77,6 +77,33 @@ def test_mismatched_model_and_observations_fail_clearly(trained):
         train_planner(root / "guide.npz", root / "bad", {**TINY_MODEL, "max_nodes": 128}, TINY_TRAIN, mlflow=False)
 
 
+def test_bad_settings_fail_before_checkpoints_files_or_mlflow_change(trained, tmp_path, mlflow_uri):
+    """A fresh run with bad settings fails before its clean-up (the last run's checkpoints stay,
+    byte for byte) and before an MLflow run is made; the error is a one-line ValueError."""
+    import mlflow
+
+    root, _ = trained
+    out_dir = tmp_path / "guide"
+    shutil.copytree(root / "guide", out_dir)
+    before = {p.name: p.read_bytes() for p in sorted(out_dir.iterdir()) if p.is_file()}
+    assert {"best.ckpt", "last.ckpt", "policy.pt"} <= set(before)
+    failures = [({"accelerator": "foo"}, r"accelerator 'foo': unknown; use one of auto, cpu, "),
+                ({"devices": 0}, r"devices 0: need at least one device"),
+                ({"devices": "0"}, r"devices '0': need at least one device"),  # the CLI passes a string
+                ({"devices": -1}, r"devices -1: need at least one device")]
+    if not torch.cuda.is_available():  # Lightning's "No supported gpu backend found!" came after the clean-up
+        failures.append(({"accelerator": "gpu"}, r"accelerator 'gpu': no GPU is visible to torch .*use cpu or auto"))
+    for options, message in failures:
+        with pytest.raises(ValueError, match=message):
+            train_planner(root / "guide.npz", out_dir, TINY_MODEL, TINY_TRAIN, tracking_uri=mlflow_uri,
+                          experiment_name="test_planner_bad_settings", **options)
+        assert {p.name: p.read_bytes() for p in sorted(out_dir.iterdir()) if p.is_file()} == before, options
+    assert mlflow.MlflowClient(tracking_uri=mlflow_uri).get_experiment_by_name("test_planner_bad_settings") is None
+    with pytest.raises(ValueError, match="accelerator 'foo'"):
+        train_planner(root / "guide.npz", tmp_path / "new", TINY_MODEL, TINY_TRAIN, accelerator="foo", mlflow=False)
+    assert not (tmp_path / "new").exists()
+
+
 def test_episode_split_holds_out_whole_episodes():
     episode = np.repeat(np.arange(5), 10)
     train, val = split_episodes(episode, 0.4, seed=0)
