@@ -24,15 +24,19 @@ def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_p
     assert set(frame["planner"]) == {"nearest_frontier", "greedy_utility"}
 
 
+def metrics_frame_of(distances: dict[str, list[float]]) -> pd.DataFrame:
+    """A metrics.csv-like frame: per planner, one completed episode per map m0, m1, ... with these distances."""
+    return pd.DataFrame([
+        {"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True, "explored_ratio": 1.0,
+         "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0}
+        for planner, values in distances.items() for i, d in enumerate(values)
+    ])
+
+
 def test_summary_compares_with_the_baseline_map_by_map():
     from pipeline.benchmark import summary_markdown
 
-    rows = []
-    for planner, distances in (("greedy_utility", [100, 200, 300]), ("nf", [110, 220, 330])):
-        for i, d in enumerate(distances):
-            rows.append({"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True,
-                         "explored_ratio": 1.0, "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0})
-    frame = pd.DataFrame(rows)
+    frame = metrics_frame_of({"greedy_utility": [100, 200, 300], "nf": [110, 220, 330]})
     text = summary_markdown(frame, Protocol())
     assert "vs greedy_utility (paired, 95 %)" in text
     assert "| nf | 3 | 220.0 +- 89.8 | +10.0 % +- 12.4 |" in text  # differences 10, 20, 30 m over a 200 m mean; t(2 dof)
@@ -44,12 +48,7 @@ def test_summary_compares_with_the_baseline_map_by_map():
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
     from pipeline.benchmark import summarise, summary_markdown
 
-    rows = []
-    for planner, distances in (("optimal", [80, 160, 240]), ("nf", [110, 220, 330])):
-        for i, d in enumerate(distances):
-            rows.append({"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True,
-                         "explored_ratio": 1.0, "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0})
-    frame = pd.DataFrame(rows)
+    frame = metrics_frame_of({"optimal": [80, 160, 240], "nf": [110, 220, 330]})
     summary = summarise(frame)
     assert summary.loc["nf", "gap_to_optimal"] == pytest.approx(220 / 160 - 1.0)
     assert summary.loc["optimal", "gap_to_optimal"] == pytest.approx(0.0)
