@@ -361,6 +361,10 @@ def replay(
 ) -> None:
     """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON.
 
+    `steps` counts the waypoints after the start up to completion (metrics.csv's column);
+    `complete_after_waypoint` is the 1-based row of the file at which the map became complete
+    (the start row is 1). Rows after completion count for nothing.
+
     Exits 1 when the trajectory breaks the motion rule or does not complete the map.
     """
     from pipeline.benchmark import protocol_for_map
@@ -380,7 +384,8 @@ def replay(
             {
                 "map": ground_truth.name,
                 "complete": result.complete,
-                "complete_after_waypoint": result.complete_after_waypoint,
+                "complete_after_waypoint": result.complete_after_waypoint,  # 1-based row, the start row is 1
+                "steps": result.steps,  # waypoints after the start up to completion, as metrics.csv counts them
                 "distance_m": round(result.distance_m, 3),
                 "motion_violations": result.motion_violations,
                 "explored_ratio": round(result.explored_ratio, 5),

@@ -35,6 +35,7 @@ def test_explore_writes_trajectory_metrics_png_and_gif(small_maze_path, tmp_path
     assert replayed.exit_code == 0
     report = json.loads(replayed.output)
     assert report["complete"] and report["distance_m"] == pytest.approx(metrics.loc[0, "distance_m"], abs=1e-3)
+    assert report["steps"] == metrics.loc[0, "steps"] == report["complete_after_waypoint"] - 1
 
 
 @pytest.mark.parametrize(
