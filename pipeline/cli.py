@@ -303,7 +303,8 @@ def benchmark(
         None, help="Label to compare every planner with, map by map, in summary.md ('' for none) "
                    "[default: greedy_utility when it runs]."),
     start: Optional[tuple[float, float]] = typer.Option(
-        None, help="One start for every map, as in `explore` (needed for .npy grids and ROS maps without 'start')."),
+        None, help="One start for every map, as in `explore` (needed for .npy grids and ROS maps without 'start'): "
+                   "COL ROW cells for maze PNGs and .npy grids, X Y metres for ROS maps, so keep each kind in its own folder."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
