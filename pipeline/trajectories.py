@@ -10,6 +10,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from pipeline.maps import _is_file  # the loaders' check, shared: a bad file name is not an OSError
+
 METRICS_COLUMNS = [
     "map",
     "planner",
@@ -42,15 +44,8 @@ def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]
     return path
 
 
-def _is_file(path: Path) -> bool:
-    """Path.is_file that says False (not raises) for a name the OS rejects (too long, NUL byte)."""
-    try:
-        return path.is_file()
-    except (OSError, ValueError):
-        return False
-
-
 def _is_dir(path: Path) -> bool:
+    """Path.is_dir that says False (not raises) for a name the OS rejects, as maps._is_file does."""
     try:
         return path.is_dir()
     except (OSError, ValueError):
