@@ -231,7 +231,7 @@ def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protoc
 def unreachable_free_cells(ground_truth: GroundTruthMap) -> int:
     """Free cells not 8-connected to the start: more than `done_unknown_cells` of them and no
     planner can complete the map (stray free pixels outside a SLAM map's walls do this)."""
-    count, labels = cv2.connectedComponents(ground_truth.free.astype(np.uint8), connectivity=8)
+    _, labels = cv2.connectedComponents(ground_truth.free.astype(np.uint8), connectivity=8)
     col, row = ground_truth.start_cell
     return int(ground_truth.free.sum() - (labels == labels[row, col]).sum())
 

@@ -35,7 +35,7 @@ def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
         if not uri.startswith("sqlite:///"):
             raise ValueError(f"tracking store {uri!r}: a sqlite store is sqlite:///RELATIVE/PATH.db or sqlite:////ABSOLUTE/PATH.db")
         path = Path(uri[len("sqlite:///"):])
-        folder = path.parent if str(path.parent) else Path(".")
+        folder = path.parent  # "." for a bare file name
         if not folder.is_dir():
             raise ValueError(f"tracking store {uri!r}: folder {folder} does not exist")
         try:  # sqlite writes its journal beside the database: the folder must take new files
