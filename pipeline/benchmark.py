@@ -412,6 +412,7 @@ def summary_markdown(frame: pd.DataFrame, protocol: Protocol, baseline: str | No
     ]
     for planner, row in summary.iterrows():
         gap = f" {row.gap_to_optimal * 100:+.1f} % |" if has_gap else ""
+        spread = f" +- {row.distance_std_m:.1f}" if row.episodes > 1 else ""  # one episode has no spread
         paired = ""
         if has_paired:
             mean, half, _ = paired_difference(frame, str(planner), str(baseline))
@@ -420,7 +421,7 @@ def summary_markdown(frame: pd.DataFrame, protocol: Protocol, baseline: str | No
             else:
                 paired = f" {mean * 100:+.1f} %" + (f" +- {half * 100:.1f} |" if np.isfinite(half) else " |")
         lines.append(
-            f"| {planner} | {int(row.episodes)} | {row.distance_mean_m:.1f} +- {row.distance_std_m:.1f} |{gap}{paired}"
+            f"| {planner} | {int(row.episodes)} | {row.distance_mean_m:.1f}{spread} |{gap}{paired}"
             f" {row.completion_rate * 100:.0f} % | {row.decision_ms_median:.2f} | {row.decision_ms_p95:.2f} |"
         )
     failures = frame[~frame["complete"].astype(bool)]

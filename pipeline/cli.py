@@ -37,19 +37,17 @@ def _check_params(params: Path) -> None:
 
 def _run_stage(main, params: Path, *args) -> None:
     """A stage's main(params, ...); a missing params file or upstream output, a bad setting, is one
-    error line (exit 2)."""
+    error line (exit 2), as `python -m stages.<name>` prints it (`pipeline.stage_errors`)."""
+    from pipeline.stage_errors import user_error_message
+
     _check_params(params)
     try:
         main(str(params), *args)
-    except (MapError, FileNotFoundError) as error:
-        upstream = any(part in str(error) for part in ("data/", "models/"))
-        _fail(f"{error}" + (" (run the upstream stages first: `dvc repro`)" if upstream else ""))
-    except ValueError as error:
-        _fail(str(error))
-    except SystemExit as error:  # a stage's own "error: ..." exit, as `python -m stages.x` prints it
-        if isinstance(error.code, str):
-            _fail(error.code.removeprefix("error: "))
-        raise
+    except (Exception, SystemExit) as error:
+        message = user_error_message(error)
+        if message is None:
+            raise
+        _fail(message)
 
 
 def _check_backend(backend: Optional[str]) -> None:

@@ -173,6 +173,12 @@ def _num(value: Any, fmt: str = "{:.1f}", missing: str = DASH) -> str:
     return fmt.format(number) if math.isfinite(number) else missing
 
 
+def _mean_std(mean: Any, std: Any, episodes: Any) -> str:
+    """"mean +- std", or the mean alone for a single episode (its std of 0 says nothing)."""
+    one = _finite(episodes) is not None and float(episodes) < 2
+    return _num(mean) if one else f"{_num(mean)} +- {_num(std)}"
+
+
 def _pct(fraction: Any, signed: bool = True) -> str:
     return _num(fraction * 100.0 if fraction is not None else None, "{:+.1f} %" if signed else "{:.0f} %")
 
@@ -204,7 +210,7 @@ def table2_markdown(table: pd.DataFrame, title: str = "Table II: exploration dis
             paired = _pct(row.vs_baseline) + (f" +- {_num(row.vs_baseline_ci95 * 100)}" if _finite(row.vs_baseline_ci95) is not None else "")
         lines.append(
             f"| {row.planner} | {row.paper_row} | {int(row.episodes)} "
-            f"| {_num(row.distance_mean_m)} +- {_num(row.distance_std_m)} | {_pct(row.gap_to_optimal)} | {paired} "
+            f"| {_mean_std(row.distance_mean_m, row.distance_std_m, row.episodes)} | {_pct(row.gap_to_optimal)} | {paired} "
             f"| {_pct(row.completion_rate, signed=False)} | {_num(row.decision_ms_median, '{:.2f}')} "
             f"| {_num(row.paper_distance_m, '{:.0f}')}{' (Table III)' if row.paper_source == 'Table III' else ''} "
             f"| {_paper_gap(row.paper_gap_pct)} |"
@@ -264,7 +270,7 @@ def table3_markdown(table: pd.DataFrame, title: str = "Table III: ablations") ->
             ours = f"{NOT_RUN} | {DASH} | {DASH} | {DASH}"
         else:
             ours = (
-                f"{_num(row.distance_mean_m)} +- {_num(row.distance_std_m)} | {_pct(row.gap_to_optimal)} "
+                f"{_mean_std(row.distance_mean_m, row.distance_std_m, row.episodes)} | {_pct(row.gap_to_optimal)} "
                 f"| {_pct(row.completion_rate, signed=False)} | {_num(row.decision_ms_median, '{:.2f}')}"
             )
         source = f" ({row.paper_source})" if row.paper_source == "Table II" else ""

@@ -17,6 +17,7 @@ from pipeline.benchmark import run_benchmark, summarise
 from pipeline.maps import list_maps, load_map
 from pipeline.protocol import Protocol
 from pipeline.tracking import log_benchmark
+from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/benchmark")
@@ -99,4 +100,4 @@ def main(params_path: str = "params.yaml") -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_stage_main(main)

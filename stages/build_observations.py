@@ -20,6 +20,8 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from pipeline.stage_errors import run_stage_main
+
 EXPERT_DIR = Path("data/expert")
 OUT_DIR = Path("data/observations")
 SUMMARY = Path("reports/observations_summary.json")
@@ -109,4 +111,4 @@ def main(params_path: str = "params.yaml") -> dict:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--params", default="params.yaml")
-    main(parser.parse_args().params)
+    run_stage_main(main, parser.parse_args().params)

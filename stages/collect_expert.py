@@ -19,6 +19,7 @@ from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard,
 from pipeline.maps import GroundTruthMap, list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_path
+from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/expert")
@@ -88,4 +89,4 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--backend", choices=["process", "ray"], default=None)
-    main(backend=parser.parse_args().backend)
+    run_stage_main(main, "params.yaml", parser.parse_args().backend)

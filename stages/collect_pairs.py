@@ -19,6 +19,7 @@ from pipeline.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard, lo
 from pipeline.maps import list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_path
+from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/pairs")
@@ -95,4 +96,4 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--backend", choices=["process", "ray"], default=None)
-    main(backend=parser.parse_args().backend)
+    run_stage_main(main, "params.yaml", parser.parse_args().backend)

@@ -22,6 +22,7 @@ from pipeline.predictor_eval import COLUMNS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPO
 from pipeline.maps import MapError, list_maps
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
+from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/predictor")
@@ -134,4 +135,4 @@ def table1_graph_config(keep_share: float) -> GlobalGraphConfig:
 
 
 if __name__ == "__main__":
-    main()
+    run_stage_main(main)

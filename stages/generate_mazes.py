@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from pipeline.mazes import MazeConfig, generate_maze_set, write_maze_png
+from pipeline.stage_errors import run_stage_main
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")
@@ -102,4 +103,4 @@ def main(params_path: str = "params.yaml") -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_stage_main(main)

@@ -44,6 +44,7 @@ from pipeline.reports import (
     table4_markdown,
     trajectory_figure,
 )
+from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
 BENCHMARK_DIR = Path("reports/benchmark")
@@ -172,4 +173,4 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    main()
+    run_stage_main(main)

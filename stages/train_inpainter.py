@@ -19,6 +19,8 @@ from typing import Any, Optional
 import numpy as np
 import yaml
 
+from pipeline.stage_errors import run_stage_main
+
 DATA_DIR = Path("data/pairs")
 OUT_DIR = Path("models/inpainter")
 METRICS = Path("reports/inpainter_metrics.json")
@@ -217,4 +219,4 @@ if __name__ == "__main__":
     parser.add_argument("--progress", action="store_true", help="show Lightning's progress bar")
     args = parser.parse_args()
     devices = int(args.devices) if args.devices and args.devices.isdigit() else args.devices
-    main(args.params, args.accelerator, devices, args.resume, args.init_checkpoint, args.tracking_uri, args.progress)
+    run_stage_main(main, args.params, args.accelerator, devices, args.resume, args.init_checkpoint, args.tracking_uri, args.progress)

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import yaml
 
+from pipeline.stage_errors import run_stage_main
+
 VARIANTS = ("guide", "dare")
 OBSERVATIONS = Path("data/observations")
 
@@ -102,4 +104,4 @@ if __name__ == "__main__":
     parser.add_argument("--resume", action="store_true")
     parser.add_argument("--max-epochs", type=int)
     a = parser.parse_args()
-    main(a.params, a.variant, a.accelerator, a.devices, a.resume, a.max_epochs)
+    run_stage_main(main, a.params, a.variant, a.accelerator, a.devices, a.resume, a.max_epochs)

@@ -43,6 +43,8 @@ def test_summary_compares_with_the_baseline_map_by_map():
     assert "| greedy_utility | 3 | 200.0 +- 81.6 | — |" in text
     assert "vs " not in summary_markdown(frame, Protocol(), baseline=None)
     assert "vs " not in summary_markdown(frame[frame.planner == "nf"], Protocol())  # the baseline did not run
+    single = summary_markdown(metrics_frame_of({"greedy_utility": [100], "nf": [110]}), Protocol())
+    assert "| nf | 1 | 110.0 | +10.0 % |" in single and "+- 0.0" not in single  # one episode has no spread
 
 
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():

@@ -31,9 +31,11 @@ import hashlib
 import math
 import os
 import pickle
+import shutil
 import time
 import warnings
 import zipfile
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterator, Optional, Sequence
@@ -649,10 +651,41 @@ def make_trainer(**options: Any) -> "L.Trainer":
                          f"devices={options.get('devices')!r}: {one_line(error)}") from None
 
 
-def remove_checkpoints(out_dir: Path) -> None:
-    """Delete the `*.ckpt` files in `out_dir` (a fresh run's stale `best` / `last`)."""
-    for stale in list(out_dir.glob("*.ckpt")):
-        stale.unlink()
+PREVIOUS_CHECKPOINTS = "previous_checkpoints"
+
+
+@contextmanager
+def fresh_checkpoints(out_dir: Path, fresh: bool = True) -> Iterator[None]:
+    """Around a fresh run's `fit`: set the previous run's `*.ckpt` aside, and drop them once it succeeds.
+
+    Old `best` / `last` files would confuse ModelCheckpoint, but deleting them up front lost a
+    good model whenever the new run crashed. If `fit` fails (an exception, Ctrl-C) before it
+    wrote a checkpoint, the old ones are put back; if it wrote some (resumable with --resume),
+    the old ones stay in `out_dir/previous_checkpoints/` and a warning says so. Only the
+    rank-zero process moves files (the others of a multi-GPU run re-enter this code).
+    """
+    if not fresh or os.environ.get("LOCAL_RANK", "0") != "0" or os.environ.get("NODE_RANK", "0") != "0":
+        yield
+        return
+    aside = out_dir / PREVIOUS_CHECKPOINTS
+    stale = sorted(out_dir.glob("*.ckpt"))
+    if stale:
+        shutil.rmtree(aside, ignore_errors=True)
+        aside.mkdir()
+        for path in stale:
+            path.replace(aside / path.name)
+    try:
+        yield
+    except BaseException:
+        if stale and not any(out_dir.glob("*.ckpt")):
+            for path in aside.glob("*.ckpt"):
+                path.replace(out_dir / path.name)
+            shutil.rmtree(aside, ignore_errors=True)
+        elif stale:
+            warnings.warn(f"training stopped after writing new checkpoints in {out_dir} (continue with --resume); "
+                          f"the previous run's are in {aside}", stacklevel=3)
+        raise
+    shutil.rmtree(aside, ignore_errors=True)
 
 
 # What torch.save wrote before its zip format: a pickled magic number (protocol 2) opens the file.
@@ -804,10 +837,9 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         use_distributed_sampler=False,
         log_every_n_steps=1,
     )
-    if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
-        remove_checkpoints(out_dir)
     started = time.perf_counter()
-    trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
+    with fresh_checkpoints(out_dir, fresh=ckpt_path is None):
+        trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
     seconds = time.perf_counter() - started
     export_path = out_dir / EXPORT_NAME
     if trainer.is_global_zero:

@@ -26,7 +26,7 @@ from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
 from pipeline.training.exports import read_weights_file
-from pipeline.training.inpainter import check_accelerator, make_trainer, remove_checkpoints
+from pipeline.training.inpainter import check_accelerator, fresh_checkpoints, make_trainer
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -254,10 +254,9 @@ def train_planner(
         if logger:  # makes the MLflow run: only once the trainer accepted the settings
             logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
                                     "observations": str(observations), "samples": len(arrays["episode"])})
-        if ckpt_path is None:  # a fresh run: old checkpoints would confuse `best`/`last`
-            remove_checkpoints(out_dir)
         started = time.perf_counter()
-        trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
+        with fresh_checkpoints(out_dir, fresh=ckpt_path is None):
+            trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
         seconds = time.perf_counter() - started
         export_path = out_dir / EXPORT_NAME
         if trainer.is_global_zero:

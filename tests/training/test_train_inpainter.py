@@ -18,7 +18,9 @@ from pipeline.training.inpainter import (
     SizeGroupedBatchSampler,
     check_accelerator,
     dihedral,
+    PREVIOUS_CHECKPOINTS,
     evaluate_inpainter,
+    fresh_checkpoints,
     hole_counts,
     inpainting_loss,
     load_inpainter,
@@ -298,6 +300,52 @@ def test_a_failed_run_keeps_the_previous_checkpoints(pairs_dir, tmp_path):
             train_inpainter(TINY, settings.pop("data_dir"), out, max_epochs=1, mlflow=False, train_config=FAST, **settings)
         assert not [str(w.message) for w in caught if "Big-LaMa" in str(w.message) or "unpickling" in str(w.message)], options
         assert file_bytes(out) == before, options
+
+
+def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_path):
+    out = tmp_path / "ckpts"
+    out.mkdir()
+    (out / "best.ckpt").write_text("old best")
+    (out / "last.ckpt").write_text("old last")
+    (out / "inpainter.pt").write_text("export")
+    with fresh_checkpoints(out):  # success: the old checkpoints are gone, other files stay
+        assert not list(out.glob("*.ckpt")) and (out / PREVIOUS_CHECKPOINTS / "best.ckpt").is_file()
+        (out / "last.ckpt").write_text("new last")
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"new last"}
+    assert not (out / PREVIOUS_CHECKPOINTS).exists()
+
+    (out / "best.ckpt").write_text("old best")
+    with pytest.raises(KeyboardInterrupt), fresh_checkpoints(out):  # fails before writing any: old ones come back
+        raise KeyboardInterrupt
+    assert file_bytes(out) == {"best.ckpt": b"old best", "inpainter.pt": b"export", "last.ckpt": b"new last"}
+    assert not (out / PREVIOUS_CHECKPOINTS).exists()
+
+    with pytest.raises(RuntimeError), pytest.warns(UserWarning, match="continue with --resume.*previous_checkpoints"):
+        with fresh_checkpoints(out):  # fails after writing one: the new one stays (resumable), the old ones aside
+            (out / "last.ckpt").write_text("crashed run")
+            raise RuntimeError("out of memory")
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
+    assert file_bytes(out / PREVIOUS_CHECKPOINTS) == {"best.ckpt": b"old best", "last.ckpt": b"new last"}
+
+    with fresh_checkpoints(out, fresh=False):  # a resumed run leaves everything in place
+        pass
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
+
+
+def test_a_run_that_crashes_in_fit_keeps_the_previous_checkpoints(pairs_dir, tmp_path, monkeypatch):
+    import lightning as L
+
+    out = tmp_path / "crash"
+    train_inpainter(TINY, pairs_dir, out, max_epochs=1, mlflow=False, train_config=FAST)
+    before = file_bytes(out)
+
+    def crash(*args, **kwargs):
+        raise RuntimeError("CUDA out of memory")
+
+    monkeypatch.setattr(L.Trainer, "fit", crash)
+    with pytest.raises(RuntimeError, match="out of memory"):
+        train_inpainter(TINY, pairs_dir, out, max_epochs=1, mlflow=False, train_config=FAST)
+    assert file_bytes(out) == before and not (out / PREVIOUS_CHECKPOINTS).exists()
 
 
 def test_bad_settings_and_missing_data_fail_before_mlflow_and_files(pairs_dir, tmp_path, mlflow_uri):

@@ -1,0 +1,39 @@
+"""One `error:` line instead of a traceback when a stage fails for a reason the user can fix.
+
+`dvc repro` runs each stage as `python -m stages.<name>`, and `guide stage <name>` calls the
+same `main`; both report a missing input, a bad setting or a stage's own refusal the same
+way: `error: <message>` on stderr, exit status 2. Anything else (a bug) keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any, Callable
+
+from pipeline.maps import MapError
+
+UPSTREAM_HINT = " (run the upstream stages first: `dvc repro`)"
+
+
+def user_error_message(error: BaseException) -> str | None:
+    """The one-line message for an error the user can fix, or None for one that is a bug."""
+    if isinstance(error, (MapError, FileNotFoundError)):
+        upstream = any(part in str(error) for part in ("data/", "models/")) and "stage" not in str(error)
+        return f"{error}" + (UPSTREAM_HINT if upstream else "")
+    if isinstance(error, ValueError):
+        return str(error)
+    if isinstance(error, SystemExit) and isinstance(error.code, str):  # a stage's own sys.exit("error: ...")
+        return error.code.removeprefix("error: ")
+    return None
+
+
+def run_stage_main(main: Callable[..., Any], *args: Any) -> Any:
+    """`main(*args)`, with user errors printed as one `error:` line and exit status 2."""
+    try:
+        return main(*args)
+    except (Exception, SystemExit) as error:
+        message = user_error_message(error)
+        if message is None:
+            raise
+        print(f"error: {message}", file=sys.stderr)
+        raise SystemExit(2) from None
