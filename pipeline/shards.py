@@ -178,6 +178,20 @@ def _totals(shards: Sequence[dict[str, Any]]) -> dict[str, int]:
     return totals
 
 
+def shard_count_for(requested: int, per_shard: int, what: str) -> int:
+    """Whole shards that hold `requested` items; a note on stdout when that rounds the request up.
+
+    Shards are the unit of resumption and parallelism, so a data set is a whole number of them.
+    """
+    if requested < 1 or per_shard < 1:
+        raise ValueError(f"{what}: {requested} requested, {per_shard} per shard; both must be at least 1")
+    count = -(-requested // per_shard)
+    if count * per_shard != requested:
+        print(f"note: {requested} {what} is not a multiple of {per_shard} per shard; "
+              f"collecting {count} shards = {count * per_shard} {what}")
+    return count
+
+
 def rate_per_minute(manifest: dict[str, Any], key: str, seconds: float) -> float | None:
     """Items of `key` made per minute by the run that returned `manifest` (`run_shards`; None if it made none)."""
     made = [manifest["shards"][k].get(key, 0) for k in manifest["made_this_run"]]

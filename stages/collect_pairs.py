@@ -18,7 +18,7 @@ import yaml
 from pipeline.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard, load_pairs
 from pipeline.maps import list_maps
 from pipeline.protocol import Protocol
-from pipeline.shards import rate_per_minute, run_shards, shard_path
+from pipeline.shards import rate_per_minute, run_shards, shard_count_for, shard_path
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
@@ -59,7 +59,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     if not maps:
         raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
     per_shard = int(section["pairs_per_shard"])
-    shard_count = -(-int(section["pairs"]) // per_shard)
+    shard_count = shard_count_for(int(section["pairs"]), per_shard, "pairs")
     config = PairsConfig(
         maps=maps,
         pairs_per_shard=per_shard,

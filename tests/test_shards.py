@@ -74,3 +74,15 @@ def test_manifest_bytes_depend_only_on_the_data_and_provenance_is_returned(tmp_p
     resumed = run_shards(make_counting_shard, 2, tmp_path / "m", params, progress=False)
     assert resumed["made_this_run"] == [1]
     assert (tmp_path / "m" / MANIFEST).read_bytes() == written
+
+
+def test_shard_count_rounds_up_to_whole_shards_and_says_so(capsys):
+    from pipeline.shards import shard_count_for
+
+    assert shard_count_for(300, 100, "pairs") == 3 and capsys.readouterr().out == ""
+    assert shard_count_for(250, 100, "pairs") == 3
+    assert capsys.readouterr().out == "note: 250 pairs is not a multiple of 100 per shard; collecting 3 shards = 300 pairs\n"
+    assert shard_count_for(1, 8, "episodes") == 1
+    for requested, per_shard in ((0, 100), (10, 0), (-5, 2)):
+        with pytest.raises(ValueError, match="must be at least 1"):
+            shard_count_for(requested, per_shard, "pairs")
