@@ -167,6 +167,8 @@ def main(
         num_threads=run["threads"],
         artifact_location=artifact_location,
     )
+    if export_path is None:  # another process of a multi-device run: rank zero exports and reports
+        return {}
     export = read_export(export_path)
     model, config = load_inpainter(export_path)
     if run["threads"]:

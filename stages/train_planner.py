@@ -74,6 +74,8 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
         run_name=variant,
         num_threads=section.get("threads"),
     )
+    if export is None:  # another process of a multi-device run: rank zero exports and reports
+        return {}
     policy, meta = load_policy(export)
     history = meta.get("history", [])
     last = history[-1] if history else {}

@@ -749,14 +749,15 @@ def train_inpainter(
     progress: bool = False,
     num_threads: Optional[int] = None,
     artifact_location: Optional[str] = None,
-) -> Path:
-    """Train the inpainter on a Stage I data set; returns the path of the exported `inpainter.pt`.
+) -> Path | None:
+    """Train the inpainter on a Stage I data set; returns the path of the exported `inpainter.pt`
+    (None in the other processes of a multi-device run: only rank zero exports).
 
     `max_epochs`, `batch_size` and `lr` override `train_config`. `resume=True` continues
     from `out_dir/last.ckpt` (epoch counter, optimiser and history included) when it
-    exists; otherwise stale checkpoints in `out_dir` are removed just before training starts,
-    once the settings, the init checkpoint and the data have been checked (a run that fails
-    early leaves them alone; bad settings raise a one-line ValueError). `init_checkpoint`
+    exists; otherwise the old checkpoints in `out_dir` are set aside while it trains
+    (`fresh_checkpoints`), once the settings, the init checkpoint and the data have been
+    checked (a run that fails early leaves them alone; bad settings raise a one-line ValueError). `init_checkpoint`
     is an official (Big-)LaMa checkpoint whose `generator.*` weights start the training
     (the model then takes the Big-LaMa layout). MLflow logs to `tracking_uri` (default:
     $MLFLOW_TRACKING_URI or sqlite:///mlflow.db). `num_threads` sets torch's CPU threads
@@ -868,4 +869,4 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
             logger.experiment.log_metric(logger.run_id, "num_parameters", module.generator.num_parameters())
             logger.experiment.log_artifact(logger.run_id, str(export_path))
-    return export_path
+    return export_path if trainer.is_global_zero else None

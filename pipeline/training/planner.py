@@ -82,6 +82,7 @@ class PlannerLightning(L.LightningModule):
         self.train_config = PlannerTrainConfig.from_dict(train_config)
         self.policy = DiffusionPolicy(self.model_config)
         self.ema = AveragedModel(self.policy, multi_avg_fn=get_ema_multi_avg_fn(self.train_config.ema_decay), use_buffers=True)
+        self.ema.requires_grad_(False)  # updated by averaging, never by gradients (DDP refuses trainable unused weights)
         self.history: list[dict[str, float]] = []
         self._epoch_losses: list[float] = []
         self._val: dict[str, list[float]] = {}
@@ -122,9 +123,15 @@ class PlannerLightning(L.LightningModule):
     def on_validation_epoch_end(self) -> None:
         if self.trainer.sanity_checking or not self._val["loss"]:
             return
-        val_loss = float(np.mean(self._val["loss"]))
-        count = sum(self._val["first_step_count"])
-        accuracy = sum(self._val["first_step_hits"]) / count if count else float("nan")
+        # Sums over this process's batches, added up across processes: every rank of a
+        # multi-device run logs (and ModelCheckpoint ranks by) the loss over all held-out steps.
+        sums = torch.tensor([sum(self._val["loss"]), len(self._val["loss"]), sum(self._val["first_step_hits"]),
+                             sum(self._val["first_step_count"])], dtype=torch.float64, device=self.device)
+        if self.trainer.world_size > 1:
+            sums = self.trainer.strategy.reduce(sums, reduce_op="sum")
+        loss_sum, batches, hits, count = (float(v) for v in sums.cpu())
+        val_loss = loss_sum / batches
+        accuracy = hits / count if count else float("nan")
         self.log("val_loss", val_loss)
         self.log("val_first_step_accuracy", accuracy)
         self.history.append(
@@ -194,12 +201,14 @@ def train_planner(
     run_name: Optional[str] = None,
     progress: bool = False,
     num_threads: Optional[int] = None,
-) -> Path:
-    """Train on an observation file (build_observations stage); returns the exported policy.pt.
+) -> Path | None:
+    """Train on an observation file (build_observations stage); returns the exported policy.pt
+    (None in the other processes of a multi-device run: only rank zero exports).
 
     `resume=True` continues from out_dir/last.ckpt (optimiser, EMA and history included)
-    when it exists; otherwise stale checkpoints are removed just before training starts, once
-    the settings and the data have been checked (a run that fails early leaves them alone).
+    when it exists; otherwise the old checkpoints are set aside while it trains
+    (`fresh_checkpoints`), once the settings and the data have been checked (a run that
+    fails early leaves them alone).
     """
     from pipeline.tracking import resolve_tracking_uri
 
@@ -271,6 +280,6 @@ def train_planner(
                 logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
                 logger.experiment.log_metric(logger.run_id, "num_parameters", module.policy.num_parameters())
                 logger.experiment.log_artifact(logger.run_id, str(export_path))
-        return export_path
+        return export_path if trainer.is_global_zero else None
     finally:
         torch.set_num_threads(previous_threads)

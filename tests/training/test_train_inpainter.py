@@ -445,3 +445,32 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
     assert written["threshold"] == 0.4 and "0.4" in written["by_threshold"]
     assert {"val_precision", "val_recall", "val_f1", "num_parameters", "train_seconds", "predict_ms_48",
             "val_mazes", "split"} <= set(written)
+
+
+DDP_SCRIPT = """
+import sys
+from pipeline.training.inpainter import train_inpainter
+path = train_inpainter({model}, sys.argv[1], sys.argv[2], max_epochs=1, mlflow=False, train_config={train},
+                       accelerator="cpu", devices=2)
+print("exported:", path)
+"""
+
+
+@pytest.mark.slow
+def test_two_process_training_exports_once(pairs_dir, tmp_path):
+    """`--devices 2` (DDP, two CPU processes standing in for two GPUs): each trains on its share
+    of the batches, and only rank zero exports (the other process returns None)."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "ddp_train.py"
+    script.write_text(DDP_SCRIPT.format(model=TINY, train=FAST))
+    out = tmp_path / "ddp"
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    done = subprocess.run([sys.executable, str(script), str(pairs_dir), str(out)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
+    assert sorted(lines) == [f"exported: {out / 'inpainter.pt'}", "exported: None"]
+    assert read_export(out / "inpainter.pt")["epochs"] == 1

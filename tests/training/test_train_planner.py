@@ -213,3 +213,33 @@ def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_
     monkeypatch.setattr(guide_module, "SHIPPED_POLICY", {k: tmp_path / f"shipped_{k}.pt" for k in ("guide", "dare")})
     with pytest.raises(FileNotFoundError, match="train_planner"):
         make_planner("guide")
+
+
+DDP_SCRIPT = """
+import sys
+from pipeline.training.planner import train_planner
+path = train_planner(sys.argv[1], sys.argv[2], {model}, {train}, accelerator="cpu", devices=2, mlflow=False)
+print("exported:", path)
+"""
+
+
+@pytest.mark.slow
+def test_two_process_training_exports_once(trained, tmp_path):
+    """`--devices 2` (DDP, here two CPU processes as on two GPUs): the EMA copy is not a trainable
+    weight DDP would refuse, validation is summed over both processes, and only rank zero exports."""
+    import os
+    import subprocess
+    import sys
+
+    root, _ = trained
+    script = tmp_path / "ddp_train.py"
+    script.write_text(DDP_SCRIPT.format(model=TINY_MODEL, train=TINY_TRAIN))
+    out = tmp_path / "ddp"
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    done = subprocess.run([sys.executable, str(script), str(root / "guide.npz"), str(out)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
+    assert sorted(lines) == [f"exported: {out / 'policy.pt'}", "exported: None"]
+    export = read_policy_export(out / "policy.pt")
+    assert export["epochs"] == 2 and all(np.isfinite(h["val_loss"]) for h in export["history"])
