@@ -825,7 +825,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
 
         logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
                               tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
-    trainer = make_trainer(
+    trainer_options = dict(
         max_epochs=tc.max_epochs,
         accelerator=accelerator,
         devices=devices,
@@ -838,6 +838,10 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         use_distributed_sampler=False,
         log_every_n_steps=1,
     )
+    trainer = make_trainer(**trainer_options)
+    if tc.adversarial_weight > 0 and trainer.world_size > 1:
+        # The GAN's two steps each leave one network without gradients, which DDP refuses by default.
+        trainer = make_trainer(**trainer_options, strategy="ddp_find_unused_parameters_true")
     started = time.perf_counter()
     with fresh_checkpoints(out_dir, fresh=ckpt_path is None):
         trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)

@@ -457,15 +457,18 @@ print("exported:", path)
 
 
 @pytest.mark.slow
-def test_two_process_training_exports_once(pairs_dir, tmp_path):
+@pytest.mark.parametrize("adversarial_weight", [0.0, 0.1])
+def test_two_process_training_exports_once(pairs_dir, tmp_path, adversarial_weight):
     """`--devices 2` (DDP, two CPU processes standing in for two GPUs): each trains on its share
-    of the batches, and only rank zero exports (the other process returns None)."""
+    of the batches, and only rank zero exports (the other process returns None). With the
+    PatchGAN term each of its two steps leaves one network without gradients, which DDP
+    accepts only when told to look for unused parameters."""
     import os
     import subprocess
     import sys
 
     script = tmp_path / "ddp_train.py"
-    script.write_text(DDP_SCRIPT.format(model=TINY, train=FAST))
+    script.write_text(DDP_SCRIPT.format(model=TINY, train={**FAST, "adversarial_weight": adversarial_weight}))
     out = tmp_path / "ddp"
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
     done = subprocess.run([sys.executable, str(script), str(pairs_dir), str(out)], cwd=tmp_path, env=env,
