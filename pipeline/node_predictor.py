@@ -1,7 +1,7 @@
 """Global Node Predictor (paper Algorithm 1): free nodes predicted in unknown space.
 
 Rasterise V_f and V_o one pixel per lattice node, centre-pad to a multiple of the
-network's stride, inpaint, binarise at tau, and drop predicted nodes in small connected
+network's stride (padding drawn as obstacle, `PIXEL_PADDING`), inpaint, binarise at tau, and drop predicted nodes in small connected
 components. The inpainting model is any callable from a uint8 node image to free-node
 probabilities, so the predictor does not care which network (or test double) runs.
 """
@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from pipeline.graph import NODE_FREE, NODE_UNKNOWN, LatticeGraph
-from pipeline.node_image import PIXEL_UNKNOWN, node_states_image, observed_node_states
+from pipeline.node_image import PIXEL_PADDING, node_states_image, observed_node_states
 
 InpaintFn = Callable[[np.ndarray], np.ndarray]
 """(S, S) uint8 node image (255 free, 0 obstacle, 128 unknown) -> (S, S) free-node probability."""
@@ -64,7 +64,7 @@ class NodePredictor:
         if states is None:
             states = observed_node_states(graph.belief, graph)
         image = node_states_image(graph, states)
-        padded, (r0, c0) = pad_to_multiple(image, self.config.stride, PIXEL_UNKNOWN)
+        padded, (r0, c0) = pad_to_multiple(image, self.config.stride, PIXEL_PADDING)
         probability = np.asarray(self.inpaint(padded), dtype=np.float32)
         if probability.shape != padded.shape:
             raise ValueError(f"the inpainter returned shape {probability.shape} for an image of {padded.shape}")

@@ -42,8 +42,15 @@ def test_predictor_returns_unknown_nodes_that_are_free(partial):
 def test_predictor_pads_to_the_stride_and_checks_the_output_shape(partial):
     _, _, _, graph = partial
     seen = []
-    NodePredictor(lambda image: seen.append(image.shape) or np.zeros(image.shape)).predict(graph)
-    assert all(s % 8 == 0 for s in seen[0])
+    NodePredictor(lambda image: seen.append(image.copy()) or np.zeros(image.shape)).predict(graph)
+    image = seen[0]
+    assert all(s % 8 == 0 for s in image.shape)
+    rows, cols = graph.lattice_shape
+    r0, c0 = (image.shape[0] - rows) // 2, (image.shape[1] - cols) // 2
+    inside = np.zeros(image.shape, dtype=bool)
+    inside[r0 : r0 + rows, c0 : c0 + cols] = True
+    assert (~inside).any() and (image[~inside] == 0).all()  # outside the map is drawn as obstacle
+    assert (image[inside] == node_states_image(graph, observed_node_states(graph.belief, graph)).reshape(-1)).all()
     with pytest.raises(ValueError, match="shape"):
         NodePredictor(lambda image: np.zeros((3, 3))).predict(graph)
 

@@ -48,7 +48,7 @@ def test_pair_rasterises_nodes_from_the_belief():
     assert pair.target[r0 + right // cols, c0 + right % cols] == PIXEL_OBSTACLE
     assert pair.target[centre] == PIXEL_FREE
     assert pair.unknown.sum() == (pair.observed[pair.valid] == PIXEL_UNKNOWN).sum() > 0
-    assert (pair.observed[~pair.valid] == PIXEL_UNKNOWN).all()
+    assert (pair.observed[~pair.valid] == PIXEL_OBSTACLE).all()  # outside the map: nothing free there
 
 
 def test_unknown_nodes_next_to_known_walls_are_drawn_as_obstacles():
@@ -63,4 +63,4 @@ def test_unknown_nodes_next_to_known_walls_are_drawn_as_obstacles():
     assert states[graph.node_id(3, 0)] == NODE_UNKNOWN  # cell (80, 50): far from anything known
     ground = np.ones((100, 100), dtype=bool)
     pair = node_image_pair(graph, belief, ground)
-    assert (pair.observed == PIXEL_OBSTACLE).sum() == (states == NODE_OCCUPIED).sum()
+    assert (pair.observed[pair.valid] == PIXEL_OBSTACLE).sum() == (states == NODE_OCCUPIED).sum()

@@ -251,14 +251,16 @@ def dihedral(image: np.ndarray, k: int) -> np.ndarray:
     return np.ascontiguousarray(out[:, ::-1] if k >= 4 else out)
 
 
-def hide_box(observed: np.ndarray) -> np.ndarray:
+def hide_box(observed: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """An earlier view of the same exploration: the observations inside a random box (20-60 %
-    of the side) turned back to unknown, so hidden corridor ends become hole pixels to predict."""
+    of the side) turned back to unknown, so hidden corridor ends become hole pixels to predict.
+    Padding (`valid` False) stays as it is: it marks where the map ends."""
     size = observed.shape[0]
     height, width = (int(v) for v in torch.randint(size // 5, 3 * size // 5 + 1, (2,)))
     top, left = int(torch.randint(0, size - height + 1, ())), int(torch.randint(0, size - width + 1, ()))
     out = observed.copy()
-    out[top : top + height, left : left + width] = 128
+    box = out[top : top + height, left : left + width]
+    box[valid[top : top + height, left : left + width]] = 128
     return out
 
 
@@ -283,7 +285,7 @@ class NodeImagePairDataset(torch.utils.data.Dataset):
             k = int(torch.randint(0, 8, ()))
             arrays = [dihedral(a, k) for a in arrays]
         if self.hide_prob > 0 and float(torch.rand(())) < self.hide_prob:
-            arrays[0] = hide_box(arrays[0])
+            arrays[0] = hide_box(arrays[0], arrays[2].astype(bool))
         return tuple(torch.from_numpy(np.ascontiguousarray(a)) for a in arrays)
 
 

@@ -20,6 +20,7 @@ from pipeline.training.inpainter import (
     dihedral,
     PREVIOUS_CHECKPOINTS,
     evaluate_inpainter,
+    hide_box,
     fresh_checkpoints,
     hole_counts,
     inpainting_loss,
@@ -169,6 +170,22 @@ def test_rollout_split_keeps_the_tail_of_each_shard_and_size(pairs_dir):
 
     first = load_pairs([pairs_dir / "shard_00000.npz"])
     np.testing.assert_array_equal(val[32]["observed"][:2], first[32]["observed"][4:])
+
+
+def test_hide_box_turns_observations_in_a_box_unknown_and_keeps_the_padding():
+    torch.manual_seed(0)
+    observed = np.full((32, 32), 255, np.uint8)
+    valid = np.zeros((32, 32), bool)
+    valid[4:28, 4:28] = True
+    observed[~valid] = 0
+    for _ in range(20):
+        hidden = hide_box(observed, valid)
+        assert (hidden[~valid] == 0).all()  # padding marks where the map ends
+        changed = hidden != observed
+        assert changed.any() and (hidden[changed] == 128).all() and valid[changed].all()
+        rows, cols = np.nonzero(changed)
+        assert changed[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1].all()  # one box
+    assert (observed[valid] == 255).all()  # the input is not modified
 
 
 def test_dihedral_augmentation_is_the_square_group():
