@@ -66,7 +66,7 @@ def test_pairs_stage_writes_shards_manifest_summary_and_preview(generated_maze_d
         observed, target, valid = group["observed"], group["target"], group["valid"]
         assert observed.shape[1:] == target.shape[1:] == valid.shape[1:] == (size, size) and valid.dtype == bool
         assert set(np.unique(observed)) <= {0, 128, 255} and set(np.unique(target)) <= {0, 255}
-        assert (observed[~valid] == 128).all() and (target[~valid] == 0).all()  # padding: unknown in, no loss out
+        assert (observed[~valid] == 0).all() and (target[~valid] == 0).all()  # padding: obstacle in (the map ends), no loss out
         assert (target[observed == 255] == 255).all()  # what was seen free is free in the ground truth
         assert ((observed == 128) & valid).any()  # rollouts stop early: part of each maze is still unknown
 
