@@ -36,6 +36,7 @@ import time
 import warnings
 import zipfile
 from contextlib import contextmanager
+from datetime import timedelta
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterator, Optional, Sequence
@@ -84,6 +85,7 @@ class TrainConfig:
     augment: bool = True  # random flips and 90-degree rotations (the lattice is symmetric)
     hide_prob: float = 0.0  # chance per training pair of hiding the observations in a random box
     seed: int = 0
+    max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
@@ -91,7 +93,19 @@ class TrainConfig:
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown training keys {unknown}; known: {sorted(known)}")
+        check_max_minutes(values.get("max_minutes"))
         return cls(**values)
+
+
+def check_max_minutes(value: Any) -> None:
+    """`max_minutes` is null or a positive number of minutes."""
+    if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
+        raise ValueError(f"max_minutes must be null or a positive number of minutes, got {value!r}")
+
+
+def max_time(max_minutes: Optional[float]) -> Optional[timedelta]:
+    """Lightning's `max_time` for a `max_minutes` setting (None: no cap)."""
+    return None if max_minutes is None else timedelta(minutes=float(max_minutes))
 
 
 # ----------------------------------------------------------------------------- masks, loss, metrics
@@ -829,6 +843,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
                               tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
     trainer_options = dict(
         max_epochs=tc.max_epochs,
+        max_time=max_time(tc.max_minutes),
         accelerator=accelerator,
         devices=devices,
         logger=logger,

@@ -26,7 +26,7 @@ from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
 from pipeline.training.exports import read_weights_file
-from pipeline.training.inpainter import check_accelerator, fresh_checkpoints, make_trainer
+from pipeline.training.inpainter import check_accelerator, check_max_minutes, fresh_checkpoints, make_trainer, max_time
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -44,6 +44,7 @@ class PlannerTrainConfig:
     augment: bool = True  # random dihedral transforms of positions and actions
     seed: int = 0
     val_accuracy_samples: int = 64  # validation samples whose first step is sampled (K from the model config)
+    max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "PlannerTrainConfig":
@@ -51,6 +52,7 @@ class PlannerTrainConfig:
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown planner training keys: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+        check_max_minutes(values.get("max_minutes"))
         return cls(**values)
 
 
@@ -256,7 +258,7 @@ def train_planner(
 
             logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name, tracking_uri=resolve_tracking_uri(tracking_uri))
         trainer = make_trainer(
-            max_epochs=tc.max_epochs, accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
+            max_epochs=tc.max_epochs, max_time=max_time(tc.max_minutes), accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
             default_root_dir=str(out_dir), enable_progress_bar=progress, enable_model_summary=False,
             num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0,
         )

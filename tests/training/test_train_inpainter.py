@@ -16,6 +16,7 @@ from pipeline.shards import write_shard
 from pipeline.training.inpainter import (
     NodeImagePairDataset,
     SizeGroupedBatchSampler,
+    TrainConfig,
     check_accelerator,
     dihedral,
     PREVIOUS_CHECKPOINTS,
@@ -494,3 +495,15 @@ def test_two_process_training_exports_once(pairs_dir, tmp_path, adversarial_weig
     lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
     assert sorted(lines) == [f"exported: {out / 'inpainter.pt'}", "exported: None"]
     assert read_export(out / "inpainter.pt")["epochs"] == 1
+
+
+def test_max_minutes_caps_the_wall_clock(pairs_dir, tmp_path):
+    """A time cap (a timed GPU lease) stops a long run early and still exports a model."""
+    path = train_inpainter(TINY, pairs_dir, tmp_path / "capped", max_epochs=200, mlflow=False,
+                           train_config={**FAST, "max_minutes": 0.05})
+    export = read_export(path)
+    assert 1 <= export["epochs"] < 200
+    assert load_inpainter(path)[0] is not None
+    for bad in (0, -1.0, "ten", True):
+        with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
+            TrainConfig.from_dict({"max_minutes": bad})

@@ -15,7 +15,7 @@ from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
 from pipeline.shards import shard_path
 from pipeline.simulator import Episode, run_episode
-from pipeline.training.planner import load_policy, read_policy_export, split_episodes, train_planner
+from pipeline.training.planner import PlannerTrainConfig, load_policy, read_policy_export, split_episodes, train_planner
 
 TINY_MODEL = dict(max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1,
                   num_inference_steps=5)
@@ -102,6 +102,18 @@ def test_bad_settings_fail_before_checkpoints_files_or_mlflow_change(trained, tm
     with pytest.raises(ValueError, match="accelerator 'foo'"):
         train_planner(root / "guide.npz", tmp_path / "new", TINY_MODEL, TINY_TRAIN, accelerator="foo", mlflow=False)
     assert not (tmp_path / "new").exists()
+
+
+def test_max_minutes_caps_the_wall_clock(trained, tmp_path):
+    """A time cap (a timed GPU lease) stops a long run early and still exports a policy."""
+    root, _ = trained
+    path = train_planner(root / "dare.npz", tmp_path / "capped", TINY_MODEL, {**TINY_TRAIN, "max_epochs": 200, "max_minutes": 0.05},
+                         mlflow=False)
+    assert 1 <= read_policy_export(path)["epochs"] < 200
+    assert load_policy(path)[0] is not None
+    for bad in (0, -2, "soon", False):
+        with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
+            PlannerTrainConfig.from_dict({"max_minutes": bad})
 
 
 def test_episode_split_holds_out_whole_episodes():
