@@ -157,6 +157,9 @@ class GuideTspPlanner(_PredictingPlanner):
        the TSP order after it. Hysteresis: the previous first target, while still useful,
        is forgiven `hysteresis` metres of tour length;
     4. one lattice step toward the first target along the known-graph shortest path.
+    Back at a node with nothing new seen since it last decided there, it keeps the target it
+    chose there until it gets there or sees something new: replanning on an unchanged map
+    can otherwise send it back and forth between two nodes until `max_steps`.
 
     `spread` and `hysteresis` default to 2.5 and 2 node spacings (10 m and 8 m on the 4 m
     benchmark lattice), so the planner behaves the same on a map drawn at any scale.
@@ -232,6 +235,8 @@ class GuideTspPlanner(_PredictingPlanner):
         self.hysteresis = HYSTERESIS_NODES * d_n if self.hysteresis_option is None else float(self.hysteresis_option)
         self.global_graph = GlobalGraph(self.graph, self.global_config)
         self.previous = None
+        self.committed: int | None = None  # a first target kept through a cycle (see the class docstring)
+        self.quiet_choices: list[tuple[int, int]] = []  # (robot, first target) since the belief last changed
 
     def select_targets(
         self, candidates: np.ndarray, utility: np.ndarray, dist: np.ndarray, keep: int | None = None
@@ -349,7 +354,9 @@ class GuideTspPlanner(_PredictingPlanner):
         options = self.first_target_scores(robot, dist, candidates)
         best = int(np.argmax(options["scores"]))  # the first option wins a tie (lowest target index)
         tour = options["tours"][best]
-        first = tour[0]
+        first = self.keep_through_cycles(observation, robot, candidates, tour[0])
+        if first != tour[0]:
+            tour = [first] + [t for t in tour if t != first]
         self.previous = first
         self.last_decision = {
             "targets": options["targets"],
@@ -359,6 +366,22 @@ class GuideTspPlanner(_PredictingPlanner):
             "predicted": int(len(predicted)),
         }
         return self.waypoints_along(graph.path_from_predecessors(pred, first))
+
+    def keep_through_cycles(self, observation: Observation, robot: int, candidates: np.ndarray, first: int) -> int:
+        """The first target to head for: `first`, unless the robot is back at a node with nothing
+        new seen since it decided there; then the target it chose there, kept until reached or news."""
+        if observation.changed is None or len(observation.changed) > 0:
+            self.quiet_choices, self.committed = [], None
+        useful = set(candidates.tolist())
+        if self.committed is not None and (self.committed == robot or self.committed not in useful):
+            self.committed = None
+        if self.committed is None:
+            earlier = [target for node, target in self.quiet_choices if node == robot and target != robot and target in useful]
+            if earlier:
+                self.committed = earlier[0]
+        chosen = first if self.committed is None else self.committed
+        self.quiet_choices.append((robot, chosen))
+        return chosen
 
 
 @register_planner("mapex")

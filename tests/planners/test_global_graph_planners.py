@@ -123,6 +123,32 @@ def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze
     assert targets[0] == c  # the previous first target seeds a cluster and survives the weight filter
 
 
+def test_guide_tsp_keeps_its_target_through_a_cycle_on_an_unchanged_map(maze):
+    """Replanning on an unchanged map flipped between two first targets and walked between two
+    nodes until max_steps; back at a node with nothing new seen, the target chosen there is kept."""
+    from pipeline.simulator import Observation
+
+    planner = make_planner("guide_tsp")
+    planner.reset(maze, PROTOCOL, 0)
+    a, b, x, y = 1, 2, 7, 9  # two nodes the robot moves between, two targets the replanning flips between
+    candidates = np.array([x, y])
+
+    def decide(robot: int, first: int, news: bool) -> int:
+        changed = np.array([5]) if news else np.zeros(0, dtype=np.int64)
+        observation = Observation(belief=maze.free, position=(0.0, 0.0), cell=(0, 0), changed=changed, step=0)
+        return planner.keep_through_cycles(observation, robot, candidates, first)
+
+    assert decide(a, x, news=True) == x
+    assert decide(b, y, news=False) == y  # a new node: the fresh choice
+    assert decide(a, y, news=False) == x  # back at a with nothing new: the choice made at a
+    assert decide(b, y, news=False) == x  # and kept on the way there
+    assert decide(b, y, news=True) == y  # something new seen: replan freely
+    assert decide(a, x, news=False) == x
+    assert decide(b, x, news=False) == y  # back at b: the choice made at b, whatever replanning says
+    assert decide(a, x, news=False) == y
+    assert decide(y, x, news=False) == x  # the kept target reached: released
+
+
 def test_guide_tsp_rejects_bad_options():
     with pytest.raises(ValueError, match="top_k"):
         make_planner("guide_tsp", top_k=-1)
