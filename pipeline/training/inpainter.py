@@ -87,13 +87,15 @@ class TrainConfig:
     seed: int = 0
     max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
+    def __post_init__(self) -> None:
+        check_max_minutes(self.max_minutes)
+
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown training keys {unknown}; known: {sorted(known)}")
-        check_max_minutes(values.get("max_minutes"))
         return cls(**values)
 
 

@@ -46,13 +46,15 @@ class PlannerTrainConfig:
     val_accuracy_samples: int = 64  # validation samples whose first step is sampled (K from the model config)
     max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
+    def __post_init__(self) -> None:
+        check_max_minutes(self.max_minutes)
+
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "PlannerTrainConfig":
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
             raise ValueError(f"unknown planner training keys: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-        check_max_minutes(values.get("max_minutes"))
         return cls(**values)
 
 
