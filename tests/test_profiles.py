@@ -34,3 +34,18 @@ def test_paper_profile_has_the_default_keys_and_parses():
     assert paper["mazes"]["train"]["count"] >= default["mazes"]["train"]["count"]
     assert paper["mazes"]["test"]["count"] == 100
     assert DiffusionPolicyConfig.from_dict(paper["train_planner"]["model"]).d_model == DiffusionPolicyConfig.paper().d_model
+
+
+def test_every_profile_uses_the_planners_tau():
+    """The benchmark's planners use node_predictor.DEFAULT_THRESHOLD; the policy's training observations
+    and Table I must see predictions at the same tau, or the policy is trained on another graph."""
+    from pipeline.node_predictor import DEFAULT_THRESHOLD, NodePredictorConfig
+    from pipeline.planners.global_graph_planners import GuideTspPlanner
+
+    assert NodePredictorConfig().threshold == DEFAULT_THRESHOLD
+    planner = GuideTspPlanner(inpaint=lambda image: image / 255.0)
+    assert planner.predictor.config.threshold == DEFAULT_THRESHOLD
+    for name in ("params.yaml", "profiles/paper.yaml"):
+        params = yaml.safe_load((ROOT / name).read_text())
+        assert params["build_observations"]["threshold"] == DEFAULT_THRESHOLD, name
+        assert params["eval_predictor"]["threshold"] == DEFAULT_THRESHOLD, name

@@ -45,7 +45,7 @@ from scipy.sparse.csgraph import dijkstra
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph import LatticeGraph, visible_counts
 from pipeline.maps import GroundTruthMap
-from pipeline.node_predictor import NodePredictor, NodePredictorConfig
+from pipeline.node_predictor import DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.tare import tsp_path
 from pipeline.protocol import Protocol
@@ -107,7 +107,7 @@ class _PredictingPlanner(GraphPlanner):
         min_utility: int = 2,
         checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
-        threshold: float = 0.5,
+        threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
     ):
         super().__init__(min_utility=min_utility)
@@ -204,7 +204,7 @@ class GuideTspPlanner(_PredictingPlanner):
         exact_max: int = 9,
         max_moves: int = 200,
         global_graph: GlobalGraphConfig = GlobalGraphConfig(),
-        threshold: float = 0.5,
+        threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
     ):
         # Checked before the predictor is loaded (in super().__init__).
@@ -400,7 +400,7 @@ class MapExPlanner(_PredictingPlanner):
         checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
         wall_margin: int = 2,
-        threshold: float = 0.5,
+        threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
     ):
         check_int("wall_margin", wall_margin, 0, note="0 = off")

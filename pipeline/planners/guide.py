@@ -59,6 +59,7 @@ import numpy as np
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
+from pipeline.node_predictor import DEFAULT_THRESHOLD
 from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.protocol import Protocol
@@ -125,7 +126,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         mode: str = "tour",
         prior_weight: float = 1.0,
         min_utility: int = 2,
-        threshold: float = 0.5,
+        threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
         stall_steps: int = 3,  # mode policy; dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
         candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
