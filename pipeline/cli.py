@@ -401,6 +401,7 @@ def eval_predictor(
     maps: Path = typer.Option(..., help="Folder of maps to explore (nearest_frontier)."),
     out: Path = typer.Option(Path("runs/predictor"), help="Output folder (precision.csv, table1.md, fig3.png)."),
     checkpoint: Optional[Path] = typer.Option(None, help="Inpainter export [default: models/inpainter/inpainter.pt]."),
+    sweep: bool = typer.Option(False, "--sweep", help="Also at tau 0.5-0.9: precision_by_threshold.csv, threshold_sweep.png."),
 ) -> None:
     """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
     from pipeline.predictor_eval import inpainter_path
@@ -409,12 +410,13 @@ def eval_predictor(
     _check_out_dir(out)
     try:
         used = inpainter_path(checkpoint)
-        frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None)
+        frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None, sweep=sweep)
     except (MapError, FileNotFoundError, ValueError) as error:
         _fail(str(error))
     typer.echo(f"inpainter: {used}")
     typer.echo(frame.to_string(index=False))
-    written = [out / name for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png")]
+    names = ("precision.csv", "precision_detail.csv", "table1.md", "precision_by_threshold.csv", "threshold_sweep.png", "fig3.png")
+    written = [out / name for name in names]
     typer.echo("wrote " + ", ".join(str(path) for path in written if path.is_file()))
 
 

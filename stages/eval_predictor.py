@@ -1,11 +1,13 @@
 """DVC stage: precision of structural inference on the test mazes (paper Table I and Fig. 3).
 
-Reads only the `eval_predictor` section (steps, threshold, min_component, keep_share, checkpoint) and
-the shared `protocol` section of params.yaml. Explores each test maze with nearest_frontier,
-runs the Global Node Predictor with the trained inpainter at each step and region
-evaluation, and writes reports/predictor/precision.csv (with precision_detail.csv: V_u split
-into predictions and centroids), reports/predictor/table1.md (ours beside the paper's) and
-reports/predictor/fig3.png; logs one MLflow run in experiment "table1".
+Reads only the `eval_predictor` section (steps, threshold, min_component, keep_share,
+sweep_thresholds, checkpoint) and the shared `protocol` section of params.yaml. Explores each
+test maze with nearest_frontier, runs the Global Node Predictor with the trained inpainter at
+each step and region evaluation, and writes reports/predictor/precision.csv (with
+precision_detail.csv: V_u split into predictions and centroids), reports/predictor/table1.md
+(ours beside the paper's, and the precision at each tau of `sweep_thresholds`),
+reports/predictor/precision_by_threshold.csv, threshold_sweep.png and fig3.png; logs one
+MLflow run in experiment "table1".
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import pandas as pd
 import yaml
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
-from pipeline.predictor_eval import COLUMNS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
+from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
 from pipeline.maps import MapError, list_maps
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
@@ -27,7 +29,7 @@ from pipeline.stage_errors import run_stage_main
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/predictor")
 EXPERIMENT = "table1"
-SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "checkpoint"}
+SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thresholds", "checkpoint"}
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -41,6 +43,13 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     section.setdefault("min_component", TABLE1_MIN_COMPONENT)
     section.setdefault("keep_share", TABLE1_KEEP_SHARE)
     section.setdefault("checkpoint", None)
+    section.setdefault("sweep_thresholds", list(SWEEP_THRESHOLDS))
+    sweep = section["sweep_thresholds"]
+    if sweep is None:
+        section["sweep_thresholds"] = []
+    elif not isinstance(sweep, list) or any(isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 <= t <= 1
+                                            for t in sweep):
+        raise ValueError(f"{params_path}: eval_predictor.sweep_thresholds must be a list of numbers in [0, 1], got {sweep!r}")
     if not section["steps"]:
         raise ValueError(f"{params_path}: eval_predictor.steps must list at least one step")
     return section, Protocol.from_dict(params.get("protocol") or {})
@@ -103,7 +112,8 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
                 if value == value:  # skip NaN
                     metrics[f"{name}_step{row.step}"] = value
         mlflow.log_metrics(metrics)
-        for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png"):
+        for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png", "precision_by_threshold.csv",
+                     "threshold_sweep.png"):
             if (out_dir / name).is_file():
                 mlflow.log_artifact(str(out_dir / name))
         return active.info.run_id
@@ -112,19 +122,51 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
-    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol,
-                graph_config=table1_graph_config(float(section["keep_share"])))
+    graph_config = table1_graph_config(float(section["keep_share"]))
+    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol, graph_config=graph_config)
+    if section["sweep_thresholds"]:
+        sweep_thresholds(TEST_MAZES, OUT_DIR, section["checkpoint"], section["sweep_thresholds"], section["steps"],
+                         config.min_component, graph_config, protocol)
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame
 
 
-def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None) -> pd.DataFrame:
-    """`guide eval-predictor`: default steps and predictor settings, OUT/precision.csv (+ table1.md, fig3.png)."""
+def sweep_thresholds(
+    maps_dir: str | Path,
+    out_dir: str | Path,
+    checkpoint: Optional[str],
+    thresholds,
+    steps,
+    min_component: int,
+    graph_config: GlobalGraphConfig,
+    protocol: Protocol,
+) -> pd.DataFrame:
+    """precision_by_threshold.csv, threshold_sweep.png, and the sweep's table appended to table1.md."""
+    from pipeline.predictor_eval import load_inpaint_fn, plot_threshold_sweep, precision_by_threshold, sweep_markdown
+
+    out_dir = Path(out_dir)
+    sweep = precision_by_threshold(list_maps(maps_dir), load_inpaint_fn(checkpoint), thresholds, steps, min_component,
+                                   graph_config, protocol, progress=True)
+    sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
+    plot_threshold_sweep(sweep, out_dir / "threshold_sweep.png")
+    table = out_dir / "table1.md"
+    table.write_text(table.read_text() + "\n" + sweep_markdown(sweep))
+    return sweep
+
+
+def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None, sweep: bool = False) -> pd.DataFrame:
+    """`guide eval-predictor`: default steps and predictor settings, OUT/precision.csv (+ table1.md, fig3.png;
+    with `sweep` the same at SWEEP_THRESHOLDS)."""
     from pipeline.predictor_eval import PAPER_STEPS
 
     config = NodePredictorConfig(threshold=TABLE1_THRESHOLD, min_component=TABLE1_MIN_COMPONENT)
-    return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=table1_graph_config(TABLE1_KEEP_SHARE))
+    graph_config = table1_graph_config(TABLE1_KEEP_SHARE)
+    frame = run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=graph_config)
+    if sweep:
+        sweep_thresholds(maps_dir, out_dir, checkpoint, SWEEP_THRESHOLDS, PAPER_STEPS, TABLE1_MIN_COMPONENT, graph_config,
+                         Protocol())
+    return frame
 
 
 def table1_graph_config(keep_share: float) -> GlobalGraphConfig:

@@ -5,13 +5,16 @@ import pytest
 import yaml
 
 from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.node_predictor import NodePredictorConfig
 from pipeline.predictor_eval import (
     COLUMNS,
     DETAIL_COLUMNS,
     all_free_inpaint,
     evaluate_predictor,
     load_inpaint_fn,
+    SWEEP_COLUMNS,
     oracle_inpaint_for,
+    precision_by_threshold,
     prediction_figure,
     table1_markdown,
 )
@@ -131,6 +134,11 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     assert tuple(detail.columns) == DETAIL_COLUMNS and np.allclose(detail["precision"], written["precision"])
     assert "75.92" in (out / "table1.md").read_text()
     assert (out / "fig3.png").is_file()
+    sweep = pd.read_csv(out / "precision_by_threshold.csv")  # sweep_thresholds left out: the default five tau
+    assert tuple(sweep.columns) == SWEEP_COLUMNS and sorted(sweep["threshold"].unique()) == [0.5, 0.6, 0.7, 0.8, 0.9]
+    at_half = sweep[sweep["threshold"] == 0.5]
+    assert np.allclose(at_half["precision"], written["precision"])  # the table's own tau, the same numbers
+    assert (out / "threshold_sweep.png").stat().st_size > 0 and "Precision against tau" in (out / "table1.md").read_text()
 
     import mlflow
 
@@ -152,6 +160,53 @@ def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
     assert seen == ["some.pt"]
     written = pd.read_csv(tmp_path / "out" / "precision.csv")
     assert tuple(written.columns) == COLUMNS
+    assert not (tmp_path / "out" / "precision_by_threshold.csv").exists()  # the sweep only on request
+    stage.cli_main(maze_dir, tmp_path / "swept", None, sweep=True)
+    assert len(pd.read_csv(tmp_path / "swept" / "precision_by_threshold.csv")) == 5 * len(STEPS)
     with pytest.raises(ValueError, match="unknown eval_predictor"):
         (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
         stage.read_params(tmp_path / "bad.yaml")
+
+
+def graded_inpaint(image):
+    """A fixed spread of probabilities 0.05-0.95 over the image, so each tau keeps a different set."""
+    rows, cols = np.indices(image.shape)
+    return ((rows * 7 + cols * 13) % 10) / 10.0 + 0.05
+
+
+def test_precision_by_threshold_equals_one_evaluation_per_tau_with_one_network_call(maze_paths):
+    calls = []
+
+    def counting(image):
+        calls.append(1)
+        return graded_inpaint(image)
+
+    sweep = precision_by_threshold(maze_paths, counting, [0.3, 0.7], steps=STEPS)
+    assert tuple(sweep.columns) == SWEEP_COLUMNS and len(sweep) == 2 * len(STEPS)
+    checkpoints = 2 * len(STEPS)  # both mazes reach both steps
+    assert len(calls) == checkpoints + 2 * 2  # one call per checkpoint for both tau, plus 2 warm-ups per map
+    for tau in (0.3, 0.7):
+        alone = evaluate_predictor(maze_paths, graded_inpaint, STEPS, NodePredictorConfig(threshold=tau))
+        mine = sweep[sweep["threshold"] == tau].reset_index(drop=True)
+        assert mine["predicted_nodes"].tolist() == alone["predicted_nodes"].tolist()
+        assert np.allclose(mine["precision"], alone["precision"])
+        assert np.allclose(mine["nodes_per_map"], alone["predicted_nodes"] / alone["maps"])
+    low, high = (sweep[sweep["threshold"] == t]["predicted_nodes"].sum() for t in (0.3, 0.7))
+    assert high < low  # a higher tau keeps fewer nodes
+
+
+def test_precision_by_threshold_refuses_bad_thresholds(maze_paths):
+    with pytest.raises(ValueError, match="at least one threshold"):
+        precision_by_threshold(maze_paths, graded_inpaint, [], steps=STEPS)
+    with pytest.raises(ValueError, match=r"thresholds must lie in \[0, 1\], got 1.5"):
+        precision_by_threshold(maze_paths, graded_inpaint, [0.5, 1.5], steps=STEPS)
+
+
+def test_stage_refuses_a_bad_sweep(tmp_path):
+    import stages.eval_predictor as stage
+
+    (tmp_path / "p.yaml").write_text("eval_predictor: {sweep_thresholds: [0.5, 2]}\n")
+    with pytest.raises(ValueError, match="sweep_thresholds must be a list of numbers in"):
+        stage.read_params(tmp_path / "p.yaml")
+    (tmp_path / "q.yaml").write_text("eval_predictor: {sweep_thresholds: null}\n")
+    assert stage.read_params(tmp_path / "q.yaml")[0]["sweep_thresholds"] == []
