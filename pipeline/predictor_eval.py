@@ -35,13 +35,14 @@ PAPER_PRECISION = {15: 75.92, 30: 79.73, 45: 79.24, 60: 84.61}  # % (Table I)
 PAPER_PREDICTION_MS = (5.4, 6.3)
 DEFAULT_CHECKPOINT = Path("models/inpainter/inpainter.pt")
 EXPLORER = "nearest_frontier"
-# Table I's operating point is the planners' (node_predictor.DEFAULT_THRESHOLD, where the tau
-# sweep is). With the earlier inpainter (300 pairs from 8 mazes) a higher tau raised precision
+# Table I's operating point is the planners' (node_predictor.DEFAULT_THRESHOLD says why 0.5):
+# Table I measures the predictions the planners act on. With the earlier inpainter (300 pairs from 8 mazes) a higher tau raised precision
 # on its own training mazes only (84-88 % at tau 0.8 / keep 0.25; 33-57 % on 8 unseen dev
 # mazes): a threshold does not help a predictor that has not generalised. Data did help, in
 # quantity: on 100 unseen mazes, at tau 0.5, Table I went from 53.4/53.3/52.0/50.1 % (300 pairs,
 # 8 mazes) to 57-59 % (10,000 pairs, 400 mazes) and 60-64 % (20,000 pairs, 800 mazes; 3,000
-# pairs from 40 mazes did not), and with that inpainter a higher tau holds on unseen mazes too.
+# pairs from 40 mazes did not), and with that inpainter a higher tau holds on unseen mazes too
+# (precision_by_threshold).
 TABLE1_THRESHOLD = DEFAULT_THRESHOLD
 TABLE1_MIN_COMPONENT = 3
 TABLE1_KEEP_SHARE = 0.5
