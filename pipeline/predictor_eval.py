@@ -239,6 +239,10 @@ def evaluate_predictor(
     return _evaluate(map_paths, factory, steps, [predictor_config], graph_config, protocol, explorer, progress)[0]
 
 
+SWEEP_COLUMNS = ("threshold", "step", "precision", "predicted_nodes", "maps", "nodes_per_map", "predictions_precision")
+SWEEP_THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9)
+
+
 def precision_by_threshold(
     map_paths: Sequence[str | Path],
     inpaint_fn: InpaintFn,
@@ -256,15 +260,46 @@ def precision_by_threshold(
     One exploration per map and one network call per checkpoint serve every tau; the timing
     column is left out, since only the first tau pays for the network.
     """
+    taus = _checked_thresholds(thresholds)
+    configs = [NodePredictorConfig(threshold=tau, min_component=min_component) for tau in taus]
+    frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
+                       explorer, progress)
+    return _sweep_frame(taus, frames)
+
+
+def evaluate_with_sweep(
+    map_paths: Sequence[str | Path],
+    inpaint_fn: InpaintFn,
+    thresholds: Sequence[float],
+    steps: Sequence[int] = PAPER_STEPS,
+    predictor_config: NodePredictorConfig = NodePredictorConfig(),
+    graph_config: GlobalGraphConfig = GlobalGraphConfig(),
+    protocol: Protocol = Protocol(),
+    *,
+    explorer: str = EXPLORER,
+    progress: bool = False,
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """evaluate_predictor's frame and precision_by_threshold's, from one exploration per map."""
+    taus = _checked_thresholds(thresholds)
+    configs = [predictor_config] + [NodePredictorConfig(threshold=tau, min_component=predictor_config.min_component)
+                                    for tau in taus]
+    frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
+                       explorer, progress)
+    return frames[0], _sweep_frame(taus, frames[1:])
+
+
+def _checked_thresholds(thresholds: Sequence[float]) -> list[float]:
     taus = [float(t) for t in thresholds]
     if not taus:
         raise ValueError("give at least one threshold")
     for tau in taus:
         if not 0.0 <= tau <= 1.0:
             raise ValueError(f"thresholds must lie in [0, 1], got {tau}")
-    configs = [NodePredictorConfig(threshold=tau, min_component=min_component) for tau in taus]
-    frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       explorer, progress)
+    return taus
+
+
+def _sweep_frame(taus: Sequence[float], frames: Sequence[pd.DataFrame]) -> pd.DataFrame:
+    """The per-tau DETAIL_COLUMNS frames as one long SWEEP_COLUMNS frame."""
     rows = []
     for tau, frame in zip(taus, frames):
         for row in frame.itertuples(index=False):
@@ -273,10 +308,6 @@ def precision_by_threshold(
                          "nodes_per_map": row.predicted_nodes / row.maps if row.maps else float("nan"),
                          "predictions_precision": row.predictions_precision})
     return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
-
-
-SWEEP_COLUMNS = ("threshold", "step", "precision", "predicted_nodes", "maps", "nodes_per_map", "predictions_precision")
-SWEEP_THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.9)
 
 
 def sweep_markdown(sweep: pd.DataFrame) -> str:

@@ -65,10 +65,20 @@ def run(
     figure: bool = True,
     graph_config: GlobalGraphConfig = GlobalGraphConfig(),
     progress: bool = True,
+    sweep_thresholds=(),
 ) -> pd.DataFrame:
     """Evaluate on every map in `maps_dir`; writes precision.csv, precision_detail.csv, table1.md
-    and (optionally) fig3.png."""
-    from pipeline.predictor_eval import evaluate_predictor, load_inpaint_fn, prediction_figure, table1_markdown
+    and (optionally) fig3.png; with `sweep_thresholds` also precision_by_threshold.csv,
+    threshold_sweep.png and the sweep's table in table1.md, from the same explorations."""
+    from pipeline.predictor_eval import (
+        evaluate_predictor,
+        evaluate_with_sweep,
+        load_inpaint_fn,
+        plot_threshold_sweep,
+        prediction_figure,
+        sweep_markdown,
+        table1_markdown,
+    )
 
     maps = list_maps(maps_dir)
     if not maps:
@@ -76,10 +86,19 @@ def run(
     inpaint = load_inpaint_fn(checkpoint)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    frame = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress)
+    if sweep_thresholds:
+        frame, sweep = evaluate_with_sweep(maps, inpaint, sweep_thresholds, steps, predictor_config, graph_config, protocol,
+                                           progress=progress)
+    else:
+        frame, sweep = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress), None
     frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
     frame.to_csv(out_dir / "precision_detail.csv", index=False)
-    (out_dir / "table1.md").write_text(table1_markdown(frame))
+    table = table1_markdown(frame)
+    if sweep is not None:
+        sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
+        plot_threshold_sweep(sweep, out_dir / "threshold_sweep.png")
+        table += "\n" + sweep_markdown(sweep)
+    (out_dir / "table1.md").write_text(table)
     if figure:
         steps_sorted = sorted(int(s) for s in steps)
         figure_step = steps_sorted[min(1, len(steps_sorted) - 1)]  # the paper's Fig. 3 is mid-exploration
@@ -122,37 +141,11 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
-    graph_config = table1_graph_config(float(section["keep_share"]))
-    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol, graph_config=graph_config)
-    if section["sweep_thresholds"]:
-        sweep_thresholds(TEST_MAZES, OUT_DIR, section["checkpoint"], section["sweep_thresholds"], section["steps"],
-                         config.min_component, graph_config, protocol)
+    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol,
+                graph_config=table1_graph_config(float(section["keep_share"])), sweep_thresholds=section["sweep_thresholds"])
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame
-
-
-def sweep_thresholds(
-    maps_dir: str | Path,
-    out_dir: str | Path,
-    checkpoint: Optional[str],
-    thresholds,
-    steps,
-    min_component: int,
-    graph_config: GlobalGraphConfig,
-    protocol: Protocol,
-) -> pd.DataFrame:
-    """precision_by_threshold.csv, threshold_sweep.png, and the sweep's table appended to table1.md."""
-    from pipeline.predictor_eval import load_inpaint_fn, plot_threshold_sweep, precision_by_threshold, sweep_markdown
-
-    out_dir = Path(out_dir)
-    sweep = precision_by_threshold(list_maps(maps_dir), load_inpaint_fn(checkpoint), thresholds, steps, min_component,
-                                   graph_config, protocol, progress=True)
-    sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
-    plot_threshold_sweep(sweep, out_dir / "threshold_sweep.png")
-    table = out_dir / "table1.md"
-    table.write_text(table.read_text() + "\n" + sweep_markdown(sweep))
-    return sweep
 
 
 def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None, sweep: bool = False) -> pd.DataFrame:
@@ -161,12 +154,8 @@ def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str
     from pipeline.predictor_eval import PAPER_STEPS
 
     config = NodePredictorConfig(threshold=TABLE1_THRESHOLD, min_component=TABLE1_MIN_COMPONENT)
-    graph_config = table1_graph_config(TABLE1_KEEP_SHARE)
-    frame = run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=graph_config)
-    if sweep:
-        sweep_thresholds(maps_dir, out_dir, checkpoint, SWEEP_THRESHOLDS, PAPER_STEPS, TABLE1_MIN_COMPONENT, graph_config,
-                         Protocol())
-    return frame
+    return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=table1_graph_config(TABLE1_KEEP_SHARE),
+               sweep_thresholds=SWEEP_THRESHOLDS if sweep else ())
 
 
 def table1_graph_config(keep_share: float) -> GlobalGraphConfig:

@@ -11,6 +11,7 @@ from pipeline.predictor_eval import (
     DETAIL_COLUMNS,
     all_free_inpaint,
     evaluate_predictor,
+    evaluate_with_sweep,
     load_inpaint_fn,
     SWEEP_COLUMNS,
     oracle_inpaint_for,
@@ -210,3 +211,19 @@ def test_stage_refuses_a_bad_sweep(tmp_path):
         stage.read_params(tmp_path / "p.yaml")
     (tmp_path / "q.yaml").write_text("eval_predictor: {sweep_thresholds: null}\n")
     assert stage.read_params(tmp_path / "q.yaml")[0]["sweep_thresholds"] == []
+
+
+def test_evaluate_with_sweep_is_table1_and_the_sweep_from_one_exploration(maze_paths):
+    calls = []
+
+    def counting(image):
+        calls.append(1)
+        return graded_inpaint(image)
+
+    frame, sweep = evaluate_with_sweep(maze_paths, counting, [0.3, 0.7], STEPS, NodePredictorConfig(threshold=0.5))
+    assert len(calls) == 2 * len(STEPS) + 2 * 2  # one network call per checkpoint, plus the warm-ups
+    alone = evaluate_predictor(maze_paths, graded_inpaint, STEPS, NodePredictorConfig(threshold=0.5))
+    assert frame["predicted_nodes"].tolist() == alone["predicted_nodes"].tolist()
+    assert np.allclose(frame["precision"], alone["precision"]) and (frame["prediction_ms_median"] > 0).all()
+    separate = precision_by_threshold(maze_paths, graded_inpaint, [0.3, 0.7], steps=STEPS)
+    pd.testing.assert_frame_equal(sweep, separate)
