@@ -171,7 +171,7 @@ class Prediction:
         return self.global_graph.lattice_ids[self.global_graph.types == PREDICTED]
 
     def centroid_cells(self) -> np.ndarray:
-        """(col, row) cells of V_u's centroid nodes (a centroid need not be a lattice node)."""
+        """(col, row) cells of V_u's centroid nodes (each at the predicted node nearest its region's centre)."""
         gg = self.global_graph
         return gg.lattice.spec.world_to_cell(gg.positions[gg.types == CENTROID]).reshape(-1, 2)
 

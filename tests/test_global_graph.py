@@ -97,16 +97,25 @@ def test_region_evaluation_trims_far_predictions(partial):
     filtered = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=0.2, centroid_density=0.0)))
     filtered.update(episode.belief.grid, episode.position, predicted)
     assert (filtered.types == PREDICTED).sum() < (everything.types == PREDICTED).sum()
-    # With no density bar, every unobserved region whose predictions were all dropped stands in as its centroid.
+    # With no density bar, every unobserved region whose predictions were all dropped stands in as one
+    # centroid node: its predicted node nearest the region's centre.
     node_region = graph.region_of_cells(graph.node_cells)
     kept_regions = {tuple(node_region[n]) for n in filtered.lattice_ids[filtered.types == PREDICTED]}
     labels, centroids = graph.region_labels(), graph.region_centroids()
     dropped_unobserved = {tuple(node_region[n]) for n in predicted} - kept_regions
     dropped_unobserved = {r for r in dropped_unobserved if labels[r] == REGION_UNOBSERVED}
-    expected = np.array(sorted(tuple(centroids[r]) for r in dropped_unobserved)).reshape(-1, 2)
+    expected = []
+    for region in dropped_unobserved:
+        members = [n for n in predicted if tuple(node_region[n]) == region]
+        nearest = min(members, key=lambda n: np.hypot(*(graph.node_world[n] - centroids[region])))
+        expected.append(tuple(graph.node_world[nearest]))
+    expected = np.array(sorted(expected)).reshape(-1, 2)
     got = filtered.positions[filtered.types == CENTROID]
     assert len(expected) > 0
     assert np.allclose(got[np.lexsort(got.T[::-1])], expected)
+    # each centroid node sits on a predicted node of its own region
+    predicted_xy = {tuple(xy) for xy in graph.node_world[predicted]}
+    assert all(tuple(xy) in predicted_xy for xy in got)
 
 
 def test_features_are_padded_with_a_mask(partial):
