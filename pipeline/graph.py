@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
@@ -376,28 +377,41 @@ def visible_counts(
 
     A ray walks from the origin and stops at the first cell that is not free; the cells
     before that are visible. Each visible cell counts once per origin however many rays
-    reach it.
+    reach it. Compiled with numba: this ray walk was 60 % of the simulator's time in NumPy.
     """
-    rows, cols = free.shape
     table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
-    counts = np.zeros(len(origins), dtype=np.int64)
-    chunk = 64
-    for start in range(0, len(origins), chunk):
-        org = origins[start : start + chunk]
-        xs = org[:, None, None, 0] + table.offsets[None, ..., 0]
-        ys = org[:, None, None, 1] + table.offsets[None, ..., 1]
-        inside = table.valid[None] & (xs >= 0) & (xs < cols) & (ys >= 0) & (ys < rows)
-        flat = np.where(inside, ys * cols + xs, 0)
-        open_cell = inside & free.reshape(-1)[flat]
-        reach = np.cumprod(open_cell, axis=2).astype(bool)
-        n = len(org)
-        seen = np.zeros((n, len(table.unique_offsets)), dtype=bool)
-        node_idx = np.broadcast_to(np.arange(n)[:, None, None], reach.shape)
-        seen[node_idx[reach], np.broadcast_to(table.unique_index[None], reach.shape)[reach]] = True
-        ux = org[:, None, 0] + table.unique_offsets[None, :, 0]
-        uy = org[:, None, 1] + table.unique_offsets[None, :, 1]
-        uin = (ux >= 0) & (ux < cols) & (uy >= 0) & (uy < rows)
-        hit = np.zeros_like(seen)
-        hit[uin] = targets[uy[uin], ux[uin]]
-        counts[start : start + chunk] = (seen & hit).sum(axis=1)
+    return _visible_counts_kernel(
+        np.ascontiguousarray(free, dtype=np.bool_),
+        np.ascontiguousarray(targets, dtype=np.bool_),
+        np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
+        table.offsets,
+        table.valid,
+        table.unique_index,
+        len(table.unique_offsets),
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
+    rows, cols = free.shape
+    n_rays, n_steps = valid.shape
+    counts = np.zeros(len(origins), np.int64)
+    last_origin = np.zeros(n_unique, np.int64)  # origin + 1 that last saw each fan cell: no clearing per origin
+    for o in range(len(origins)):
+        ox, oy = origins[o, 0], origins[o, 1]
+        seen_targets = 0
+        for r in range(n_rays):
+            for k in range(n_steps):
+                if not valid[r, k]:
+                    break
+                x = ox + offsets[r, k, 0]
+                y = oy + offsets[r, k, 1]
+                if x < 0 or x >= cols or y < 0 or y >= rows or not free[y, x]:
+                    break
+                u = unique_index[r, k]
+                if last_origin[u] != o + 1:
+                    last_origin[u] = o + 1
+                    if targets[y, x]:
+                        seen_targets += 1
+        counts[o] = seen_targets
     return counts

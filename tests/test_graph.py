@@ -11,6 +11,7 @@ from pipeline.graph import (
     REGION_UNOBSERVED,
     LatticeGraph,
     LatticeSpec,
+    visible_counts,
 )
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
@@ -147,3 +148,34 @@ def test_lattice_at_real_robot_resolution():
     assert ((cells[:, 0] - 7) % 5 == 0).all() and ((cells[:, 1] - 11) % 5 == 0).all()
     assert cells[:, 0].min() == 2 and cells[:, 0].max() == 147
     assert graph.node_count == len(graph.lattice_i) * len(graph.lattice_j)
+
+
+def reference_visible_counts(free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float) -> np.ndarray:
+    """The ray-fan count written plainly in NumPy: every ray's cells up to its first non-free cell."""
+    from pipeline.geometry import ray_table
+    from pipeline.graph import UTILITY_ANGLES
+
+    rows, cols = free.shape
+    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    counts = []
+    for ox, oy in origins:
+        xs, ys = ox + table.offsets[..., 0], oy + table.offsets[..., 1]
+        inside = table.valid & (xs >= 0) & (xs < cols) & (ys >= 0) & (ys < rows)
+        open_cell = inside & free[np.clip(ys, 0, rows - 1), np.clip(xs, 0, cols - 1)]
+        reach = np.cumprod(open_cell, axis=1).astype(bool)
+        cells = {(int(x), int(y)) for x, y in zip(xs[reach], ys[reach])}
+        counts.append(sum(bool(targets[y, x]) for x, y in cells))
+    return np.array(counts, dtype=np.int64)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_visible_counts_match_the_plain_ray_walk(seed):
+    rng = np.random.default_rng(seed)
+    free = rng.random((90, 70)) < rng.uniform(0.6, 0.95)
+    targets = (rng.random((90, 70)) < 0.2).astype(np.uint8)  # any truthy dtype
+    origins = rng.integers(-4, 94, size=(40, 2))  # some outside the grid
+    got = visible_counts(free, targets, origins, 25.0)
+    assert got.dtype == np.int64 and got.shape == (40,)
+    assert (got == reference_visible_counts(free, targets.astype(bool), origins, 25.0)).all()
+    assert got.max() > 0
+    assert visible_counts(free, targets, origins[:0], 25.0).shape == (0,)
