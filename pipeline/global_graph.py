@@ -95,9 +95,10 @@ def region_representatives(
     """World (x, y) of one centroid node per marked region: its predicted node nearest the region's centre.
 
     The paper adds the region centroid v_g itself; the centre of a 20 m maze region is more
-    often than not outside free space (about 60 % of the centroid nodes on the 12 test mazes), which
-    makes the node false (Table I counts it) and leaves the policy a node it cannot reach. The predicted node nearest the centre stands for the region
-    as compactly and is free as often as any kept prediction. Rows follow the regions' row-major order.
+    often than not outside free space (about 60 % of the centroid nodes on the 12 test
+    mazes), which makes the node false (Table I counts it) and leaves the policy a node it
+    cannot reach. The predicted node nearest the centre stands for the region as compactly
+    and is free as often as any kept prediction. Rows follow the regions' row-major order.
     """
     if not regions.any() or predicted.size == 0:
         return np.zeros((0, 2))
