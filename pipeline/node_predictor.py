@@ -26,7 +26,9 @@ InpaintFn = Callable[[np.ndarray], np.ndarray]
 # 60-64 / 67-70 / 72-75 / 76-89 % precise with 49-120 / 16-29 / 6-9 / 1-2 V_u nodes per map and
 # step; yet at 0.8 (policy retrained on its observations) guide made +4.4 % +- 4.0 and
 # guide_noregion +5.1 % +- 3.8 longer routes than at 0.5 on 50 fresh mazes (seed 4242, paired),
-# guide_tsp +2.9 % +- 3.1. So the planners, and Table I with them, keep 0.5;
+# guide_tsp +2.9 % +- 3.1; with the shipped inpainter, tau 0.7 (the authors' release) made both 4.0 %
+# longer (+- 4.0 / 3.8); with the default one, tau 0.3 / 0.4 made guide_tsp -0.3 / +0.8 % (+- 2.8 / 3.2).
+# So the planners, and Table I with them, keep 0.5;
 # eval_predictor.sweep_thresholds reports the other operating points.
 DEFAULT_THRESHOLD = 0.5
 
