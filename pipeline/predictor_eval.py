@@ -442,14 +442,16 @@ def _evaluate(
     return frames
 
 
-def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference precision (paper Table I)") -> str:
-    """Our precision per step beside the paper's."""
+def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference precision (paper Table I)",
+                    threshold: float | None = None) -> str:
+    """Our precision per step beside the paper's; `threshold` (tau), when given, is named in the text."""
+    at_tau = "" if threshold is None else f" Predicted free at P(free) >= tau = {threshold:g}."
     lines = [
         f"# {title}",
         "",
         "Nodes of V_u (region-evaluated predictions and centroid nodes) that are free in the ground "
         "truth, pooled over maps, as the paper's Pre(k) = |V_u ∩ free| / |V_u|; `predictions only` leaves the "
-        f"centroids out. Exploration by `{EXPLORER}`.",
+        f"centroids out. Exploration by `{EXPLORER}`.{at_tau}",
         "",
         "Paper (100 mazes): step "
         + "/".join(str(s) for s in PAPER_PRECISION)

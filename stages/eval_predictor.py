@@ -93,7 +93,7 @@ def run(
         frame, sweep = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress), None
     frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
     frame.to_csv(out_dir / "precision_detail.csv", index=False)
-    table = table1_markdown(frame)
+    table = table1_markdown(frame, threshold=predictor_config.threshold)
     if sweep is not None:
         sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
         plot_threshold_sweep(sweep, out_dir / "threshold_sweep.png")
@@ -148,12 +148,15 @@ def main(params_path: str = "params.yaml") -> pd.DataFrame:
     return frame
 
 
-def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None, sweep: bool = False) -> pd.DataFrame:
-    """`guide eval-predictor`: default steps and predictor settings, OUT/precision.csv (+ table1.md, fig3.png;
-    with `sweep` the same at SWEEP_THRESHOLDS)."""
+def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None, sweep: bool = False,
+             threshold: float = TABLE1_THRESHOLD) -> pd.DataFrame:
+    """`guide eval-predictor`: default steps and predictor settings at tau `threshold` (the planners'
+    by default), OUT/precision.csv (+ table1.md, fig3.png; with `sweep` the same at SWEEP_THRESHOLDS)."""
     from pipeline.predictor_eval import PAPER_STEPS
 
-    config = NodePredictorConfig(threshold=TABLE1_THRESHOLD, min_component=TABLE1_MIN_COMPONENT)
+    if not 0.0 <= threshold <= 1.0:
+        raise ValueError(f"threshold (tau) must lie in [0, 1], got {threshold}")
+    config = NodePredictorConfig(threshold=threshold, min_component=TABLE1_MIN_COMPONENT)
     return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=table1_graph_config(TABLE1_KEEP_SHARE),
                sweep_thresholds=SWEEP_THRESHOLDS if sweep else ())
 

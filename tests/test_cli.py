@@ -138,6 +138,13 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     assert "not an inpainter export" in line
 
 
+def test_eval_predictor_threshold_outside_0_1_is_refused(generated_maze_dir, tmp_path):
+    result = runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out", str(tmp_path / "p"),
+                                 "--threshold", "1.5"])
+    assert result.exit_code == 2 and "--threshold" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "p").exists()
+
+
 def test_benchmark_baseline_must_name_a_planner(generated_maze_dir, tmp_path):
     result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
                                  "--baseline", "nope", "--out", str(tmp_path / "b"), "--no-mlflow"])
