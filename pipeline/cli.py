@@ -472,7 +472,8 @@ def stage_train_inpainter(
     devices: Optional[str] = typer.Option(None, help="Lightning devices (1, 2, auto) [default: params]."),
     resume: bool = typer.Option(False, "--resume", help="Continue from models/inpainter/last.ckpt."),
     init_checkpoint: Optional[Path] = typer.Option(
-        None, help="Official Big-LaMa checkpoint (.ckpt/.pth with generator.* weights) to start from."),
+        None, help="Weights to start from: an official Big-LaMa checkpoint (.ckpt/.pth with generator.* weights) "
+                   "or one of our inpainter.pt exports, e.g. pipeline/assets/inpainter.pt (fine-tuned in its own layout)."),
     tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
     progress: bool = typer.Option(False, "--progress", help="Show Lightning's progress bar."),
 ) -> None:

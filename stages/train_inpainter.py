@@ -216,7 +216,7 @@ if __name__ == "__main__":
     parser.add_argument("--accelerator", default=None, help="Lightning accelerator (cpu, gpu, auto) [params]")
     parser.add_argument("--devices", default=None, help="Lightning devices (1, 2, auto) [params]")
     parser.add_argument("--resume", action="store_true", help="continue from models/inpainter/last.ckpt")
-    parser.add_argument("--init-checkpoint", default=None, help="official Big-LaMa checkpoint to start from")
+    parser.add_argument("--init-checkpoint", default=None, help="official Big-LaMa checkpoint, or an inpainter.pt export, to start from")
     parser.add_argument("--tracking-uri", default=None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]")
     parser.add_argument("--progress", action="store_true", help="show Lightning's progress bar")
     args = parser.parse_args()

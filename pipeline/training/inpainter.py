@@ -741,6 +741,11 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
 
 
 # ----------------------------------------------------------------------------- entry point
+def is_inpainter_export(payload: dict[str, Any]) -> bool:
+    """Whether a checkpoint's dict is one of our `inpainter.pt` exports (`export_inpainter`)."""
+    return payload.get("format") == EXPORT_FORMAT and "config" in payload and "state_dict" in payload
+
+
 def is_big_lama_layout(config: InpainterConfig) -> bool:
     reference = InpainterConfig.big_lama(in_channels=config.in_channels, out_channels=config.out_channels,
                                          input_encoding=config.input_encoding)
@@ -777,7 +782,8 @@ def train_inpainter(
     (`fresh_checkpoints`), once the settings, the init checkpoint and the data have been
     checked (a run that fails early leaves them alone; bad settings raise a one-line ValueError). `init_checkpoint`
     is an official (Big-)LaMa checkpoint whose `generator.*` weights start the training
-    (the model then takes the Big-LaMa layout). MLflow logs to `tracking_uri` (default:
+    (the model then takes the Big-LaMa layout), or one of our `inpainter.pt` exports (the
+    shipped default, say), fine-tuned in its own layout. MLflow logs to `tracking_uri` (default:
     $MLFLOW_TRACKING_URI or sqlite:///mlflow.db). `num_threads` sets torch's CPU threads
     for the run (1 is often fastest for these small images on a busy machine).
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
@@ -812,12 +818,20 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
     ckpt_path = str(last) if resume and last.is_file() else None
     init_weights = None
     if init_checkpoint is not None:
-        if ckpt_path is None:  # a resumed run continues from last.ckpt and ignores it
-            init_weights = read_init_checkpoint(init_checkpoint)
-        if not is_big_lama_layout(model_config):
+        # Read even when resuming: an export's layout must be known to rebuild the network for last.ckpt.
+        init_weights = read_init_checkpoint(init_checkpoint)
+        if is_inpainter_export(init_weights):  # our own export (the shipped default, an earlier run): fine-tune it
+            exported = InpainterConfig.from_dict(init_weights["config"])
+            if exported != model_config:
+                warnings.warn(f"init_checkpoint is an inpainter export: using its layout (ngf {exported.ngf}, "
+                              f"{exported.n_blocks} blocks), not the configured one", stacklevel=2)
+                model_config = exported
+        elif not is_big_lama_layout(model_config):
             warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
                           stacklevel=2)
             model_config = InpainterConfig.big_lama()
+        if ckpt_path is not None:  # a resumed run continues from last.ckpt, not from these weights
+            init_weights = None
     data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
     data.setup("fit")  # the data check (no random state involved): before the MLflow logger exists
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -826,7 +840,12 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
 
     L.seed_everything(tc.seed, workers=True, verbose=False)
     module = InpainterLightning(model_config.to_dict(), asdict(tc))
-    if init_weights is not None:
+    if init_weights is not None and is_inpainter_export(init_weights):
+        module.generator.load_state_dict(init_weights["state_dict"])
+        print(f"initialised the generator from {init_checkpoint} (an inpainter export): "
+              f"{len(init_weights['state_dict'])} tensors")
+        del init_weights
+    elif init_weights is not None:
         try:
             summary = load_big_lama_generator(module.generator, init_weights)
         except (KeyError, RuntimeError, ValueError) as error:

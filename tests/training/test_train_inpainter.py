@@ -11,7 +11,7 @@ import pytest
 import torch
 import yaml
 
-from pipeline.models import InpainterConfig
+from pipeline.models import InpainterConfig, InpainterModel
 from pipeline.shards import write_shard
 from pipeline.training.inpainter import (
     NodeImagePairDataset,
@@ -443,6 +443,23 @@ def test_init_checkpoint_reading(tmp_path):
     torch.save([torch.ones(1)], listed)
     with pytest.raises(ValueError, match=r"list\.ckpt: not a readable checkpoint \(it holds a list, not a dict\)"):
         read_init_checkpoint(listed)
+
+
+def test_init_checkpoint_can_be_an_inpainter_export(pairs_dir, tmp_path):
+    """Fine-tuning an export (the shipped default, say) starts from its weights, in its own layout."""
+    first = train_inpainter(TINY, pairs_dir, tmp_path / "first", max_epochs=1, train_config=FAST, mlflow=False)
+    start, start_config = load_inpainter(first)
+    other = {"ngf": 8, "n_blocks": 1}  # the configured layout differs: the export's wins, with a warning
+    tiny_steps = {**FAST, "lr": 1e-12}  # Adam moves each weight by about lr: the start stays visible
+    with pytest.warns(UserWarning, match=r"init_checkpoint is an inpainter export: using its layout \(ngf 4, 1 blocks\)"):
+        tuned = train_inpainter(other, pairs_dir, tmp_path / "tuned", max_epochs=1, train_config=tiny_steps,
+                                mlflow=False, init_checkpoint=first)
+    model, config = load_inpainter(tuned)
+    assert config == start_config == InpainterConfig(**TINY)
+    for name, weight in start.named_parameters():
+        assert torch.allclose(dict(model.named_parameters())[name], weight, atol=1e-9), name
+    fresh = InpainterModel(InpainterConfig(**TINY))  # what a run without the init would start from
+    assert not all(torch.allclose(dict(fresh.named_parameters())[n], w) for n, w in start.named_parameters())
 
 
 def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow_uri):
