@@ -167,6 +167,9 @@ def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
     assert len(pd.read_csv(tmp_path / "swept" / "precision_by_threshold.csv")) == 5 * len(STEPS)
     with pytest.raises(ValueError, match=r"must lie in \[0, 1\], got 1.5"):
         stage.cli_main(maze_dir, tmp_path / "bad_tau", None, threshold=1.5)
+    with pytest.raises(ValueError, match="unknown eval_predictor"):
+        (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
+        stage.read_params(tmp_path / "bad.yaml")
 
 
 def test_cli_main_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, monkeypatch):
@@ -177,18 +180,15 @@ def test_cli_main_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, mo
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: graded_inpaint)
     at_07 = stage.cli_main(maze_dir, tmp_path / "t07", None, threshold=0.7)
-    swept = pd.read_csv(tmp_path / "t07" / "precision.csv")
+    written_07 = pd.read_csv(tmp_path / "t07" / "precision.csv")
     stage.cli_main(maze_dir, tmp_path / "sweep", None, sweep=True)
     sweep = pd.read_csv(tmp_path / "sweep" / "precision_by_threshold.csv")
     row_07 = sweep[np.isclose(sweep["threshold"], 0.7)].reset_index(drop=True)
     at_05 = pd.read_csv(tmp_path / "sweep" / "precision.csv")
-    assert np.allclose(swept["precision"], row_07["precision"], equal_nan=True)
-    assert list(swept["predicted_nodes"]) == list(row_07["predicted_nodes"])
+    assert np.allclose(written_07["precision"], row_07["precision"], equal_nan=True)
+    assert list(written_07["predicted_nodes"]) == list(row_07["predicted_nodes"])
     assert (at_07["predicted_nodes"] < at_05["predicted_nodes"]).all()  # a higher tau keeps fewer nodes
     assert "tau = 0.7." in (tmp_path / "t07" / "table1.md").read_text()
-    with pytest.raises(ValueError, match="unknown eval_predictor"):
-        (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
-        stage.read_params(tmp_path / "bad.yaml")
 
 
 def graded_inpaint(image):
