@@ -49,6 +49,9 @@ def test_traced_inference_matches_eager():
         image = node_batch(1, size, seed=size)[0, 0].numpy()
         np.testing.assert_allclose(traced.predict(image), model.predict(image), atol=1e-5)
     assert len(traced._traces) == 2  # one trace per shape, reused
+    # The traces run on a channels-last copy; the caller's model keeps its own (contiguous) weights.
+    assert all(w.is_contiguous() for w in model.parameters())
+    assert any(w.dim() == 4 and not w.is_contiguous() for w in traced.model.parameters())
     with pytest.raises(ValueError, match="multiples of 8"):
         traced(node_batch(1, 20))
 
