@@ -143,8 +143,12 @@ class GlobalGraph:
     def node_count(self) -> int:
         return len(self.positions)
 
-    def update(self, belief: np.ndarray, robot_xy, predicted: np.ndarray | None, visited_lattice: np.ndarray | None = None) -> None:
-        """Rebuild the step's global graph; the lattice part must already be up to date."""
+    def update(self, belief: np.ndarray, robot_xy, predicted: np.ndarray | None, visited_lattice: np.ndarray | None = None,
+               counted: np.ndarray | None = None) -> None:
+        """Rebuild the step's global graph; the lattice part must already be up to date.
+
+        `counted` (default: `predicted`) are the predicted nodes the utility boost counts.
+        """
         lattice = self.lattice
         robot_xy = np.asarray(robot_xy, dtype=np.float64)
         known = lattice.free_nodes
@@ -162,7 +166,13 @@ class GlobalGraph:
         if visited_lattice is not None and len(known):
             self.visited[: len(known)] = visited_lattice[known]
         self.utility = np.zeros(self.node_count)
-        self.utility[: len(known)] = self._boosted_utility(known, kept, centroid_xy)
+        if counted is None or counted is predicted:
+            kept_c, centroid_c = kept, centroid_xy
+        elif self.config.use_region_evaluation:
+            kept_c, centroid_c, _ = evaluate_regions(lattice, np.asarray(counted, dtype=np.int64), robot_xy, self.config.region)
+        else:
+            kept_c, centroid_c = np.asarray(counted, dtype=np.int64), np.zeros((0, 2))
+        self.utility[: len(known)] = self._boosted_utility(known, kept_c, centroid_c)
         self.adjacency = self._edges(belief, known, kept, centroid_xy)
 
     # ------------------------------------------------------------------ utility

@@ -62,9 +62,15 @@ def episode_observations(
         position = episode.positions[step].astype(np.float64)
         visited[lattice.nearest_node(position)] = True
         actions = expert_action_deltas(position, episode.future_waypoints[step], protocol.node_resolution)
-        predicted = predictor.predict(lattice) if predictor is not None else np.zeros(0, dtype=np.int64)
+        if predictor is not None:
+            predicted, counted = predictor.predict_with_counted(lattice)
+        else:
+            predicted = counted = np.zeros(0, dtype=np.int64)
         for variant, graph in graphs.items():
-            graph.update(previous, position, predicted if variant == "guide" else None, visited)
+            if variant == "guide":
+                graph.update(previous, position, predicted, visited, counted)
+            else:
+                graph.update(previous, position, None, visited)
             obs = observe(graph, position, config.max_neighbors)
             arrays = out[variant]
             arrays["features"].append(obs.features.astype(np.float16))

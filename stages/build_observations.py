@@ -2,7 +2,8 @@
 
 Reads only the `build_observations` section of params.yaml (and the shared `protocol`).
 For every stored expert step it rebuilds the belief, runs the trained inpainter once
-(models/inpainter/inpainter.pt unless `inpainter` names another export) and writes two
+(models/inpainter/inpainter.pt unless `inpainter` names another export; graph nodes at
+`threshold`, the utility boost's count at `count_threshold`) and writes two
 observation sets: data/observations/guide.npz (region-evaluated global graph) and
 data/observations/dare.npz (observed graph only), plus reports/observations_summary.json.
 Its own stage, so retraining the planner never re-runs the predictor.
@@ -20,6 +21,7 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD
 from pipeline.stage_errors import run_stage_main
 
 EXPERT_DIR = Path("data/expert")
@@ -30,7 +32,7 @@ DEFAULT_INPAINTER = Path("models/inpainter/inpainter.pt")
 
 def _shard_observations(task: tuple) -> dict:
     """Observations for every episode of one expert shard (runs in a worker process)."""
-    shard, first_episode_id, protocol_dict, inpainter, threshold, min_component, max_nodes, max_neighbors = task
+    shard, first_episode_id, protocol_dict, inpainter, threshold, count_threshold, min_component, max_nodes, max_neighbors = task
     import torch
 
     torch.set_num_threads(1)
@@ -41,7 +43,7 @@ def _shard_observations(task: tuple) -> dict:
     from pipeline.protocol import Protocol
 
     protocol = Protocol.from_dict(protocol_dict)
-    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(threshold, min_component))
+    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(threshold, min_component, count_threshold=count_threshold))
     config = ObservationConfig(max_nodes, max_neighbors)
     parts = [
         episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k)
@@ -73,7 +75,8 @@ def main(params_path: str = "params.yaml") -> dict:
     counts = [int(entry["episodes"]) for entry in entries]
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
     tasks = [
-        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), int(section["min_component"]),
+        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD)),
+         int(section["min_component"]),
          int(section["max_nodes"]), int(section["max_neighbors"]))
         for s, f in zip(shards, firsts)
     ]
@@ -94,7 +97,8 @@ def main(params_path: str = "params.yaml") -> dict:
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
     for variant in ("guide", "dare"):
         arrays = concatenate(r[variant] for r in results if r is not None)
-        save_observations(OUT_DIR / f"{variant}.npz", arrays, {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")}})
+        save_observations(OUT_DIR / f"{variant}.npz", arrays, {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
+                          "count_threshold": float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD))})
         mask = arrays["node_mask"]
         summary[variant] = {
             "samples": int(len(arrays["episode"])),

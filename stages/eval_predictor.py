@@ -1,13 +1,16 @@
 """DVC stage: precision of structural inference on the test mazes (paper Table I and Fig. 3).
 
 Reads only the `eval_predictor` section (steps, threshold, min_component, keep_share,
-sweep_thresholds, checkpoint) and the shared `protocol` section of params.yaml. Explores each
+sweep_thresholds, checkpoint, compare_checkpoint) and the shared `protocol` section of params.yaml. Explores each
 test maze with nearest_frontier, runs the Global Node Predictor with the trained inpainter at
 each step and region evaluation, and writes reports/predictor/precision.csv (with
 precision_detail.csv: V_u split into predictions and centroids), reports/predictor/table1.md
 (ours beside the paper's, and the precision at each tau of `sweep_thresholds`),
-reports/predictor/precision_by_threshold.csv, threshold_sweep.png and fig3.png; logs one
-MLflow run in experiment "table1".
+reports/predictor/precision_by_threshold.csv, threshold_sweep.png and fig3.png; with
+`compare_checkpoint` (by default the shipped inpainter, trained at the paper profile's scale)
+Table I again with that network on the same explorations, reports/predictor/precision_compare.csv
+and a section of table1.md, so a CPU-sized profile still shows where a larger model lands.
+Logs one MLflow run in experiment "table1".
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from pipeline.stage_errors import run_stage_main
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/predictor")
 EXPERIMENT = "table1"
-SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thresholds", "checkpoint"}
+SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thresholds", "checkpoint", "compare_checkpoint"}
+COMPARE_CSV = "precision_compare.csv"
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -43,6 +47,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     section.setdefault("min_component", TABLE1_MIN_COMPONENT)
     section.setdefault("keep_share", TABLE1_KEEP_SHARE)
     section.setdefault("checkpoint", None)
+    section.setdefault("compare_checkpoint", None)
     section.setdefault("sweep_thresholds", list(SWEEP_THRESHOLDS))
     sweep = section["sweep_thresholds"]
     if sweep is None:
@@ -130,9 +135,13 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
                 value = float(getattr(row, name))
                 if value == value:  # skip NaN
                     metrics[f"{name}_step{row.step}"] = value
+        if (out_dir / COMPARE_CSV).is_file():
+            for row in pd.read_csv(out_dir / COMPARE_CSV).itertuples(index=False):
+                if row.precision == row.precision:
+                    metrics[f"compare_precision_step{row.step}"] = float(row.precision)
         mlflow.log_metrics(metrics)
         for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png", "precision_by_threshold.csv",
-                     "threshold_sweep.png"):
+                     "threshold_sweep.png", COMPARE_CSV):
             if (out_dir / name).is_file():
                 mlflow.log_artifact(str(out_dir / name))
         return active.info.run_id
@@ -141,10 +150,32 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
+    graph_config = table1_graph_config(float(section["keep_share"]))
     frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol,
-                graph_config=table1_graph_config(float(section["keep_share"])), sweep_thresholds=section["sweep_thresholds"])
+                graph_config=graph_config, sweep_thresholds=section["sweep_thresholds"])
+    compare_with(section["compare_checkpoint"], TEST_MAZES, OUT_DIR, section["steps"], config, graph_config, protocol)
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
+    return frame
+
+
+def compare_with(checkpoint: Optional[str], maps_dir: str | Path, out_dir: str | Path, steps,
+                 predictor_config: NodePredictorConfig, graph_config: GlobalGraphConfig, protocol: Protocol) -> pd.DataFrame | None:
+    """Table I with another inpainter export on the same explorations: precision_compare.csv (a header
+    only when `checkpoint` is None, so the stage's outputs always exist) and a section of table1.md."""
+    from pipeline.predictor_eval import comparison_markdown, evaluate_predictor, load_inpaint_fn
+
+    out_dir = Path(out_dir)
+    if checkpoint is None:
+        pd.DataFrame(columns=list(COLUMNS)).to_csv(out_dir / COMPARE_CSV, index=False)
+        return None
+    if not Path(checkpoint).is_file():
+        raise FileNotFoundError(f"eval_predictor.compare_checkpoint: {checkpoint}: no inpainter export there")
+    frame = evaluate_predictor(list_maps(maps_dir), load_inpaint_fn(checkpoint), steps, predictor_config, graph_config,
+                               protocol, progress=True)
+    frame.to_csv(out_dir / COMPARE_CSV, columns=list(COLUMNS), index=False)
+    with open(out_dir / "table1.md", "a") as table:
+        table.write("\n" + comparison_markdown(frame, f"Another inpainter: {checkpoint}"))
     return frame
 
 

@@ -166,13 +166,49 @@ def test_features_keep_the_nearest_nodes_with_their_flags(partial):
 def test_predictor_binarises_at_tau(partial):
     """P(free) >= tau is predicted, below it is not (graded probabilities, not just 0 and 1)."""
     _, _, _, graph = partial
-    rows, cols = graph.lattice_shape
-    levels = np.array([0.3, 0.5, 0.7], dtype=np.float32)
-    graded = levels[(np.arange(rows)[:, None] + np.arange(cols)[None, :]) % 3]  # every level in every region
-    padded, (r0, c0) = pad_to_multiple(graded, 8, 0)
-    predictor = NodePredictor(lambda image: padded, NodePredictorConfig(threshold=0.5, min_component=1))
+    predictor, probability, _ = graded_predictor(graph, threshold=0.5)
     predicted = predictor.predict(graph)
-    probability = graded.reshape(-1)
     unknown = np.nonzero(observed_node_states(graph.belief, graph) == NODE_UNKNOWN)[0]  # walls inferred: not unknown
     assert set(predicted) == set(unknown[probability[unknown] >= 0.5])
     assert (probability[predicted] >= 0.5).all() and (probability[predicted] == 0.5).any()
+
+
+def graded_predictor(graph, **config):
+    """A stand-in network giving every unknown node P(free) 0.3, 0.5 or 0.7, in every region."""
+    rows, cols = graph.lattice_shape
+    levels = np.array([0.3, 0.5, 0.7], dtype=np.float32)
+    graded = levels[(np.arange(rows)[:, None] + np.arange(cols)[None, :]) % 3]
+    padded, _ = pad_to_multiple(graded, 8, 0)
+    calls = []
+    predictor = NodePredictor(lambda image: calls.append(1) or padded, NodePredictorConfig(min_component=1, **config))
+    return predictor, graded.reshape(-1), calls
+
+
+def test_predictor_gives_graph_and_counted_nodes_from_one_inpainting(partial):
+    _, _, _, graph = partial
+    predictor, probability, calls = graded_predictor(graph, threshold=0.7, count_threshold=0.5)
+    predicted, counted = predictor.predict_with_counted(graph)
+    assert len(calls) == 1
+    unknown = np.nonzero(observed_node_states(graph.belief, graph) == NODE_UNKNOWN)[0]
+    assert set(predicted) == set(unknown[probability[unknown] >= 0.7])
+    assert set(counted) == set(unknown[probability[unknown] >= 0.5])
+    assert set(predicted) < set(counted)
+    # without a count tau of its own the counted nodes are the graph's
+    same, counted_same = graded_predictor(graph, threshold=0.7, count_threshold=None)[0].predict_with_counted(graph)
+    assert counted_same is same
+
+
+def test_utility_boost_counts_the_counted_nodes_and_the_graph_holds_only_the_predicted(partial):
+    """The count tau feeds N_u only: graph nodes, edges and features come from the graph's tau."""
+    _, episode, planner, graph = partial
+    predictor, _, _ = graded_predictor(graph, threshold=0.7, count_threshold=0.5)
+    predicted, counted = predictor.predict_with_counted(graph)
+    config = GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=1.0, centroid_density=1.1))
+    narrow, split, broad = (GlobalGraph(graph, config) for _ in range(3))
+    narrow.update(episode.belief.grid, episode.position, predicted, planner.visited)
+    split.update(episode.belief.grid, episode.position, predicted, planner.visited, counted)
+    broad.update(episode.belief.grid, episode.position, counted, planner.visited)
+    assert np.array_equal(split.lattice_ids, narrow.lattice_ids) and np.array_equal(split.types, narrow.types)
+    assert (split.adjacency != narrow.adjacency).nnz == 0
+    assert np.allclose(split.utility[split.types == KNOWN], broad.utility[broad.types == KNOWN])
+    assert (split.utility > narrow.utility + 1e-9).any()  # more counted nodes, a larger boost somewhere

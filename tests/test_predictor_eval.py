@@ -4,6 +4,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from pipeline.maps import list_maps
 from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.predictor_eval import (
@@ -148,6 +149,40 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     assert len(runs) >= 1  # the session's store may hold other tests' runs: the newest is this one
     assert runs.iloc[0]["metrics.precision_step3"] == pytest.approx(float(frame["precision"].iloc[0]))
     assert runs.iloc[0]["metrics.precision_step6"] == pytest.approx(float(frame["precision"].iloc[1]))
+    assert "metrics.compare_precision_step3" not in runs.columns or np.isnan(runs.iloc[0]["metrics.compare_precision_step3"])
+    assert pd.read_csv(out / "precision_compare.csv").empty  # no compare_checkpoint: a header, so DVC finds its output
+
+
+def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp_path, monkeypatch, mlflow_uri):
+    """compare_checkpoint: Table I again with that export; the table says which steps reach the paper's."""
+    import stages.eval_predictor as stage
+    import pipeline.predictor_eval as predictor_eval
+
+    (tmp_path / "data" / "mazes").mkdir(parents=True)
+    (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
+    (tmp_path / "other.pt").write_bytes(b"stand-in")
+    section = {"steps": [3, 6], "threshold": 0.5, "sweep_thresholds": [], "compare_checkpoint": "other.pt"}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {}, "eval_predictor": section}))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
+    networks = {None: graded_inpaint, "other.pt": all_free_inpaint}
+    monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: networks[checkpoint])
+    monkeypatch.setattr(stage, "run", lambda *a, **k: (stage.OUT_DIR.mkdir(parents=True, exist_ok=True),
+                                                       (stage.OUT_DIR / "table1.md").write_text("# Table I\n"),
+                                                       pd.DataFrame(columns=list(COLUMNS)))[-1])
+    stage.main("params.yaml")
+    out = tmp_path / "reports" / "predictor"
+    compared = pd.read_csv(out / "precision_compare.csv")
+    expected = evaluate_predictor(list_maps(maze_dir), all_free_inpaint, [3, 6], NodePredictorConfig(threshold=0.5),
+                                  stage.table1_graph_config(0.5))
+    assert tuple(compared.columns) == COLUMNS
+    assert np.allclose(compared["precision"], expected["precision"])
+    assert list(compared["predicted_nodes"]) == list(expected["predicted_nodes"])
+    table = (out / "table1.md").read_text()
+    assert table.startswith("# Table I") and "Another inpainter: other.pt" in table
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"eval_predictor": {**section, "compare_checkpoint": "gone.pt"}}))
+    with pytest.raises(FileNotFoundError, match="gone.pt"):
+        stage.main("params.yaml")
 
 
 def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
@@ -162,7 +197,7 @@ def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
     written = pd.read_csv(tmp_path / "out" / "precision.csv")
     assert tuple(written.columns) == COLUMNS
     assert not (tmp_path / "out" / "precision_by_threshold.csv").exists()  # the sweep only on request
-    assert "tau = 0.5." in (tmp_path / "out" / "table1.md").read_text()  # the planners' tau unless told
+    assert "tau = 0.8." in (tmp_path / "out" / "table1.md").read_text()  # the planners' tau unless told
     stage.cli_main(maze_dir, tmp_path / "swept", None, sweep=True)
     assert len(pd.read_csv(tmp_path / "swept" / "precision_by_threshold.csv")) == 5 * len(STEPS)
     with pytest.raises(ValueError, match=r"must lie in \[0, 1\], got 1.5"):
@@ -184,10 +219,12 @@ def test_cli_main_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, mo
     stage.cli_main(maze_dir, tmp_path / "sweep", None, sweep=True)
     sweep = pd.read_csv(tmp_path / "sweep" / "precision_by_threshold.csv")
     row_07 = sweep[np.isclose(sweep["threshold"], 0.7)].reset_index(drop=True)
-    at_05 = pd.read_csv(tmp_path / "sweep" / "precision.csv")
+    row_05 = sweep[np.isclose(sweep["threshold"], 0.5)].reset_index(drop=True)
+    at_default = pd.read_csv(tmp_path / "sweep" / "precision.csv")  # the planners' tau, 0.8
     assert np.allclose(written_07["precision"], row_07["precision"], equal_nan=True)
     assert list(written_07["predicted_nodes"]) == list(row_07["predicted_nodes"])
-    assert (at_07["predicted_nodes"] < at_05["predicted_nodes"]).all()  # a higher tau keeps fewer nodes
+    assert (at_07["predicted_nodes"] < row_05["predicted_nodes"]).all()  # a higher tau keeps fewer nodes
+    assert (at_default["predicted_nodes"] < at_07["predicted_nodes"]).all()
     assert "tau = 0.7." in (tmp_path / "t07" / "table1.md").read_text()
 
 

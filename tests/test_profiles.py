@@ -37,15 +37,20 @@ def test_paper_profile_has_the_default_keys_and_parses():
 
 
 def test_every_profile_uses_the_planners_tau():
-    """The benchmark's planners use node_predictor.DEFAULT_THRESHOLD; the policy's training observations
-    and Table I must see predictions at the same tau, or the policy is trained on another graph."""
-    from pipeline.node_predictor import DEFAULT_THRESHOLD, NodePredictorConfig
+    """The benchmark's planners use node_predictor's two taus (graph nodes, utility count); the policy's
+    training observations and Table I must see predictions at the same ones, or the policy is trained
+    on another graph and Table I measures nodes the planners never hold."""
+    from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
     from pipeline.planners.global_graph_planners import GuideTspPlanner
 
+    assert DEFAULT_COUNT_THRESHOLD < DEFAULT_THRESHOLD
     assert NodePredictorConfig().threshold == DEFAULT_THRESHOLD
+    assert NodePredictorConfig().count_threshold == DEFAULT_COUNT_THRESHOLD
     planner = GuideTspPlanner(inpaint=lambda image: image / 255.0)
     assert planner.predictor.config.threshold == DEFAULT_THRESHOLD
+    assert planner.predictor.config.count_threshold == DEFAULT_COUNT_THRESHOLD
     for name in ("params.yaml", "profiles/paper.yaml"):
         params = yaml.safe_load((ROOT / name).read_text())
         assert params["build_observations"]["threshold"] == DEFAULT_THRESHOLD, name
+        assert params["build_observations"]["count_threshold"] == DEFAULT_COUNT_THRESHOLD, name
         assert params["eval_predictor"]["threshold"] == DEFAULT_THRESHOLD, name

@@ -20,7 +20,8 @@ from pipeline.shards import MANIFEST, run_shards, shard_path
 from stages import build_observations
 
 SHIPPED_INPAINTER = Path(__file__).resolve().parents[1] / "pipeline/assets/inpainter.pt"
-SECTION = dict(max_nodes=64, max_neighbors=16, threshold=0.5, min_component=3, inpainter=str(SHIPPED_INPAINTER), workers=1)
+SECTION = dict(max_nodes=64, max_neighbors=16, threshold=0.5, count_threshold=0.5, min_component=3,
+               inpainter=str(SHIPPED_INPAINTER), workers=1)
 PREDICTED = FEATURE_NAMES.index("is_predicted")
 
 
@@ -71,7 +72,8 @@ def test_every_expert_step_becomes_one_padded_observation(built, episodes, varia
     """Rows follow the episodes step by step, so T_o histories and action chunks line up with the expert."""
     root, _ = built
     arrays, meta = load_observations(root / f"data/observations/{variant}.npz")
-    assert meta == {"variant": variant, "max_nodes": 64, "max_neighbors": 16, "threshold": 0.5, "min_component": 3}
+    assert meta == {"variant": variant, "max_nodes": 64, "max_neighbors": 16, "threshold": 0.5, "min_component": 3,
+                    "count_threshold": 0.5}
     lengths = [len(e.positions) for e in episodes]
     total = sum(lengths)
     assert np.array_equal(arrays["episode"], np.repeat(np.arange(len(episodes)), lengths))
@@ -136,6 +138,22 @@ def test_rerun_is_byte_identical_and_the_threshold_changes_only_guide(built, exp
     predicted = {name: int(sets["guide"]["features"][..., PREDICTED].astype(np.float32).sum()) for name, sets in loaded.items()}
     assert predicted["tau 0.9"] < predicted["tau 0.5"]  # a stricter tau keeps fewer predicted nodes
     assert all(np.array_equal(loaded["tau 0.5"]["dare"][k], loaded["tau 0.9"]["dare"][k]) for k in loaded["tau 0.5"]["dare"])
+
+
+def test_count_threshold_changes_the_utilities_not_the_graph_nodes(built, expert_dir, tmp_path, monkeypatch):
+    """The count tau feeds the utility boost only: same predicted nodes, larger boosted utilities."""
+    root, _ = built
+    stage_folder(tmp_path, expert_dir, {**SECTION, "count_threshold": 0.3})
+    monkeypatch.chdir(tmp_path)
+    build_observations.main("params.yaml")
+    base = load_observations(root / "data/observations/guide.npz")[0]
+    broad, meta = load_observations(tmp_path / "data/observations/guide.npz")
+    assert meta["count_threshold"] == 0.3
+    assert np.array_equal(broad["features"][..., PREDICTED], base["features"][..., PREDICTED])
+    assert np.array_equal(broad["node_mask"], base["node_mask"])
+    utility = FEATURE_NAMES.index("utility")
+    # normalised per observation, so compare where it moved rather than by how much
+    assert not np.array_equal(broad["features"][..., utility], base["features"][..., utility])
 
 
 def test_stage_stops_with_a_hint_when_an_input_is_missing(expert_shard_dir, tmp_path, monkeypatch):

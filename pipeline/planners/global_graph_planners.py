@@ -45,7 +45,7 @@ from scipy.sparse.csgraph import dijkstra
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph import LatticeGraph, visible_counts
 from pipeline.maps import GroundTruthMap
-from pipeline.node_predictor import DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
+from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.tare import tsp_path
 from pipeline.protocol import Protocol
@@ -109,21 +109,28 @@ class _PredictingPlanner(GraphPlanner):
         inpaint: InpaintFn | None = None,
         threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
+        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
     ):
         super().__init__(min_utility=min_utility)
         # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
         check_number("threshold", threshold, 0.0, 1.0)
+        check_number("count_threshold", count_threshold, 0.0, 1.0, none="threshold")
         check_int("min_component", min_component, 0, note="0 or 1 = keep every prediction")
         fn, source = resolve_inpainter(inpaint, checkpoint)
-        self.predictor = None if fn is None else NodePredictor(fn, NodePredictorConfig(threshold, int(min_component)))
+        config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
+        self.predictor = None if fn is None else NodePredictor(fn, config)
+        self.counted: np.ndarray | None = None  # the last prediction's nodes for the utility boost
         self.predictor_source = source
         self.description = f"{self.base_description} [{source}]"
         self.last_decision: dict = {}
 
     def predict(self) -> np.ndarray:
+        """V_p for the graph; the nodes the utility boost counts go to `self.counted`."""
         if self.predictor is None or self.graph is None:
+            self.counted = None
             return np.zeros(0, dtype=np.int64)
-        return self.predictor.predict(self.graph)
+        predicted, self.counted = self.predictor.predict_with_counted(self.graph)
+        return predicted
 
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         targets = self.useful_nodes()
@@ -206,6 +213,7 @@ class GuideTspPlanner(_PredictingPlanner):
         global_graph: GlobalGraphConfig = GlobalGraphConfig(),
         threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
+        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
     ):
         # Checked before the predictor is loaded (in super().__init__).
         check_int("top_k", top_k, 0, note="0 = every cluster")
@@ -216,7 +224,7 @@ class GuideTspPlanner(_PredictingPlanner):
         check_number("hysteresis", hysteresis, 0.0, note="0 = none", none=f"{HYSTERESIS_NODES:g} node spacings")
         check_int("exact_max", exact_max, 1, 14)
         check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
-        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
+        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold)
         self.top_k = int(top_k)
         self.spread_option, self.hysteresis_option = spread, hysteresis  # metres; None: scaled to d_n in reset()
         self.min_weight = float(min_weight)
@@ -350,7 +358,7 @@ class GuideTspPlanner(_PredictingPlanner):
         if candidates.size == 0:
             return []
         predicted = self.predict()
-        self.global_graph.update(observation.belief, observation.position, predicted, self.visited)
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, self.counted)
         options = self.first_target_scores(robot, dist, candidates)
         best = int(np.argmax(options["scores"]))  # the first option wins a tie (lowest target index)
         tour = options["tours"][best]
@@ -400,11 +408,11 @@ class MapExPlanner(_PredictingPlanner):
         checkpoint: str | None = None,
         inpaint: InpaintFn | None = None,
         wall_margin: int = 2,
-        threshold: float = DEFAULT_THRESHOLD,
+        threshold: float = DEFAULT_COUNT_THRESHOLD,  # its predicted map is a count of likely-free space, not graph nodes
         min_component: int = 3,
     ):
         check_int("wall_margin", wall_margin, 0, note="0 = off")
-        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component)
+        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold=None)
         self.wall_margin = int(wall_margin)
 
     def predicted_free_cells(self, belief: np.ndarray, predicted: np.ndarray) -> np.ndarray:

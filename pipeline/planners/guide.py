@@ -59,7 +59,7 @@ import numpy as np
 from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
-from pipeline.node_predictor import DEFAULT_THRESHOLD
+from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD
 from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.protocol import Protocol
@@ -128,6 +128,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         min_utility: int = 2,
         threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
+        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
         stall_steps: int = 3,  # mode policy; dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
         candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
         **tour_options,
@@ -141,11 +142,12 @@ class _DiffusionPlanner(GuideTspPlanner):
         if sampler is not None and sampler not in ("ddpm", "ddim"):
             raise ValueError(f"sampler must be ddpm or ddim, got {sampler!r}")
         if self.predicts:
-            super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold=threshold, min_component=min_component, **tour_options)
+            super().__init__(min_utility, inpainter_checkpoint, inpaint, threshold=threshold, min_component=min_component,
+                             count_threshold=count_threshold, **tour_options)
         else:
             super().__init__(
                 min_utility, None, lambda image: np.zeros(np.shape(image), np.float32),
-                threshold=threshold, min_component=min_component, **tour_options,
+                threshold=threshold, min_component=min_component, count_threshold=count_threshold, **tour_options,
             )
             self.predictor = None
             self.predictor_source = "no prediction (observed graph only)"
@@ -217,7 +219,8 @@ class _DiffusionPlanner(GuideTspPlanner):
     # ------------------------------------------------------------------ decisions
     def observe_step(self, observation: Observation) -> GraphObservation:
         predicted = self.predict() if self.predicts else None
-        self.global_graph.update(observation.belief, observation.position, predicted, self.visited)
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited,
+                                 self.counted if self.predicts else None)
         obs = observe(self.global_graph, observation.position, self.policy.config.max_neighbors)
         self.history.append(obs)
         self.encodings.append(None)
