@@ -41,7 +41,7 @@ def test_every_profile_uses_the_planners_tau():
     training observations and Table I must see predictions at the same ones, or the policy is trained
     on another graph and Table I measures nodes the planners never hold."""
     from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
-    from pipeline.planners.global_graph_planners import GuideTspPlanner
+    from pipeline.planners.global_graph_planners import GuideTspPlanner, MapExPlanner
 
     assert DEFAULT_COUNT_THRESHOLD < DEFAULT_THRESHOLD
     assert NodePredictorConfig().threshold == DEFAULT_THRESHOLD
@@ -49,6 +49,8 @@ def test_every_profile_uses_the_planners_tau():
     planner = GuideTspPlanner(inpaint=lambda image: image / 255.0)
     assert planner.predictor.config.threshold == DEFAULT_THRESHOLD
     assert planner.predictor.config.count_threshold == DEFAULT_COUNT_THRESHOLD
+    mapex = MapExPlanner(inpaint=lambda image: image / 255.0)  # a predicted map, not graph nodes: the count's tau
+    assert mapex.predictor.config.threshold == DEFAULT_COUNT_THRESHOLD and mapex.predictor.config.count_threshold is None
     for name in ("params.yaml", "profiles/paper.yaml"):
         params = yaml.safe_load((ROOT / name).read_text())
         assert params["build_observations"]["threshold"] == DEFAULT_THRESHOLD, name
