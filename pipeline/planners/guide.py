@@ -52,6 +52,7 @@ Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/plan
 from __future__ import annotations
 
 import threading
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -74,8 +75,9 @@ _POLICY_LOCK = threading.Lock()
 
 
 def cached_policy(path: str | Path):
-    """(the exported policy at `path`, the observation variant it was trained on or None), loaded
-    once per process (eval mode, traced denoiser)."""
+    """(the exported policy at `path`, the metadata of the observations it was trained on: variant,
+    threshold, count_threshold, ...; {} for an export without it), loaded once per process (eval
+    mode, traced denoiser)."""
     key = str(Path(path).resolve())
     with _POLICY_LOCK:
         if key not in _POLICY_CACHE:
@@ -87,9 +89,23 @@ def cached_policy(path: str | Path):
             # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
             torch.set_num_threads(1)
             policy, meta = load_policy(path)
-            variant = (meta.get("observations") or {}).get("variant")
-            _POLICY_CACHE[key] = (policy.trace_denoiser(), variant)
+            _POLICY_CACHE[key] = (policy.trace_denoiser(), dict(meta.get("observations") or {}))
     return _POLICY_CACHE[key]
+
+
+def warn_if_trained_at_other_taus(path, trained_on: dict, threshold: float, count_threshold: float | None) -> None:
+    """A policy sees graphs built at its training observations' taus; others still run, but say so."""
+    trained_tau = trained_on.get("threshold")
+    if trained_tau is None:
+        return
+    trained_count = trained_on.get("count_threshold", trained_tau)  # older exports: one tau for both
+    count = threshold if count_threshold is None else count_threshold
+    if not (np.isclose(trained_tau, threshold) and np.isclose(trained_count, count)):
+        warnings.warn(
+            f"{path}: the policy was trained on graphs with predicted nodes at tau {trained_tau:g} "
+            f"(utility count at {trained_count:g}); this planner builds them at {threshold:g} ({count:g})",
+            stacklevel=3,
+        )
 
 
 def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
@@ -153,12 +169,15 @@ class _DiffusionPlanner(GuideTspPlanner):
             self.predictor_source = "no prediction (observed graph only)"
         if policy is None:
             path = resolve_policy_path(self.kind, checkpoint)
-            policy, variant = cached_policy(path)
+            policy, trained_on = cached_policy(path)
+            variant = trained_on.get("variant")
             if variant is not None and variant != self.kind:
                 raise ValueError(
                     f"{path}: a {variant} policy (trained on {variant} observations); "
                     f"{self.name} needs a {self.kind} policy"
                 )
+            if self.predicts:
+                warn_if_trained_at_other_taus(path, trained_on, threshold, count_threshold)
             self.policy_source = str(path)
         else:
             self.policy_source = "injected policy"

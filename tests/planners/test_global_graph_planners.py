@@ -175,3 +175,20 @@ def test_mapex_paints_only_unknown_cells_near_predicted_nodes(maze):
 def test_a_missing_checkpoint_is_an_error():
     with pytest.raises(FileNotFoundError, match="checkpoint"):
         make_planner("guide_tsp", checkpoint="/nonexistent/inpainter.pt")
+
+
+def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
+    """The shipped policy's observations were made at tau 0.8 / count 0.5: other taus run, with a warning."""
+    import warnings
+
+    from pipeline.planners.guide import SHIPPED_POLICY
+
+    blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank)
+        make_planner("dare", checkpoint=str(SHIPPED_POLICY["dare"]), threshold=0.3)  # predicts nothing: no tau to match
+    with pytest.warns(UserWarning, match=r"tau 0.8 \(utility count at 0.5\); this planner builds them at 0.5 \(0.5\)"):
+        make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, threshold=0.5)
+    with pytest.warns(UserWarning, match=r"at 0.8 \(0.3\)"):
+        make_planner("guide_noregion", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, count_threshold=0.3)
