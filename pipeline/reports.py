@@ -354,16 +354,23 @@ def read_precision(path: str | Path) -> pd.DataFrame | None:
     return pd.read_csv(path) if path.is_file() else None
 
 
-def table1_markdown(precision: pd.DataFrame | None) -> str:
-    """Table I via predictor_eval.table1_markdown, or a note that the predictor was not evaluated."""
+COMPARE_LABEL = "Another inpainter on the same explorations (eval_predictor.compare_checkpoint; by default the shipped one)"
+
+
+def table1_markdown(precision: pd.DataFrame | None, compare: pd.DataFrame | None = None) -> str:
+    """Table I via predictor_eval.table1_markdown, or a note that the predictor was not evaluated;
+    with `compare` (precision_compare.csv, when not empty) the other inpainter's rows after it."""
     if precision is None:
         return (
             "## Table I: structural inference precision\n\n"
             f"{NOT_RUN}: reports/predictor/precision.csv is missing; run the eval_predictor stage.\n"
         )
-    from pipeline.predictor_eval import table1_markdown as predictor_table1
+    from pipeline.predictor_eval import comparison_markdown, table1_markdown as predictor_table1
 
-    return "#" + predictor_table1(precision, title="Table I: structural inference precision")
+    text = "#" + predictor_table1(precision, title="Table I: structural inference precision")
+    if compare is not None and not compare.empty:
+        text += "\n#" + comparison_markdown(compare, COMPARE_LABEL)
+    return text
 
 
 # --------------------------------------------------------------------------- figure
@@ -439,6 +446,7 @@ def report_markdown(
     protocol: Protocol | None = None,
     params: Mapping[str, Any] | None = None,
     figure: str | None = None,
+    precision_compare: pd.DataFrame | None = None,
 ) -> str:
     """reports/report.md: a header naming the maps and parameters, then Tables I-IV."""
     lines = ["# GUIDE reimplementation: results beside the paper's", ""]
@@ -456,7 +464,7 @@ def report_markdown(
     )
     lines.append("")
     sections = [
-        table1_markdown(precision),
+        table1_markdown(precision, precision_compare),
         table2_markdown(table2_frame),
         table3_markdown(table3_frame),
         table4_markdown(table4_frame) if table4_frame is not None

@@ -10,7 +10,8 @@ Reads only the `report` section and the shared `protocol` section of params.yaml
 - workers, seed: for the sweep.
 
 Reads reports/benchmark/metrics.csv (the benchmark stage, Tables II and III) and, when it
-exists, reports/predictor/precision_detail.csv or precision.csv (the eval_predictor stage, Table I). Writes
+exists, reports/predictor/precision_detail.csv or precision.csv (the eval_predictor stage, Table I;
+with precision_compare.csv, another inpainter's rows beside it). Writes
 reports/tables/table{1,2,3,4}.md, reports/report.md, reports/report.json (DVC metrics)
 and reports/trajectories.png, and logs one MLflow experiment per table.
 """
@@ -50,6 +51,7 @@ TEST_MAZES = Path("data/mazes/test")
 BENCHMARK_DIR = Path("reports/benchmark")
 METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
 PRECISION_CSV = Path("reports/predictor/precision.csv")
+PRECISION_COMPARE_CSV = Path("reports/predictor/precision_compare.csv")  # another inpainter, when eval_predictor ran one
 PRECISION_DETAIL_CSV = Path("reports/predictor/precision_detail.csv")  # the same rows with V_u split up
 SWEEP_DIR = Path("reports/denoising_steps")
 TABLES_DIR = Path("reports/tables")
@@ -139,7 +141,8 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
         "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
     }
     TABLES_DIR.mkdir(parents=True, exist_ok=True)
-    (TABLES_DIR / "table1.md").write_text(table1_markdown(precision))
+    precision_compare = read_precision(PRECISION_COMPARE_CSV)
+    (TABLES_DIR / "table1.md").write_text(table1_markdown(precision, precision_compare))
     (TABLES_DIR / "table2.md").write_text(table2_markdown(tables["table2"]))
     (TABLES_DIR / "table3.md").write_text(table3_markdown(tables["table3"]))
     (TABLES_DIR / "table4.md").write_text(
@@ -160,7 +163,7 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
         report_markdown(
             tables["table2"], tables["table3"], tables["table4"], precision,
             maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
-            protocol=protocol, params=section, figure=figure,
+            protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
         )
     )
     metrics = metrics_json(tables)

@@ -234,6 +234,19 @@ def test_table1_reads_a_precision_csv_from_before_the_centroid_columns():
     assert "| 15 | 80.00 % | 75.92 % | 10 | 1 | 85.00 % | 2 | 5.00 |" in reports.table1_markdown(precision_frame())
 
 
+def test_table1_adds_another_inpainters_rows_when_compared():
+    """precision_compare.csv: its rows after ours, each saying whether it reaches the paper's step."""
+    compare = pd.DataFrame({"step": [15, 30], "precision": [0.8, 0.7], "predicted_nodes": [10, 20], "maps": [2, 2],
+                            "prediction_ms_median": [3.0, 3.5]})
+    text = reports.table1_markdown(precision_frame(), compare)
+    assert text.index("Table I: structural inference precision") < text.index(reports.COMPARE_LABEL)
+    assert "| 15 | 80.00 % | 75.92 % | yes | 5.0 | 3.00 |" in text
+    assert "| 30 | 70.00 % | 79.73 % | no | 10.0 | 3.50 |" in text
+    # an empty file (eval_predictor ran no comparison) or none at all: Table I alone
+    for absent in (compare.iloc[0:0], None):
+        assert reports.COMPARE_LABEL not in reports.table1_markdown(precision_frame(), absent)
+
+
 def test_report_markdown_has_every_table(bench_frame):
     t2, t3 = reports.table2(bench_frame), reports.table3(bench_frame)
     t4 = reports.table4(pd.DataFrame(metrics_rows("guide_k10", [1.0])), [10])
