@@ -91,21 +91,24 @@ class NodePredictor:
 
     def predict(self, graph: LatticeGraph) -> np.ndarray:
         """Ids of the predicted free nodes V_p (all currently unknown lattice nodes)."""
-        return self.predict_with_counted(graph)[0]
+        states = observed_node_states(graph.belief, graph)
+        return self._above(graph, states, self.probabilities(graph, states), self.config.threshold)
 
     def predict_with_counted(self, graph: LatticeGraph) -> tuple[np.ndarray, np.ndarray]:
         """(V_p at threshold, the nodes the utility boost counts: V_p at count_threshold), one inpainting."""
         states = observed_node_states(graph.belief, graph)
         probability = self.probabilities(graph, states)
-        unknown = states == NODE_UNKNOWN
-        shape = graph.lattice_shape
-        known_free = (graph.node_state == NODE_FREE).reshape(shape)
-
-        def at(tau: float) -> np.ndarray:
-            kept = drop_small_components((unknown & (probability >= tau)).reshape(shape), known_free, self.config.min_component)
-            return np.nonzero(kept.reshape(-1))[0]
-
-        predicted = at(self.config.threshold)
+        predicted = self._above(graph, states, probability, self.config.threshold)
         count_tau = self.config.count_threshold
-        counted = predicted if count_tau is None or count_tau == self.config.threshold else at(count_tau)
-        return predicted, counted
+        if count_tau is None or count_tau == self.config.threshold:
+            return predicted, predicted
+        return predicted, self._above(graph, states, probability, count_tau)
+
+    def _above(self, graph: LatticeGraph, states: np.ndarray, probability: np.ndarray, tau: float) -> np.ndarray:
+        """Unknown nodes at P(free) >= tau, less those in small components."""
+        shape = graph.lattice_shape
+        predicted = (states == NODE_UNKNOWN) & (probability >= tau)
+        kept = drop_small_components(
+            predicted.reshape(shape), (graph.node_state == NODE_FREE).reshape(shape), self.config.min_component
+        )
+        return np.nonzero(kept.reshape(-1))[0]

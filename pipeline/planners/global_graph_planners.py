@@ -119,18 +119,22 @@ class _PredictingPlanner(GraphPlanner):
         fn, source = resolve_inpainter(inpaint, checkpoint)
         config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
         self.predictor = None if fn is None else NodePredictor(fn, config)
-        self.counted: np.ndarray | None = None  # the last prediction's nodes for the utility boost
         self.predictor_source = source
         self.description = f"{self.base_description} [{source}]"
         self.last_decision: dict = {}
 
     def predict(self) -> np.ndarray:
-        """V_p for the graph; the nodes the utility boost counts go to `self.counted`."""
+        """V_p at `threshold`."""
         if self.predictor is None or self.graph is None:
-            self.counted = None
             return np.zeros(0, dtype=np.int64)
-        predicted, self.counted = self.predictor.predict_with_counted(self.graph)
-        return predicted
+        return self.predictor.predict(self.graph)
+
+    def predict_with_counted(self) -> tuple[np.ndarray, np.ndarray]:
+        """(V_p at `threshold` for the graph, V_p at `count_threshold` for the utility boost)."""
+        if self.predictor is None or self.graph is None:
+            none = np.zeros(0, dtype=np.int64)
+            return none, none
+        return self.predictor.predict_with_counted(self.graph)
 
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         targets = self.useful_nodes()
@@ -357,8 +361,8 @@ class GuideTspPlanner(_PredictingPlanner):
         graph, robot, dist, pred, candidates = self.locate(observation)
         if candidates.size == 0:
             return []
-        predicted = self.predict()
-        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, self.counted)
+        predicted, counted = self.predict_with_counted()
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, counted)
         options = self.first_target_scores(robot, dist, candidates)
         best = int(np.argmax(options["scores"]))  # the first option wins a tie (lowest target index)
         tour = options["tours"][best]

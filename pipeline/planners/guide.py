@@ -237,9 +237,8 @@ class _DiffusionPlanner(GuideTspPlanner):
 
     # ------------------------------------------------------------------ decisions
     def observe_step(self, observation: Observation) -> GraphObservation:
-        predicted = self.predict() if self.predicts else None
-        self.global_graph.update(observation.belief, observation.position, predicted, self.visited,
-                                 self.counted if self.predicts else None)
+        predicted, counted = self.predict_with_counted() if self.predicts else (None, None)
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, counted)
         obs = observe(self.global_graph, observation.position, self.policy.config.max_neighbors)
         self.history.append(obs)
         self.encodings.append(None)
