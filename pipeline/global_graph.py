@@ -57,10 +57,20 @@ def region_scores(
     return scores.reshape(labels.shape)
 
 
-def evaluate_regions(
-    graph: LatticeGraph, predicted: np.ndarray, robot_xy: np.ndarray, config: RegionEvaluationConfig
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """V_u: (kept predicted node ids, centroid node positions (K, 2), region scores)."""
+@dataclass(frozen=True)
+class RegionSelection:
+    """One step's region evaluation, before any predictions are filtered by it."""
+
+    labels: np.ndarray  # region labels (explored / boundary / unobserved)
+    centroids: np.ndarray  # region centres, world (x, y)
+    scores: np.ndarray  # r(g), NaN for explored regions
+    keep_region: np.ndarray  # regions whose predictions are kept
+    node_region: np.ndarray  # (row, col) region of every lattice node
+    lattice_per_region: np.ndarray  # lattice nodes per region
+
+
+def select_regions(graph: LatticeGraph, robot_xy: np.ndarray, config: RegionEvaluationConfig) -> RegionSelection:
+    """Score the regions and pick those that keep their predictions (the best `keep_share`)."""
     labels = graph.region_labels()
     centroids = graph.region_centroids()
     frontier_cells = np.argwhere(graph.frontier)[:, ::-1]
@@ -74,19 +84,36 @@ def evaluate_regions(
         cutoff = ranked[count - 1] if count > 0 else np.inf
         keep_region = finite & (scores >= cutoff)
     node_region = graph.region_of_cells(graph.node_cells)
-    predicted = np.asarray(predicted, dtype=np.int64)
-    pr = node_region[predicted]
-    kept = predicted[keep_region[pr[:, 0], pr[:, 1]]] if predicted.size else predicted
-    # Low-score unobserved regions: a centroid when predictions there are dense enough.
-    low_unobserved = finite & ~keep_region & (labels == REGION_UNOBSERVED)
     lattice_per_region = np.zeros(labels.shape, dtype=np.int64)
     np.add.at(lattice_per_region, (node_region[:, 0], node_region[:, 1]), 1)
-    predicted_per_region = np.zeros(labels.shape, dtype=np.int64)
+    return RegionSelection(labels, centroids, scores, keep_region, node_region, lattice_per_region)
+
+
+def filter_predictions(
+    graph: LatticeGraph, predicted: np.ndarray, selection: RegionSelection, config: RegionEvaluationConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """V_u from V_p under a region selection: (kept predicted node ids, centroid node positions (K, 2))."""
+    predicted = np.asarray(predicted, dtype=np.int64)
+    pr = selection.node_region[predicted]
+    kept = predicted[selection.keep_region[pr[:, 0], pr[:, 1]]] if predicted.size else predicted
+    # Low-score unobserved regions: a centroid when predictions there are dense enough.
+    finite = np.isfinite(selection.scores)
+    low_unobserved = finite & ~selection.keep_region & (selection.labels == REGION_UNOBSERVED)
+    predicted_per_region = np.zeros(selection.labels.shape, dtype=np.int64)
     if predicted.size:
         np.add.at(predicted_per_region, (pr[:, 0], pr[:, 1]), 1)
-    density = predicted_per_region / np.maximum(lattice_per_region, 1)
+    density = predicted_per_region / np.maximum(selection.lattice_per_region, 1)
     centroid_regions = low_unobserved & (density >= config.centroid_density) & (predicted_per_region > 0)
-    return kept, region_representatives(graph, predicted, pr, centroid_regions, centroids), scores
+    return kept, region_representatives(graph, predicted, pr, centroid_regions, selection.centroids)
+
+
+def evaluate_regions(
+    graph: LatticeGraph, predicted: np.ndarray, robot_xy: np.ndarray, config: RegionEvaluationConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """V_u: (kept predicted node ids, centroid node positions (K, 2), region scores)."""
+    selection = select_regions(graph, robot_xy, config)
+    kept, centroid_xy = filter_predictions(graph, predicted, selection, config)
+    return kept, centroid_xy, selection.scores
 
 
 def region_representatives(
@@ -153,8 +180,11 @@ class GlobalGraph:
         robot_xy = np.asarray(robot_xy, dtype=np.float64)
         known = lattice.free_nodes
         predicted = np.zeros(0, dtype=np.int64) if predicted is None else np.asarray(predicted, dtype=np.int64)
+        selection = None
         if self.config.use_region_evaluation:
-            kept, centroid_xy, self.region_scores = evaluate_regions(lattice, predicted, robot_xy, self.config.region)
+            selection = select_regions(lattice, robot_xy, self.config.region)
+            kept, centroid_xy = filter_predictions(lattice, predicted, selection, self.config.region)
+            self.region_scores = selection.scores
         else:
             kept, centroid_xy = predicted, np.zeros((0, 2))
         self.lattice_ids = np.concatenate([known, kept, np.full(len(centroid_xy), -1)])
@@ -168,8 +198,8 @@ class GlobalGraph:
         self.utility = np.zeros(self.node_count)
         if counted is None or counted is predicted:
             kept_c, centroid_c = kept, centroid_xy
-        elif self.config.use_region_evaluation:
-            kept_c, centroid_c, _ = evaluate_regions(lattice, np.asarray(counted, dtype=np.int64), robot_xy, self.config.region)
+        elif selection is not None:  # the same regions filter the counted nodes
+            kept_c, centroid_c = filter_predictions(lattice, counted, selection, self.config.region)
         else:
             kept_c, centroid_c = np.asarray(counted, dtype=np.int64), np.zeros((0, 2))
         self.utility[: len(known)] = self._boosted_utility(known, kept_c, centroid_c)

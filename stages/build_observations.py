@@ -43,7 +43,8 @@ def _shard_observations(task: tuple) -> dict:
     from pipeline.protocol import Protocol
 
     protocol = Protocol.from_dict(protocol_dict)
-    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(threshold, min_component, count_threshold=count_threshold))
+    predictor_config = NodePredictorConfig(threshold, min_component, count_threshold=count_threshold)
+    predictor = NodePredictor(cached_inpainter(inpainter), predictor_config)
     config = ObservationConfig(max_nodes, max_neighbors)
     parts = [
         episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k)
@@ -74,10 +75,10 @@ def main(params_path: str = "params.yaml") -> dict:
         raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
     counts = [int(entry["episodes"]) for entry in entries]
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    count_threshold = float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD))
     tasks = [
-        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD)),
-         int(section["min_component"]),
-         int(section["max_nodes"]), int(section["max_neighbors"]))
+        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), count_threshold,
+         int(section["min_component"]), int(section["max_nodes"]), int(section["max_neighbors"]))
         for s, f in zip(shards, firsts)
     ]
     started = time.perf_counter()
@@ -97,8 +98,9 @@ def main(params_path: str = "params.yaml") -> dict:
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
     for variant in ("guide", "dare"):
         arrays = concatenate(r[variant] for r in results if r is not None)
-        save_observations(OUT_DIR / f"{variant}.npz", arrays, {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
-                          "count_threshold": float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD))})
+        meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
+                "count_threshold": count_threshold}
+        save_observations(OUT_DIR / f"{variant}.npz", arrays, meta)
         mask = arrays["node_mask"]
         summary[variant] = {
             "samples": int(len(arrays["episode"])),
