@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +21,7 @@ from tqdm import tqdm
 
 from pipeline.maps import GroundTruthMap, MapError, load_map
 from pipeline.planners import make_planner, planner_class
-from pipeline.protocol import Protocol
+from pipeline.protocol import Protocol, ProtocolMismatchWarning
 from pipeline.simulator import EpisodeResult, run_episode
 from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
 
@@ -249,7 +250,10 @@ def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]
 def run_task(task: EpisodeTask) -> EpisodeResult:
     ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
     protocol = protocol_for_map(task.protocol, ground_truth)
-    result = run_episode(ground_truth, make_planner(task.planner, **task.options), protocol, seed=task.seed)
+    with warnings.catch_warnings():
+        # run_benchmark has said it once, before the episodes; each worker would repeat it.
+        warnings.simplefilter("ignore", ProtocolMismatchWarning)
+        result = run_episode(ground_truth, make_planner(task.planner, **task.options), protocol, seed=task.seed)
     result.planner = task.label
     return result
 
@@ -289,6 +293,8 @@ def run_benchmark(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_run_record(out_dir / RUN_RECORD, specs, seed, start)
+    for spec in specs:  # models trained at other protocol values: said once here, not by every worker
+        make_planner(spec.name, **spec.options).check_protocol(protocol)
     tasks = [
         EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
         for spec in specs

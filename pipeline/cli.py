@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -23,6 +24,16 @@ app = typer.Typer(
 stage_app = typer.Typer(help="Run one DVC pipeline stage (what `dvc repro` calls).", no_args_is_help=True,
                         rich_markup_mode=None)
 app.add_typer(stage_app, name="stage")
+
+
+def _warning_line(message, category, filename, lineno, line=None) -> str:
+    return f"warning: {message}\n"
+
+
+@app.callback()
+def _console() -> None:
+    # A command line user gets a warning as one line, as errors are, not Python's file:line + source.
+    warnings.formatwarning = _warning_line
 
 
 def _fail(message: str) -> None:
@@ -196,6 +207,7 @@ def explore(
     out = out if out is not None else Path("runs/explore") / spec.label
     _check_out_dir(out)  # before the episode: a long run is not lost to an unwritable folder
     _warn_unreachable(ground_truth, protocol)
+    agent.check_protocol(protocol)  # before the progress bar, which a warning from inside the episode would cut
     typer.echo(f"{spec.label}: {agent.description}")
     recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=spec.label,
                                y_up=ros_map) if gif else None

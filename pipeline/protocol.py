@@ -51,5 +51,29 @@ class Protocol:
         return cls(**values)
 
 
+class ProtocolMismatchWarning(UserWarning):
+    """A trained model runs at other protocol values than it was trained at (it still runs)."""
+
+
+# What a learned model's inputs depend on: the lattice the node images and graphs are drawn on, how far
+# the sensor reveals cells and how far the utility counts frontier cells. (The cell size does not: a node
+# image holds one pixel per lattice node, whatever the cells, so a ROS map at its own resolution is fine.)
+MODEL_INPUT_FIELDS = ("node_resolution", "sensor_range", "utility_range", "region_size")
+
+
+def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) -> list[str]:
+    """The protocol values a model was trained at that `protocol` changes, as "name a -> b" strings.
+
+    `trained` is the protocol recorded with the model (`Protocol.to_dict()`); None (models exported
+    before it was recorded, the shipped ones included) stands for the defaults they were trained at.
+    """
+    reference = Protocol.from_dict(trained) if trained else Protocol()
+    return [
+        f"{name} {getattr(reference, name):g} -> {getattr(protocol, name):g}"
+        for name in MODEL_INPUT_FIELDS
+        if not math.isclose(getattr(reference, name), getattr(protocol, name), rel_tol=1e-9)
+    ]
+
+
 PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=8.0)
 """The paper's real-robot setting: 0.2 m cells, 1 m nodes, 10 m sensor."""

@@ -99,7 +99,7 @@ def main(params_path: str = "params.yaml") -> dict:
     for variant in ("guide", "dare"):
         arrays = concatenate(r[variant] for r in results if r is not None)
         meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
-                "count_threshold": count_threshold}
+                "count_threshold": count_threshold, "protocol": protocol.to_dict()}
         save_observations(OUT_DIR / f"{variant}.npz", arrays, meta)
         mask = arrays["node_mask"]
         summary[variant] = {

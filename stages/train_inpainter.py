@@ -1,6 +1,7 @@
 """DVC stage: Stage I training of the node-image inpainter (LaMa's FFC generator, small default).
 
-Reads only the `train_inpainter` section of params.yaml; trains on the Stage I pairs in
+Reads the `train_inpainter` section of params.yaml (and the shared `protocol`, recorded in the
+export so that planners can warn when run at another); trains on the Stage I pairs in
 data/pairs/; writes models/inpainter/ (inpainter.pt for inference, last.ckpt and
 best.ckpt for resuming), reports/inpainter_metrics.json (validation precision / recall /
 F1 of predicted free nodes in unknown space, per threshold; parameters; training time),
@@ -19,6 +20,7 @@ from typing import Any, Optional
 import numpy as np
 import yaml
 
+from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
 DATA_DIR = Path("data/pairs")
@@ -166,6 +168,7 @@ def main(
         progress=progress,
         num_threads=run["threads"],
         artifact_location=artifact_location,
+        protocol=Protocol.from_dict(params.get("protocol") or {}).to_dict(),
     )
     if export_path is None:  # another process of a multi-device run: rank zero exports and reports
         return {}

@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import pandas as pd
 import pytest
 
@@ -121,3 +123,20 @@ def test_a_map_with_too_few_free_cells_is_refused(tmp_path):
     frame = run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(done_unknown_cells=10),
                           tmp_path / "out", workers=1, progress=False, start=(12, 12))
     assert frame["complete"].all()
+
+
+def test_a_protocol_mismatch_is_said_once_before_the_episodes(generated_maze_dir, tmp_path):
+    """Not once per episode and worker: the planners are checked in the calling process, the workers stay quiet."""
+    import warnings
+
+    from pipeline.planners import global_graph_planners as ggp
+    from pipeline.protocol import ProtocolMismatchWarning
+
+    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+    maps = list_maps(generated_maze_dir)[:2]
+    spec = f"tsp=guide_tsp:checkpoint={shipped}"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run_benchmark(maps, [spec], Protocol(node_resolution=2.0, max_steps=2), tmp_path, workers=1, progress=False)
+    said = [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
+    assert len(said) == 1 and "node_resolution 4 -> 2" in str(said[0].message)

@@ -245,6 +245,24 @@ def test_a_map_that_cannot_be_completed_is_warned_about(tmp_path):
     assert result.exit_code == 1  # incomplete, as the warning said
 
 
+def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_protocol(small_maze_path, tmp_path):
+    """The shipped inpainter was trained on a 4 m lattice; a 2 m run goes on, with a one-line warning."""
+    import warnings
+
+    from pipeline.cli import _warning_line
+    from pipeline.protocol import ProtocolMismatchWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "guide_tsp", "--no-progress",
+                                     "--node-resolution", "2", "--max-steps", "3", "--out", str(tmp_path / "o")])
+    assert result.exit_code == 1 and "step limit" in result.output  # it ran (3 waypoints), the warning stopped nothing
+    said = [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
+    assert said and "inpainter.pt was trained at other protocol values (node_resolution 4 -> 2)" in str(said[0].message)
+    line = _warning_line(said[0].message, said[0].category, said[0].filename, said[0].lineno)
+    assert line.startswith("warning: ") and line.count("\n") == 1  # as the CLI prints it: no file:line, no source
+
+
 def test_maps_with_one_name_are_refused(tmp_path):
     from pipeline.benchmark import check_unique_map_names
     from pipeline.maps import MapError

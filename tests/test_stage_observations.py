@@ -73,7 +73,7 @@ def test_every_expert_step_becomes_one_padded_observation(built, episodes, varia
     root, _ = built
     arrays, meta = load_observations(root / f"data/observations/{variant}.npz")
     assert meta == {"variant": variant, "max_nodes": 64, "max_neighbors": 16, "threshold": 0.5, "min_component": 3,
-                    "count_threshold": 0.5}
+                    "count_threshold": 0.5, "protocol": Protocol().to_dict()}  # the policy export carries it on
     lengths = [len(e.positions) for e in episodes]
     total = sum(lengths)
     assert np.array_equal(arrays["episode"], np.repeat(np.arange(len(episodes)), lengths))

@@ -41,6 +41,10 @@ class Planner(ABC):
     def plan(self, observation: Observation) -> list[Waypoint]:
         """Next lattice waypoints in world metres; [] when nothing reachable is left to explore."""
 
+    def check_protocol(self, protocol: Protocol) -> None:
+        """Warn (`ProtocolMismatchWarning`) when a trained model of this planner was trained at other
+        protocol values than `protocol`; planners without trained models have nothing to say."""
+
 
 def register_planner(name: str) -> Callable[[P], P]:
     """Class decorator: make a planner available under a lower-case `name`."""

@@ -35,6 +35,7 @@ instance's `description` says which predictor is in use).
 from __future__ import annotations
 
 import threading
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -48,7 +49,7 @@ from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.tare import tsp_path
-from pipeline.protocol import Protocol
+from pipeline.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Observation
 
@@ -60,41 +61,50 @@ InpaintFn = Callable[[np.ndarray], np.ndarray]
 SPREAD_NODES = 2.5
 HYSTERESIS_NODES = 2.0
 
-_MODEL_CACHE: dict[str, InpaintFn] = {}
+_MODEL_CACHE: dict[str, tuple[InpaintFn, dict | None]] = {}
 _MODEL_LOCK = threading.Lock()
 
 
-def cached_inpainter(path: str | Path) -> InpaintFn:
-    """The trained inpainter at `path` as a node image -> probability function, loaded once per process."""
+def _load_inpainter_once(path: str | Path) -> tuple[InpaintFn, dict | None]:
     key = str(Path(path).resolve())
     with _MODEL_LOCK:
         if key not in _MODEL_CACHE:
             import torch
 
             from pipeline.models.modeling_inpainter import TracedInpainter
-            from pipeline.training.inpainter import load_inpainter
+            from pipeline.training.inpainter import load_inpainter, read_export
 
             # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
             # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
             torch.set_num_threads(1)
             model, _ = load_inpainter(path)
-            _MODEL_CACHE[key] = TracedInpainter(model).predict
+            _MODEL_CACHE[key] = (TracedInpainter(model).predict, read_export(path).get("protocol"))
     return _MODEL_CACHE[key]
 
 
-def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tuple[InpaintFn | None, str]:
-    """(inpaint function or None, a few words saying which predictor is used)."""
+def cached_inpainter(path: str | Path) -> InpaintFn:
+    """The trained inpainter at `path` as a node image -> probability function, loaded once per process."""
+    return _load_inpainter_once(path)[0]
+
+
+def inpainter_protocol(path: str | Path) -> dict | None:
+    """The protocol the inpainter at `path` was trained at, as recorded in its export (None: not recorded)."""
+    return _load_inpainter_once(path)[1]
+
+
+def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tuple[InpaintFn | None, str, Path | None]:
+    """(inpaint function or None, a few words saying which predictor is used, its file or None)."""
     if inpaint is not None:
-        return inpaint, "injected inpainter"
+        return inpaint, "injected inpainter", None
     if checkpoint is not None:
         if not Path(checkpoint).is_file():
             raise FileNotFoundError(f"{checkpoint}: no inpainter checkpoint there")
-        return cached_inpainter(checkpoint), f"trained inpainter {checkpoint}"
+        return cached_inpainter(checkpoint), f"trained inpainter {checkpoint}", Path(checkpoint)
     if DEFAULT_CHECKPOINT.is_file():
-        return cached_inpainter(DEFAULT_CHECKPOINT), f"trained inpainter {DEFAULT_CHECKPOINT}"
+        return cached_inpainter(DEFAULT_CHECKPOINT), f"trained inpainter {DEFAULT_CHECKPOINT}", DEFAULT_CHECKPOINT
     if SHIPPED_CHECKPOINT.is_file():
-        return cached_inpainter(SHIPPED_CHECKPOINT), "shipped default inpainter"
-    return None, "no inpainter found: nothing predicted (frontier-only fallback)"
+        return cached_inpainter(SHIPPED_CHECKPOINT), "shipped default inpainter", SHIPPED_CHECKPOINT
+    return None, "no inpainter found: nothing predicted (frontier-only fallback)", None
 
 
 class _PredictingPlanner(GraphPlanner):
@@ -116,12 +126,30 @@ class _PredictingPlanner(GraphPlanner):
         check_number("threshold", threshold, 0.0, 1.0)
         check_number("count_threshold", count_threshold, 0.0, 1.0, none="threshold")
         check_int("min_component", min_component, 0, note="0 or 1 = keep every prediction")
-        fn, source = resolve_inpainter(inpaint, checkpoint)
+        fn, source, path = resolve_inpainter(inpaint, checkpoint)
         config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
         self.predictor = None if fn is None else NodePredictor(fn, config)
         self.predictor_source = source
+        # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
+        self.trained_models: list[tuple[str, dict | None]] = [] if path is None else [(str(path), inpainter_protocol(path))]
         self.description = f"{self.base_description} [{source}]"
         self.last_decision: dict = {}
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.check_protocol(protocol)
+
+    def check_protocol(self, protocol: Protocol) -> None:
+        # A model sees node images and graphs drawn at the protocol it was trained at; others still run.
+        for model, trained in self.trained_models:
+            differences = model_input_differences(trained, protocol)
+            if differences:  # one warning per model and protocol: the same text from this one line
+                warnings.warn(
+                    f"{model} was trained at other protocol values ({', '.join(differences)}): its inputs mean "
+                    f"something else here, so expect weaker predictions; retrain at your maps' values "
+                    f"(params.yaml: protocol)",
+                    ProtocolMismatchWarning,
+                )
 
     def predict(self) -> np.ndarray:
         """V_p at `threshold`."""

@@ -178,6 +178,7 @@ class _DiffusionPlanner(GuideTspPlanner):
                 )
             if self.predicts:
                 warn_if_trained_at_other_taus(path, trained_on, threshold, count_threshold)
+            self.trained_models.append((str(path), trained_on.get("protocol")))
             self.policy_source = str(path)
         else:
             self.policy_source = "injected policy"

@@ -772,6 +772,7 @@ def train_inpainter(
     progress: bool = False,
     num_threads: Optional[int] = None,
     artifact_location: Optional[str] = None,
+    protocol: Optional[dict[str, Any]] = None,
 ) -> Path | None:
     """Train the inpainter on a Stage I data set; returns the path of the exported `inpainter.pt`
     (None in the other processes of a multi-device run: only rank zero exports).
@@ -785,7 +786,8 @@ def train_inpainter(
     (the model then takes the Big-LaMa layout), or one of our `inpainter.pt` exports (the
     shipped default, say), fine-tuned in its own layout. MLflow logs to `tracking_uri` (default:
     $MLFLOW_TRACKING_URI or sqlite:///mlflow.db). `num_threads` sets torch's CPU threads
-    for the run (1 is often fastest for these small images on a busy machine).
+    for the run (1 is often fastest for these small images on a busy machine). `protocol`
+    (`Protocol.to_dict()` of the pairs) is recorded in the export, so planners can warn when run at another.
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
     (MLflow's default: ./mlruns).
     """
@@ -795,13 +797,14 @@ def train_inpainter(
     try:
         return _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume,
                       tracking_uri, init_checkpoint, train_config, mlflow, experiment_name, run_name, progress,
-                      artifact_location)
+                      artifact_location, protocol)
     finally:
         torch.set_num_threads(previous_threads)
 
 
 def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
-           init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location) -> Path:
+           init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location,
+           protocol=None) -> Path:
     from pipeline.tracking import resolve_tracking_uri
 
     # Everything that can fail is checked before a file is touched or an MLflow run is made: the
@@ -906,6 +909,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             epochs=int(trainer.current_epoch),
             pairs={"train": pair_count(data.train_pairs), "val": pair_count(data.val_pairs)},
             mazes={"train": maze_count(data.train_pairs), "val": maze_count(data.val_pairs)},
+            **({"protocol": dict(protocol)} if protocol else {}),  # what the pairs were drawn at (planners check it)
         )
         if logger:
             logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)

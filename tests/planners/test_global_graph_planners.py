@@ -192,3 +192,63 @@ def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
         make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, threshold=0.5)
     with pytest.warns(UserWarning, match=r"at 0.8 \(0.3\)"):
         make_planner("guide_noregion", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, count_threshold=0.3)
+
+
+SHIPPED_INPAINTER = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+
+
+def copy_with_protocol(source: Path, target: Path, protocol: Protocol, *keys: str) -> Path:
+    """A copy of an export with `protocol` recorded under payload[keys...]["protocol"]."""
+    import torch
+
+    payload = torch.load(source, map_location="cpu", weights_only=False)
+    entry = payload
+    for key in keys:
+        entry = entry.setdefault(key, {})
+    entry["protocol"] = protocol.to_dict()
+    torch.save(payload, target)
+    return target
+
+
+@pytest.mark.parametrize("name", ["guide_tsp", "mapex"])
+def test_predictor_planners_warn_when_their_inpainter_was_trained_at_another_protocol(name, maze, tmp_path):
+    """The check runs at reset, when the protocol is known; an export without a record counts as the defaults."""
+    import re
+    import warnings
+
+    from pipeline.protocol import ProtocolMismatchWarning
+
+    halved = Protocol(node_resolution=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        make_planner(name, checkpoint=str(SHIPPED_INPAINTER)).reset(maze, PROTOCOL, 0)
+    expected = re.escape(f"{SHIPPED_INPAINTER} was trained at other protocol values (node_resolution 4 -> 2)")
+    with pytest.warns(ProtocolMismatchWarning, match=expected):
+        make_planner(name, checkpoint=str(SHIPPED_INPAINTER)).reset(maze, halved, 0)
+    recorded = copy_with_protocol(SHIPPED_INPAINTER, tmp_path / "inpainter_2m.pt", halved)
+    planner = make_planner(name, checkpoint=str(recorded))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        planner.reset(maze, halved, 0)
+    with pytest.warns(ProtocolMismatchWarning, match=r"inpainter_2m\.pt was trained .*\(node_resolution 2 -> 4\)"):
+        planner.reset(maze, PROTOCOL, 0)
+
+
+def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_path):
+    """The policy's observations record the protocol they were built at; the export carries it."""
+    import warnings
+
+    from pipeline.planners.guide import SHIPPED_POLICY
+    from pipeline.protocol import ProtocolMismatchWarning
+
+    blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
+    wide = Protocol(sensor_range=30.0, utility_range=15.0)
+    policy = copy_with_protocol(SHIPPED_POLICY["guide"], tmp_path / "policy_30m.pt", wide, "observations")
+    planner = make_planner("guide", checkpoint=str(policy), inpaint=blank)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        planner.reset(maze, wide, 0)
+    with pytest.warns(ProtocolMismatchWarning) as record:
+        planner.reset(maze, PROTOCOL, 0)
+    assert [str(w.message).split(" was trained")[0] for w in record] == [str(policy)]  # the injected inpainter has no record
+    assert "(sensor_range 30 -> 20, utility_range 15 -> 10)" in str(record[0].message)

@@ -12,6 +12,7 @@ import torch
 import yaml
 
 from pipeline.models import InpainterConfig, InpainterModel
+from pipeline.protocol import Protocol
 from pipeline.shards import write_shard
 from pipeline.training.inpainter import (
     NodeImagePairDataset,
@@ -468,7 +469,7 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
     monkeypatch.chdir(tmp_path)
     Path("data").mkdir()
     Path("data/pairs").symlink_to(pairs_dir, target_is_directory=True)
-    params = {"other_section": {"ignored": True},
+    params = {"other_section": {"ignored": True}, "protocol": {"node_resolution": 2.0},
               "train_inpainter": {"model": TINY, "max_epochs": 1, **FAST, "threshold": 0.4, "threads": 1}}
     Path("params.yaml").write_text(yaml.safe_dump(params))
     metrics = stage.main("params.yaml", tracking_uri=mlflow_uri, artifact_location=str(tmp_path / "mlartifacts"))
@@ -480,6 +481,8 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
     assert written["threshold"] == 0.4 and "0.4" in written["by_threshold"]
     assert {"val_precision", "val_recall", "val_f1", "num_parameters", "train_seconds", "predict_ms_48",
             "val_mazes", "split"} <= set(written)
+    # The protocol the pairs were drawn at travels with the model, for the planners' check.
+    assert read_export("models/inpainter/inpainter.pt")["protocol"] == Protocol(node_resolution=2.0).to_dict()
 
 
 DDP_SCRIPT = """

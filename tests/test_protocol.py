@@ -1,0 +1,33 @@
+"""The protocol object: its checks, and which of its values a trained model depends on."""
+
+from __future__ import annotations
+
+import pytest
+
+from pipeline.protocol import MODEL_INPUT_FIELDS, Protocol, model_input_differences
+
+
+def test_bad_values_are_refused_with_the_parameter_named():
+    with pytest.raises(ValueError, match=r"protocol\.sensor_range must be a positive finite number, got nan"):
+        Protocol(sensor_range=float("nan"))
+    with pytest.raises(ValueError, match=r"unknown protocol parameter\(s\): \['lidar'\]"):
+        Protocol.from_dict({"lidar": 20})
+
+
+def test_model_input_differences_name_each_changed_value():
+    trained = Protocol(node_resolution=2.0, sensor_range=10.0).to_dict()
+    assert model_input_differences(trained, Protocol(node_resolution=2.0, sensor_range=10.0)) == []
+    assert model_input_differences(trained, Protocol()) == ["node_resolution 2 -> 4", "sensor_range 10 -> 20"]
+
+
+def test_cell_size_and_episode_rules_are_not_model_inputs():
+    """A node image holds one pixel per lattice node: a ROS map at 0.05 m cells feeds the same inputs."""
+    assert "cell_size" not in MODEL_INPUT_FIELDS
+    other = Protocol(cell_size=0.05, done_unknown_cells=10, max_steps=20)
+    assert model_input_differences(Protocol().to_dict(), other) == []
+
+
+def test_an_unrecorded_protocol_stands_for_the_defaults():
+    """Exports from before the record (the shipped models) were trained at the defaults."""
+    assert model_input_differences(None, Protocol()) == []
+    assert model_input_differences({}, Protocol(region_size=8.0)) == ["region_size 20 -> 8"]
