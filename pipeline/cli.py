@@ -31,9 +31,12 @@ def _warning_line(message, category, filename, lineno, line=None) -> str:
 
 
 @app.callback()
-def _console() -> None:
-    # A command line user gets a warning as one line, as errors are, not Python's file:line + source.
+def _console(ctx: typer.Context) -> None:
+    # A command line user gets a warning as one line, as errors are, not Python's file:line + source;
+    # the usual format comes back when the command ends (the CLI may run inside another program).
+    previous = warnings.formatwarning
     warnings.formatwarning = _warning_line
+    ctx.call_on_close(lambda: setattr(warnings, "formatwarning", previous))
 
 
 def _fail(message: str) -> None:

@@ -261,6 +261,7 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
     assert said and "inpainter.pt was trained at other protocol values (node_resolution 4 -> 2)" in str(said[0].message)
     line = _warning_line(said[0].message, said[0].category, said[0].filename, said[0].lineno)
     assert line.startswith("warning: ") and line.count("\n") == 1  # as the CLI prints it: no file:line, no source
+    assert warnings.formatwarning is not _warning_line  # restored once the command ended
 
 
 def test_maps_with_one_name_are_refused(tmp_path):

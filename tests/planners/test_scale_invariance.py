@@ -37,6 +37,8 @@ PLANNERS = {
 }
 
 
+# The learned planners' models were trained at the full-scale protocol: at a quarter scale they say so.
+@pytest.mark.filterwarnings("ignore::pipeline.protocol.ProtocolMismatchWarning")
 @pytest.mark.parametrize("name", sorted(PLANNERS))
 def test_a_quarter_scale_map_is_explored_on_the_same_waypoints(name, small_maze_path):
     runs = []
