@@ -67,7 +67,9 @@ def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) 
     `trained` is the protocol recorded with the model (`Protocol.to_dict()`); None (models exported
     before it was recorded, the shipped ones included) stands for the defaults they were trained at.
     """
-    reference = Protocol.from_dict(trained) if trained else Protocol()
+    known = {f.name for f in fields(Protocol)}
+    # Only the fields this version knows: an export from a later version may record more.
+    reference = Protocol.from_dict({k: v for k, v in (trained or {}).items() if k in known})
     return [
         f"{name} {getattr(reference, name):g} -> {getattr(protocol, name):g}"
         for name in MODEL_INPUT_FIELDS

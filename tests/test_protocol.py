@@ -31,3 +31,8 @@ def test_an_unrecorded_protocol_stands_for_the_defaults():
     """Exports from before the record (the shipped models) were trained at the defaults."""
     assert model_input_differences(None, Protocol()) == []
     assert model_input_differences({}, Protocol(region_size=8.0)) == ["region_size 20 -> 8"]
+
+
+def test_fields_a_later_version_records_are_ignored():
+    trained = {**Protocol(sensor_range=10.0).to_dict(), "lidar_noise": 0.1}
+    assert model_input_differences(trained, Protocol()) == ["sensor_range 10 -> 20"]
