@@ -52,6 +52,18 @@ def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkey
     assert "shipped default inpainter" in planner.description and planner.predictor is not None
 
 
+def test_the_shipped_models_record_the_protocol_they_were_trained_at():
+    """pipeline/assets/README.md: the maze benchmark's defaults, which the planners check against."""
+    from pipeline.planners.guide import SHIPPED_POLICY
+    from pipeline.training.inpainter import read_export
+    from pipeline.training.planner import read_policy_export
+
+    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+    assert read_export(shipped)["protocol"] == Protocol().to_dict()
+    for path in SHIPPED_POLICY.values():
+        assert read_policy_export(path)["observations"]["protocol"] == Protocol().to_dict(), path
+
+
 def test_both_planners_are_registered():
     assert {"guide_tsp", "mapex"} <= set(planner_names())
 
