@@ -292,9 +292,10 @@ def run_benchmark(
     check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_run_record(out_dir / RUN_RECORD, specs, seed, start)
-    for spec in specs:  # models trained at other protocol values: said once here, not by every worker
-        make_planner(spec.name, **spec.options).check_protocol(protocol)
+    planners = [make_planner(spec.name, **spec.options) for spec in specs]  # the workers build their own
+    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in planners], seed, start)
+    for planner in planners:  # models trained at other protocol values: said once here, not by every worker
+        planner.check_protocol(protocol)
     tasks = [
         EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
         for spec in specs
@@ -321,7 +322,7 @@ def run_benchmark(
 
 
 def write_run_record(
-    path: Path, specs: Sequence[PlannerSpec], seed: int, start: tuple[float, float] | None
+    path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None
 ) -> dict[str, Any]:
     """What ran: per label the planner, its options and its description (which names the policy
     and predictor files a learned planner loaded), with the seed and any start override."""
@@ -329,12 +330,8 @@ def write_run_record(
         "seed": seed,
         "start": list(start) if start is not None else None,
         "planners": {
-            spec.label: {
-                "name": spec.name,
-                "options": dict(spec.options),
-                "description": make_planner(spec.name, **spec.options).description,
-            }
-            for spec in specs
+            spec.label: {"name": spec.name, "options": dict(spec.options), "description": description}
+            for spec, description in zip(specs, descriptions)
         },
     }
     path.write_text(json.dumps(record, indent=2) + "\n")

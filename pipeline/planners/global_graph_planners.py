@@ -72,13 +72,14 @@ def _load_inpainter_once(path: str | Path) -> tuple[InpaintFn, dict | None]:
             import torch
 
             from pipeline.models.modeling_inpainter import TracedInpainter
-            from pipeline.training.inpainter import load_inpainter, read_export
+            from pipeline.training.inpainter import inpainter_from_payload, read_export
 
             # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
             # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
             torch.set_num_threads(1)
-            model, _ = load_inpainter(path)
-            _MODEL_CACHE[key] = (TracedInpainter(model).predict, read_export(path).get("protocol"))
+            payload = read_export(path)
+            model, _ = inpainter_from_payload(payload, path)
+            _MODEL_CACHE[key] = (TracedInpainter(model).predict, payload.get("protocol"))
     return _MODEL_CACHE[key]
 
 

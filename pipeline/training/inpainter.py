@@ -562,7 +562,11 @@ def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) 
 
 def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
     """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
-    payload = read_weights_file(path, "an inpainter export", map_location)
+    return inpainter_from_payload(read_weights_file(path, "an inpainter export", map_location), path)
+
+
+def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[InpainterModel, InpainterConfig]:
+    """`load_inpainter` on a payload already read (`read_export`), for callers that want its metadata too."""
     try:
         if "config" in payload and "state_dict" in payload:
             config = InpainterConfig.from_dict(payload["config"])
