@@ -53,11 +53,12 @@ from __future__ import annotations
 
 import threading
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
+from pipeline.global_graph import KNOWN
 from pipeline.graph_observation import GraphObservation, observe
 from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD
@@ -199,8 +200,10 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.candidates = int(candidates)
         self.mode = mode
         self.prior_weight = float(prior_weight)
-        self.graph_config = GlobalGraphConfig(max_nodes=config.max_nodes, use_region_evaluation=self.region_evaluation)
-        self.global_config = self.graph_config
+        # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
+        # every other field of a `global_graph=` option is kept.
+        self.global_config = replace(self.global_config, max_nodes=config.max_nodes,
+                                     use_region_evaluation=self.region_evaluation)
         self.description = (
             f"{self.base_description} [mode {mode}; policy {self.policy_source}; {self.predictor_source}; "
             f"K={self.num_inference_steps}]"
@@ -210,7 +213,6 @@ class _DiffusionPlanner(GuideTspPlanner):
     def _with_sampler(policy, sampler: str):
         """A shallow copy of `policy` (weights shared) that samples with another diffusers scheduler."""
         import copy
-        from dataclasses import replace
 
         from diffusers import DDIMScheduler, DDPMScheduler
 
@@ -226,8 +228,6 @@ class _DiffusionPlanner(GuideTspPlanner):
         super().reset(ground_truth, protocol, seed)
         import torch
 
-        assert self.graph is not None
-        self.global_graph = GlobalGraph(self.graph, self.graph_config)
         self.history: list[GraphObservation] = []
         self.encodings: list = []
         self.queue: list[np.ndarray] = []

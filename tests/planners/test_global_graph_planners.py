@@ -264,3 +264,19 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
         planner.reset(maze, PROTOCOL, 0)
     assert [str(w.message).split(" was trained")[0] for w in record] == [str(policy)]  # the injected inpainter has no record
     assert "(sensor_range 30 -> 20, utility_range 15 -> 10)" in str(record[0].message)
+
+
+@pytest.mark.parametrize("name, region_evaluation", [("guide", True), ("guide_noregion", False)])
+def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_policy_fixes(name, region_evaluation, maze):
+    """max_nodes comes from the policy and region evaluation from the variant; the rest of the option is used."""
+    from pipeline.global_graph import GlobalGraphConfig
+    from pipeline.planners.guide import SHIPPED_POLICY
+
+    blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
+    option = GlobalGraphConfig(centroid_links=1, max_nodes=7, use_region_evaluation=not region_evaluation)
+    planner = make_planner(name, checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, global_graph=option)
+    planner.reset(maze, PROTOCOL, 0)
+    config = planner.global_graph.config
+    assert config.centroid_links == 1
+    assert config.use_region_evaluation is region_evaluation
+    assert config.max_nodes == planner.policy.config.max_nodes

@@ -192,7 +192,7 @@ def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated
     planner.reset(ground_truth, Protocol(), 0)
     observation = Episode(ground_truth, Protocol()).observe()
     planner.plan(observation)
-    reference = make_planner("guide_tsp", inpaint=wall_aware_inpaint, global_graph=planner.graph_config)
+    reference = make_planner("guide_tsp", inpaint=wall_aware_inpaint, global_graph=planner.global_config)
     reference.reset(ground_truth, Protocol(), 0)
     reference.plan(observation)
     assert planner.last_decision["target"] == reference.last_decision["tour"][0]
