@@ -512,15 +512,7 @@ def _train_planner(params: Path, variant: str, accelerator: Optional[str], devic
                    max_epochs: Optional[int]) -> None:
     from stages import train_planner
 
-    _check_params(params)
-    try:
-        train_planner.main(str(params), variant, accelerator, devices, resume, max_epochs)
-    except (FileNotFoundError, ValueError) as error:
-        _fail(str(error))
-    except SystemExit as error:
-        if isinstance(error.code, str):
-            _fail(error.code.removeprefix("error: "))
-        raise
+    _run_stage(train_planner.main, params, variant, accelerator, devices, resume, max_epochs)
 
 
 _Variant = typer.Option("guide", help="guide (global graph with predictions) or dare (observed graph only).")

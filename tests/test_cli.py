@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -165,6 +166,10 @@ def test_stage_commands_without_their_inputs_print_one_line(tmp_path, monkeypatc
     (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier]}\n")
     line = _one_error_line(runner.invoke(app, ["stage", "benchmark"]))
     assert "data/mazes/test" in line and "dvc repro" in line
+    (tmp_path / "params.yaml").write_text((Path(__file__).resolve().parents[1] / "params.yaml").read_text())
+    for command in (["train-planner"], ["stage", "train-planner", "--variant", "dare"]):
+        line = _one_error_line(runner.invoke(app, command))
+        assert "no observations; run the build_observations stage first" in line
 
 
 def test_help_keeps_literal_brackets():
