@@ -22,7 +22,7 @@ from pipeline.maps import GroundTruthMap, load_map
 from pipeline.node_image import PAD_SIZES, node_image_pair
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
-from pipeline.shards import ShardJob, shard_path, write_shard
+from pipeline.shards import ShardJob, read_shard, shard_path, write_shard
 from pipeline.simulator import Episode, run_episode
 
 
@@ -240,8 +240,7 @@ class ExpertEpisode:
 
 def load_expert_episodes(path: str | Path) -> list[ExpertEpisode]:
     """Unpack one Stage II shard into episodes."""
-    with np.load(path, allow_pickle=False) as data:
-        d = {key: data[key] for key in data.files}
+    d = read_shard(path)
     episodes = []
     bit_offsets = np.concatenate([[0], np.cumsum(d["ground_truth_bit_lengths"])])
     step_offsets = np.concatenate([[0], np.cumsum(d["step_counts"])])

@@ -113,11 +113,3 @@ def ray_table(x0: int, y0: int, range_cells: float, angles: np.ndarray) -> RayTa
     """The ray fan cast from (x0, y0); cached, since it is the same at almost every origin."""
     ends = np.ascontiguousarray(ray_end_offsets(x0, y0, range_cells, angles))
     return _ray_table_for(ends.tobytes(), len(ends))
-
-
-def disc_offsets(radius_cells: float) -> np.ndarray:
-    """Integer offsets (x, y) within a Euclidean radius, for neighbourhood queries."""
-    r = int(np.floor(radius_cells))
-    ys, xs = np.mgrid[-r : r + 1, -r : r + 1]
-    keep = xs**2 + ys**2 <= radius_cells**2
-    return np.stack([xs[keep], ys[keep]], axis=1)

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from pipeline.graph import NODE_FREE, NODE_UNKNOWN, REGION_BOUNDARY, REGION_UNOBSERVED, LatticeGraph
+from pipeline.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_UNOBSERVED, LatticeGraph
 from pipeline.geometry import walk_cells
 from pipeline.sensor import OCCUPIED
 
@@ -105,15 +105,6 @@ def filter_predictions(
     density = predicted_per_region / np.maximum(selection.lattice_per_region, 1)
     centroid_regions = low_unobserved & (density >= config.centroid_density) & (predicted_per_region > 0)
     return kept, region_representatives(graph, predicted, pr, centroid_regions, selection.centroids)
-
-
-def evaluate_regions(
-    graph: LatticeGraph, predicted: np.ndarray, robot_xy: np.ndarray, config: RegionEvaluationConfig
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """V_u: (kept predicted node ids, centroid node positions (K, 2), region scores)."""
-    selection = select_regions(graph, robot_xy, config)
-    kept, centroid_xy = filter_predictions(graph, predicted, selection, config)
-    return kept, centroid_xy, selection.scores
 
 
 def region_representatives(

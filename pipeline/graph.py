@@ -285,11 +285,6 @@ class LatticeGraph:
         return np.nonzero(self.node_state == NODE_FREE)[0]
 
     @property
-    def obstacle_nodes(self) -> np.ndarray:
-        """Ids of the obstacle nodes V_o."""
-        return np.nonzero(self.node_state == NODE_OCCUPIED)[0]
-
-    @property
     def edges(self) -> np.ndarray:
         """Valid undirected edges (a, b) between known free nodes."""
         return self.edge_nodes[self.edge_valid]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.global_graph import FEATURE_NAMES, GlobalGraph
+from pipeline.global_graph import GlobalGraph
 
 
 @dataclass
@@ -69,19 +69,6 @@ def expert_action_deltas(position, future_waypoints: np.ndarray, node_resolution
     return steps
 
 
-def stack_history(history: list[GraphObservation], obs_steps: int) -> dict[str, np.ndarray]:
-    """The last `obs_steps` observations as batched arrays (B=1, T_o, ...); the first one repeats at the start."""
-    if not history:
-        raise ValueError("no observation to stack")
-    picked = [history[max(0, len(history) - obs_steps + k)] for k in range(obs_steps)]
-    return {
-        "features": np.stack([o.features for o in picked])[None],
-        "node_mask": np.stack([o.node_mask for o in picked])[None],
-        "neighbors": np.stack([o.neighbors for o in picked]).astype(np.int64)[None],
-        "robot": np.array([[o.robot for o in picked]], dtype=np.int64),
-    }
-
-
 def rotate_steps(steps: np.ndarray, k: int, flip: bool) -> np.ndarray:
     """The dihedral symmetry (k quarter turns, then an optional x flip) applied to (..., 2) vectors."""
     out = np.asarray(steps).copy()
@@ -91,6 +78,3 @@ def rotate_steps(steps: np.ndarray, k: int, flip: bool) -> np.ndarray:
         out = out.copy()
         out[..., 0] = -out[..., 0]
     return out
-
-
-FEATURE_DIM = len(FEATURE_NAMES)

@@ -100,10 +100,6 @@ class Belief:
         self.grid = np.full(shape, UNKNOWN, dtype=np.uint8)
         self.free_count = 0
 
-    @property
-    def free_mask(self) -> np.ndarray:
-        return self.grid == FREE
-
     def apply(self, result: ScanResult) -> np.ndarray:
         """Write a scan into the belief; returns the flat indices of cells that changed."""
         flat = self.grid.reshape(-1)

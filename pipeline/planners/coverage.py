@@ -136,7 +136,6 @@ class ExpertPlanner(GraphPlanner):
         self.detour: list[int] = []  # committed known-free route (local nodes), next first
         self.planned = False
         self.fresh_search = True  # next replan also runs fresh constructions
-        self.replans = 0
         self.detours = 0  # times the ground-truth path's next edge was not known free
 
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -193,7 +192,6 @@ class ExpertPlanner(GraphPlanner):
         self.tour = [v for v in plan.order[1:] if v != robot]
         self.planned = True
         self.fresh_search = False
-        self.replans += 1
 
     def _detour(self, robot: int) -> list[int]:
         """A known-free route for when the ground-truth path's next edge is not known free.

@@ -2,12 +2,13 @@
 
 - `guide_tsp`: the GUIDE paper's "w/o diffusion" ablation. Every decision: update the
   lattice graph, predict V_p (Global Node Predictor), build the region-evaluated global
-  graph (known + kept predicted nodes + centroids, boosted utilities), sample target nodes
-  by boosted utility (the `top_k` known useful nodes, best first, skipping any within
-  `spread` metres of one already chosen), order them by an open TSP path from the robot
-  over shortest-path distances *on the global graph* (so predicted nodes shape the
-  distances and the order), and take one lattice step toward the first target along the
-  shortest path on the *known* lattice graph. Re-plan at every step.
+  graph (known + kept predicted nodes + centroids, boosted utilities), cluster the known
+  useful nodes (seeded highest boosted utility first, members within `spread` metres),
+  order the clusters by an open TSP path from the robot over shortest-path distances *on
+  the global graph* (so predicted nodes shape the distances and the order), pick the
+  first target by weight per metre plus tour regret (`GuideTspPlanner` says how), and take
+  one lattice step toward it along the shortest path on the *known* lattice graph.
+  Re-plan at every step.
 - `mapex`: after MapEx (Ho et al., 2024). Candidate viewpoints are the useful nodes
   (unvisited known free nodes that see frontier). The predicted map is the belief with a
   disc of radius node_resolution / 2 painted free around every predicted node (unknown
@@ -27,14 +28,14 @@ target is chosen, never the path driven.
 
 Predictor: an `inpaint` callable (uint8 node image -> free probability; tests pass an
 oracle) wins; else a `checkpoint` path, else `models/inpainter/inpainter.pt` when it exists,
-loaded once per process (module-level cache) and run through `TracedInpainter`. With none,
+else the inpainter shipped in `pipeline/assets/`; a file is loaded once per process
+(module-level cache) and run through `TracedInpainter`. With none,
 nothing is predicted and both planners reduce to their frontier-only versions (the
 instance's `description` says which predictor is in use).
 """
 
 from __future__ import annotations
 
-import threading
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -48,6 +49,7 @@ from pipeline.graph import LatticeGraph, visible_counts
 from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
+from pipeline.planners.model_cache import load_once
 from pipeline.planners.tare import tsp_path
 from pipeline.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
@@ -61,26 +63,18 @@ InpaintFn = Callable[[np.ndarray], np.ndarray]
 SPREAD_NODES = 2.5
 HYSTERESIS_NODES = 2.0
 
-_MODEL_CACHE: dict[str, tuple[InpaintFn, dict | None]] = {}
-_MODEL_LOCK = threading.Lock()
+
+def _read_inpainter(path: Path) -> tuple[InpaintFn, dict | None]:
+    from pipeline.models.modeling_inpainter import TracedInpainter
+    from pipeline.training.inpainter import inpainter_from_payload, read_export
+
+    payload = read_export(path)
+    model, _ = inpainter_from_payload(payload, path)
+    return TracedInpainter(model).predict, payload.get("protocol")
 
 
 def _load_inpainter_once(path: str | Path) -> tuple[InpaintFn, dict | None]:
-    key = str(Path(path).resolve())
-    with _MODEL_LOCK:
-        if key not in _MODEL_CACHE:
-            import torch
-
-            from pipeline.models.modeling_inpainter import TracedInpainter
-            from pipeline.training.inpainter import inpainter_from_payload, read_export
-
-            # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
-            # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
-            torch.set_num_threads(1)
-            payload = read_export(path)
-            model, _ = inpainter_from_payload(payload, path)
-            _MODEL_CACHE[key] = (TracedInpainter(model).predict, payload.get("protocol"))
-    return _MODEL_CACHE[key]
+    return load_once("inpainter", path, _read_inpainter)
 
 
 def cached_inpainter(path: str | Path) -> InpaintFn:

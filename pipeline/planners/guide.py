@@ -51,7 +51,6 @@ Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/plan
 
 from __future__ import annotations
 
-import threading
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -64,6 +63,7 @@ from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD
 from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
+from pipeline.planners.model_cache import load_once
 from pipeline.protocol import Protocol
 from pipeline.simulator import Observation
 
@@ -71,27 +71,18 @@ ASSETS = Path(__file__).resolve().parent.parent / "assets"
 PIPELINE_POLICY = {"guide": Path("models/planner_guide/policy.pt"), "dare": Path("models/planner_dare/policy.pt")}
 SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
 
-_POLICY_CACHE: dict[str, tuple[object, str | None]] = {}
-_POLICY_LOCK = threading.Lock()
+def _read_policy(path: Path) -> tuple[object, dict]:
+    from pipeline.training.planner import load_policy
+
+    policy, meta = load_policy(path)
+    return policy.trace_denoiser(), dict(meta.get("observations") or {})
 
 
-def cached_policy(path: str | Path):
+def cached_policy(path: str | Path) -> tuple[object, dict]:
     """(the exported policy at `path`, the metadata of the observations it was trained on: variant,
     threshold, count_threshold, ...; {} for an export without it), loaded once per process (eval
     mode, traced denoiser)."""
-    key = str(Path(path).resolve())
-    with _POLICY_LOCK:
-        if key not in _POLICY_CACHE:
-            import torch
-
-            from pipeline.training.planner import load_policy
-
-            # One thread: a second OpenMP thread makes a 32 px prediction 40x slower when the cores are
-            # shared (13 ms -> 490 ms measured with two benchmark workers), and gains nothing when they are not.
-            torch.set_num_threads(1)
-            policy, meta = load_policy(path)
-            _POLICY_CACHE[key] = (policy.trace_denoiser(), dict(meta.get("observations") or {}))
-    return _POLICY_CACHE[key]
+    return load_once("policy", path, _read_policy)
 
 
 def warn_if_trained_at_other_taus(path, trained_on: dict, threshold: float, count_threshold: float | None) -> None:

@@ -808,7 +808,7 @@ def train_inpainter(
 
 def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
            init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location,
-           protocol=None) -> Path:
+           protocol=None) -> Path | None:
     from pipeline.tracking import resolve_tracking_uri
 
     # Everything that can fail is checked before a file is touched or an MLflow run is made: the
