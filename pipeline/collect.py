@@ -31,7 +31,8 @@ from pipeline.simulator import Episode, run_episode
 # editing an unrelated module (a learned planner, say) never throws collected data away.
 WORLD_SOURCES = ("collect.py", "shards.py", "simulator.py", "sensor.py", "geometry.py", "graph.py", "frontier.py",
                  "maps.py", "protocol.py", "planners/base.py")
-PAIRS_SOURCES = WORLD_SOURCES + ("node_image.py", "planners/frontier.py", "planners/nbvp.py", "planners/tare.py")
+PAIRS_SOURCES = WORLD_SOURCES + ("node_image.py", "planners/frontier.py", "planners/nbvp.py", "planners/tare.py",
+                                "tsp.py")
 EXPERT_SOURCES = WORLD_SOURCES + ("coverage.py", "planners/coverage.py")
 
 

@@ -183,6 +183,11 @@ class GraphPlanner(Planner):
             useful = np.nonzero((self.graph.utility > 0) & ~self.visited)[0]
         return useful
 
+    def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
+        """The useful nodes other than the robot's own that known-free paths reach (`dist` from the robot)."""
+        targets = self.useful_nodes()
+        return targets[np.isfinite(dist[targets]) & (targets != robot)]
+
     def nearest_useful_step(self, robot: int) -> list[Waypoint]:
         """One step along the shortest path to the nearest useful node (Yamauchi's rule).
 
@@ -191,8 +196,7 @@ class GraphPlanner(Planner):
         graph = self.graph
         assert graph is not None
         dist, pred = graph.shortest_paths(robot)
-        targets = self.useful_nodes()
-        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        targets = self.reachable_useful(robot, dist)
         if targets.size == 0:
             return []
         order = np.lexsort((-graph.utility[targets], np.round(dist[targets], 6)))

@@ -29,8 +29,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         graph = self.update_graph(observation)
         robot = self.robot_node(observation)
         dist, pred = graph.shortest_paths(robot)
-        targets = self.useful_nodes()
-        targets = targets[np.isfinite(dist[targets]) & (targets != robot)]
+        targets = self.reachable_useful(robot, dist)
         if targets.size == 0:
             return []
         score = graph.utility[targets] / dist[targets]

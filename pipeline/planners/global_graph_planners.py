@@ -50,10 +50,10 @@ from pipeline.maps import GroundTruthMap
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictor, NodePredictorConfig
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.model_cache import load_once
-from pipeline.planners.tare import tsp_path
 from pipeline.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Observation
+from pipeline.tsp import path_length, tsp_path
 
 DEFAULT_CHECKPOINT = Path("models/inpainter/inpainter.pt")
 SHIPPED_CHECKPOINT = Path(__file__).resolve().parent.parent / "assets" / "inpainter.pt"  # small default shipped with the package
@@ -158,10 +158,6 @@ class _PredictingPlanner(GraphPlanner):
             none = np.zeros(0, dtype=np.int64)
             return none, none
         return self.predictor.predict_with_counted(self.graph)
-
-    def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
-        targets = self.useful_nodes()
-        return targets[np.isfinite(dist[targets]) & (targets != robot)]
 
     def locate(self, observation: Observation) -> tuple[LatticeGraph, int, np.ndarray, np.ndarray, np.ndarray]:
         """Every decision's start: the updated graph, the robot's node, known-graph distances and
@@ -334,7 +330,7 @@ class GuideTspPlanner(_PredictingPlanner):
             rest = [i for i in range(len(d)) if i not in (0, first)]
             tail = tsp_path(d[np.ix_([first] + rest, [first] + rest)], None, self.exact_max, self.max_moves)
             order = [0, first] + [rest[i - 1] for i in tail[1:]]
-        return order, float(sum(d[a, b] for a, b in zip(order[:-1], order[1:])))
+        return order, path_length(d, order)
 
     def first_target_scores(self, robot: int, dist: np.ndarray, candidates: np.ndarray) -> dict:
         """Cluster the useful nodes, tour them, and score the possible first targets (steps 1-3).

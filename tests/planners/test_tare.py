@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import pytest
@@ -12,7 +11,7 @@ from pipeline.graph import visible_counts
 from pipeline.maps import GroundTruthMap, load_maze_png
 from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_names
-from pipeline.planners.tare import TarePlanner, greedy_set_cover, path_length, tsp_path, visible_frontier_cells
+from pipeline.planners.tare import TarePlanner, greedy_set_cover, visible_frontier_cells
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Episode, Observation, replay, run_episode
@@ -102,44 +101,7 @@ def test_visible_frontier_cells_match_the_graph_utility_counts():
         assert np.all(np.diff(s) > 0)
 
 
-# --------------------------------------------------------------------------- TSP and cover
-def _random_metric(n: int, rng: np.random.Generator) -> np.ndarray:
-    points = rng.random((n, 2)) * 100.0
-    return np.hypot(*(points[:, None, :] - points[None, :, :]).transpose(2, 0, 1))
-
-
-@pytest.mark.parametrize("end", [None, "fixed"])
-def test_tsp_path_is_optimal_on_small_instances(end):
-    rng = np.random.default_rng(11)
-    for _ in range(12):
-        n = int(rng.integers(3, 8))
-        d = _random_metric(n, rng)
-        last = None if end is None else int(rng.integers(1, n))
-        order = tsp_path(d, last)
-        assert order[0] == 0 and sorted(order) == list(range(n))
-        if last is not None:
-            assert order[-1] == last
-        best = min(
-            path_length(d, [0, *perm])
-            for perm in itertools.permutations(range(1, n))
-            if last is None or perm[-1] == last
-        )
-        assert path_length(d, order) == pytest.approx(best)
-
-
-def test_tsp_path_heuristic_keeps_the_ends_and_beats_a_naive_order():
-    rng = np.random.default_rng(2)
-    d = _random_metric(35, rng)
-    for last in (None, 17):
-        order = tsp_path(d, last, exact_max=8)
-        assert order[0] == 0 and sorted(order) == list(range(35))
-        if last is not None:
-            assert order[-1] == last
-        naive = [0, *[k for k in range(1, 35) if k != last], *([last] if last is not None else [])]
-        assert path_length(d, order) < 0.6 * path_length(d, naive)
-        assert tsp_path(d, last, exact_max=8) == order  # deterministic
-
-
+# --------------------------------------------------------------------------- cover
 def test_greedy_set_cover():
     sets = [np.array([1, 2, 3]), np.array([3, 4]), np.array([4, 5, 6, 7]), np.array([1, 2]), np.array([9])]
     cost = np.array([5.0, 1.0, 2.0, 0.5, 1.0])
