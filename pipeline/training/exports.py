@@ -6,6 +6,7 @@ load; a file that is not a model export fails with a ValueError naming it, not a
 
 from __future__ import annotations
 
+import os
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -34,3 +35,14 @@ def read_weights_file(path: str | Path, what: str, map_location: str | torch.dev
     if not isinstance(payload, dict):
         raise ValueError(f"{path}: not {what} (it holds a {type(payload).__name__}, not a dict)")
     return payload
+
+
+def write_weights_file(payload: dict[str, Any], path: str | Path) -> Path:
+    """`torch.save(payload)` to `path`, atomically: a reader never sees half a file, and two
+    processes writing the same path (a multi-GPU run) never share a temporary file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+    return path

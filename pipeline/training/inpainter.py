@@ -29,14 +29,10 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import pickle
-import shutil
 import time
 import warnings
 import zipfile
-from contextlib import contextmanager
-from datetime import timedelta
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterator, Optional, Sequence
@@ -55,7 +51,17 @@ from pipeline.models.modeling_inpainter import (
     load_big_lama_generator,
 )
 from pipeline.shards import read_manifest
-from pipeline.training.exports import read_weights_file
+from pipeline.training.exports import read_weights_file, write_weights_file
+from pipeline.training.run_setup import (
+    check_accelerator,
+    check_max_minutes,
+    fresh_checkpoints,
+    make_trainer,
+    max_time,
+    mlflow_logger,
+    one_line,
+    torch_threads,
+)
 
 EXPORT_FORMAT = "guide-inpainter/1"
 EXPORT_NAME = "inpainter.pt"
@@ -97,17 +103,6 @@ class TrainConfig:
         if unknown:
             raise ValueError(f"unknown training keys {unknown}; known: {sorted(known)}")
         return cls(**values)
-
-
-def check_max_minutes(value: Any) -> None:
-    """`max_minutes` is null or a positive number of minutes."""
-    if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
-        raise ValueError(f"max_minutes must be null or a positive number of minutes, got {value!r}")
-
-
-def max_time(max_minutes: Optional[float]) -> Optional[timedelta]:
-    """Lightning's `max_time` for a `max_minutes` setting (None: no cap)."""
-    return None if max_minutes is None else timedelta(minutes=float(max_minutes))
 
 
 # ----------------------------------------------------------------------------- masks, loss, metrics
@@ -545,8 +540,6 @@ class InpainterLightning(L.LightningModule):
 # ----------------------------------------------------------------------------- export / load
 def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) -> Path:
     """Write `inpainter.pt`: {format, config, state_dict, ...extra}; atomic."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "format": EXPORT_FORMAT,
         "config": generator.config.to_dict(),
@@ -554,10 +547,7 @@ def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) 
         "num_parameters": generator.num_parameters(),
         **extra,
     }
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    torch.save(payload, tmp)
-    os.replace(tmp, path)
-    return path
+    return write_weights_file(payload, path)
 
 
 def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
@@ -586,128 +576,6 @@ def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[I
 def read_export(path: str | Path) -> dict[str, Any]:
     """The whole exported payload (config, state_dict, metrics, history, timings)."""
     return read_weights_file(path, "an inpainter export")
-
-
-# ----------------------------------------------------------------------------- settings checks
-def one_line(error: BaseException, limit: int = 200) -> str:
-    """An exception as one short line (its first line, or its type when it has no message)."""
-    lines = str(error).strip().splitlines()
-    text = lines[0].strip() if lines else type(error).__name__
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _parse_devices(devices: Any) -> int | list[int] | str:
-    """Lightning's `devices` as a count, a list of indices or "auto"; ValueError for anything else."""
-    if isinstance(devices, str):
-        text = devices.strip()
-        if text == "auto":
-            return text
-        try:
-            return int(text)
-        except ValueError:
-            pass
-        try:
-            return [int(part) for part in text.split(",") if part.strip()] or devices
-        except ValueError:
-            pass
-    elif isinstance(devices, int) and not isinstance(devices, bool):
-        return devices
-    elif isinstance(devices, (list, tuple)) and all(isinstance(d, int) and not isinstance(d, bool) for d in devices):
-        return list(devices)
-    raise ValueError(f"devices {devices!r}: use a number of devices (1, 2, ...), 'auto', or device indices such as '0,1'")
-
-
-def check_accelerator(accelerator: Any, devices: Any) -> None:
-    """ValueError (one line, naming the option and what is available) for training settings
-    Lightning would refuse: an unknown accelerator or one this machine lacks, or no devices."""
-    from lightning.pytorch.accelerators import Accelerator, AcceleratorRegistry
-
-    names = sorted({"auto", "gpu", *AcceleratorRegistry.available_accelerators()})
-    gpu = torch.cuda.is_available() or torch.backends.mps.is_available()
-    kind = accelerator
-    if isinstance(accelerator, Accelerator):
-        kind = None
-    elif not isinstance(accelerator, str) or accelerator not in names:
-        usable = ["auto", "cpu"] + [n for n in names if n not in ("auto", "cpu", "gpu")
-                                    and AcceleratorRegistry[n]["accelerator"].is_available()]
-        raise ValueError(f"accelerator {accelerator!r}: unknown; use one of {', '.join(names)} "
-                         f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})")
-    elif accelerator == "gpu":
-        if not gpu:
-            raise ValueError(f"accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
-                             "use cpu or auto")
-        kind = "cuda" if torch.cuda.is_available() else "mps"
-    elif accelerator == "cuda" and not torch.cuda.is_available():
-        raise ValueError("accelerator 'cuda': no CUDA GPU is visible to torch (torch.cuda.is_available() is False); "
-                         "use cpu or auto")
-    elif accelerator not in ("auto", "cpu", "cuda") and not AcceleratorRegistry[accelerator]["accelerator"].is_available():
-        hint = {"mps": "torch.backends.mps.is_available() is False", "tpu": "torch_xla is missing or finds no TPU"}.get(accelerator, "")
-        raise ValueError(f"accelerator {accelerator!r}: not available on this machine{f' ({hint})' if hint else ''}; "
-                         "use cpu or auto")
-    if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
-        kind = "cpu"  # what Lightning picks here
-    wanted = _parse_devices(devices)
-    if isinstance(wanted, int) and wanted <= 0:
-        raise ValueError(f"devices {devices!r}: need at least one device; use a positive number, 'auto', "
-                         "or device indices such as '0,1'")
-    if isinstance(wanted, list):
-        if not wanted or min(wanted) < 0:
-            raise ValueError(f"devices {devices!r}: device indices must be non-negative (such as '0,1')")
-        if kind == "cpu":
-            raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
-    if kind == "cuda":
-        count = torch.cuda.device_count()
-        asked = wanted if isinstance(wanted, int) else (max(wanted) + 1 if isinstance(wanted, list) else 0)
-        if asked > count:
-            raise ValueError(f"devices {devices!r}: torch sees {count} CUDA GPU{'s' if count != 1 else ''} here")
-
-
-def make_trainer(**options: Any) -> "L.Trainer":
-    """`L.Trainer(**options)`, with Lightning's refusal of the accelerator or devices as a one-line ValueError."""
-    from lightning.fabric.utilities.exceptions import MisconfigurationException
-
-    try:
-        return L.Trainer(**options)
-    except MisconfigurationException as error:
-        raise ValueError(f"training settings accelerator={options.get('accelerator')!r}, "
-                         f"devices={options.get('devices')!r}: {one_line(error)}") from None
-
-
-PREVIOUS_CHECKPOINTS = "previous_checkpoints"
-
-
-@contextmanager
-def fresh_checkpoints(out_dir: Path, fresh: bool = True) -> Iterator[None]:
-    """Around a fresh run's `fit`: set the previous run's `*.ckpt` aside, and drop them once it succeeds.
-
-    Old `best` / `last` files would confuse ModelCheckpoint, but deleting them up front lost a
-    good model whenever the new run crashed. If `fit` fails (an exception, Ctrl-C) before it
-    wrote a checkpoint, the old ones are put back; if it wrote some (resumable with --resume),
-    the old ones stay in `out_dir/previous_checkpoints/` and a warning says so. Only the
-    rank-zero process moves files (the others of a multi-GPU run re-enter this code).
-    """
-    if not fresh or os.environ.get("LOCAL_RANK", "0") != "0" or os.environ.get("NODE_RANK", "0") != "0":
-        yield
-        return
-    aside = out_dir / PREVIOUS_CHECKPOINTS
-    stale = sorted(out_dir.glob("*.ckpt"))
-    if stale:
-        shutil.rmtree(aside, ignore_errors=True)
-        aside.mkdir()
-        for path in stale:
-            path.replace(aside / path.name)
-    try:
-        yield
-    except BaseException:
-        if stale and not any(out_dir.glob("*.ckpt")):
-            for path in aside.glob("*.ckpt"):
-                path.replace(out_dir / path.name)
-            shutil.rmtree(aside, ignore_errors=True)
-        elif stale:
-            warnings.warn(f"training stopped after writing new checkpoints in {out_dir} (continue with --resume); "
-                          f"the previous run's are in {aside}", stacklevel=3)
-        raise
-    shutil.rmtree(aside, ignore_errors=True)
 
 
 # What torch.save wrote before its zip format: a pickled magic number (protocol 2) opens the file.
@@ -795,22 +663,15 @@ def train_inpainter(
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
     (MLflow's default: ./mlruns).
     """
-    previous_threads = torch.get_num_threads()
-    if num_threads:
-        torch.set_num_threads(int(num_threads))
-    try:
+    with torch_threads(num_threads):
         return _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume,
                       tracking_uri, init_checkpoint, train_config, mlflow, experiment_name, run_name, progress,
                       artifact_location, protocol)
-    finally:
-        torch.set_num_threads(previous_threads)
 
 
 def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
            init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location,
            protocol=None) -> Path | None:
-    from pipeline.tracking import resolve_tracking_uri
-
     # Everything that can fail is checked before a file is touched or an MLflow run is made: the
     # settings, the init checkpoint and the data; old checkpoints go only just before fit().
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
@@ -862,13 +723,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
 
     checkpoint = ModelCheckpoint(dirpath=out_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
                                  save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
-    logger: Any = False
-    if mlflow:
-        os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-        from lightning.pytorch.loggers import MLFlowLogger
-
-        logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
-                              tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
+    logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri, artifact_location) if mlflow else False
     trainer_options = dict(
         max_epochs=tc.max_epochs,
         max_time=max_time(tc.max_minutes),

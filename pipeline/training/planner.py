@@ -9,7 +9,6 @@ loss and how often the first sampled step equals the expert's.
 
 from __future__ import annotations
 
-import os
 import time
 import warnings
 from dataclasses import asdict, dataclass, fields
@@ -25,8 +24,16 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
-from pipeline.training.exports import read_weights_file
-from pipeline.training.inpainter import check_accelerator, check_max_minutes, fresh_checkpoints, make_trainer, max_time
+from pipeline.training.exports import read_weights_file, write_weights_file
+from pipeline.training.run_setup import (
+    check_accelerator,
+    check_max_minutes,
+    fresh_checkpoints,
+    make_trainer,
+    max_time,
+    mlflow_logger,
+    torch_threads,
+)
 
 EXPORT_NAME = "policy.pt"
 LAST_CKPT = "last.ckpt"
@@ -165,12 +172,7 @@ class PlannerLightning(L.LightningModule):
 
 
 def export_policy(policy: DiffusionPolicy, path: str | Path, **extra: Any) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save({"config": policy.config.to_dict(), "state_dict": policy.state_dict(), **extra}, tmp)
-    tmp.replace(path)
-    return path
+    return write_weights_file({"config": policy.config.to_dict(), "state_dict": policy.state_dict(), **extra}, path)
 
 
 def read_policy_export(path: str | Path) -> dict[str, Any]:
@@ -214,8 +216,6 @@ def train_planner(
     (`fresh_checkpoints`), once the settings and the data have been checked (a run that
     fails early leaves them alone).
     """
-    from pipeline.tracking import resolve_tracking_uri
-
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
     check_accelerator(accelerator, devices)  # before any file is touched or an MLflow run is made
@@ -230,10 +230,7 @@ def train_planner(
     if arrays["actions"].shape[1] < mc.horizon:
         raise ValueError(f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}")
     arrays["actions"] = arrays["actions"][:, : mc.horizon]
-    previous_threads = torch.get_num_threads()
-    if num_threads:
-        torch.set_num_threads(int(num_threads))
-    try:
+    with torch_threads(num_threads):
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         last = out_dir / LAST_CKPT
@@ -253,12 +250,7 @@ def train_planner(
         module = PlannerLightning(mc.to_dict(), asdict(tc))
         checkpoint = ModelCheckpoint(dirpath=out_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
                                      save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
-        logger: Any = False
-        if mlflow:
-            os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-            from lightning.pytorch.loggers import MLFlowLogger
-
-            logger = MLFlowLogger(experiment_name=experiment_name, run_name=run_name, tracking_uri=resolve_tracking_uri(tracking_uri))
+        logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri) if mlflow else False
         trainer = make_trainer(
             max_epochs=tc.max_epochs, max_time=max_time(tc.max_minutes), accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
             default_root_dir=str(out_dir), enable_progress_bar=progress, enable_model_summary=False,
@@ -285,5 +277,3 @@ def train_planner(
                 logger.experiment.log_metric(logger.run_id, "num_parameters", module.policy.num_parameters())
                 logger.experiment.log_artifact(logger.run_id, str(export_path))
         return export_path if trainer.is_global_zero else None
-    finally:
-        torch.set_num_threads(previous_threads)

@@ -18,12 +18,9 @@ from pipeline.training.inpainter import (
     NodeImagePairDataset,
     SizeGroupedBatchSampler,
     TrainConfig,
-    check_accelerator,
     dihedral,
-    PREVIOUS_CHECKPOINTS,
     evaluate_inpainter,
     hide_box,
-    fresh_checkpoints,
     hole_counts,
     inpainting_loss,
     load_inpainter,
@@ -36,6 +33,7 @@ from pipeline.training.inpainter import (
     split_pairs,
     train_inpainter,
 )
+from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
 
 TINY = {"ngf": 4, "n_blocks": 1}
 FAST = {"batch_size": 8, "val_fraction": 0.25, "lr": 0.005, "split": "rollout"}  # fixed batch counts
@@ -321,36 +319,6 @@ def test_a_failed_run_keeps_the_previous_checkpoints(pairs_dir, tmp_path):
         assert file_bytes(out) == before, options
 
 
-def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_path):
-    out = tmp_path / "ckpts"
-    out.mkdir()
-    (out / "best.ckpt").write_text("old best")
-    (out / "last.ckpt").write_text("old last")
-    (out / "inpainter.pt").write_text("export")
-    with fresh_checkpoints(out):  # success: the old checkpoints are gone, other files stay
-        assert not list(out.glob("*.ckpt")) and (out / PREVIOUS_CHECKPOINTS / "best.ckpt").is_file()
-        (out / "last.ckpt").write_text("new last")
-    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"new last"}
-    assert not (out / PREVIOUS_CHECKPOINTS).exists()
-
-    (out / "best.ckpt").write_text("old best")
-    with pytest.raises(KeyboardInterrupt), fresh_checkpoints(out):  # fails before writing any: old ones come back
-        raise KeyboardInterrupt
-    assert file_bytes(out) == {"best.ckpt": b"old best", "inpainter.pt": b"export", "last.ckpt": b"new last"}
-    assert not (out / PREVIOUS_CHECKPOINTS).exists()
-
-    with pytest.raises(RuntimeError), pytest.warns(UserWarning, match="continue with --resume.*previous_checkpoints"):
-        with fresh_checkpoints(out):  # fails after writing one: the new one stays (resumable), the old ones aside
-            (out / "last.ckpt").write_text("crashed run")
-            raise RuntimeError("out of memory")
-    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
-    assert file_bytes(out / PREVIOUS_CHECKPOINTS) == {"best.ckpt": b"old best", "last.ckpt": b"new last"}
-
-    with fresh_checkpoints(out, fresh=False):  # a resumed run leaves everything in place
-        pass
-    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
-
-
 def test_a_run_that_crashes_in_fit_keeps_the_previous_checkpoints(pairs_dir, tmp_path, monkeypatch):
     import lightning as L
 
@@ -381,37 +349,6 @@ def test_bad_settings_and_missing_data_fail_before_mlflow_and_files(pairs_dir, t
     assert client.get_experiment_by_name("inpainter-bad-settings") is None
     assert client.get_experiment_by_name("inpainter-no-data") is None
     assert not out.exists()
-
-
-@pytest.mark.parametrize("accelerator, devices, message", [
-    ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
-    ("CPU", 1, r"accelerator 'CPU': unknown"),
-    ("cpu", 0, r"devices 0: need at least one device"),
-    ("auto", -1, r"devices -1: need at least one device"),
-    ("cpu", "two", r"devices 'two': use a number of devices"),
-    ("cpu", True, r"devices True: use a number of devices"),
-    ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
-])
-def test_training_settings_are_checked(accelerator, devices, message):
-    with pytest.raises(ValueError, match=message):
-        check_accelerator(accelerator, devices)
-
-
-def test_unavailable_accelerators_are_named():
-    from lightning.pytorch.accelerators import XLAAccelerator
-
-    for accelerator, devices in (("cpu", 1), ("cpu", "2"), ("auto", "auto"), ("auto", 1)):
-        check_accelerator(accelerator, devices)  # accepted
-    if not torch.cuda.is_available():
-        for name in ("gpu", "cuda"):
-            with pytest.raises(ValueError, match=rf"accelerator '{name}': no (CUDA )?GPU is visible to torch .*use cpu or auto"):
-                check_accelerator(name, 1)
-    else:
-        with pytest.raises(ValueError, match=r"devices 99: torch sees \d+ CUDA GPU"):
-            check_accelerator("gpu", 99)
-    if not XLAAccelerator.is_available():
-        with pytest.raises(ValueError, match=r"accelerator 'tpu': not available on this machine .*use cpu or auto"):
-            check_accelerator("tpu", 1)
 
 
 def test_init_checkpoint_reading(tmp_path):

@@ -1,0 +1,178 @@
+"""What every training run shares: settings checks, the Lightning trainer, old checkpoints set
+aside, torch's CPU threads and the MLflow logger.
+
+The inpainter (Stage I) and the diffusion planner (Stage II) train the same way: settings
+are checked before a file is touched or an MLflow run is made, Lightning's refusals become
+one-line ValueErrors, and a fresh run never loses the previous run's checkpoints until it has
+its own.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import warnings
+from contextlib import contextmanager
+from datetime import timedelta
+from pathlib import Path
+from typing import Any, Iterator, Optional
+
+import lightning as L
+import torch
+
+
+def check_max_minutes(value: Any) -> None:
+    """`max_minutes` is null or a positive number of minutes."""
+    if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
+        raise ValueError(f"max_minutes must be null or a positive number of minutes, got {value!r}")
+
+
+def max_time(max_minutes: Optional[float]) -> Optional[timedelta]:
+    """Lightning's `max_time` for a `max_minutes` setting (None: no cap)."""
+    return None if max_minutes is None else timedelta(minutes=float(max_minutes))
+
+
+def one_line(error: BaseException, limit: int = 200) -> str:
+    """An exception as one short line (its first line, or its type when it has no message)."""
+    lines = str(error).strip().splitlines()
+    text = lines[0].strip() if lines else type(error).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _parse_devices(devices: Any) -> int | list[int] | str:
+    """Lightning's `devices` as a count, a list of indices or "auto"; ValueError for anything else."""
+    if isinstance(devices, str):
+        text = devices.strip()
+        if text == "auto":
+            return text
+        try:
+            return int(text)
+        except ValueError:
+            pass
+        try:
+            return [int(part) for part in text.split(",") if part.strip()] or devices
+        except ValueError:
+            pass
+    elif isinstance(devices, int) and not isinstance(devices, bool):
+        return devices
+    elif isinstance(devices, (list, tuple)) and all(isinstance(d, int) and not isinstance(d, bool) for d in devices):
+        return list(devices)
+    raise ValueError(f"devices {devices!r}: use a number of devices (1, 2, ...), 'auto', or device indices such as '0,1'")
+
+
+def check_accelerator(accelerator: Any, devices: Any) -> None:
+    """ValueError (one line, naming the option and what is available) for training settings
+    Lightning would refuse: an unknown accelerator or one this machine lacks, or no devices."""
+    from lightning.pytorch.accelerators import Accelerator, AcceleratorRegistry
+
+    names = sorted({"auto", "gpu", *AcceleratorRegistry.available_accelerators()})
+    gpu = torch.cuda.is_available() or torch.backends.mps.is_available()
+    kind = accelerator
+    if isinstance(accelerator, Accelerator):
+        kind = None
+    elif not isinstance(accelerator, str) or accelerator not in names:
+        usable = ["auto", "cpu"] + [n for n in names if n not in ("auto", "cpu", "gpu")
+                                    and AcceleratorRegistry[n]["accelerator"].is_available()]
+        raise ValueError(f"accelerator {accelerator!r}: unknown; use one of {', '.join(names)} "
+                         f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})")
+    elif accelerator == "gpu":
+        if not gpu:
+            raise ValueError(f"accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
+                             "use cpu or auto")
+        kind = "cuda" if torch.cuda.is_available() else "mps"
+    elif accelerator == "cuda" and not torch.cuda.is_available():
+        raise ValueError("accelerator 'cuda': no CUDA GPU is visible to torch (torch.cuda.is_available() is False); "
+                         "use cpu or auto")
+    elif accelerator not in ("auto", "cpu", "cuda") and not AcceleratorRegistry[accelerator]["accelerator"].is_available():
+        hint = {"mps": "torch.backends.mps.is_available() is False", "tpu": "torch_xla is missing or finds no TPU"}.get(accelerator, "")
+        raise ValueError(f"accelerator {accelerator!r}: not available on this machine{f' ({hint})' if hint else ''}; "
+                         "use cpu or auto")
+    if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
+        kind = "cpu"  # what Lightning picks here
+    wanted = _parse_devices(devices)
+    if isinstance(wanted, int) and wanted <= 0:
+        raise ValueError(f"devices {devices!r}: need at least one device; use a positive number, 'auto', "
+                         "or device indices such as '0,1'")
+    if isinstance(wanted, list):
+        if not wanted or min(wanted) < 0:
+            raise ValueError(f"devices {devices!r}: device indices must be non-negative (such as '0,1')")
+        if kind == "cpu":
+            raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
+    if kind == "cuda":
+        count = torch.cuda.device_count()
+        asked = wanted if isinstance(wanted, int) else (max(wanted) + 1 if isinstance(wanted, list) else 0)
+        if asked > count:
+            raise ValueError(f"devices {devices!r}: torch sees {count} CUDA GPU{'s' if count != 1 else ''} here")
+
+
+def make_trainer(**options: Any) -> "L.Trainer":
+    """`L.Trainer(**options)`, with Lightning's refusal of the accelerator or devices as a one-line ValueError."""
+    from lightning.fabric.utilities.exceptions import MisconfigurationException
+
+    try:
+        return L.Trainer(**options)
+    except MisconfigurationException as error:
+        raise ValueError(f"training settings accelerator={options.get('accelerator')!r}, "
+                         f"devices={options.get('devices')!r}: {one_line(error)}") from None
+
+
+PREVIOUS_CHECKPOINTS = "previous_checkpoints"
+
+
+@contextmanager
+def fresh_checkpoints(out_dir: Path, fresh: bool = True) -> Iterator[None]:
+    """Around a fresh run's `fit`: set the previous run's `*.ckpt` aside, and drop them once it succeeds.
+
+    Old `best` / `last` files would confuse ModelCheckpoint, but deleting them up front lost a
+    good model whenever the new run crashed. If `fit` fails (an exception, Ctrl-C) before it
+    wrote a checkpoint, the old ones are put back; if it wrote some (resumable with --resume),
+    the old ones stay in `out_dir/previous_checkpoints/` and a warning says so. Only the
+    rank-zero process moves files (the others of a multi-GPU run re-enter this code).
+    """
+    if not fresh or os.environ.get("LOCAL_RANK", "0") != "0" or os.environ.get("NODE_RANK", "0") != "0":
+        yield
+        return
+    aside = out_dir / PREVIOUS_CHECKPOINTS
+    stale = sorted(out_dir.glob("*.ckpt"))
+    if stale:
+        shutil.rmtree(aside, ignore_errors=True)
+        aside.mkdir()
+        for path in stale:
+            path.replace(aside / path.name)
+    try:
+        yield
+    except BaseException:
+        if stale and not any(out_dir.glob("*.ckpt")):
+            for path in aside.glob("*.ckpt"):
+                path.replace(out_dir / path.name)
+            shutil.rmtree(aside, ignore_errors=True)
+        elif stale:
+            warnings.warn(f"training stopped after writing new checkpoints in {out_dir} (continue with --resume); "
+                          f"the previous run's are in {aside}", stacklevel=3)
+        raise
+    shutil.rmtree(aside, ignore_errors=True)
+
+
+@contextmanager
+def torch_threads(count: Optional[int]) -> Iterator[None]:
+    """torch's CPU threads set to `count` (None or 0: unchanged) for the block, then restored."""
+    previous = torch.get_num_threads()
+    if count:
+        torch.set_num_threads(int(count))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: Optional[str],
+                  artifact_location: Optional[str] = None) -> Any:
+    """Lightning's MLFlowLogger on `tracking_uri` (default $MLFLOW_TRACKING_URI or sqlite:///mlflow.db):
+    Lightning's own default is the ./mlruns file store, which MLflow 3 refuses."""
+    from lightning.pytorch.loggers import MLFlowLogger
+
+    from pipeline.tracking import resolve_tracking_uri
+
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
+                        tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)

@@ -1,0 +1,86 @@
+"""Tests of what every training run shares (pipeline/training/run_setup.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS, check_accelerator, fresh_checkpoints, torch_threads
+
+
+def file_bytes(directory: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(directory.iterdir()) if p.is_file()}
+
+
+def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_path):
+    out = tmp_path / "ckpts"
+    out.mkdir()
+    (out / "best.ckpt").write_text("old best")
+    (out / "last.ckpt").write_text("old last")
+    (out / "inpainter.pt").write_text("export")
+    with fresh_checkpoints(out):  # success: the old checkpoints are gone, other files stay
+        assert not list(out.glob("*.ckpt")) and (out / PREVIOUS_CHECKPOINTS / "best.ckpt").is_file()
+        (out / "last.ckpt").write_text("new last")
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"new last"}
+    assert not (out / PREVIOUS_CHECKPOINTS).exists()
+
+    (out / "best.ckpt").write_text("old best")
+    with pytest.raises(KeyboardInterrupt), fresh_checkpoints(out):  # fails before writing any: old ones come back
+        raise KeyboardInterrupt
+    assert file_bytes(out) == {"best.ckpt": b"old best", "inpainter.pt": b"export", "last.ckpt": b"new last"}
+    assert not (out / PREVIOUS_CHECKPOINTS).exists()
+
+    with pytest.raises(RuntimeError), pytest.warns(UserWarning, match="continue with --resume.*previous_checkpoints"):
+        with fresh_checkpoints(out):  # fails after writing one: the new one stays (resumable), the old ones aside
+            (out / "last.ckpt").write_text("crashed run")
+            raise RuntimeError("out of memory")
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
+    assert file_bytes(out / PREVIOUS_CHECKPOINTS) == {"best.ckpt": b"old best", "last.ckpt": b"new last"}
+
+    with fresh_checkpoints(out, fresh=False):  # a resumed run leaves everything in place
+        pass
+    assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
+
+
+@pytest.mark.parametrize("accelerator, devices, message", [
+    ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
+    ("CPU", 1, r"accelerator 'CPU': unknown"),
+    ("cpu", 0, r"devices 0: need at least one device"),
+    ("auto", -1, r"devices -1: need at least one device"),
+    ("cpu", "two", r"devices 'two': use a number of devices"),
+    ("cpu", True, r"devices True: use a number of devices"),
+    ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
+])
+def test_training_settings_are_checked(accelerator, devices, message):
+    with pytest.raises(ValueError, match=message):
+        check_accelerator(accelerator, devices)
+
+
+def test_unavailable_accelerators_are_named():
+    from lightning.pytorch.accelerators import XLAAccelerator
+
+    for accelerator, devices in (("cpu", 1), ("cpu", "2"), ("auto", "auto"), ("auto", 1)):
+        check_accelerator(accelerator, devices)  # accepted
+    if not torch.cuda.is_available():
+        for name in ("gpu", "cuda"):
+            with pytest.raises(ValueError, match=rf"accelerator '{name}': no (CUDA )?GPU is visible to torch .*use cpu or auto"):
+                check_accelerator(name, 1)
+    else:
+        with pytest.raises(ValueError, match=r"devices 99: torch sees \d+ CUDA GPU"):
+            check_accelerator("gpu", 99)
+    if not XLAAccelerator.is_available():
+        with pytest.raises(ValueError, match=r"accelerator 'tpu': not available on this machine .*use cpu or auto"):
+            check_accelerator("tpu", 1)
+
+
+def test_torch_threads_are_restored_even_when_the_block_fails():
+    before = torch.get_num_threads()
+    with torch_threads(None):
+        assert torch.get_num_threads() == before
+    other = 1 if before != 1 else 2
+    with pytest.raises(RuntimeError), torch_threads(other):
+        assert torch.get_num_threads() == other
+        raise RuntimeError("training failed")
+    assert torch.get_num_threads() == before
