@@ -105,6 +105,7 @@ class LatticeGraph:
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
         self._adjacency = None
+        self._neighbour_lists: tuple[np.ndarray, np.ndarray] | None = None
         self._utility_range_cells = spec.utility_range / spec.cell_size
         region_cells = spec.region_size / spec.cell_size
         self._region_cells = region_cells
@@ -236,13 +237,14 @@ class LatticeGraph:
                 changed = True
         if changed:
             self._adjacency = None
+            self._neighbour_lists = None
 
     def _update_utilities(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         """Frontier utility: frontier cells visible (through known-free cells) within range."""
         r = self._utility_range_cells
-        ids = self._nodes_in_box(box, margin=r + 1)
-        ids = ids[self.node_state[ids] == NODE_FREE]
-        self.utility[self._nodes_in_box(box, margin=r + 1)] = 0
+        near = self._nodes_in_box(box, margin=r + 1)
+        self.utility[near] = 0
+        ids = near[self.node_state[near] == NODE_FREE]
         if ids.size == 0 or not self.frontier.any():
             return
         rows, cols = belief.shape
@@ -290,9 +292,12 @@ class LatticeGraph:
         return self.edge_nodes[self.edge_valid]
 
     def neighbours(self, node: int) -> np.ndarray:
-        """Nodes joined to `node` by a known-free edge."""
-        e = self.edges
-        return np.concatenate([e[e[:, 0] == node, 1], e[e[:, 1] == node, 0]])
+        """Nodes joined to `node` by a known-free edge, in id order."""
+        if self._neighbour_lists is None:  # both directions of the adjacency, built once per graph change
+            both = self.adjacency() + self.adjacency().T
+            self._neighbour_lists = (both.indptr, both.indices)
+        indptr, indices = self._neighbour_lists
+        return np.sort(indices[indptr[node] : indptr[node + 1]])
 
     def adjacency(self):
         """Sparse adjacency matrix (upper triangle) weighted by edge length in metres."""

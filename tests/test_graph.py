@@ -64,6 +64,22 @@ def test_incremental_updates_equal_a_fresh_build(small_maze):
     assert len(batches) > 3
 
 
+
+def test_neighbours_follow_the_edges_as_the_graph_grows(small_maze):
+    """Neighbour lists are cached per graph change: each update must be seen."""
+    episode, _ = partial_episode(small_maze, steps=6)
+    graph = LatticeGraph(spec_for(small_maze))
+    replay = Episode(small_maze, Protocol())
+    graph.update(replay.belief.grid, None)
+    for point in episode.trajectory[1:]:
+        edges = graph.edges
+        for node in np.unique(edges):
+            expected = np.sort(np.concatenate([edges[edges[:, 0] == node, 1], edges[edges[:, 1] == node, 0]]))
+            np.testing.assert_array_equal(graph.neighbours(int(node)), expected)
+        replay.move(point)
+        graph.update(replay.belief.grid, replay.observe().changed)
+    assert graph.neighbours(int(np.setdiff1d(np.arange(graph.node_count), graph.edges)[0])).size == 0
+
 def test_edges_are_exactly_the_known_free_segments(small_maze):
     episode, _ = partial_episode(small_maze, steps=8)
     graph = LatticeGraph(spec_for(small_maze))
