@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from pipeline.maps import GroundTruthMap, MapError, load_map
 from pipeline.planners import make_planner, planner_class
+from pipeline.planners.base import Planner
 from pipeline.protocol import Protocol, ProtocolMismatchWarning
 from pipeline.simulator import EpisodeResult, run_episode
 from pipeline.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
@@ -151,8 +152,8 @@ def check_option_value(key: str, value: Any, parameter: inspect.Parameter) -> No
 def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
     """Parse every entry, check the names are registered (KeyError listing the known ones),
     the options are accepted by the planner's constructor with values of the right kind, and
-    the labels are unique (ValueError); each planner with options is built once, so a bad
-    value fails now rather than after the other episodes have run."""
+    the labels are unique (ValueError). The values themselves are checked by the constructors:
+    `build_planner`."""
     specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
     seen: set[str] = set()
     for spec in specs:
@@ -173,13 +174,24 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
         try:
             for key, value in spec.options.items():
                 check_option_value(key, value, accepted[key])
-            cls(**spec.options)
-        except (TypeError, ValueError) as error:
-            message = f"planner {spec.label!r}: {error}"
-            if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
-                message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
-            raise ValueError(message) from None
+        except ValueError as error:
+            raise ValueError(_option_error(spec, error)) from None
     return specs
+
+
+def build_planner(spec: PlannerSpec) -> Planner:
+    """The planner a resolved spec names; a value its constructor refuses is a ValueError naming the label."""
+    try:
+        return make_planner(spec.name, **spec.options)
+    except (TypeError, ValueError) as error:
+        raise ValueError(_option_error(spec, error)) from None
+
+
+def _option_error(spec: PlannerSpec, error: Exception) -> str:
+    message = f"planner {spec.label!r}: {error}"
+    if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
+        message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
+    return message
 
 
 @dataclass(frozen=True)
@@ -284,6 +296,7 @@ def run_benchmark(
     `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
     """
     specs = resolve_planner_specs(planners)
+    built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
     names = []
     for path in map_paths:
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
@@ -292,9 +305,8 @@ def run_benchmark(
     check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    planners = [make_planner(spec.name, **spec.options) for spec in specs]  # the workers build their own
-    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in planners], seed, start)
-    for planner in planners:  # models trained at other protocol values: said once here, not by every worker
+    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start)
+    for planner in built:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)
     tasks = [
         EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)

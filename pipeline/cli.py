@@ -183,9 +183,8 @@ def explore(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
 ) -> None:
     """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF), run.json."""
-    from pipeline.benchmark import protocol_for_map, resolve_planner_specs
+    from pipeline.benchmark import build_planner, protocol_for_map, resolve_planner_specs
     from pipeline.maps import load_map
-    from pipeline.planners import make_planner
     from pipeline.render import EpisodeRecorder, render_final
     from tqdm import tqdm
 
@@ -197,7 +196,7 @@ def explore(
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
         protocol = protocol_for_map(protocol, ground_truth)
         (spec,) = resolve_planner_specs(_with_checkpoint([planner], checkpoint))
-        agent = make_planner(spec.name, **spec.options)
+        agent = build_planner(spec)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:

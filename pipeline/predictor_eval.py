@@ -108,9 +108,9 @@ class Checkpoint:
 
 
 def explore_checkpoints(
-    ground_truth: GroundTruthMap, steps: Sequence[int], protocol: Protocol, explorer: str = EXPLORER
+    ground_truth: GroundTruthMap, steps: Sequence[int], protocol: Protocol
 ) -> Iterator[Checkpoint]:
-    """Explore with `explorer` and yield the state after each of `steps` waypoints it reaches.
+    """Explore with EXPLORER (the paper's Table I explores by nearest frontier) and yield the state after each of `steps` waypoints it reaches.
 
     The lattice graph is our own (not the planner's), updated from the belief at each
     checkpoint with the cells changed since the previous one. The episode stops after the
@@ -122,7 +122,7 @@ def explore_checkpoints(
     if not wanted:
         return
     last = wanted[-1]
-    planner = make_planner(explorer)
+    planner = make_planner(EXPLORER)
     episode = Episode(ground_truth, protocol)
     planner.reset(ground_truth, protocol, 0)
     lattice = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
@@ -223,7 +223,6 @@ def evaluate_predictor(
     protocol: Protocol = Protocol(),
     *,
     inpaint_for: InpaintFactory | None = None,
-    explorer: str = EXPLORER,
     progress: bool = False,
 ) -> pd.DataFrame:
     """Pooled precision of V_u per step, one row per step (DETAIL_COLUMNS).
@@ -236,7 +235,7 @@ def evaluate_predictor(
     (rasterise, inpaint, threshold, component filter).
     """
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
-    return _evaluate(map_paths, factory, steps, [predictor_config], graph_config, protocol, explorer, progress)[0]
+    return _evaluate(map_paths, factory, steps, [predictor_config], graph_config, protocol, progress)[0]
 
 
 SWEEP_COLUMNS = ("threshold", "step", "precision", "predicted_nodes", "maps", "nodes_per_map", "predictions_precision")
@@ -252,7 +251,6 @@ def precision_by_threshold(
     graph_config: GlobalGraphConfig = GlobalGraphConfig(),
     protocol: Protocol = Protocol(),
     *,
-    explorer: str = EXPLORER,
     progress: bool = False,
 ) -> pd.DataFrame:
     """Table I at several tau at once (SWEEP_COLUMNS): how precision trades against |V_u|.
@@ -263,7 +261,7 @@ def precision_by_threshold(
     taus = _checked_thresholds(thresholds)
     configs = [NodePredictorConfig(threshold=tau, min_component=min_component) for tau in taus]
     frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       explorer, progress)
+                       progress)
     return _sweep_frame(taus, frames)
 
 
@@ -276,7 +274,6 @@ def evaluate_with_sweep(
     graph_config: GlobalGraphConfig = GlobalGraphConfig(),
     protocol: Protocol = Protocol(),
     *,
-    explorer: str = EXPLORER,
     progress: bool = False,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """evaluate_predictor's frame and precision_by_threshold's, from one exploration per map."""
@@ -284,7 +281,7 @@ def evaluate_with_sweep(
     configs = [predictor_config] + [NodePredictorConfig(threshold=tau, min_component=predictor_config.min_component)
                                     for tau in taus]
     frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       explorer, progress)
+                       progress)
     return frames[0], _sweep_frame(taus, frames[1:])
 
 
@@ -387,7 +384,6 @@ def _evaluate(
     configs: Sequence[NodePredictorConfig],
     graph_config: GlobalGraphConfig,
     protocol: Protocol,
-    explorer: str,
     progress: bool,
 ) -> list[pd.DataFrame]:
     """One DETAIL_COLUMNS frame per predictor config; the first config's predictions are timed."""
@@ -403,7 +399,7 @@ def _evaluate(
         ground_truth = load_map(path, cell_size=protocol.cell_size)
         map_protocol = protocol_for_map(protocol, ground_truth)
         predictors: list[NodePredictor] = []
-        for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol, explorer):
+        for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol):
             if not predictors:
                 shared = _LastCall(factory(ground_truth, checkpoint.lattice))
                 predictors = [NodePredictor(shared.record if i == 0 else shared.reuse, config)
@@ -602,7 +598,6 @@ def prediction_figure(
     inpaint_for: InpaintFactory | None = None,
     out_path: str | Path | None = None,
     scale: int | None = None,
-    explorer: str = EXPLORER,
 ) -> np.ndarray | None:
     """Explore one map to `step` and draw its Fig. 3 panels (saved with save_png when `out_path`).
 
@@ -613,7 +608,7 @@ def prediction_figure(
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
     ground_truth = load_map(map_path, cell_size=protocol.cell_size)
     map_protocol = protocol_for_map(protocol, ground_truth)
-    for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol, explorer):
+    for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol):
         predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
         prediction = predict_at(checkpoint, predictor, graph_config)
         image = render_prediction_figure(ground_truth, checkpoint, prediction, scale)

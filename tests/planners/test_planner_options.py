@@ -157,12 +157,13 @@ def test_valid_edge_values_are_accepted(name, options):
 
 def test_spec_errors_reach_the_benchmark_before_any_episode():
     """`--planner label=name:key=value` goes through the constructor's checks (the CLI's one-line error)."""
-    from pipeline.benchmark import resolve_planner_specs
+    from pipeline.benchmark import build_planner, resolve_planner_specs
 
-    with pytest.raises(ValueError, match=re.escape("planner 'o': restarts must be >= 1, got 0")):
-        resolve_planner_specs(["o=optimal:restarts=0"])
-    with pytest.raises(ValueError, match=re.escape("planner 't': threshold must be a number in [0, 1], got 2")):
-        resolve_planner_specs(["t=guide_tsp:threshold=2"])
+    for spec, message in (("o=optimal:restarts=0", "planner 'o': restarts must be >= 1, got 0"),
+                          ("t=guide_tsp:threshold=2", "planner 't': threshold must be a number in [0, 1], got 2")):
+        (resolved,) = resolve_planner_specs([spec])  # names, labels and value kinds
+        with pytest.raises(ValueError, match=re.escape(message)):
+            build_planner(resolved)
 
 
 def test_check_helpers():
