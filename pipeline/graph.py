@@ -193,15 +193,13 @@ class LatticeGraph:
         rows, cols = belief.shape
         if changed_flat is None:
             box = (0, cols - 1, 0, rows - 1)
+            self.frontier = frontier_mask(belief, self.spec.frontier_min_unknown_neighbours)
+            frontier_box = box
         else:
             if len(changed_flat) == 0:
                 return
             ys, xs = np.divmod(np.asarray(changed_flat), cols)
             box = (int(xs.min()), int(xs.max()), int(ys.min()), int(ys.max()))
-        if changed_flat is None:
-            self.frontier = frontier_mask(belief, self.spec.frontier_min_unknown_neighbours)
-            frontier_box = box
-        else:
             frontier_box = update_frontier_window(
                 self.frontier, belief, box, self.spec.frontier_min_unknown_neighbours
             )

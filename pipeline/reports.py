@@ -11,7 +11,6 @@ and MLflow runs alike. `report_markdown` assembles the tables into reports/repor
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -533,10 +532,9 @@ def log_tables_to_mlflow(
     `params`; metrics: the row's finite numeric columns; text columns become tags.
     Returns {experiment: [run ids]}.
     """
-    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-    import mlflow  # slow to import; only when tracking is asked for
+    from pipeline.tracking import import_mlflow, resolve_tracking_uri
 
-    from pipeline.tracking import resolve_tracking_uri
+    mlflow = import_mlflow()
 
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     run_ids: dict[str, list[str]] = {}

@@ -15,6 +15,15 @@ from pipeline.protocol import Protocol
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 
 
+def import_mlflow():
+    """mlflow, imported only when tracking is asked for (it is slow to import), with its telemetry
+    off unless the user set MLFLOW_DISABLE_TELEMETRY: runs here log to a local store."""
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    import mlflow
+
+    return mlflow
+
+
 def resolve_tracking_uri(uri: str | None = None) -> str:
     """The CLI's value, else MLFLOW_TRACKING_URI, else the local sqlite store."""
     return uri or os.environ.get("MLFLOW_TRACKING_URI") or DEFAULT_TRACKING_URI
@@ -78,8 +87,7 @@ def log_benchmark(
 
     Returns the run ids.
     """
-    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-    import mlflow  # slow to import; only when tracking is asked for
+    mlflow = import_mlflow()
 
     from pipeline.benchmark import RUN_RECORD, summarise
 

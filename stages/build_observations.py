@@ -21,6 +21,7 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from pipeline.global_graph import FEATURE_NAMES
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD
 from pipeline.stage_errors import run_stage_main
 
@@ -105,7 +106,7 @@ def main(params_path: str = "params.yaml") -> dict:
         summary[variant] = {
             "samples": int(len(arrays["episode"])),
             "nodes_median": float(np.median(mask.sum(axis=1))),
-            "predicted_nodes_median": float(np.median(arrays["features"][..., 5].astype(np.float32).sum(axis=1))),
+            "predicted_nodes_median": float(np.median(arrays["features"][..., FEATURE_NAMES.index("is_predicted")].astype(np.float32).sum(axis=1))),
             "truncated_share": float(mask.all(axis=1).mean()),  # steps whose graph filled every padded row
         }
     SUMMARY.parent.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard, load_expert_episodes

@@ -15,7 +15,6 @@ Logs one MLflow run in experiment "table1".
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any, Optional
 
@@ -119,10 +118,9 @@ def run(
 
 
 def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protocol: Protocol, maps: str) -> str:
-    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
-    import mlflow
+    from pipeline.tracking import import_mlflow, resolve_tracking_uri
 
-    from pipeline.tracking import resolve_tracking_uri
+    mlflow = import_mlflow()
 
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)

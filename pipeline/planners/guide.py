@@ -65,6 +65,7 @@ from pipeline.planners.base import Waypoint, check_int, check_number, register_p
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.planners.model_cache import load_once
 from pipeline.protocol import Protocol
+from pipeline.sensor import FREE
 from pipeline.simulator import Observation
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets"
@@ -207,8 +208,6 @@ class _DiffusionPlanner(GuideTspPlanner):
 
         from diffusers import DDIMScheduler, DDPMScheduler
 
-        if sampler not in ("ddpm", "ddim"):
-            raise ValueError(f"sampler must be ddpm or ddim, got {sampler!r}")
         variant = copy.copy(policy)
         variant.config = replace(policy.config, sampler=sampler)
         scheduler_class = DDIMScheduler if sampler == "ddim" else DDPMScheduler
@@ -441,7 +440,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         """Mode policy: the sampled plans ranked by `rank_candidates`, stall guard as the safety net."""
         graph = self.graph
         assert graph is not None
-        new_free = observation.changed is None or bool(np.any(observation.belief.reshape(-1)[observation.changed] == 255))
+        new_free = observation.changed is None or bool(np.any(observation.belief.reshape(-1)[observation.changed] == FREE))
         self.moves_without_news = 0 if new_free else self.moves_without_news + 1
         self.observe_step(observation)
         self.decisions += 1

@@ -171,8 +171,8 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
     Lightning's own default is the ./mlruns file store, which MLflow 3 refuses."""
     from lightning.pytorch.loggers import MLFlowLogger
 
-    from pipeline.tracking import resolve_tracking_uri
+    from pipeline.tracking import import_mlflow, resolve_tracking_uri
 
-    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    import_mlflow()  # telemetry off before Lightning imports it
     return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
                         tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
