@@ -83,10 +83,7 @@ def select_regions(graph: LatticeGraph, robot_xy: np.ndarray, config: RegionEval
         count = int(np.ceil(config.keep_share * ranked.size))
         cutoff = ranked[count - 1] if count > 0 else np.inf
         keep_region = finite & (scores >= cutoff)
-    node_region = graph.region_of_cells(graph.node_cells)
-    lattice_per_region = np.zeros(labels.shape, dtype=np.int64)
-    np.add.at(lattice_per_region, (node_region[:, 0], node_region[:, 1]), 1)
-    return RegionSelection(labels, centroids, scores, keep_region, node_region, lattice_per_region)
+    return RegionSelection(labels, centroids, scores, keep_region, graph.node_region, graph.nodes_per_region)
 
 
 def filter_predictions(

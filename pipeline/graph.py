@@ -106,16 +106,19 @@ class LatticeGraph:
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
         self._adjacency = None
         self._neighbour_lists: tuple[np.ndarray, np.ndarray] | None = None
-        self._utility_range_cells = spec.utility_range / spec.cell_size
+        self.utility_range_cells = spec.utility_range / spec.cell_size
         region_cells = spec.region_size / spec.cell_size
         self._region_cells = region_cells
         self._region_origin = np.array(spec.start_cell, dtype=np.float64)
         rx = np.floor((np.arange(cols) - self._region_origin[0]) / region_cells).astype(np.int64)
         ry = np.floor((np.arange(rows) - self._region_origin[1]) / region_cells).astype(np.int64)
-        self._region_col_of_x = rx - rx.min()
-        self._region_row_of_y = ry - ry.min()
+        self.region_col_of_x = rx - rx.min()
+        self.region_row_of_y = ry - ry.min()
         self._region_offset = np.array([rx.min(), ry.min()])
-        self.region_shape = (int(self._region_row_of_y.max()) + 1, int(self._region_col_of_x.max()) + 1)
+        self.region_shape = (int(self.region_row_of_y.max()) + 1, int(self.region_col_of_x.max()) + 1)
+        self.node_region = self.region_of_cells(self.node_cells)  # (row, col) of each node's region, fixed
+        self.nodes_per_region = np.zeros(self.region_shape, dtype=np.int64)
+        np.add.at(self.nodes_per_region, (self.node_region[:, 0], self.node_region[:, 1]), 1)
         self.region_observed = np.zeros(self.region_shape, dtype=np.int64)
         self.region_frontier = np.zeros(self.region_shape, dtype=np.int64)
 
@@ -239,7 +242,7 @@ class LatticeGraph:
 
     def _update_utilities(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         """Frontier utility: frontier cells visible (through known-free cells) within range."""
-        r = self._utility_range_cells
+        r = self.utility_range_cells
         near = self._nodes_in_box(box, margin=r + 1)
         self.utility[near] = 0
         ids = near[self.node_state[near] == NODE_FREE]
@@ -262,14 +265,14 @@ class LatticeGraph:
 
     def _update_regions(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         x0, x1, y0, y1 = box
-        rc0, rc1 = self._region_col_of_x[x0], self._region_col_of_x[x1]
-        rr0, rr1 = self._region_row_of_y[y0], self._region_row_of_y[y1]
-        xs = np.nonzero((self._region_col_of_x >= rc0) & (self._region_col_of_x <= rc1))[0]
-        ys = np.nonzero((self._region_row_of_y >= rr0) & (self._region_row_of_y <= rr1))[0]
+        rc0, rc1 = self.region_col_of_x[x0], self.region_col_of_x[x1]
+        rr0, rr1 = self.region_row_of_y[y0], self.region_row_of_y[y1]
+        xs = np.nonzero((self.region_col_of_x >= rc0) & (self.region_col_of_x <= rc1))[0]
+        ys = np.nonzero((self.region_row_of_y >= rr0) & (self.region_row_of_y <= rr1))[0]
         sub_known = belief[ys[0] : ys[-1] + 1, xs[0] : xs[-1] + 1] != UNKNOWN
         sub_front = self.frontier[ys[0] : ys[-1] + 1, xs[0] : xs[-1] + 1]
-        ry = self._region_row_of_y[ys[0] : ys[-1] + 1]
-        rx = self._region_col_of_x[xs[0] : xs[-1] + 1]
+        ry = self.region_row_of_y[ys[0] : ys[-1] + 1]
+        rx = self.region_col_of_x[xs[0] : xs[-1] + 1]
         shape = (rr1 - rr0 + 1, rc1 - rc0 + 1)
         flat = ((ry[:, None] - rr0) * shape[1] + (rx[None, :] - rc0)).ravel()
         size = shape[0] * shape[1]
@@ -322,7 +325,7 @@ class LatticeGraph:
     def region_of_cells(self, cells: np.ndarray) -> np.ndarray:
         """(region row, region col) of each cell (x, y)."""
         cells = np.asarray(cells)
-        return np.stack([self._region_row_of_y[cells[:, 1]], self._region_col_of_x[cells[:, 0]]], axis=1)
+        return np.stack([self.region_row_of_y[cells[:, 1]], self.region_col_of_x[cells[:, 0]]], axis=1)
 
     def edges_not_crossing(
         self, blocked_flat: np.ndarray, members: np.ndarray, required: np.ndarray

@@ -167,10 +167,6 @@ class TarePlanner(GraphPlanner):
         super().reset(ground_truth, protocol, seed)
         graph = self.graph
         assert graph is not None
-        # Region (row, col) of every lattice node, i.e. its TARE subspace.
-        self._node_region = np.stack(
-            [graph._region_row_of_y[graph.node_cells[:, 1]], graph._region_col_of_x[graph.node_cells[:, 0]]], axis=1
-        )
         self._region_cols = graph.region_shape[1]
         self._covered = np.zeros(ground_truth.shape[0] * ground_truth.shape[1], dtype=bool)
         self._views: dict[int, np.ndarray] = {}
@@ -188,7 +184,7 @@ class TarePlanner(GraphPlanner):
             return
         assert self.graph is not None
         ys, xs = np.divmod(np.asarray(changed), shape[1])
-        margin = self.graph._utility_range_cells + 2  # a cell's frontier status depends on its neighbours
+        margin = self.graph.utility_range_cells + 2  # a cell's frontier status depends on its neighbours
         nodes = np.fromiter(self._views.keys(), dtype=np.int64, count=len(self._views))
         c = self.graph.node_cells[nodes]
         stale = (
@@ -206,7 +202,7 @@ class TarePlanner(GraphPlanner):
         missing = [int(n) for n in nodes if int(n) not in self._views]
         if missing:
             sets = visible_frontier_cells(
-                belief == FREE, self.graph.frontier, self.graph.node_cells[missing], self.graph._utility_range_cells
+                belief == FREE, self.graph.frontier, self.graph.node_cells[missing], self.graph.utility_range_cells
             )
             self._views.update(zip(missing, sets))
         return [self._views[int(n)] for n in nodes]
@@ -244,9 +240,9 @@ class TarePlanner(GraphPlanner):
         # Uncovered frontier cells each useful node sees, split into the horizon's and the rest.
         views = [v[~self._covered[v]] for v in self._visible(useful, belief)]
         cols = belief.shape[1]
-        r0, c0 = self._node_region[robot]
-        hrows = np.abs(graph._region_row_of_y - r0) <= self.horizon_radius
-        hcols = np.abs(graph._region_col_of_x - c0) <= self.horizon_radius
+        r0, c0 = graph.node_region[robot]
+        hrows = np.abs(graph.region_row_of_y - r0) <= self.horizon_radius
+        hcols = np.abs(graph.region_col_of_x - c0) <= self.horizon_radius
         sizes = np.array([len(v) for v in views])
         owner = np.repeat(np.arange(len(useful)), sizes)
         cells = np.concatenate(views + [np.zeros(0, np.int64)])
@@ -258,7 +254,7 @@ class TarePlanner(GraphPlanner):
         # nearest such node (along the graph from the robot).
         reps = np.zeros(0, dtype=np.int64)
         if (~inside).any():
-            key = graph._region_row_of_y[cy[~inside]] * self._region_cols + graph._region_col_of_x[cx[~inside]]
+            key = graph.region_row_of_y[cy[~inside]] * self._region_cols + graph.region_col_of_x[cx[~inside]]
             base = int(key.max()) + 1
             pair, count = np.unique(owner[~inside] * base + key, return_counts=True)
             pair = pair[count >= self.min_cover]
