@@ -414,12 +414,14 @@ def replay(
 def eval_predictor(
     maps: Path = typer.Option(..., help="Folder of maps to explore (nearest_frontier)."),
     out: Path = typer.Option(Path("runs/predictor"), help="Output folder (precision.csv, table1.md, fig3.png)."),
-    checkpoint: Optional[Path] = typer.Option(None, help="Inpainter export [default: models/inpainter/inpainter.pt]."),
+    checkpoint: Optional[Path] = typer.Option(
+        None, help="Inpainter export [default: models/inpainter/inpainter.pt when the pipeline has trained one, else the shipped one]."),
     sweep: bool = typer.Option(False, "--sweep", help="Also at tau 0.5-0.9: precision_by_threshold.csv, threshold_sweep.png."),
     threshold: Optional[float] = typer.Option(
         None, min=0.0, max=1.0,
         help="tau: P(free) at or above which a node is predicted, as the planners' `threshold=` [default: theirs].",
     ),
+    start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
 ) -> None:
     """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
     from pipeline.predictor_eval import inpainter_path
@@ -429,7 +431,7 @@ def eval_predictor(
     try:
         used = inpainter_path(checkpoint)
         tau = {} if threshold is None else {"threshold": threshold}
-        frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None, sweep=sweep, **tau)
+        frame = eval_stage.cli_main(maps, out, str(checkpoint) if checkpoint else None, sweep=sweep, start=start, **tau)
     except (MapError, FileNotFoundError, ValueError) as error:
         _fail(str(error))
     typer.echo(f"inpainter: {used}")

@@ -233,7 +233,7 @@ def load_maze_png(
     """Load a DARE/GUIDE maze PNG (twice the grid resolution, start marked by value 208).
 
     `start_cell` (col, row on the reduced grid) overrides the marker, e.g. to explore one maze
-    from several starts; the marker is still required, so the file stays a benchmark map.
+    from several starts, or gives the start of an image without one.
     """
     path = Path(path)
     cell_size = _check_cell_size(cell_size, path)
@@ -241,16 +241,17 @@ def load_maze_png(
     if image.shape[0] < 2 or image.shape[1] < 2:
         raise MapError(path, f"image of {image.shape[1]}x{image.shape[0]} pixels is too small for a 2x2 reduction")
     cells = maze_cells_from_image(image)
-    rows, cols = np.nonzero(cells == MAZE_START_VALUE)
-    if rows.size <= MAZE_START_INDEX:
-        raise MapError(
-            path,
-            f"no start marker: need at least {MAZE_START_INDEX + 1} cells of value {MAZE_START_VALUE} "
-            f"after the 2x2 reduction, found {rows.size}",
-        )
-    start = (int(cols[MAZE_START_INDEX]), int(rows[MAZE_START_INDEX]))
     if start_cell is not None:
         start = _start_cell(start_cell, path)
+    else:
+        rows, cols = np.nonzero(cells == MAZE_START_VALUE)
+        if rows.size <= MAZE_START_INDEX:
+            raise MapError(
+                path,
+                f"no start marker: need at least {MAZE_START_INDEX + 1} cells of value {MAZE_START_VALUE} "
+                f"after the 2x2 reduction, found {rows.size}; or give the start cell (--start COL ROW)",
+            )
+        start = (int(cols[MAZE_START_INDEX]), int(rows[MAZE_START_INDEX]))
     free = maze_free_mask(cells)
     validate_grid(free, start, path, MAZE_FREE_RULE)
     return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem, free_rule=MAZE_FREE_RULE)
@@ -272,7 +273,10 @@ def _read_yaml(path: Path) -> object:
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as error:
-        raise MapError(path, f"not valid YAML ({_first_line(error)})") from None
+        problem = getattr(error, "problem", None) or _first_line(error)
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise MapError(path, f"not valid YAML ({problem}{where})") from None
     except RecursionError:
         raise MapError(path, "not valid YAML (nested too deeply)") from None
 

@@ -224,6 +224,7 @@ def evaluate_predictor(
     *,
     inpaint_for: InpaintFactory | None = None,
     progress: bool = False,
+    start: tuple[float, float] | None = None,
 ) -> pd.DataFrame:
     """Pooled precision of V_u per step, one row per step (DETAIL_COLUMNS).
 
@@ -231,11 +232,12 @@ def evaluate_predictor(
     centroid nodes (`predicted_nodes` = |V_u|, `centroids` of them centroid nodes);
     `predictions_precision` counts the kept predictions alone. Give the network as `inpaint_fn`
     (image -> probabilities) or as `inpaint_for`, a factory (ground truth, lattice) -> inpaint
-    function built per map. A step no map reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
+    function built per map. `start` overrides every map's start (`load_map`; a .npy grid has none
+    of its own). A step no map reaches has precision NaN and 0 maps. `prediction_ms_median` times NodePredictor.predict
     (rasterise, inpaint, threshold, component filter).
     """
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
-    return _evaluate(map_paths, factory, steps, [predictor_config], graph_config, protocol, progress)[0]
+    return _evaluate(map_paths, factory, steps, [predictor_config], graph_config, protocol, progress, start)[0]
 
 
 SWEEP_COLUMNS = ("threshold", "step", "precision", "predicted_nodes", "maps", "nodes_per_map", "predictions_precision")
@@ -252,6 +254,7 @@ def precision_by_threshold(
     protocol: Protocol = Protocol(),
     *,
     progress: bool = False,
+    start: tuple[float, float] | None = None,
 ) -> pd.DataFrame:
     """Table I at several tau at once (SWEEP_COLUMNS): how precision trades against |V_u|.
 
@@ -261,7 +264,7 @@ def precision_by_threshold(
     taus = _checked_thresholds(thresholds)
     configs = [NodePredictorConfig(threshold=tau, min_component=min_component) for tau in taus]
     frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       progress)
+                       progress, start)
     return _sweep_frame(taus, frames)
 
 
@@ -275,13 +278,14 @@ def evaluate_with_sweep(
     protocol: Protocol = Protocol(),
     *,
     progress: bool = False,
+    start: tuple[float, float] | None = None,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """evaluate_predictor's frame and precision_by_threshold's, from one exploration per map."""
     taus = _checked_thresholds(thresholds)
     configs = [predictor_config] + [NodePredictorConfig(threshold=tau, min_component=predictor_config.min_component)
                                     for tau in taus]
     frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       progress)
+                       progress, start)
     return frames[0], _sweep_frame(taus, frames[1:])
 
 
@@ -385,6 +389,7 @@ def _evaluate(
     graph_config: GlobalGraphConfig,
     protocol: Protocol,
     progress: bool,
+    start: tuple[float, float] | None = None,
 ) -> list[pd.DataFrame]:
     """One DETAIL_COLUMNS frame per predictor config; the first config's predictions are timed."""
     steps = sorted({int(s) for s in steps})
@@ -396,7 +401,7 @@ def _evaluate(
     reached = {s: 0 for s in steps}
     times: dict[int, list[float]] = {s: [] for s in steps}
     for path in tqdm(map_paths, desc="maps", unit="map", disable=not progress):
-        ground_truth = load_map(path, cell_size=protocol.cell_size)
+        ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
         map_protocol = protocol_for_map(protocol, ground_truth)
         predictors: list[NodePredictor] = []
         for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol):
@@ -598,6 +603,7 @@ def prediction_figure(
     inpaint_for: InpaintFactory | None = None,
     out_path: str | Path | None = None,
     scale: int | None = None,
+    start: tuple[float, float] | None = None,
 ) -> np.ndarray | None:
     """Explore one map to `step` and draw its Fig. 3 panels (saved with save_png when `out_path`).
 
@@ -606,7 +612,7 @@ def prediction_figure(
     from pipeline.render import save_png
 
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
-    ground_truth = load_map(map_path, cell_size=protocol.cell_size)
+    ground_truth = load_map(map_path, start=start, cell_size=protocol.cell_size)
     map_protocol = protocol_for_map(protocol, ground_truth)
     for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol):
         predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)

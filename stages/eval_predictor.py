@@ -23,7 +23,7 @@ import yaml
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
 from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
-from pipeline.maps import MapError, list_maps
+from pipeline.maps import MapError, list_maps, load_map
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
@@ -70,6 +70,7 @@ def run(
     graph_config: GlobalGraphConfig = GlobalGraphConfig(),
     progress: bool = True,
     sweep_thresholds=(),
+    start: tuple[float, float] | None = None,
 ) -> pd.DataFrame:
     """Evaluate on every map in `maps_dir`; writes precision.csv, precision_detail.csv, table1.md
     and (optionally) fig3.png; with `sweep_thresholds` also precision_by_threshold.csv,
@@ -87,14 +88,17 @@ def run(
     maps = list_maps(maps_dir)
     if not maps:
         raise MapError(maps_dir, "no maps in this folder (maze .png, .npy or ROS .yaml)")
+    for path in maps:  # a malformed map, or a grid without a start, fails before the explorations
+        load_map(path, start=start, cell_size=protocol.cell_size)
     inpaint = load_inpaint_fn(checkpoint)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if sweep_thresholds:
         frame, sweep = evaluate_with_sweep(maps, inpaint, sweep_thresholds, steps, predictor_config, graph_config, protocol,
-                                           progress=progress)
+                                           progress=progress, start=start)
     else:
-        frame, sweep = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress), None
+        frame, sweep = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress,
+                                           start=start), None
     frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
     frame.to_csv(out_dir / "precision_detail.csv", index=False)
     table = table1_markdown(frame, threshold=predictor_config.threshold)
@@ -109,7 +113,7 @@ def run(
         for candidate in (figure_step, steps_sorted[0]):
             done = any(
                 prediction_figure(m, candidate, inpaint, predictor_config, graph_config, protocol,
-                                  out_path=out_dir / "fig3.png") is not None
+                                  out_path=out_dir / "fig3.png", start=start) is not None
                 for m in maps[:3]
             )
             if done:
@@ -178,7 +182,7 @@ def compare_with(checkpoint: Optional[str], maps_dir: str | Path, out_dir: str |
 
 
 def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str] = None, sweep: bool = False,
-             threshold: float = TABLE1_THRESHOLD) -> pd.DataFrame:
+             threshold: float = TABLE1_THRESHOLD, start: tuple[float, float] | None = None) -> pd.DataFrame:
     """`guide eval-predictor`: default steps and predictor settings at tau `threshold` (the planners'
     by default), OUT/precision.csv (+ table1.md, fig3.png; with `sweep` the same at SWEEP_THRESHOLDS)."""
     from pipeline.predictor_eval import PAPER_STEPS
@@ -187,7 +191,7 @@ def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str
         raise ValueError(f"threshold (tau) must lie in [0, 1], got {threshold}")
     config = NodePredictorConfig(threshold=threshold, min_component=TABLE1_MIN_COMPONENT)
     return run(maps_dir, out_dir, checkpoint, PAPER_STEPS, config, Protocol(), graph_config=table1_graph_config(TABLE1_KEEP_SHARE),
-               sweep_thresholds=SWEEP_THRESHOLDS if sweep else ())
+               sweep_thresholds=SWEEP_THRESHOLDS if sweep else (), start=start)
 
 
 def table1_graph_config(keep_share: float) -> GlobalGraphConfig:

@@ -286,3 +286,18 @@ def test_tracking_store_check():
         check_tracking_uri("http://127.0.0.1:9", timeout_s=2)  # port 9 (discard): nothing listens
     with pytest.raises(ValueError, match="not one MLflow 3 can log to"):
         check_tracking_uri("./mlruns")
+
+
+def test_eval_predictor_takes_a_start_for_grids_without_one(small_maze, tmp_path):
+    """A .npy grid has no start of its own: --start gives it, as for explore and benchmark."""
+    grids = tmp_path / "grids"
+    grids.mkdir()
+    np.save(grids / "small.npy", small_maze.free.astype(np.uint8))
+    out = tmp_path / "p"
+    line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(grids), "--out", str(out)]))
+    assert "needs its start cell" in line
+    col, row = small_maze.start_cell
+    result = runner.invoke(app, ["eval-predictor", "--maps", str(grids), "--out", str(out), "--start", str(col), str(row)])
+    assert result.exit_code == 0, result.output
+    frame = pd.read_csv(out / "precision.csv")
+    assert frame["maps"].max() == 1

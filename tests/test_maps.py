@@ -384,7 +384,21 @@ def test_maze_without_start_marker(tmp_path):
     cells = maze_cells()
     cells[cells == START] = FREE
     path = write_maze(tmp_path / "maze.png", cells)
-    assert_map_error(path, "no start marker", lambda: load_map(path))
+    error = assert_map_error(path, "no start marker", lambda: load_map(path))
+    assert "--start COL ROW" in error.reason
+    marked = load_map(write_maze(tmp_path / "marked.png", maze_cells()))
+    given = load_map(path, start=marked.start_cell)  # the start given: no marker needed
+    assert given.start_cell == marked.start_cell
+    np.testing.assert_array_equal(given.free, marked.free)
+    black = write_png(tmp_path / "black.png", np.zeros((8, 8), np.uint8))
+    assert_map_error(black, "no free cell", lambda: load_map(black, start=(1, 1)))
+
+
+def test_invalid_yaml_names_the_problem_and_where(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("image: a.pgm\nresolution: b: c\n")
+    error = assert_map_error(path, "not valid YAML", lambda: load_map(path))
+    assert error.reason == "not valid YAML (mapping values are not allowed here at line 2, column 14)"
 
 
 def test_maze_with_too_few_markers(tmp_path):
