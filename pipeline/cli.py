@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 import tempfile
 import warnings
@@ -153,13 +154,14 @@ def mazes(
     _check_out_dir(out)
     try:
         config = MazeConfig(side_m=(side, side), cell_size=cell_size)
-    except ValueError as error:
-        _fail(str(error))
+    except ValueError as error:  # named by this command's options, not the config's fields
+        message = re.sub(r"MazeConfig\.side_m \([^)]*\)", f"--side {side:g}", str(error))
+        _fail(message.replace("MazeConfig.side_m", "--side").replace("MazeConfig.cell_size", "--cell-size"))
     stale = sorted(out.glob("maze_*.png")) if out.is_dir() else []
     if stale:
         _fail(f"{out} already holds {len(stale)} maze PNGs: pick an empty folder, so no old maze mixes into a set")
     paths = generate_maze_set(config, count, out, seed=seed)
-    typer.echo(f"wrote {len(paths)} mazes of {config.side_m[0]:g} m to {out}")
+    typer.echo(f"wrote {len(paths)} maze{'s' if len(paths) != 1 else ''} of {config.side_m[0]:g} m to {out}")
 
 
 @app.command()

@@ -30,6 +30,8 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from pipeline.maps import MAX_IMAGE_PIXELS
+
 WALL_VALUE = 127
 FREE_VALUE = 195
 START_VALUE = 208  # must match pipeline.maps.MAZE_START_VALUE
@@ -130,6 +132,13 @@ class MazeConfig:
             raise ValueError(
                 f"MazeConfig.side_m {self.side_m} allows a side of {low_blocks} blocks; a maze needs at "
                 f"least {MIN_SIDE_BLOCKS} blocks ({MIN_SIDE_BLOCKS * self.block_m} m) per side"
+            )
+        max_blocks = math.isqrt(MAX_IMAGE_PIXELS) // self.block_pixels  # what the map loader reads back
+        if high_blocks > max_blocks:
+            raise ValueError(
+                f"MazeConfig.side_m {self.side_m}: a side of {high_blocks} blocks is an image of "
+                f"{high_blocks * self.block_pixels} pixels square, more than the map loader reads; "
+                f"the largest side at {self.cell_size:g} m cells is {max_blocks * self.block_m:g} m"
             )
 
         if self.rooms[0] < 0 or self.rooms[0] > self.rooms[1]:

@@ -99,7 +99,9 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
     used = runner.invoke(app, ["mazes", "--out", str(out), "--count", "1"])
     assert used.exit_code == 2 and "already holds 2 maze PNGs" in used.output
     odd = runner.invoke(app, ["mazes", "--out", str(tmp_path / "odd"), "--count", "1", "--side", "7"])
-    assert odd.exit_code == 2 and "whole number" in odd.output
+    assert odd.exit_code == 2 and "--side 7 holds no whole number" in odd.output
+    huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "huge"), "--count", "1", "--side", "1e9"]))
+    assert "more than the map loader reads; the largest side at 0.4 m cells is 1635 m" in huge  # not a MemoryError
 
 
 def _one_error_line(result) -> str:
