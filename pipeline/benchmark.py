@@ -297,15 +297,22 @@ def run_benchmark(
     """
     specs = resolve_planner_specs(planners)
     built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
-    names = []
+    names, cell_sizes = [], set()
     for path in map_paths:
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
-        protocol_for_map(protocol, ground_truth)
+        cell_sizes.add(protocol_for_map(protocol, ground_truth).cell_size)  # a ROS map's own
         names.append(ground_truth.name)
     check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start)
+    labels = {spec.label for spec in specs}
+    stale = sorted(d.name for d in out_dir.iterdir() if d.is_dir() and d.name not in labels and any(d.glob("*.csv")))
+    if stale:
+        warnings.warn(f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
+                      "its metrics.csv and summary.md list only this run's", stacklevel=2)
+    protocol_record = recorded_protocol(protocol, sorted(cell_sizes))
+    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start,
+                     protocol_record, [str(path) for path in map_paths])
     for planner in built:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)
     tasks = [
@@ -329,18 +336,30 @@ def run_benchmark(
     bar.close()
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
-    (out_dir / "summary.md").write_text(summary_markdown(frame, protocol, baseline))
+    (out_dir / "summary.md").write_text(summary_markdown(frame, protocol_record, baseline))
     return frame
 
 
+def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[str, Any]:
+    """The protocol as the episodes ran it: ROS maps bring their own cell size (a list when they differ)."""
+    record = protocol.to_dict()
+    if list(cell_sizes) not in ([], [protocol.cell_size]):
+        record["cell_size"] = cell_sizes[0] if len(cell_sizes) == 1 else list(cell_sizes)
+    return record
+
+
 def write_run_record(
-    path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None
+    path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None,
+    protocol: dict[str, Any], maps: Sequence[str],
 ) -> dict[str, Any]:
     """What ran: per label the planner, its options and its description (which names the policy
-    and predictor files a learned planner loaded), with the seed and any start override."""
+    and predictor files a learned planner loaded), with the seed, any start override, the
+    protocol (`recorded_protocol`) and the maps."""
     record = {
         "seed": seed,
         "start": list(start) if start is not None else None,
+        "protocol": protocol,
+        "maps": list(maps),
         "planners": {
             spec.label: {"name": spec.name, "options": dict(spec.options), "description": description}
             for spec, description in zip(specs, descriptions)
@@ -413,9 +432,11 @@ def summarise(frame: pd.DataFrame) -> pd.DataFrame:
     return summary.sort_values("distance_mean_m")
 
 
-def summary_markdown(frame: pd.DataFrame, protocol: Protocol, baseline: str | None = DEFAULT_BASELINE) -> str:
+def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], baseline: str | None = DEFAULT_BASELINE) -> str:
     """A markdown table: mean +- std distance, completion rate, decision time per planner, and,
-    when `baseline` ran too, each planner's paired difference to it (`paired_difference`)."""
+    when `baseline` ran too, each planner's paired difference to it (`paired_difference`).
+    `protocol` is a Protocol or its record as the run wrote it (`recorded_protocol`)."""
+    fields = protocol.to_dict() if isinstance(protocol, Protocol) else dict(protocol)
     summary = summarise(frame)
     has_gap = "gap_to_optimal" in summary
     has_paired = bool(baseline) and baseline in summary.index and len(summary) > 1
@@ -443,13 +464,13 @@ def summary_markdown(frame: pd.DataFrame, protocol: Protocol, baseline: str | No
     notes = [
         "",
         "Distance is measured at completion (ground-truth free minus belief free cells "
-        f"<= {protocol.done_unknown_cells}); failed episodes count with the distance they travelled.",
+        f"<= {fields['done_unknown_cells']}); failed episodes count with the distance they travelled.",
         *(
             [f"Paired: the mean map-by-map difference to {baseline} as a share of its mean, +- the 95 % half-width; "
              "an interval that spans 0 is a difference these maps cannot resolve."]
             if has_paired else []
         ),
-        "Protocol: " + ", ".join(f"{k}={v}" for k, v in protocol.to_dict().items()) + ".",
+        "Protocol: " + ", ".join(f"{k}={v}" for k, v in fields.items()) + ".",
     ]
     if len(failures):
         notes.append("")

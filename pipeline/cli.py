@@ -327,7 +327,7 @@ def benchmark(
 
     Exits 1 when an episode did not complete (the files are written either way).
     """
-    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec, run_benchmark, summary_markdown
+    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec, run_benchmark
     from pipeline.maps import list_maps, load_map
     from pipeline.tracking import check_tracking_uri, log_benchmark
 
@@ -355,7 +355,7 @@ def benchmark(
         _fail(str(error.args[0]))
     except (ValueError, FileNotFoundError) as error:  # a malformed "label=name:key=value" spec, unknown option, no model
         _fail(str(error))
-    typer.echo(summary_markdown(frame, protocol, baseline or None))
+    typer.echo((out / "summary.md").read_text(), nl=False)
     if mlflow_log:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
     typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md, {out}/run.json and {len(frame)} trajectories")

@@ -109,7 +109,8 @@ def log_benchmark(
                 "seed": record.get("seed"),
             } if ran else {}
             mlflow.log_params(
-                {**protocol.to_dict(), "planner": planner, "maps": maps, "episodes": int(row.episodes), **variant}
+                {**record.get("protocol", protocol.to_dict()), "planner": planner, "maps": maps, "episodes": int(row.episodes),
+                 **variant}
             )
             mlflow.log_metrics(
                 {

@@ -103,6 +103,7 @@ def test_benchmark_records_what_ran_and_applies_one_start(generated_maze_dir, tm
                   start=start)
     record = json.loads((tmp_path / "run.json").read_text())
     assert record["start"] == list(start) and record["seed"] == 0
+    assert record["protocol"] == Protocol().to_dict() and record["maps"] == [str(maps[0])]
     assert record["planners"]["nf"]["name"] == "nearest_frontier"
     assert record["planners"]["nf"]["options"] == {"min_utility": 3}
     assert record["planners"]["nf"]["description"]
@@ -140,3 +141,36 @@ def test_a_protocol_mismatch_is_said_once_before_the_episodes(generated_maze_dir
         run_benchmark(maps, [spec], Protocol(node_resolution=2.0, max_steps=2), tmp_path, workers=1, progress=False)
     said = [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
     assert len(said) == 1 and "node_resolution 4 -> 2" in str(said[0].message)
+
+
+def test_a_ros_map_is_recorded_and_summarised_at_its_own_cell_size(tmp_path):
+    """The protocol's cell size (0.4 m) does not apply to a ROS map: its own (0.2 m) is what ran."""
+    import json
+    from dataclasses import replace
+
+    from pipeline.protocol import PAPER_REAL_ROBOT
+    from tests.conftest import write_ros_map
+    from tests.test_simulator import office_grid
+
+    maps = tmp_path / "ros"
+    maps.mkdir()
+    free, start = office_grid()
+    write_ros_map(maps, free, 0.2, start)
+    protocol = replace(PAPER_REAL_ROBOT, cell_size=0.4, done_unknown_cells=50)
+    run_benchmark(list_maps(maps), ["nearest_frontier"], protocol, tmp_path / "b", workers=1, progress=False)
+    record = json.loads((tmp_path / "b" / "run.json").read_text())
+    assert record["protocol"]["cell_size"] == 0.2 and record["protocol"]["node_resolution"] == 1.0
+    summary = (tmp_path / "b" / "summary.md").read_text()
+    assert "Protocol: cell_size=0.2, node_resolution=1.0" in summary
+
+
+def test_a_reused_output_folder_with_other_planners_results_is_warned_about(generated_maze_dir, tmp_path):
+    maps = list_maps(generated_maze_dir)[:1]
+    run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False)
+    with pytest.warns(UserWarning, match=r"holds trajectories of planners this run does not write \(nearest_frontier\)"):
+        run_benchmark(maps, ["greedy_utility"], Protocol(), tmp_path, workers=1, progress=False)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        run_benchmark(maps, ["greedy_utility"], Protocol(), tmp_path, workers=1, progress=False)  # same planners: quiet
