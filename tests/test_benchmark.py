@@ -173,4 +173,4 @@ def test_a_reused_output_folder_with_other_planners_results_is_warned_about(gene
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        run_benchmark(maps, ["greedy_utility"], Protocol(), tmp_path, workers=1, progress=False)  # same planners: quiet
+        run_benchmark(maps, ["greedy_utility", "nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False)  # all rewritten: quiet
