@@ -275,11 +275,11 @@ def _with_checkpoint(specs: list[str], checkpoint: Optional[Path]) -> list[str]:
     is given but no planner uses a policy, or a spec names its own checkpoint too."""
     from pipeline.benchmark import parse_planner_spec
     from pipeline.planners import planner_class
+    from pipeline.training.exports import require_file
 
     if checkpoint is None:
         return specs
-    if not checkpoint.is_file():
-        raise FileNotFoundError(f"{checkpoint}: file not found (expected a planner checkpoint)")
+    require_file(checkpoint, "a planner checkpoint")
     out, used = [], False
     for spec in specs:
         parsed = parse_planner_spec(spec)

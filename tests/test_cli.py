@@ -136,6 +136,13 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     assert "no planner given uses one" in line  # --checkpoint is a policy; guide_tsp has none
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path / "nope.pt")]))
     assert "file not found" in line
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path)]))
+    assert "a folder, not a file" in line
+    assets = Path(__file__).resolve().parents[1] / "pipeline" / "assets"
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(assets / "inpainter.pt")]))
+    assert "an inpainter export, not a planner policy" in line  # named for what it is, not by its config keys
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"t=guide_tsp:checkpoint={assets / 'planner_guide.pt'}"]))
+    assert "a planner policy export, not an inpainter export" in line
     line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out",
                                                str(tmp_path / "p"), "--checkpoint", str(fake)]))
     assert "not an inpainter export" in line

@@ -103,9 +103,9 @@ def warn_if_trained_at_other_taus(path, trained_on: dict, threshold: float, coun
 
 def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
     if checkpoint is not None:
-        if not Path(checkpoint).is_file():
-            raise FileNotFoundError(f"{checkpoint}: file not found (expected a planner checkpoint)")
-        return Path(checkpoint)
+        from pipeline.training.exports import require_file
+
+        return require_file(checkpoint, "a planner checkpoint")
     for path in (PIPELINE_POLICY[kind], SHIPPED_POLICY[kind]):
         if path.is_file():
             return path

@@ -14,15 +14,23 @@ from typing import Any
 import torch
 
 
+def require_file(path: str | Path, what: str) -> Path:
+    """`path`, or FileNotFoundError saying whether nothing or a folder is there ("what": the expected file)."""
+    path = Path(path)
+    if path.is_dir():
+        raise FileNotFoundError(f"{path}: a folder, not a file (expected {what})")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: file not found (expected {what})")
+    return path
+
+
 def read_weights_file(path: str | Path, what: str, map_location: str | torch.device = "cpu") -> dict[str, Any]:
     """The dict saved in `path` ("what" names the expected file, article included, for errors).
 
     FileNotFoundError if absent; ValueError if it is not a `torch.save` archive, holds pickled
     objects beyond tensors and plain containers, or holds something other than a dict.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: file not found (expected {what})")
+    path = require_file(path, what)
     if not zipfile.is_zipfile(path):
         raise ValueError(f"{path}: not {what} (not a file written by torch.save)")
     try:
@@ -46,3 +54,17 @@ def write_weights_file(payload: dict[str, Any], path: str | Path) -> Path:
     torch.save(payload, tmp)
     os.replace(tmp, path)
     return path
+
+
+INPAINTER_FORMAT = "guide-inpainter/1"  # the `format` key of an inpainter.pt export
+
+
+def export_kind(payload: dict[str, Any]) -> str | None:
+    """Which of this project's exports a payload is ("inpainter" or "policy"), else None: so that
+    a file given in the other's place is named for what it is, not by its unknown config keys."""
+    if payload.get("format") == INPAINTER_FORMAT:
+        return "inpainter"
+    config = payload.get("config")
+    if isinstance(config, dict) and {"horizon", "d_model"} <= set(config):
+        return "policy"
+    return None

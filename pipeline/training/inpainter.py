@@ -51,7 +51,7 @@ from pipeline.models.modeling_inpainter import (
     load_big_lama_generator,
 )
 from pipeline.shards import read_manifest
-from pipeline.training.exports import read_weights_file, write_weights_file
+from pipeline.training.exports import INPAINTER_FORMAT, export_kind, read_weights_file, write_weights_file
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,
@@ -63,7 +63,7 @@ from pipeline.training.run_setup import (
     torch_threads,
 )
 
-EXPORT_FORMAT = "guide-inpainter/1"
+EXPORT_FORMAT = INPAINTER_FORMAT
 EXPORT_NAME = "inpainter.pt"
 LAST_CKPT = "last.ckpt"
 BEST_NAME = "best"
@@ -557,6 +557,8 @@ def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -
 
 def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[InpainterModel, InpainterConfig]:
     """`load_inpainter` on a payload already read (`read_export`), for callers that want its metadata too."""
+    if export_kind(payload) == "policy":
+        raise ValueError(f"{path}: a planner policy export, not an inpainter export")
     try:
         if "config" in payload and "state_dict" in payload:
             config = InpainterConfig.from_dict(payload["config"])

@@ -24,7 +24,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
-from pipeline.training.exports import read_weights_file, write_weights_file
+from pipeline.training.exports import export_kind, read_weights_file, write_weights_file
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,
@@ -178,6 +178,9 @@ def export_policy(policy: DiffusionPolicy, path: str | Path, **extra: Any) -> Pa
 def read_policy_export(path: str | Path) -> dict[str, Any]:
     """The export's dict (config, EMA state_dict, metadata); loads tensors only, never pickled code."""
     data = read_weights_file(path, "a planner checkpoint")
+    if export_kind(data) == "inpainter":
+        raise ValueError(f"{path}: an inpainter export, not a planner policy (pass it as the inpainter: "
+                         "inpainter_checkpoint= for guide, checkpoint= for guide_tsp and mapex)")
     if "config" not in data or "state_dict" not in data:
         raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
     return data
