@@ -244,9 +244,11 @@ def explore(
     (out / "run.json").write_text(json.dumps(record, indent=2) + "\n")
     written.append(out / "run.json")
     status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"
+    timing = (f"decision {result.metrics_row()['decision_ms_median']} ms median" if result.decision_ms
+              else "no decision needed (complete at the first scan)")
     typer.echo(
         f"{ground_truth.name} {spec.label}: {status}, {result.distance_m:.1f} m in {result.steps} waypoints, "
-        f"explored {result.explored_ratio * 100:.1f} %, decision {result.metrics_row()['decision_ms_median']} ms median"
+        f"explored {result.explored_ratio * 100:.1f} %, {timing}"
     )
     typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:
@@ -358,7 +360,8 @@ def benchmark(
     typer.echo((out / "summary.md").read_text(), nl=False)
     if mlflow_log:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
-    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md, {out}/run.json and {len(frame)} trajectories")
+    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md, {out}/run.json and {len(frame)} "
+               f"trajector{'ies' if len(frame) != 1 else 'y'}")
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
@@ -408,8 +411,26 @@ def replay(
             }
         )
     )
+    if start is None and (not result.complete or result.motion_violations):
+        recorded = _recorded_start(trajectory)
+        if recorded is not None:
+            typer.echo(f"note: {recorded[0]} says the run started at --start {recorded[1][0]:g} {recorded[1][1]:g}; "
+                       "replay it with the same --start", err=True)
     if not result.complete or result.motion_violations:
         raise typer.Exit(code=1)  # as `explore`: scripts can test the exit status
+
+
+def _recorded_start(trajectory: Path) -> tuple[Path, list[float]] | None:
+    """(run.json, its start override) of the run that wrote `trajectory`: explore writes run.json
+    beside it, benchmark one folder up (OUT/label/map.csv); None when neither records a start."""
+    for record_path in (trajectory.parent / "run.json", trajectory.parent.parent / "run.json"):
+        try:
+            start = json.loads(record_path.read_text()).get("start")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(start, list) and len(start) == 2:
+            return record_path, start
+    return None
 
 
 @app.command("eval-predictor")

@@ -310,3 +310,19 @@ def test_eval_predictor_takes_a_start_for_grids_without_one(small_maze, tmp_path
     assert result.exit_code == 0, result.output
     frame = pd.read_csv(out / "precision.csv")
     assert frame["maps"].max() == 1
+
+
+def test_replay_of_a_run_made_from_another_start_points_to_its_start(small_maze_path, small_maze, tmp_path):
+    col, row = small_maze.start_cell
+    start = next((c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10))
+                 if small_maze.free[r, c])
+    out = tmp_path / "moved"
+    explored = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--start", str(start[0]), str(start[1]),
+                                   "--out", str(out), "--no-progress"])
+    assert explored.exit_code == 0, explored.output
+    trajectory = ["--trajectory", str(out / "small.csv")]
+    result = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory])
+    assert result.exit_code == 1
+    assert f"says the run started at --start {start[0]} {start[1]}; replay it with the same --start" in result.output
+    again = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory, "--start", str(start[0]), str(start[1])])
+    assert again.exit_code == 0 and json.loads(again.output)["complete"]
