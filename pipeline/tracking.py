@@ -17,10 +17,13 @@ DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 
 def import_mlflow():
     """mlflow, imported only when tracking is asked for (it is slow to import), with its telemetry
-    off unless the user set MLFLOW_DISABLE_TELEMETRY: runs here log to a local store."""
+    off unless the user set MLFLOW_DISABLE_TELEMETRY (runs here log to a local store), and without
+    the INFO lines a new store prints (its tables and schema migrations, a new experiment)."""
     os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
     import mlflow
 
+    for name in ("alembic", "mlflow.store.db.utils", "mlflow.tracking.fluent"):
+        logging.getLogger(name).setLevel(logging.WARNING)
     return mlflow
 
 
@@ -92,7 +95,6 @@ def log_benchmark(
     from pipeline.benchmark import RUN_RECORD, summarise
 
     out_dir = Path(out_dir)
-    logging.getLogger("alembic").setLevel(logging.WARNING)  # a new sqlite store's schema migrations, one INFO line each
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     mlflow.set_experiment(experiment)
     summary = summarise(frame)
