@@ -323,17 +323,36 @@ def run_benchmark(
     workers = default_workers() if workers is None else max(1, workers)
     results: list[EpisodeResult] = []
     bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress)
-    if workers == 1 or len(tasks) == 1:
-        for task in tasks:
-            results.append(_write_result(run_task(task), task, out_dir))
-            bar.update()
-    else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
-            futures = {pool.submit(run_task, task): task for task in tasks}
-            for future in as_completed(futures):
-                results.append(_write_result(future.result(), futures[future], out_dir))
+    try:
+        if workers == 1 or len(tasks) == 1:
+            for task in tasks:
+                results.append(_write_result(run_task(task), task, out_dir))
                 bar.update()
+        else:
+            with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
+                futures = {pool.submit(run_task, task): task for task in tasks}
+                for future in as_completed(futures):
+                    results.append(_write_result(future.result(), futures[future], out_dir))
+                    bar.update()
+    except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
+        bar.close()
+        if results:
+            _write_tables(results, out_dir, protocol_record, baseline)
+        raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     bar.close()
+    return _write_tables(results, out_dir, protocol_record, baseline)
+
+
+class BenchmarkInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a benchmark, after `done` of `total` episodes (their metrics.csv and summary.md are written)."""
+
+    def __init__(self, done: int, total: int, out_dir: Path):
+        super().__init__(f"interrupted after {done} of {total} episodes")
+        self.done, self.total, self.out_dir = done, total, out_dir
+
+
+def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_record: dict[str, Any],
+                  baseline: str | None) -> pd.DataFrame:
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
     (out_dir / "summary.md").write_text(summary_markdown(frame, protocol_record, baseline))

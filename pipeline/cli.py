@@ -329,7 +329,7 @@ def benchmark(
 
     Exits 1 when an episode did not complete (the files are written either way).
     """
-    from pipeline.benchmark import DEFAULT_BASELINE, parse_planner_spec, run_benchmark
+    from pipeline.benchmark import DEFAULT_BASELINE, BenchmarkInterrupted, parse_planner_spec, run_benchmark
     from pipeline.maps import list_maps, load_map
     from pipeline.tracking import check_tracking_uri, log_benchmark
 
@@ -351,6 +351,10 @@ def benchmark(
             _fail(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
         frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
                               start=start)
+    except BenchmarkInterrupted as stop:
+        kept = f"; {out}/metrics.csv and summary.md hold them" if stop.done else ""
+        typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}", err=True)
+        raise typer.Exit(code=130)
     except MapError as error:
         _fail(str(error))
     except KeyError as error:

@@ -174,3 +174,29 @@ def test_a_reused_output_folder_with_other_planners_results_is_warned_about(gene
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         run_benchmark(maps, ["greedy_utility", "nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False)  # all rewritten: quiet
+
+
+def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir, tmp_path, monkeypatch):
+    """Ctrl-C after one episode: its trajectory, metrics.csv and summary.md stay; the CLI exits 130."""
+    from typer.testing import CliRunner
+
+    import pipeline.benchmark as benchmark
+    from pipeline.cli import app
+
+    finished = benchmark.run_task
+
+    def interrupt_after_the_first(task):
+        if interrupt_after_the_first.calls:
+            raise KeyboardInterrupt
+        interrupt_after_the_first.calls += 1
+        return finished(task)
+
+    interrupt_after_the_first.calls = 0
+    monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
+    result = CliRunner().invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
+                                      "--out", str(tmp_path / "b"), "--workers", "1", "--no-mlflow"])
+    assert result.exit_code == 130
+    assert f"interrupted after 1 of 3 episodes; {tmp_path / 'b'}/metrics.csv and summary.md hold them" in result.output
+    metrics = pd.read_csv(tmp_path / "b" / "metrics.csv")
+    assert len(metrics) == 1 and bool(metrics["complete"].iloc[0])
+    assert "nearest_frontier" in (tmp_path / "b" / "summary.md").read_text()

@@ -92,9 +92,10 @@ def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tupl
     if inpaint is not None:
         return inpaint, "injected inpainter", None
     if checkpoint is not None:
-        if not Path(checkpoint).is_file():
-            raise FileNotFoundError(f"{checkpoint}: no inpainter checkpoint there")
-        return cached_inpainter(checkpoint), f"trained inpainter {checkpoint}", Path(checkpoint)
+        from pipeline.training.exports import require_file
+
+        path = require_file(checkpoint, "an inpainter export")
+        return cached_inpainter(path), f"trained inpainter {checkpoint}", path
     if DEFAULT_CHECKPOINT.is_file():
         return cached_inpainter(DEFAULT_CHECKPOINT), f"trained inpainter {DEFAULT_CHECKPOINT}", DEFAULT_CHECKPOINT
     if SHIPPED_CHECKPOINT.is_file():

@@ -184,9 +184,11 @@ def test_mapex_paints_only_unknown_cells_near_predicted_nodes(maze):
     assert not planner.predicted_free_cells(belief, np.zeros(0, dtype=np.int64)).any()
 
 
-def test_a_missing_checkpoint_is_an_error():
-    with pytest.raises(FileNotFoundError, match="checkpoint"):
+def test_a_missing_checkpoint_is_an_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"inpainter\.pt: file not found \(expected an inpainter export\)"):
         make_planner("guide_tsp", checkpoint="/nonexistent/inpainter.pt")
+    with pytest.raises(FileNotFoundError, match=r"a folder, not a file"):
+        make_planner("mapex", checkpoint=str(tmp_path))
 
 
 def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
