@@ -215,15 +215,17 @@ class EpisodeTask:
             object.__setattr__(self, "label", self.planner)
 
 
-def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protocol:
+def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: str | Path | None = None) -> Protocol:
     """A ROS map carries its own cell size; every other protocol value stays.
 
-    MapError for a map with no more free cells than `done_unknown_cells`: every episode on it
-    would count as complete at 0 m (e.g. a PNG whose free space is drawn in a colour read as wall).
+    MapError (naming `source`, the map's file, else its name) for a map with no more free cells
+    than `done_unknown_cells`: every episode on it would count as complete at 0 m (e.g. a PNG
+    whose free space is drawn in a colour read as wall).
     """
+    where = source if source is not None else ground_truth.name
     if ground_truth.free_cell_count <= protocol.done_unknown_cells:
         raise MapError(
-            ground_truth.name,
+            where,
             f"only {ground_truth.free_cell_count} free cells, not more than done_unknown_cells="
             f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves"
             + (f" ({ground_truth.free_rule})" if ground_truth.free_rule else ""),
@@ -234,7 +236,7 @@ def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap) -> Protoc
     diagonal_m = math.hypot(rows, cols) * protocol.cell_size
     if protocol.sensor_range > 2 * diagonal_m:  # a ray table that long costs minutes and gigabytes, and sees nothing more
         raise MapError(
-            ground_truth.name,
+            where,
             f"sensor range {protocol.sensor_range:g} m is more than twice the map's diagonal ({diagonal_m:.1f} m); "
             "a longer lidar sees nothing more: use a shorter --sensor-range",
         )
@@ -261,7 +263,7 @@ def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]
 
 def run_task(task: EpisodeTask) -> EpisodeResult:
     ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
-    protocol = protocol_for_map(task.protocol, ground_truth)
+    protocol = protocol_for_map(task.protocol, ground_truth, task.map_path)
     with warnings.catch_warnings():
         # run_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
@@ -300,7 +302,7 @@ def run_benchmark(
     names, cell_sizes = [], set()
     for path in map_paths:
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
-        cell_sizes.add(protocol_for_map(protocol, ground_truth).cell_size)  # a ROS map's own
+        cell_sizes.add(protocol_for_map(protocol, ground_truth, path).cell_size)  # a ROS map's own
         names.append(ground_truth.name)
     check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)

@@ -196,7 +196,7 @@ def explore(
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
-        protocol = protocol_for_map(protocol, ground_truth)
+        protocol = protocol_for_map(protocol, ground_truth, map_path)
         (spec,) = resolve_planner_specs(_with_checkpoint([planner], checkpoint))
         agent = build_planner(spec)
     except MapError as error:
@@ -398,7 +398,7 @@ def replay(
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
         points = read_trajectory_csv(trajectory)
-        result = replay_trajectory(ground_truth, points, protocol_for_map(protocol, ground_truth), oracle=oracle)
+        result = replay_trajectory(ground_truth, points, protocol_for_map(protocol, ground_truth, map_path), oracle=oracle)
     except (MapError, ValueError) as error:
         _fail(str(error))
     typer.echo(

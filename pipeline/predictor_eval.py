@@ -402,7 +402,7 @@ def _evaluate(
     times: dict[int, list[float]] = {s: [] for s in steps}
     for path in tqdm(map_paths, desc="maps", unit="map", disable=not progress):
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
-        map_protocol = protocol_for_map(protocol, ground_truth)
+        map_protocol = protocol_for_map(protocol, ground_truth, path)
         predictors: list[NodePredictor] = []
         for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol):
             if not predictors:
@@ -613,7 +613,7 @@ def prediction_figure(
 
     factory = _resolve_inpaint(inpaint_fn, inpaint_for)
     ground_truth = load_map(map_path, start=start, cell_size=protocol.cell_size)
-    map_protocol = protocol_for_map(protocol, ground_truth)
+    map_protocol = protocol_for_map(protocol, ground_truth, map_path)
     for checkpoint in explore_checkpoints(ground_truth, [step], map_protocol):
         predictor = NodePredictor(factory(ground_truth, checkpoint.lattice), predictor_config)
         prediction = predict_at(checkpoint, predictor, graph_config)

@@ -119,8 +119,9 @@ def test_a_map_with_too_few_free_cells_is_refused(tmp_path):
     grid = np.zeros((40, 40), dtype=np.uint8)
     grid[10:20, 10:20] = 1  # 100 free cells: complete under done_unknown_cells=250 before any move
     np.save(tmp_path / "tiny.npy", grid)
-    with pytest.raises(MapError, match="only 100 free cells, not more than done_unknown_cells=250"):
+    with pytest.raises(MapError, match="only 100 free cells, not more than done_unknown_cells=250") as info:
         run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(), tmp_path / "out", start=(12, 12))
+    assert str(info.value).startswith(f"{tmp_path / 'tiny.npy'}: ")  # the file, not just its stem
     frame = run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(done_unknown_cells=10),
                           tmp_path / "out", workers=1, progress=False, start=(12, 12))
     assert frame["complete"].all()
