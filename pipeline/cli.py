@@ -111,8 +111,8 @@ def _protocol(
             done_unknown_cells=done_unknown_cells,
             max_steps=max_steps,
         )
-    except ValueError as error:
-        _fail(str(error))
+    except ValueError as error:  # named by the options: "protocol.sensor_range" -> "--sensor-range"
+        _fail(re.sub(r"protocol\.(\w+)", lambda m: "--" + m.group(1).replace("_", "-"), str(error)))
         raise  # unreachable; keeps type checkers calm
 
 

@@ -203,8 +203,9 @@ def test_explore_records_the_run_and_defaults_to_a_folder_per_planner(small_maze
 @pytest.mark.parametrize(
     "extra, message",
     [
-        (["--sensor-range", "nan"], "sensor_range must be a positive finite number"),
-        (["--node-resolution", "inf"], "node_resolution must be a positive finite number"),
+        (["--sensor-range", "nan"], "error: --sensor-range must be a positive finite number"),
+        (["--node-resolution", "inf"], "error: --node-resolution must be a positive finite number"),
+        (["--done-unknown-cells", "-3"], "error: --done-unknown-cells must be >= 0"),
         (["--sensor-range", "1000"], "more than twice the map's diagonal"),
         (["--planner", "x=greedy_utility:min_utility=nan"], "must be a finite number"),
     ],
