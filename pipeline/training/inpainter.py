@@ -63,7 +63,6 @@ from pipeline.training.run_setup import (
     torch_threads,
 )
 
-EXPORT_FORMAT = INPAINTER_FORMAT
 EXPORT_NAME = "inpainter.pt"
 LAST_CKPT = "last.ckpt"
 BEST_NAME = "best"
@@ -541,7 +540,7 @@ class InpainterLightning(L.LightningModule):
 def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) -> Path:
     """Write `inpainter.pt`: {format, config, state_dict, ...extra}; atomic."""
     payload = {
-        "format": EXPORT_FORMAT,
+        "format": INPAINTER_FORMAT,
         "config": generator.config.to_dict(),
         "state_dict": {k: v.detach().cpu().clone() for k, v in generator.state_dict().items()},
         "num_parameters": generator.num_parameters(),
@@ -617,7 +616,7 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- entry point
 def is_inpainter_export(payload: dict[str, Any]) -> bool:
     """Whether a checkpoint's dict is one of our `inpainter.pt` exports (`export_inpainter`)."""
-    return payload.get("format") == EXPORT_FORMAT and "config" in payload and "state_dict" in payload
+    return payload.get("format") == INPAINTER_FORMAT and "config" in payload and "state_dict" in payload
 
 
 def is_big_lama_layout(config: InpainterConfig) -> bool:
