@@ -297,6 +297,8 @@ def run_benchmark(
     summary.md compares every planner with `baseline` map by map when it ran too.
     `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
     """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
     specs = resolve_planner_specs(planners)
     built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
     names, cell_sizes = [], set()
@@ -322,7 +324,7 @@ def run_benchmark(
         for spec in specs
         for p in map_paths
     ]
-    workers = default_workers() if workers is None else max(1, workers)
+    workers = default_workers() if workers is None else workers
     results: list[EpisodeResult] = []
     bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress)
     try:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import sys
 import tempfile
@@ -149,14 +150,19 @@ def mazes(
     More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
     `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
     """
-    from pipeline.mazes import MazeConfig, generate_maze_set
+    from pipeline.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
 
-    _check_out_dir(out)
+    if not (math.isfinite(side) and side > 0):
+        _fail(f"--side must be a positive number of metres, got {side:g}")
     try:
         config = MazeConfig(side_m=(side, side), cell_size=cell_size)
     except ValueError as error:  # named by this command's options, not the config's fields
+        if "MazeConfig.block_m" in str(error):
+            _fail(f"--cell-size {cell_size:g} does not fit the mazes' {MazeConfig.block_m:g} m blocks: a block must be "
+                  f"a whole number (at least {MIN_BLOCK_PIXELS}) of half-cells ({cell_size / 2:g} m); 0.2, 0.4 or 0.5 m fit")
         message = re.sub(r"MazeConfig\.side_m \([^)]*\)", f"--side {side:g}", str(error))
         _fail(message.replace("MazeConfig.side_m", "--side").replace("MazeConfig.cell_size", "--cell-size"))
+    _check_out_dir(out)  # after the settings: a refused one leaves no folder behind
     stale = sorted(out.glob("maze_*.png")) if out.is_dir() else []
     if stale:
         _fail(f"{out} already holds {len(stale)} maze PNGs: pick an empty folder, so no old maze mixes into a set")
@@ -168,7 +174,8 @@ def mazes(
 def explore(
     ctx: typer.Context,
     map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
-    planner: str = typer.Option("nearest_frontier", help="Planner name (see `guide planners`)."),
+    planner: str = typer.Option(
+        "nearest_frontier", help="Planner name (see `guide planners`) or labelled variant label=name:key=value,..."),
     out: Optional[Path] = typer.Option(None, help="Output folder [default: runs/explore/<planner label>]."),
     gif: bool = typer.Option(False, "--gif", help="Also write an animation of the episode."),
     start: Optional[tuple[float, float]] = typer.Option(
@@ -445,7 +452,7 @@ def eval_predictor(
         None, help="Inpainter export [default: models/inpainter/inpainter.pt when the pipeline has trained one, else the shipped one]."),
     sweep: bool = typer.Option(False, "--sweep", help="Also at tau 0.5-0.9: precision_by_threshold.csv, threshold_sweep.png."),
     threshold: Optional[float] = typer.Option(
-        None, min=0.0, max=1.0,
+        None,
         help="tau: P(free) at or above which a node is predicted, as the planners' `threshold=` [default: theirs].",
     ),
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
@@ -454,6 +461,8 @@ def eval_predictor(
     from pipeline.predictor_eval import inpainter_path
     from stages import eval_predictor as eval_stage
 
+    if threshold is not None and not 0.0 <= threshold <= 1.0:  # NaN fails this too
+        _fail(f"--threshold must be a probability in [0, 1], got {threshold:g}")
     _check_out_dir(out)
     try:
         used = inpainter_path(checkpoint)

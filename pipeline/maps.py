@@ -17,6 +17,8 @@ import cv2
 import numpy as np
 import yaml
 
+from pipeline.params_file import yaml_problem
+
 MAZE_FREE_MIN = 150  # maze PNG: value > 150 is free ...
 MAZE_FREE_BAND = (50, 80)  # ... and so is a value in [50, 80]
 MAZE_START_VALUE = 208
@@ -273,10 +275,7 @@ def _read_yaml(path: Path) -> object:
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as error:
-        problem = getattr(error, "problem", None) or _first_line(error)
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise MapError(path, f"not valid YAML ({problem}{where})") from None
+        raise MapError(path, f"not valid YAML ({yaml_problem(error)})") from None
     except RecursionError:
         raise MapError(path, "not valid YAML (nested too deeply)") from None
 

@@ -130,7 +130,7 @@ class MazeConfig:
             )
         if low_blocks < MIN_SIDE_BLOCKS:
             raise ValueError(
-                f"MazeConfig.side_m {self.side_m} allows a side of {low_blocks} blocks; a maze needs at "
+                f"MazeConfig.side_m {self.side_m} allows a side of {low_blocks} block{'s' if low_blocks != 1 else ''}; a maze needs at "
                 f"least {MIN_SIDE_BLOCKS} blocks ({MIN_SIDE_BLOCKS * self.block_m} m) per side"
             )
         max_blocks = math.isqrt(MAX_IMAGE_PIXELS) // self.block_pixels  # what the map loader reads back

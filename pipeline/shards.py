@@ -10,6 +10,7 @@ later stages read the manifest, never a folder listing.
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import os
 import subprocess
@@ -121,6 +122,10 @@ def run_shards(
     a resume. The returned dict adds `code_version` and `made_this_run` (the shard indices
     this run made) for the caller's run summary.
     """
+    if backend not in ("process", "ray"):  # checked before any shard on disk is touched
+        raise ValueError(f"unknown backend {backend!r}: use 'process' or 'ray'")
+    if backend == "ray" and importlib.util.find_spec("ray") is None:
+        raise ValueError("backend 'ray' needs Ray, which is not installed: pip install '.[ray]' (or use backend: process)")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     fp = fingerprint(params, sources)
@@ -139,7 +144,7 @@ def run_shards(
     if backend == "ray":
         for _ in _run_ray(make_shard, todo, workers):
             bar.update()
-    elif backend == "process":
+    else:
         if workers <= 1 or len(todo) <= 1:
             for job in todo:
                 make_shard(job)
@@ -149,8 +154,6 @@ def run_shards(
                 for future in as_completed([pool.submit(make_shard, job) for job in todo]):
                     future.result()  # re-raises a worker's error
                     bar.update()
-    else:
-        raise ValueError(f"unknown backend {backend!r}: use 'process' or 'ray'")
     bar.close()
     # Counts read back from every shard file, made now or earlier, so a resume writes the same manifest.
     shards = [{"file": shard_path(out_dir, k).name, **summarise_shard(shard_path(out_dir, k))} for k in range(shard_count)]
@@ -209,10 +212,7 @@ def read_manifest(out_dir: str | Path) -> dict[str, Any]:
 
 
 def _run_ray(make_shard: Callable[[ShardJob], dict[str, Any]], jobs: list[ShardJob], workers: int):
-    try:
-        import ray
-    except ImportError:
-        raise RuntimeError("the ray backend needs Ray: pip install '.[ray]'") from None
+    import ray  # installed: run_shards checked
     if not ray.is_initialized():
         if os.environ.get("RAY_ADDRESS"):
             ray.init(log_to_driver=False)  # join the cluster RAY_ADDRESS names

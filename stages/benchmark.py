@@ -11,12 +11,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import yaml
 
 from pipeline.benchmark import run_benchmark, summarise
 from pipeline.maps import list_maps, load_map
 from pipeline.protocol import Protocol
 from pipeline.tracking import log_benchmark
+from pipeline.params_file import load_params
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
@@ -27,7 +27,7 @@ FIGURE_PATH = Path("reports/benchmark_trajectories.png")
 
 
 def read_params(params_path: str | Path) -> tuple[dict, Protocol]:
-    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    params = load_params(params_path)
     section = params.get("benchmark")
     if not isinstance(section, dict) or not section.get("planners"):
         raise ValueError(f"{params_path}: the 'benchmark' section needs a 'planners' list")

@@ -18,11 +18,11 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import yaml
 from tqdm import tqdm
 
 from pipeline.global_graph import FEATURE_NAMES
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD
+from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 EXPERT_DIR = Path("data/expert")
@@ -59,8 +59,8 @@ def main(params_path: str = "params.yaml") -> dict:
     from pipeline.planner_data import concatenate, save_observations
     from pipeline.protocol import Protocol
 
-    params = yaml.safe_load(Path(params_path).read_text())
-    section = params["build_observations"]
+    params = load_params(params_path)
+    section = params_section(params, "build_observations", params_path)
     protocol = Protocol.from_dict(params.get("protocol") or {})
     inpainter = Path(section.get("inpainter") or DEFAULT_INPAINTER)
     if not inpainter.is_file():

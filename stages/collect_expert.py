@@ -12,12 +12,12 @@ import json
 import time
 from pathlib import Path
 
-import yaml
 
 from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard, load_expert_episodes
 from pipeline.maps import GroundTruthMap, list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
@@ -41,8 +41,8 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
-    params = yaml.safe_load(Path(params_path).read_text())
-    section = params["collect_expert"]
+    params = load_params(params_path)
+    section = params_section(params, "collect_expert", params_path)
     protocol = Protocol.from_dict(params.get("protocol") or {})
     maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
     if not maps:

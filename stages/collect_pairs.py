@@ -13,12 +13,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from pipeline.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard, load_pairs
 from pipeline.maps import list_maps
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
@@ -52,8 +52,8 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
-    params = yaml.safe_load(Path(params_path).read_text())
-    section = params["collect_pairs"]
+    params = load_params(params_path)
+    section = params_section(params, "collect_pairs", params_path)
     protocol = Protocol.from_dict(params.get("protocol") or {})
     maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
     if not maps:

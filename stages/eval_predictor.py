@@ -15,17 +15,18 @@ Logs one MLflow run in experiment "table1".
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Optional
 
 import pandas as pd
-import yaml
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
 from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
 from pipeline.maps import MapError, list_maps, load_map
 from pipeline.node_predictor import NodePredictorConfig
 from pipeline.protocol import Protocol
+from pipeline.params_file import load_params
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
@@ -36,7 +37,7 @@ COMPARE_CSV = "precision_compare.csv"
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
-    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    params = load_params(params_path)
     section = dict(params.get("eval_predictor") or {})
     unknown = set(section) - SECTION_KEYS
     if unknown:
@@ -99,6 +100,11 @@ def run(
     else:
         frame, sweep = evaluate_predictor(maps, inpaint, steps, predictor_config, graph_config, protocol, progress=progress,
                                            start=start), None
+    unreached = [int(row.step) for row in frame.itertuples(index=False) if row.maps == 0]
+    if unreached:
+        warnings.warn(f"no exploration reached step {', '.join(map(str, unreached))}: every episode completed "
+                      f"earlier, so there is nothing to count there (precision n/a); larger maps reach later steps",
+                      stacklevel=2)
     frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
     frame.to_csv(out_dir / "precision_detail.csv", index=False)
     table = table1_markdown(frame, threshold=predictor_config.threshold)
@@ -118,6 +124,9 @@ def run(
             )
             if done:
                 break
+        else:
+            warnings.warn(f"fig3.png not drawn: no exploration of the first maps reached step {steps_sorted[0]}",
+                          stacklevel=2)
     return frame
 
 

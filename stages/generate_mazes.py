@@ -14,9 +14,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from pipeline.mazes import MazeConfig, generate_maze_set, write_maze_png
+from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 MAZE_ROOT = Path("data/mazes")
@@ -31,12 +31,11 @@ DEFAULT_CELL_SIZE = 0.4
 
 def _load_params(params_path: str | Path) -> tuple[dict, float]:
     """The `mazes` section and the cell size; a clear error if the section is missing."""
-    params = yaml.safe_load(Path(params_path).read_text()) or {}
-    if not isinstance(params, dict) or not isinstance(params.get("mazes"), dict):
-        raise ValueError(f"{params_path}: missing the 'mazes' section")
+    params = load_params(params_path)
+    mazes = params_section(params, "mazes", params_path)
     protocol = params.get("protocol") if isinstance(params.get("protocol"), dict) else {}
     cell_size = float(protocol.get("cell_size", DEFAULT_CELL_SIZE))
-    return params["mazes"], cell_size
+    return mazes, cell_size
 
 
 def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig, int]:

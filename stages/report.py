@@ -22,7 +22,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-import yaml
 
 from pipeline.benchmark import PlannerSpec, run_benchmark
 from pipeline.maps import MapError, list_maps
@@ -45,6 +44,7 @@ from pipeline.reports import (
     table4_markdown,
     trajectory_figure,
 )
+from pipeline.params_file import load_params
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
@@ -73,7 +73,7 @@ DEFAULTS: dict[str, Any] = {
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     """The `report` section (defaults filled in, unknown keys refused) and the protocol."""
-    params = yaml.safe_load(Path(params_path).read_text()) or {}
+    params = load_params(params_path)
     raw = params.get("report") or {}
     if not isinstance(raw, dict):
         raise ValueError(f"{params_path}: the 'report' section must be a mapping")

@@ -14,12 +14,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
-import yaml
 
+from pipeline.params_file import load_params, params_section
 from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
@@ -149,8 +150,8 @@ def main(
         train_inpainter,
     )
 
-    params = yaml.safe_load(Path(params_path).read_text())
-    section = dict(params["train_inpainter"])
+    params = load_params(params_path)
+    section = dict(params_section(params, "train_inpainter", params_path))
     run = {key: section.pop(key, None) for key in RUN_KEYS}
     train_config = TrainConfig.from_dict(section)
     model_config = InpainterConfig.from_dict(run["model"] or {})
@@ -178,7 +179,9 @@ def main(
         import torch
 
         torch.set_num_threads(int(run["threads"]))
-    _, val_pairs = split_pairs(DATA_DIR, train_config.val_fraction, train_config.split, train_config.seed)
+    with warnings.catch_warnings():  # the split training made: its warnings were shown then
+        warnings.simplefilter("ignore")
+        _, val_pairs = split_pairs(DATA_DIR, train_config.val_fraction, train_config.split, train_config.seed)
     tau = train_config.threshold
     results = evaluate_inpainter(model, val_pairs, sorted({tau, *REPORT_THRESHOLDS}))
     at_tau = results[tau]

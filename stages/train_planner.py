@@ -12,8 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
-import yaml
 
+from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 VARIANTS = ("guide", "dare")
@@ -57,8 +57,8 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
 
     if variant not in VARIANTS:
         raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")
-    params = yaml.safe_load(Path(params_path).read_text())
-    section = params["train_planner"]
+    params = load_params(params_path)
+    section = params_section(params, "train_planner", params_path)
     train = dict(section.get("train") or {})
     if max_epochs is not None:
         train["max_epochs"] = int(max_epochs)

@@ -1,4 +1,6 @@
 import json
+import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -7,6 +9,8 @@ import pytest
 from typer.testing import CliRunner
 
 from pipeline.cli import app
+from pipeline.mazes import write_maze_png
+from tests.conftest import maze_from_blocks
 
 runner = CliRunner()
 
@@ -327,3 +331,62 @@ def test_replay_of_a_run_made_from_another_start_points_to_its_start(small_maze_
     assert f"says the run started at --start {start[0]} {start[1]}; replay it with the same --start" in result.output
     again = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory, "--start", str(start[0]), str(start[1])])
     assert again.exit_code == 0 and json.loads(again.output)["complete"]
+
+
+def test_stage_params_that_are_not_a_params_file_are_one_error_line(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "README.md").write_text("# guide\n\n*GUIDE: a paper*\n")  # not YAML: '*' starts an alias
+    for command in (["stage", "generate-mazes"], ["stage", "collect-expert"], ["train-planner"]):
+        line = _one_error_line(runner.invoke(app, command + ["--params", "README.md"]))
+        assert "README.md: not valid YAML" in line and "line 3, column 1" in line
+    (tmp_path / "bare.yaml").write_text("protocol: {}\n")
+    line = _one_error_line(runner.invoke(app, ["stage", "collect-expert", "--params", "bare.yaml"]))
+    assert line == "error: bare.yaml: missing the 'collect_expert' section"
+
+
+def test_stage_benchmark_settings_are_checked_before_any_episode(generated_maze_dir, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(generated_maze_dir, tmp_path / "data" / "mazes" / "test")
+    (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo]}\n")
+    line = _one_error_line(runner.invoke(app, ["stage", "benchmark", "--params", "p.yaml"]))
+    assert line.startswith("error: unknown planner 'foo'; choose from: ") and "nearest_frontier" in line
+    (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], workers: 0}\n")
+    line = _one_error_line(runner.invoke(app, ["stage", "benchmark", "--params", "w.yaml"]))
+    assert line == "error: workers must be a whole number >= 1 (or null: all cores), got 0"
+    assert not (tmp_path / "reports" / "benchmark").exists()
+
+
+def test_train_planner_refuses_zero_epochs_before_touching_its_checkpoints(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "params.yaml").write_text((Path(__file__).resolve().parents[1] / "params.yaml").read_text())
+    for epochs in ("0", "-1"):  # 0 would export an untrained policy over a trained one
+        line = _one_error_line(runner.invoke(app, ["train-planner", "--max-epochs", epochs]))
+        assert line == f"error: max_epochs must be a whole number >= 1, got {epochs}"
+
+
+def test_mazes_options_are_named_in_their_errors(tmp_path):
+    def error(*options: str) -> str:
+        return _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "m"), "--count", "1", *options]))
+
+    assert error("--side", "0") == "error: --side must be a positive number of metres, got 0"
+    assert error("--side", "nan") == "error: --side must be a positive number of metres, got nan"
+    assert "--side 5 allows a side of 1 block; a maze needs at least" in error("--side", "5")
+    line = error("--cell-size", "0.3")
+    assert line.startswith("error: --cell-size 0.3 does not fit the mazes' 5 m blocks") and "MazeConfig" not in line
+    assert not (tmp_path / "m").exists()
+
+
+def test_eval_predictor_says_when_no_exploration_reaches_a_step(tmp_path):
+    maps = tmp_path / "rooms"
+    maps.mkdir()
+    write_maze_png(maze_from_blocks(["######", "#S...#", "#....#", "######"]), maps / "room.png")  # seen at once
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = runner.invoke(app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "p")])
+    assert result.exit_code == 0, result.output
+    said = [str(w.message) for w in caught]
+    assert any(m.startswith("no exploration reached step 15, 30, 45, 60: every episode completed earlier") for m in said)
+    assert any(m.startswith("fig3.png not drawn") for m in said)
+    assert pd.read_csv(tmp_path / "p" / "precision.csv")["maps"].eq(0).all()
+    nan = runner.invoke(app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "q"), "--threshold", "nan"])
+    assert _one_error_line(nan) == "error: --threshold must be a probability in [0, 1], got nan"

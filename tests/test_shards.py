@@ -1,3 +1,4 @@
+import importlib.util
 import json
 
 import numpy as np
@@ -86,3 +87,15 @@ def test_shard_count_rounds_up_to_whole_shards_and_says_so(capsys):
     for requested, per_shard in ((0, 100), (10, 0), (-5, 2)):
         with pytest.raises(ValueError, match="must be at least 1"):
             shard_count_for(requested, per_shard, "pairs")
+
+
+def test_a_backend_that_cannot_run_fails_before_any_shard_is_touched(tmp_path):
+    out = tmp_path / "data"
+    run_shards(make_counting_shard, 2, out, {"seed": 5, "size": 4}, progress=False)
+    before = sorted(p.name for p in out.iterdir())
+    with pytest.raises(ValueError, match="unknown backend 'dask'"):
+        run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="dask", progress=False)
+    if importlib.util.find_spec("ray") is None:
+        with pytest.raises(ValueError, match=r"backend 'ray' needs Ray, which is not installed: pip install '\.\[ray\]'"):
+            run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="ray", progress=False)
+    assert sorted(p.name for p in out.iterdir()) == before  # the manifest and the shards of the earlier run stay

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.maps import MapError
+from pipeline.planners.base import UnknownPlannerError
 from pipeline.stage_errors import UPSTREAM_HINT, run_stage_main, user_error_message
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
         (ValueError("tau must be in (0, 1)"), "tau must be in (0, 1)"),
         (SystemExit("error: nothing to do"), "nothing to do"),
         (SystemExit(0), None),
+        (UnknownPlannerError("unknown planner 'foo'; choose from: dare"), "unknown planner 'foo'; choose from: dare"),
         (KeyError("bug"), None),
         (ZeroDivisionError(), None),
     ],

@@ -46,6 +46,14 @@ class Planner(ABC):
         protocol values than `protocol`; planners without trained models have nothing to say."""
 
 
+class UnknownPlannerError(KeyError):
+    """A planner name that is not registered. A KeyError (a failed lookup), printed as plain
+    text rather than KeyError's quoted repr, so that it reads as the one-line user error it is."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "unknown planner"
+
+
 def register_planner(name: str) -> Callable[[P], P]:
     """Class decorator: make a planner available under a lower-case `name`."""
     if not name.isidentifier() or name != name.lower():
@@ -70,7 +78,7 @@ def planner_names() -> list[str]:
 def planner_class(name: str) -> type[Planner]:
     names = planner_names()
     if name not in _REGISTRY:
-        raise KeyError(f"unknown planner {name!r}; choose from: {', '.join(names)}")
+        raise UnknownPlannerError(f"unknown planner {name!r}; choose from: {', '.join(names)}")
     return _REGISTRY[name]
 
 

@@ -55,6 +55,7 @@ from pipeline.training.exports import INPAINTER_FORMAT, export_kind, read_weight
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,
+    check_positive_int,
     fresh_checkpoints,
     make_trainer,
     max_time,
@@ -93,6 +94,8 @@ class TrainConfig:
     max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
     def __post_init__(self) -> None:
+        check_positive_int("max_epochs", self.max_epochs)
+        check_positive_int("batch_size", self.batch_size)
         check_max_minutes(self.max_minutes)
 
     @classmethod
@@ -610,6 +613,8 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"{path}: not a readable checkpoint ({one_line(error)})") from None
     if not isinstance(payload, dict):
         raise ValueError(f"{path}: not a readable checkpoint (it holds a {type(payload).__name__}, not a dict)")
+    if export_kind(payload) == "policy":  # else it would be taken for Big-LaMa weights and fail on their keys
+        raise ValueError(f"{path}: a planner policy export, not an inpainter export or a Big-LaMa checkpoint")
     return payload
 
 

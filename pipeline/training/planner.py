@@ -28,6 +28,7 @@ from pipeline.training.exports import export_kind, read_weights_file, write_weig
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,
+    check_positive_int,
     fresh_checkpoints,
     make_trainer,
     max_time,
@@ -54,6 +55,8 @@ class PlannerTrainConfig:
     max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
 
     def __post_init__(self) -> None:
+        check_positive_int("max_epochs", self.max_epochs)
+        check_positive_int("batch_size", self.batch_size)
         check_max_minutes(self.max_minutes)
 
     @classmethod

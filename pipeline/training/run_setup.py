@@ -27,6 +27,13 @@ def check_max_minutes(value: Any) -> None:
         raise ValueError(f"max_minutes must be null or a positive number of minutes, got {value!r}")
 
 
+def check_positive_int(name: str, value: Any) -> None:
+    """A count such as `max_epochs` or `batch_size` is a whole number >= 1: 0 epochs would export
+    an untrained model over a trained one, and a negative count fails deep inside Lightning."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
+
+
 def max_time(max_minutes: Optional[float]) -> Optional[timedelta]:
     """Lightning's `max_time` for a `max_minutes` setting (None: no cap)."""
     return None if max_minutes is None else timedelta(minutes=float(max_minutes))

@@ -356,6 +356,9 @@ def test_init_checkpoint_reading(tmp_path):
 
     with pytest.raises(FileNotFoundError, match=r"init checkpoint .*nothing\.ckpt not found"):
         read_init_checkpoint(tmp_path / "nothing.ckpt")
+    policy = Path(__file__).resolve().parents[2] / "pipeline" / "assets" / "planner_guide.pt"
+    with pytest.raises(ValueError, match="planner_guide.pt: a planner policy export, not an inpainter export"):
+        read_init_checkpoint(policy)  # named for what it is, not taken for Big-LaMa weights
     noise = tmp_path / "noise.ckpt"
     noise.write_bytes(bytes(range(256)) * 8)
     with pytest.raises(ValueError, match=r"noise\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"):

@@ -114,6 +114,9 @@ def test_max_minutes_caps_the_wall_clock(trained, tmp_path):
     for bad in (0, -2, "soon", False):
         with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
             PlannerTrainConfig.from_dict({"max_minutes": bad})
+    for key, bad in (("max_epochs", 0), ("max_epochs", -1), ("max_epochs", 2.5), ("batch_size", 0)):
+        with pytest.raises(ValueError, match=f"{key} must be a whole number >= 1"):  # 0 epochs: an untrained export
+            PlannerTrainConfig.from_dict({key: bad})
 
 
 def test_episode_split_holds_out_whole_episodes():
