@@ -205,6 +205,7 @@ def main(
         "val_mazes": export["mazes"]["val"],
         "predict_ms_48": round(prediction_ms(TracedInpainter(model)), 3),  # frozen trace, current threads
         "predict_ms_48_eager": round(prediction_ms(model), 3),
+        "trained_on": export.get("trained_on"),  # torch build, CPU kernels, threads: weights differ across hosts
     }
     METRICS.parent.mkdir(parents=True, exist_ok=True)
     METRICS.write_text(json.dumps(metrics, indent=2) + "\n")

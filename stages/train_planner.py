@@ -87,6 +87,7 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
         "samples": meta.get("samples"),
         "val_loss": last.get("val_loss"),
         "val_first_step_accuracy": last.get("val_first_step_accuracy"),
+        "trained_on": meta.get("trained_on"),  # torch build, CPU kernels, threads: weights differ across hosts
     }
     Path("reports").mkdir(exist_ok=True)
     Path(f"reports/planner_{variant}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")

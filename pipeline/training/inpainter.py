@@ -62,6 +62,7 @@ from pipeline.training.run_setup import (
     mlflow_logger,
     one_line,
     torch_threads,
+    training_host,
 )
 
 EXPORT_NAME = "inpainter.pt"
@@ -772,6 +773,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             train_seconds=round(seconds, 2),  # this fit() call (a resumed run counts its own part)
             epoch_seconds_total=round(sum(h["seconds"] for h in history), 2),  # all epochs, across resumes
             epochs=int(trainer.current_epoch),
+            trained_on=training_host(trainer.strategy.root_device),
             pairs={"train": pair_count(data.train_pairs), "val": pair_count(data.val_pairs)},
             mazes={"train": maze_count(data.train_pairs), "val": maze_count(data.val_pairs)},
             **({"protocol": dict(protocol)} if protocol else {}),  # what the pairs were drawn at (planners check it)
@@ -779,5 +781,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         if logger:
             logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
             logger.experiment.log_metric(logger.run_id, "num_parameters", module.generator.num_parameters())
+            for key, value in training_host(trainer.strategy.root_device).items():
+                logger.experiment.set_tag(logger.run_id, f"trained_on.{key}", value)
             logger.experiment.log_artifact(logger.run_id, str(export_path))
     return export_path if trainer.is_global_zero else None

@@ -172,6 +172,26 @@ def torch_threads(count: Optional[int]) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
+def training_host(device: torch.device | str = "cpu") -> dict[str, Any]:
+    """What trained weights depend on beyond code, data and seeds: the torch build, the CPU
+    kernels it dispatches to, its thread count and the device.
+
+    The same pipeline trains other weights on a CPU with other vector kernels (AVX2 against
+    AVX-512 round sums differently; docs/findings.md, "Across hosts"), so every export and
+    stage metrics file says where it was made, and a user comparing figures can see why.
+    """
+    device = torch.device(device)
+    host: dict[str, Any] = {
+        "torch": str(torch.__version__),  # a str subclass, which a weights-only load refuses
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "threads": torch.get_num_threads(),
+        "device": device.type,
+    }
+    if device.type == "cuda" and torch.cuda.is_available():
+        host["device"] = torch.cuda.get_device_name(device)
+    return host
+
+
 def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: Optional[str],
                   artifact_location: Optional[str] = None) -> Any:
     """Lightning's MLFlowLogger on `tracking_uri` (default $MLFLOW_TRACKING_URI or sqlite:///mlflow.db):

@@ -7,7 +7,13 @@ from pathlib import Path
 import pytest
 import torch
 
-from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS, check_accelerator, fresh_checkpoints, torch_threads
+from pipeline.training.run_setup import (
+    PREVIOUS_CHECKPOINTS,
+    check_accelerator,
+    fresh_checkpoints,
+    torch_threads,
+    training_host,
+)
 
 
 def file_bytes(directory: Path) -> dict[str, bytes]:
@@ -84,3 +90,11 @@ def test_torch_threads_are_restored_even_when_the_block_fails():
         assert torch.get_num_threads() == other
         raise RuntimeError("training failed")
     assert torch.get_num_threads() == before
+
+
+def test_training_host_names_the_torch_build_kernels_and_threads_in_use():
+    other = 1 if torch.get_num_threads() != 1 else 2
+    with torch_threads(other):
+        host = training_host()
+    assert host == {"torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+                    "threads": other, "device": "cpu"}

@@ -228,6 +228,7 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
     assert config == InpainterConfig(**TINY) and not model.training
     assert model.predict(np.full((32, 32), 128, np.uint8)).shape == (32, 32)
     assert export["num_parameters"] == model.num_parameters()
+    assert export["trained_on"]["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     first_epoch = export["history"][0]
     # Resume: the epoch counter, step counter and history continue from last.ckpt (epoch 0 is
     # not trained again: its record, timing included, is the first run's).
@@ -246,6 +247,7 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
     runs = client.search_runs([client.get_experiment_by_name("inpainter-test").experiment_id])
     assert len(runs) == 2 and all("val_f1" in r.data.metrics for r in runs)
+    assert all(r.data.tags["trained_on.torch"] == torch.__version__ for r in runs)
     assert any(p.name == "inpainter.pt" for p in (tmp_path / "mlartifacts").rglob("*"))
 
 
@@ -423,6 +425,8 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
             "val_mazes", "split"} <= set(written)
     # The protocol the pairs were drawn at travels with the model, for the planners' check.
     assert read_export("models/inpainter/inpainter.pt")["protocol"] == Protocol(node_resolution=2.0).to_dict()
+    # The metrics say where the model was trained, at the stage's thread count (params threads: 1).
+    assert written["trained_on"]["threads"] == 1 and written["trained_on"]["torch"] == torch.__version__
 
 
 DDP_SCRIPT = """

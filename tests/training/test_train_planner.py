@@ -47,6 +47,9 @@ def test_training_exports_an_ema_policy_with_its_history(trained):
     assert export["epochs"] == 2 and len(export["history"]) == 2
     assert all(np.isfinite(h["val_loss"]) and 0 <= h["val_first_step_accuracy"] <= 1 for h in export["history"])
     assert export["samples"]["val"] > 0 and export["samples"]["train"] > 0
+    # Where the weights were made travels with them (other CPU kernels train other weights).
+    assert export["trained_on"]["torch"] == torch.__version__ and export["trained_on"]["device"] == "cpu"
+    assert export["trained_on"]["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
     policy, meta = load_policy(paths["guide"])
     assert policy.config.d_model == 32 and not policy.training
     assert (root / "guide" / "last.ckpt").is_file()
