@@ -763,6 +763,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             generator.load_state_dict({k[len("generator."):]: v for k, v in state.items() if k.startswith("generator.")})
         history = list(module.history)
         best = max(history, key=lambda h: h["val_f1"]) if history else {}
+        host = training_host(trainer.strategy.root_device)
         export_inpainter(
             generator.cpu().eval(), export_path,
             threshold=tc.threshold,
@@ -773,7 +774,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             train_seconds=round(seconds, 2),  # this fit() call (a resumed run counts its own part)
             epoch_seconds_total=round(sum(h["seconds"] for h in history), 2),  # all epochs, across resumes
             epochs=int(trainer.current_epoch),
-            trained_on=training_host(trainer.strategy.root_device),
+            trained_on=host,
             pairs={"train": pair_count(data.train_pairs), "val": pair_count(data.val_pairs)},
             mazes={"train": maze_count(data.train_pairs), "val": maze_count(data.val_pairs)},
             **({"protocol": dict(protocol)} if protocol else {}),  # what the pairs were drawn at (planners check it)
@@ -781,7 +782,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         if logger:
             logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
             logger.experiment.log_metric(logger.run_id, "num_parameters", module.generator.num_parameters())
-            for key, value in training_host(trainer.strategy.root_device).items():
+            for key, value in host.items():
                 logger.experiment.set_tag(logger.run_id, f"trained_on.{key}", value)
             logger.experiment.log_artifact(logger.run_id, str(export_path))
     return export_path if trainer.is_global_zero else None

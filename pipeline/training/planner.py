@@ -273,17 +273,18 @@ def train_planner(
         export_path = out_dir / EXPORT_NAME
         if trainer.is_global_zero:
             history = list(module.history)
+            host = training_host(trainer.strategy.root_device)
             export_policy(
                 module.ema.module.cpu().eval(), export_path,
                 train_config=asdict(tc), history=history, train_seconds=round(seconds, 2),
                 epochs=int(trainer.current_epoch), samples={"train": len(train_rows), "val": len(val_rows)},
-                trained_on=training_host(trainer.strategy.root_device),
+                trained_on=host,
                 observations=meta,
             )
             if logger:
                 logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
                 logger.experiment.log_metric(logger.run_id, "num_parameters", module.policy.num_parameters())
-                for key, value in training_host(trainer.strategy.root_device).items():
+                for key, value in host.items():
                     logger.experiment.set_tag(logger.run_id, f"trained_on.{key}", value)
                 logger.experiment.log_artifact(logger.run_id, str(export_path))
         return export_path if trainer.is_global_zero else None
