@@ -57,6 +57,7 @@ from pipeline.training.run_setup import (
     check_max_minutes,
     check_positive_int,
     fresh_checkpoints,
+    log_export,
     make_trainer,
     max_time,
     mlflow_logger,
@@ -780,9 +781,5 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             **({"protocol": dict(protocol)} if protocol else {}),  # what the pairs were drawn at (planners check it)
         )
         if logger:
-            logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
-            logger.experiment.log_metric(logger.run_id, "num_parameters", module.generator.num_parameters())
-            for key, value in host.items():
-                logger.experiment.set_tag(logger.run_id, f"trained_on.{key}", value)
-            logger.experiment.log_artifact(logger.run_id, str(export_path))
+            log_export(logger, export_path, seconds, module.generator.num_parameters(), host)
     return export_path if trainer.is_global_zero else None

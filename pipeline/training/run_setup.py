@@ -84,7 +84,7 @@ def check_accelerator(accelerator: Any, devices: Any) -> None:
                          f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})")
     elif accelerator == "gpu":
         if not gpu:
-            raise ValueError(f"accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
+            raise ValueError("accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
                              "use cpu or auto")
         kind = "cuda" if torch.cuda.is_available() else "mps"
     elif accelerator == "cuda" and not torch.cuda.is_available():
@@ -203,3 +203,13 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
     import_mlflow()  # telemetry off before Lightning imports it
     return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
                         tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
+
+
+def log_export(logger: Any, export_path: Path, seconds: float, num_parameters: int, host: dict[str, Any]) -> None:
+    """What both trainings log to their MLflow run once the export is written: training time,
+    size, where the weights were made (tags `trained_on.*`) and the export as an artifact."""
+    logger.experiment.log_metric(logger.run_id, "train_seconds", seconds)
+    logger.experiment.log_metric(logger.run_id, "num_parameters", num_parameters)
+    for key, value in host.items():
+        logger.experiment.set_tag(logger.run_id, f"trained_on.{key}", value)
+    logger.experiment.log_artifact(logger.run_id, str(export_path))
