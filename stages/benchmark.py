@@ -11,13 +11,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-
 from pipeline.benchmark import run_benchmark, summarise
 from pipeline.maps import list_maps, load_map
-from pipeline.protocol import Protocol
-from pipeline.tracking import log_benchmark
 from pipeline.params_file import load_params
+from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
+from pipeline.tracking import log_benchmark
 
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/benchmark")

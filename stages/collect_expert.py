@@ -12,12 +12,11 @@ import json
 import time
 from pathlib import Path
 
-
 from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard, load_expert_episodes
 from pipeline.maps import GroundTruthMap, list_maps
+from pipeline.params_file import load_params, params_section
 from pipeline.protocol import Protocol
 from pipeline.shards import rate_per_minute, run_shards, shard_count_for, shard_path
-from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")

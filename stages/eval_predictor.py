@@ -22,11 +22,11 @@ from typing import Any, Optional
 import pandas as pd
 
 from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
-from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
 from pipeline.maps import MapError, list_maps, load_map
 from pipeline.node_predictor import NodePredictorConfig
-from pipeline.protocol import Protocol
 from pipeline.params_file import load_params
+from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
+from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")

@@ -22,9 +22,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-
 from pipeline.benchmark import PlannerSpec, run_benchmark
 from pipeline.maps import MapError, list_maps
+from pipeline.params_file import load_params
 from pipeline.protocol import Protocol
 from pipeline.reports import (
     ABLATION_PLANNERS,
@@ -44,7 +44,6 @@ from pipeline.reports import (
     table4_markdown,
     trajectory_figure,
 )
-from pipeline.params_file import load_params
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")

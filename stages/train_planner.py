@@ -12,7 +12,6 @@ import argparse
 import json
 from pathlib import Path
 
-
 from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
