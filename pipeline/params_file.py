@@ -8,10 +8,13 @@ a missing section is a `ValueError` / `FileNotFoundError` naming the file; the s
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import yaml
+
+T = TypeVar("T")
 
 
 def yaml_problem(error: yaml.YAMLError) -> str:
@@ -52,3 +55,17 @@ def params_section(params: dict[str, Any], name: str, path: str | Path) -> dict[
     if not isinstance(section, dict):
         raise ValueError(f"{path}: the '{name}' section must be a mapping of settings, got {section!r}")
     return section
+
+
+def dataclass_from_dict(cls: type[T], values: dict[str, Any] | None, what: str) -> T:
+    """`cls(**values)` where an unknown key is a ValueError naming it and the known ones.
+
+    A params section or a saved model's config becomes its dataclass here, so that a typo
+    (`max_epoch:`) is refused instead of silently falling back to a default.
+    """
+    values = dict(values or {})
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"unknown {what} {unknown}; known: {sorted(known)}")
+    return cls(**values)

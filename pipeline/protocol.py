@@ -6,6 +6,8 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from pipeline.params_file import dataclass_from_dict
+
 
 @dataclass(frozen=True)
 class Protocol:
@@ -44,11 +46,7 @@ class Protocol:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "Protocol":
-        known = {f.name for f in fields(cls)}
-        unknown = set(values) - known
-        if unknown:
-            raise ValueError(f"unknown protocol parameter(s): {sorted(unknown)}")
-        return cls(**values)
+        return dataclass_from_dict(cls, values, "protocol parameter(s):")
 
 
 class ProtocolMismatchWarning(UserWarning):

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.params_file import load_params, params_section
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.params_file import dataclass_from_dict, load_params, params_section
+from pipeline.protocol import Protocol
+from pipeline.training.planner import PlannerTrainConfig
 
 
 def test_load_params_reads_sections_and_names_the_file_when_it_cannot(tmp_path):
@@ -40,3 +43,12 @@ def test_params_section_names_a_missing_or_malformed_section(tmp_path):
         params_section({"protocol": {}}, "collect_expert", path)
     with pytest.raises(ValueError, match=r"the 'mazes' section must be a mapping of settings, got \[1, 2\]"):
         params_section({"mazes": [1, 2]}, "mazes", path)
+
+
+def test_dataclass_from_dict_builds_the_config_and_refuses_a_typo():
+    assert dataclass_from_dict(PlannerTrainConfig, {"max_epochs": 3}, "planner training keys").max_epochs == 3
+    assert dataclass_from_dict(Protocol, None, "protocol parameter(s):") == Protocol()
+    with pytest.raises(ValueError, match=r"unknown planner training keys \['max_epoch'\]; known: \[.*'max_epochs'"):
+        PlannerTrainConfig.from_dict({"max_epoch": 3})
+    with pytest.raises(ValueError, match=r"unknown diffusion policy config keys \['heeds'\]"):
+        DiffusionPolicyConfig.from_dict({"heeds": 2})

@@ -8,8 +8,10 @@ paper's {-8, -4, 0, 4, 8} m at a node spacing d_n = 4 m is `step_values=(-2, -1,
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any
+
+from pipeline.params_file import dataclass_from_dict
 
 SAMPLERS = ("ddpm", "ddim")
 BETA_SCHEDULES = ("linear", "scaled_linear", "squaredcos_cap_v2")
@@ -105,12 +107,7 @@ class DiffusionPolicyConfig:
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None) -> "DiffusionPolicyConfig":
         """Build from a dict (params.yaml, a saved model); unknown keys are an error, not ignored."""
-        values = dict(values or {})
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown diffusion policy config keys {unknown}; known: {sorted(known)}")
-        return cls(**values)
+        return dataclass_from_dict(cls, values, "diffusion policy config keys")
 
     @classmethod
     def paper(cls, **overrides: Any) -> "DiffusionPolicyConfig":

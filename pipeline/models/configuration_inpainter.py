@@ -10,8 +10,10 @@ sigmoid output), so its published weights can initialise training.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any
+
+from pipeline.params_file import dataclass_from_dict
 
 # How a node image (255 free, 0 obstacle, 128 unknown) becomes the network's input channels.
 #   signed: [+1 free / -1 obstacle / 0 unknown, unknown mask]                   -> 2 channels
@@ -85,11 +87,7 @@ class InpainterConfig:
         values = dict(values or {})
         if values.pop("big_lama", False):
             return cls.big_lama(**values)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown inpainter config keys {unknown}; known: {sorted(known)}")
-        return cls(**values)
+        return dataclass_from_dict(cls, values, "inpainter config keys")
 
     @classmethod
     def big_lama(cls, in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama", **overrides: Any) -> "InpainterConfig":

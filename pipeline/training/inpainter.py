@@ -33,7 +33,7 @@ import pickle
 import time
 import warnings
 import zipfile
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Iterator, Optional, Sequence
 
@@ -50,6 +50,7 @@ from pipeline.models.modeling_inpainter import (
     InpainterModel,
     load_big_lama_generator,
 )
+from pipeline.params_file import dataclass_from_dict
 from pipeline.shards import read_manifest
 from pipeline.training.exports import INPAINTER_FORMAT, export_kind, read_weights_file, write_weights_file
 from pipeline.training.run_setup import (
@@ -102,11 +103,7 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown training keys {unknown}; known: {sorted(known)}")
-        return cls(**values)
+        return dataclass_from_dict(cls, values, "training keys")
 
 
 # ----------------------------------------------------------------------------- masks, loss, metrics

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Optional
 
@@ -23,6 +23,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy
+from pipeline.params_file import dataclass_from_dict
 from pipeline.planner_data import PlannerDataset, crop_observations, load_observations
 from pipeline.training.exports import export_kind, read_weights_file, write_weights_file
 from pipeline.training.run_setup import (
@@ -63,11 +64,7 @@ class PlannerTrainConfig:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "PlannerTrainConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"unknown planner training keys: {', '.join(unknown)} (known: {', '.join(sorted(known))})")
-        return cls(**values)
+        return dataclass_from_dict(cls, values, "planner training keys")
 
 
 def split_episodes(episode: np.ndarray, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
