@@ -1,7 +1,6 @@
 import numpy as np
 import pytest
 
-from pipeline.frontier import frontier_mask
 from pipeline.geometry import segment_is_known_free
 from pipeline.graph import (
     NODE_FREE,

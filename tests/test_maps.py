@@ -289,7 +289,7 @@ def test_ros_map_thresholds(tmp_path):
 def test_ros_map_image_path_relative_to_yaml(tmp_path, monkeypatch):
     sub = tmp_path / "maps"
     sub.mkdir()
-    path = write_ros(sub, ros_image(), start=[0.2, -1.9])
+    write_ros(sub, ros_image(), start=[0.2, -1.9])
     monkeypatch.chdir(tmp_path)
     assert load_map(Path("maps") / "map.yaml").start_cell == (2, 0)
 

@@ -10,6 +10,7 @@ its own.
 from __future__ import annotations
 
 import os
+import platform
 import shutil
 import warnings
 from contextlib import contextmanager
@@ -172,17 +173,41 @@ def torch_threads(count: Optional[int]) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
+# CPU features that change which matrix kernels oneDNN and MKL run (and so how sums round).
+MATMUL_FLAGS = ("avx2", "avx512f", "avx512_bf16", "avx512_vnni", "amx_tile", "amx_bf16")
+
+
+def cpu_model(cpuinfo: str | None = None) -> tuple[str, str]:
+    """(the CPU's model name, the MATMUL_FLAGS it has, space-separated) from /proc/cpuinfo;
+    (platform.processor(), "") where there is none (macOS, Windows)."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return platform.processor(), ""
+    fields = {}
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())  # the first processor's
+    flags = set(fields.get("flags", "").split())
+    return fields.get("model name", platform.processor()), " ".join(f for f in MATMUL_FLAGS if f in flags)
+
+
 def training_host(device: torch.device | str = "cpu") -> dict[str, Any]:
     """What trained weights depend on beyond code, data and seeds: the torch build, the CPU
-    kernels it dispatches to, its thread count and the device.
+    and the kernels torch dispatches to on it, its thread count and the device.
 
-    The same pipeline trains other weights on a CPU with other vector kernels (AVX2 against
-    AVX-512 round sums differently; docs/findings.md, "Across hosts"), so every export and
-    stage metrics file says where it was made, and a user comparing figures can see why.
+    The same pipeline trains other weights on another CPU: two AVX-512 hosts, one with AMX,
+    trained two inpainters, while a third host reproduced the first's byte for byte
+    (docs/findings.md, "Across hosts"). So every export and stage metrics file says where it
+    was made, and a user comparing figures can see why.
     """
     device = torch.device(device)
+    name, flags = cpu_model()
     host: dict[str, Any] = {
         "torch": str(torch.__version__),  # a str subclass, which a weights-only load refuses
+        "cpu": name,
+        "cpu_flags": flags,
         "cpu_capability": torch.backends.cpu.get_cpu_capability(),
         "threads": torch.get_num_threads(),
         "device": device.type,

@@ -10,6 +10,7 @@ import torch
 from pipeline.training.run_setup import (
     PREVIOUS_CHECKPOINTS,
     check_accelerator,
+    cpu_model,
     fresh_checkpoints,
     torch_threads,
     training_host,
@@ -96,5 +97,16 @@ def test_training_host_names_the_torch_build_kernels_and_threads_in_use():
     other = 1 if torch.get_num_threads() != 1 else 2
     with torch_threads(other):
         host = training_host()
-    assert host == {"torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
-                    "threads": other, "device": "cpu"}
+    name, flags = cpu_model()
+    assert host == {"torch": torch.__version__, "cpu": name, "cpu_flags": flags,
+                    "cpu_capability": torch.backends.cpu.get_cpu_capability(), "threads": other, "device": "cpu"}
+
+
+def test_cpu_model_reads_the_name_and_the_matmul_flags_of_the_first_processor():
+    cpuinfo = (
+        "processor\t: 0\nvendor_id\t: GenuineIntel\nmodel name\t: Intel(R) Xeon(R) Platinum 8480+\n"
+        "flags\t\t: fpu sse avx2 avx512f amx_bf16 amx_tile\n\n"
+        "processor\t: 1\nmodel name\t: something else\nflags\t\t: fpu\n"
+    )
+    assert cpu_model(cpuinfo) == ("Intel(R) Xeon(R) Platinum 8480+", "avx2 avx512f amx_tile amx_bf16")
+    assert cpu_model("processor\t: 0\nflags\t: sse\n")[1] == ""
