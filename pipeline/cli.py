@@ -485,6 +485,14 @@ def stage_generate_mazes(params: Path = typer.Option(Path("params.yaml"), help="
     _run_stage(generate_mazes.main, params)
 
 
+@stage_app.command("fit-gate")
+def stage_fit_gate(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: the sliver gate from greedy episodes in the training mazes (params.yaml's `fit_gate`)."""
+    from stages import fit_gate
+
+    _run_stage(fit_gate.main, params)
+
+
 @stage_app.command("benchmark")
 def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
     """DVC stage: the configured planners on the test mazes, reports in reports/benchmark/."""

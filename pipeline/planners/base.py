@@ -13,6 +13,7 @@ from pipeline.graph import LatticeGraph, LatticeSpec
 from pipeline.maps import GroundTruthMap
 from pipeline.protocol import Protocol
 from pipeline.simulator import Observation
+from pipeline.sliver_gate import SHIPPED_GATE, SliverGate, load_gate, resolve_gate_path
 
 Waypoint = tuple[float, float]
 _REGISTRY: dict[str, type["Planner"]] = {}
@@ -151,15 +152,32 @@ def check_number(
 
 
 class GraphPlanner(Planner):
-    """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation."""
+    """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation.
 
-    def __init__(self, min_utility: int = 2):
+    With the sliver gate (`sliver_gate=True`; `sliver_gate_default` per planner), its useful
+    nodes are first only those the gate calls big (`pipeline.sliver_gate`); the fitted gate in
+    models/ when present, else the shipped one, unless `gate_file` names another.
+    """
+
+    sliver_gate_default = False
+
+    def __init__(self, min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None):
         # A node is a target when it sees at least min_utility frontier cells: below 1, nodes that
         # see nothing would be targets too and the robot would tour every node.
         check_int("min_utility", min_utility, 1)
+        require(sliver_gate is None or isinstance(sliver_gate, bool), f"sliver_gate must be true or false, got {sliver_gate!r}")
         self.min_utility = min_utility
         self.graph: LatticeGraph | None = None
         self.rng = np.random.default_rng(0)
+        self.gate: SliverGate | None = None
+        self.gate_source = "no sliver gate"
+        if self.sliver_gate_default if sliver_gate is None else sliver_gate:
+            path = resolve_gate_path(gate_file)
+            self.gate = load_gate(path)[0]
+            self.gate_source = f"sliver gate {path if path != SHIPPED_GATE else '(shipped)'}"
+        elif gate_file is not None:
+            raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
+        self._gated: tuple[np.ndarray, np.ndarray] | None = None  # (useful nodes, those the gate passes) this decision
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
@@ -173,6 +191,8 @@ class GraphPlanner(Planner):
             raise RuntimeError("reset() must be called before plan()")
         self.graph.update(observation.belief, observation.changed)
         self.visited[self.graph.nearest_node(observation.position)] = True
+        self.belief = observation.belief
+        self._gated = None
         return self.graph
 
     def robot_node(self, observation: Observation) -> int:
@@ -183,13 +203,19 @@ class GraphPlanner(Planner):
         """Unvisited free nodes whose frontier utility is worth a visit.
 
         A visited node that still sees frontier cells saw them from there already without
-        clearing them (grazing rays); going back would loop, so it is not a target.
+        clearing them (grazing rays); going back would loop, so it is not a target. With the
+        sliver gate, only those it calls big while there are any.
         """
         assert self.graph is not None
         useful = np.nonzero((self.graph.utility >= self.min_utility) & ~self.visited)[0]
         if useful.size == 0:
             useful = np.nonzero((self.graph.utility > 0) & ~self.visited)[0]
-        return useful
+        if self.gate is None or useful.size == 0:
+            return useful
+        if self._gated is None or not np.array_equal(self._gated[0], useful):
+            big = self.gate.passes(self.belief, self.graph.node_cells[useful], self.graph.spec.cell_size)
+            self._gated = (useful, useful[big] if big.any() else useful)
+        return self._gated[1]
 
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         """The useful nodes other than the robot's own that known-free paths reach (`dist` from the robot)."""

@@ -116,8 +116,10 @@ class _PredictingPlanner(GraphPlanner):
         threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
         count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
+        sliver_gate: bool | None = None,
+        gate_file: str | None = None,
     ):
-        super().__init__(min_utility=min_utility)
+        super().__init__(min_utility=min_utility, sliver_gate=sliver_gate, gate_file=gate_file)
         # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
         check_number("threshold", threshold, 0.0, 1.0)
         check_number("count_threshold", count_threshold, 0.0, 1.0, none="threshold")
@@ -128,7 +130,7 @@ class _PredictingPlanner(GraphPlanner):
         self.predictor_source = source
         # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
         self.trained_models: list[tuple[str, dict | None]] = [] if path is None else [(str(path), inpainter_protocol(path))]
-        self.description = f"{self.base_description} [{source}]"
+        self.description = f"{self.base_description} [{source}; {self.gate_source}]"
         self.last_decision: dict = {}
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
@@ -220,6 +222,7 @@ class GuideTspPlanner(_PredictingPlanner):
         "open TSP over global-graph distances, tour-regret-aware first target, one known-graph step to it"
     )
     description = base_description
+    sliver_gate_default = True
 
     def __init__(
         self,
@@ -238,6 +241,8 @@ class GuideTspPlanner(_PredictingPlanner):
         threshold: float = DEFAULT_THRESHOLD,
         min_component: int = 3,
         count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
+        sliver_gate: bool | None = None,
+        gate_file: str | None = None,
     ):
         # Checked before the predictor is loaded (in super().__init__).
         check_int("top_k", top_k, 0, note="0 = every cluster")
@@ -248,7 +253,8 @@ class GuideTspPlanner(_PredictingPlanner):
         check_number("hysteresis", hysteresis, 0.0, note="0 = none", none=f"{HYSTERESIS_NODES:g} node spacings")
         check_int("exact_max", exact_max, 1, 14)
         check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
-        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold)
+        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold,
+                         sliver_gate=sliver_gate, gate_file=gate_file)
         self.top_k = int(top_k)
         self.spread_option, self.hysteresis_option = spread, hysteresis  # metres; None: scaled to d_n in reset()
         self.min_weight = float(min_weight)

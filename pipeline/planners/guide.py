@@ -198,7 +198,7 @@ class _DiffusionPlanner(GuideTspPlanner):
                                      use_region_evaluation=self.region_evaluation)
         self.description = (
             f"{self.base_description} [mode {mode}; policy {self.policy_source}; {self.predictor_source}; "
-            f"K={self.num_inference_steps}]"
+            f"{self.gate_source}; K={self.num_inference_steps}]"
         )
 
     @staticmethod
@@ -492,3 +492,4 @@ class DarePlanner(_DiffusionPlanner):
     kind = "dare"
     predicts = False
     region_evaluation = False
+    sliver_gate_default = False  # DARE as published; `dare:sliver_gate=true` adds our gate

@@ -93,6 +93,12 @@ BAD = [
     ("guide", {"top_k": -1}, "top_k must be >= 0"),
     ("guide", {"beta": NAN}, "beta must be a finite number >= 0"),
     ("guide", {"min_utility": 0}, "min_utility must be >= 1"),
+    # the sliver gate (GraphPlanner), where a planner offers it
+    ("greedy_utility", {"sliver_gate": 1}, "sliver_gate must be true or false, got 1"),
+    ("greedy_utility", {"gate_file": "gate.json"}, "gate_file is given but the sliver gate is off"),
+    ("greedy_utility", {"sliver_gate": True, "gate_file": "no/such/gate.json"}, "sliver gate file no/such/gate.json does not exist"),
+    ("guide_tsp", {"sliver_gate": False, "gate_file": "gate.json"}, "gate_file is given but the sliver gate is off"),
+    ("guide", {"gate_file": "no/such/gate.json"}, "sliver gate file no/such/gate.json does not exist"),
     # guide_noregion and dare share the diffusion planners' checks
     ("guide_noregion", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
     ("guide_noregion", {"prior_weight": NAN}, "prior_weight must be a finite number >= 0"),

@@ -1,0 +1,58 @@
+"""Training samples for the sliver gate: candidates of greedy episodes, labelled by the ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.maps import GroundTruthMap
+from pipeline.planners.frontier import GreedyUtilityPlanner
+from pipeline.protocol import Protocol
+from pipeline.sensor import FREE, Lidar
+from pipeline.simulator import Observation, run_episode
+from pipeline.sliver_gate import gate_features
+
+
+class _LabellingGreedy(GreedyUtilityPlanner):
+    """`greedy_utility` (no gate) that records, at every decision, each reachable target's gate
+    counts and the cells its scan would truly reveal (the label; it never steers)."""
+
+    uses_ground_truth = True
+
+    def __init__(self, wall_margin: int, range_m: float):
+        super().__init__()
+        self.wall_margin, self.range_m = wall_margin, range_m
+        self.counts: list[np.ndarray] = []
+        self.gains: list[np.ndarray] = []
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
+        self.scans: dict[int, np.ndarray] = {}  # node -> flat indices of the free cells its scan reveals
+
+    def plan(self, observation: Observation):
+        graph = self.update_graph(observation)
+        dist, _ = graph.shortest_paths(self.robot_node(observation))
+        targets = self.reachable_useful(self.robot_node(observation), dist)
+        if targets.size:
+            cells = graph.node_cells[targets]
+            self.counts.append(gate_features(observation.belief, cells, self.range_m / graph.spec.cell_size,
+                                             self.wall_margin))
+            flat = observation.belief.reshape(-1)
+            self.gains.append(np.array([(flat[self._scan(int(t))] != FREE).sum() for t in targets], np.int64))
+        return super().plan(observation)
+
+    def _scan(self, node: int) -> np.ndarray:
+        if node not in self.scans:
+            col, row = self.graph.node_cells[node]
+            self.scans[node] = self.lidar.scan((int(col), int(row))).free
+        return self.scans[node]
+
+
+def gate_samples(ground_truth: GroundTruthMap, protocol: Protocol, wall_margin: int = 2,
+                 seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(counts (n, 3), true gains (n,)) of every reachable target at every decision of one greedy episode."""
+    probe = _LabellingGreedy(wall_margin, protocol.sensor_range)
+    run_episode(ground_truth, probe, protocol, seed)
+    if not probe.counts:
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
+    return np.concatenate(probe.counts), np.concatenate(probe.gains)

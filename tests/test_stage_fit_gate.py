@@ -1,0 +1,44 @@
+"""The fit_gate DVC stage on three generated 50 m mazes."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+import yaml
+
+from pipeline.sliver_gate import load_gate
+from stages import fit_gate
+
+
+def _project(tmp_path, generated_maze_dir, section):
+    shutil.copytree(generated_maze_dir, tmp_path / "data/mazes/train")
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "fit_gate": section}))
+
+
+def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
+    _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "workers": 1})
+    metrics = fit_gate.main("params.yaml")
+    gate, protocol = load_gate(tmp_path / "models/sliver_gate/sliver_gate.json")
+    assert protocol["cell_size"] == 0.4 and gate.min_gain == 50 and gate.range_m == 20.0
+    written = json.loads((tmp_path / "reports/sliver_gate.json").read_text())
+    assert written == metrics and written["maps_fit"] == 2 and written["samples_fit"] > 100
+    assert 0.5 < written["auc_holdout"] <= 1.0  # better than chance on a maze it was not fitted on
+    assert (tmp_path / "reports/sliver_gate.png").stat().st_size > 5000
+
+
+@pytest.mark.parametrize(("section", "message"), [
+    ({"maps": 3, "holdout_maps": 3}, "holdout_maps must be below fit_gate.maps"),
+    ({"maps": 0}, "fit_gate.maps must be a whole number"),
+    ({"min_gain": 2.5}, "fit_gate.min_gain must be a whole number"),
+    ({"mpas": 3}, r"unknown fit_gate parameter\(s\) \['mpas'\]"),
+    ({"maps": 8, "holdout_maps": 4}, "3 maps, need more than fit_gate.holdout_maps = 4"),
+])
+def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, section, message):
+    monkeypatch.chdir(tmp_path)
+    _project(tmp_path, generated_maze_dir, section)
+    with pytest.raises(ValueError, match=message):
+        fit_gate.main("params.yaml")
