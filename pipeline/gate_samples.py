@@ -18,9 +18,9 @@ class _LabellingGreedy(GreedyUtilityPlanner):
 
     uses_ground_truth = True
 
-    def __init__(self, wall_margin: int, range_m: float):
+    def __init__(self, wall_margin: int, range_cells: float):
         super().__init__()
-        self.wall_margin, self.range_m = wall_margin, range_m
+        self.wall_margin, self.range_cells = wall_margin, range_cells
         self.counts: list[np.ndarray] = []
         self.gains: list[np.ndarray] = []
 
@@ -35,8 +35,7 @@ class _LabellingGreedy(GreedyUtilityPlanner):
         targets = self.reachable_useful(self.robot_node(observation), dist)
         if targets.size:
             cells = graph.node_cells[targets]
-            self.counts.append(gate_features(observation.belief, cells, self.range_m / graph.spec.cell_size,
-                                             self.wall_margin))
+            self.counts.append(gate_features(observation.belief, cells, self.range_cells, self.wall_margin))
             flat = observation.belief.reshape(-1)
             self.gains.append(np.array([(flat[self._scan(int(t))] != FREE).sum() for t in targets], np.int64))
         return super().plan(observation)
@@ -51,7 +50,7 @@ class _LabellingGreedy(GreedyUtilityPlanner):
 def gate_samples(ground_truth: GroundTruthMap, protocol: Protocol, wall_margin: int = 2,
                  seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(counts (n, 3), true gains (n,)) of every reachable target at every decision of one greedy episode."""
-    probe = _LabellingGreedy(wall_margin, protocol.sensor_range)
+    probe = _LabellingGreedy(wall_margin, protocol.sensor_range_cells)
     run_episode(ground_truth, probe, protocol, seed)
     if not probe.counts:
         return np.zeros((0, 3)), np.zeros(0, np.int64)

@@ -75,7 +75,7 @@ class SliverGate:
     threshold: float = 0.5  # a target passes at P(big) >= threshold
     wall_margin: int = 2  # cells: unknown this close to a known obstacle is not "open"
     min_gain: int = 50  # the label: a scan revealing at least this many cells is big
-    range_m: float = 20.0  # the fan's reach in metres (the lidar range it was fitted at)
+    range_cells: float = 50.0  # the fan's reach in cells: the lidar range it was fitted at
 
     def __post_init__(self) -> None:
         if len(self.coef) != len(FEATURES) or not all(math.isfinite(c) for c in (*self.coef, self.intercept)):
@@ -88,15 +88,23 @@ class SliverGate:
         logit = gate_inputs(counts) @ np.asarray(self.coef) + self.intercept
         return 1.0 / (1.0 + np.exp(-logit))
 
-    def passes(self, belief: np.ndarray, cells: np.ndarray, cell_size: float) -> np.ndarray:
-        """Boolean mask: which candidate cells the gate calls big."""
+    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
+        """Boolean mask: which candidate cells the gate calls big, for a lidar reaching `range_cells`.
+
+        On a map drawn at another scale (the sensor reaching k times as many cells) the fan,
+        the wall margin and the counts scale with it (areas by k^2, the frontier line by k), so
+        the gate decides as it would on the maps it was fitted on.
+        """
         if len(cells) == 0:
             return np.zeros(0, dtype=bool)
-        counts = gate_features(belief, cells, self.range_m / cell_size, self.wall_margin)
+        scale = range_cells / self.range_cells
+        counts = gate_features(belief, cells, range_cells, int(round(self.wall_margin * scale)))
+        if scale != 1.0:
+            counts = counts / np.array([scale**2, scale**2, scale])
         return self.probability(counts) >= self.threshold
 
 
-def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_margin: int, range_m: float,
+def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_margin: int, range_cells: float,
                     threshold: float = 0.5) -> SliverGate:
     """Logistic regression (scikit-learn, L2 at its default strength) of gain >= min_gain on the counts."""
     from sklearn.linear_model import LogisticRegression
@@ -107,7 +115,7 @@ def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_m
                          f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps")
     model = LogisticRegression(max_iter=5000).fit(gate_inputs(counts), labels)
     return SliverGate(tuple(float(c) for c in model.coef_[0]), float(model.intercept_[0]), float(threshold),
-                      int(wall_margin), int(min_gain), float(range_m))
+                      int(wall_margin), int(min_gain), float(range_cells))
 
 
 def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:

@@ -54,8 +54,8 @@ def test_counts_tell_the_open_end_from_the_notch():
 
 def test_the_shipped_gate_calls_the_open_end_big_and_the_notch_a_sliver():
     gate, protocol = load_gate(SHIPPED_GATE)
-    assert protocol is not None and protocol["sensor_range"] == gate.range_m
-    passes = gate.passes(corridor_belief(), np.array([OPEN_END, NOTCH]), cell_size=0.4)
+    assert protocol is not None and protocol["sensor_range"] / protocol["cell_size"] == gate.range_cells
+    passes = gate.passes(corridor_belief(), np.array([OPEN_END, NOTCH]), RANGE_CELLS)
     assert passes.tolist() == [True, False]
 
 
@@ -77,17 +77,17 @@ def test_fit_learns_the_share_of_open_unknown():
     share = rng.uniform(0, 1, 4000)
     counts = np.column_stack([unknown * share, unknown, rng.integers(0, 60, 4000)])
     gains = np.where(share > 0.5, 200, 10) + rng.integers(0, 5, 4000)
-    gate = fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_m=20.0)
+    gate = fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0)
     labels = gains >= 50
     assert gate.coef[0] > 0 > gate.coef[1]
     assert ((gate.probability(counts) >= 0.5) == labels).mean() > 0.9
     assert roc_auc(gate.probability(counts), labels) > 0.95
     with pytest.raises(ValueError, match="every one"):
-        fit_sliver_gate(counts, np.zeros(4000), min_gain=50, wall_margin=2, range_m=20.0)
+        fit_sliver_gate(counts, np.zeros(4000), min_gain=50, wall_margin=2, range_cells=50.0)
 
 
 def test_file_round_trip_and_clear_errors(tmp_path):
-    gate = SliverGate(coef=(20.0, -20.0, 3.0), intercept=-7.0, threshold=0.6, wall_margin=3, min_gain=40, range_m=10.0)
+    gate = SliverGate(coef=(20.0, -20.0, 3.0), intercept=-7.0, threshold=0.6, wall_margin=3, min_gain=40, range_cells=25.0)
     path = save_gate(gate, tmp_path / "g" / "gate.json", {"cell_size": 0.4}, samples=12)
     loaded, protocol = load_gate(path)
     assert loaded == gate and protocol == {"cell_size": 0.4}
@@ -104,3 +104,10 @@ def test_file_round_trip_and_clear_errors(tmp_path):
         resolve_gate_path(tmp_path / "missing.json")
     assert resolve_gate_path(path) == path
     assert resolve_gate_path(None) == SHIPPED_GATE  # no fitted gate in models/ under the tests
+
+
+def test_a_map_at_twice_the_resolution_is_gated_alike():
+    gate, _ = load_gate(SHIPPED_GATE)
+    fine = np.kron(corridor_belief(), np.ones((2, 2), dtype=np.uint8))  # every cell split in four
+    cells = np.array([OPEN_END, NOTCH])
+    assert gate.passes(fine, 2 * cells, 2 * RANGE_CELLS).tolist() == gate.passes(corridor_belief(), cells, RANGE_CELLS).tolist()

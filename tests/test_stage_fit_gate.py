@@ -23,11 +23,14 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "workers": 1})
     metrics = fit_gate.main("params.yaml")
     gate, protocol = load_gate(tmp_path / "models/sliver_gate/sliver_gate.json")
-    assert protocol["cell_size"] == 0.4 and gate.min_gain == 50 and gate.range_m == 20.0
+    assert protocol["cell_size"] == 0.4 and gate.min_gain == 50 and gate.range_cells == 50.0
     written = json.loads((tmp_path / "reports/sliver_gate.json").read_text())
     assert written == metrics and written["maps_fit"] == 2 and written["samples_fit"] > 100
     assert 0.5 < written["auc_holdout"] <= 1.0  # better than chance on a maze it was not fitted on
     assert (tmp_path / "reports/sliver_gate.png").stat().st_size > 5000
+    first = (tmp_path / "models/sliver_gate/sliver_gate.json").read_bytes()
+    fit_gate.main("params.yaml")
+    assert (tmp_path / "models/sliver_gate/sliver_gate.json").read_bytes() == first  # a rerun writes the same bytes
 
 
 @pytest.mark.parametrize(("section", "message"), [

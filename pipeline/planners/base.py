@@ -213,7 +213,7 @@ class GraphPlanner(Planner):
         if self.gate is None or useful.size == 0:
             return useful
         if self._gated is None or not np.array_equal(self._gated[0], useful):
-            big = self.gate.passes(self.belief, self.graph.node_cells[useful], self.graph.spec.cell_size)
+            big = self.gate.passes(self.belief, self.graph.node_cells[useful], self.protocol.sensor_range_cells)
             self._gated = (useful, useful[big] if big.any() else useful)
         return self._gated[1]
 
