@@ -30,15 +30,17 @@ class _LabellingGreedy(GreedyUtilityPlanner):
         self.scans: dict[int, np.ndarray] = {}  # node -> flat indices of the free cells its scan reveals
 
     def plan(self, observation: Observation):
-        graph = self.update_graph(observation)
-        dist, _ = graph.shortest_paths(self.robot_node(observation))
-        targets = self.reachable_useful(self.robot_node(observation), dist)
+        waypoints = super().plan(observation)  # updates the graph once and chooses as greedy_utility does
+        graph = self.graph
+        robot = self.robot_node(observation)
+        dist, _ = graph.shortest_paths(robot)
+        targets = self.reachable_useful(robot, dist)
         if targets.size:
             cells = graph.node_cells[targets]
             self.counts.append(gate_features(observation.belief, cells, self.range_cells, self.wall_margin))
             flat = observation.belief.reshape(-1)
             self.gains.append(np.array([(flat[self._scan(int(t))] != FREE).sum() for t in targets], np.int64))
-        return super().plan(observation)
+        return waypoints
 
     def _scan(self, node: int) -> np.ndarray:
         if node not in self.scans:
