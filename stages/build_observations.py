@@ -14,14 +14,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from pipeline.global_graph import FEATURE_NAMES
 from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD
+from pipeline.parallel import map_with_progress
 from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
@@ -84,21 +83,11 @@ def main(params_path: str = "params.yaml") -> dict:
     ]
     started = time.perf_counter()
     workers = max(1, int(section.get("workers", 1)))
-    results: list[dict | None] = [None] * len(tasks)
-    with tqdm(total=len(tasks), desc="expert shards", unit="shard") as bar:
-        if workers == 1:
-            for i, task in enumerate(tasks):
-                results[i] = _shard_observations(task)
-                bar.update()
-        else:
-            with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
-                for i, result in enumerate(pool.map(_shard_observations, tasks)):
-                    results[i] = result
-                    bar.update()
+    results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard")
     seconds = time.perf_counter() - started
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
     for variant in ("guide", "dare"):
-        arrays = concatenate(r[variant] for r in results if r is not None)
+        arrays = concatenate(r[variant] for r in results)
         meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
                 "count_threshold": count_threshold, "protocol": protocol.to_dict()}
         save_observations(OUT_DIR / f"{variant}.npz", arrays, meta)

@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from pipeline.maps import list_maps, load_map
+from pipeline.parallel import map_with_progress
 from pipeline.params_file import load_params, params_section
 from pipeline.protocol import Protocol
 from pipeline.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
@@ -62,19 +61,7 @@ def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
 def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """(counts, gains) per map, in map order."""
     tasks = [(str(m), protocol.to_dict(), wall_margin) for m in maps]
-    with tqdm(total=len(tasks), desc="gate samples", unit="maze") as bar:
-        if workers == 1:
-            results = []
-            for task in tasks:
-                results.append(_samples(task))
-                bar.update()
-            return results
-        with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
-            results = []
-            for result in pool.map(_samples, tasks):
-                results.append(result)
-                bar.update()
-            return results
+    return map_with_progress(_samples, tasks, workers, "gate samples", "maze")
 
 
 def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path) -> None:
