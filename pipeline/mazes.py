@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -415,9 +415,21 @@ def generate_maze_set(
     prefix: str = "maze",
     progress: bool = True,
 ) -> list[Path]:
-    """Write `count` mazes as `{prefix}_{i:04d}.png`, maze i drawn from default_rng([*seed, i]).
+    """Write `count` mazes as `{prefix}_{i:04d}.png`, maze i drawn from default_rng([*seed, i])."""
+    return generate_map_set(lambda rng: generate_maze(config, rng), count, out_dir, seed, prefix, progress)
 
-    Seeding each maze on its own makes maze i independent of `count` and of the others, so a
+
+def generate_map_set(
+    draw: Callable[[np.random.Generator], np.ndarray],
+    count: int,
+    out_dir: str | Path,
+    seed: int | Sequence[int],
+    prefix: str,
+    progress: bool = True,
+) -> list[Path]:
+    """Write `count` map images `draw(rng)` as `{prefix}_{i:04d}.png`, map i drawn from default_rng([*seed, i]).
+
+    Seeding each map on its own makes map i independent of `count` and of the others, so a
     set can be grown or regenerated piecewise with identical bytes.
     """
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
@@ -426,7 +438,6 @@ def generate_maze_set(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for i in tqdm(range(int(count)), desc=f"mazes -> {out_dir}", unit="maze", disable=not progress):
-        image = generate_maze(config, np.random.default_rng([*base, i]))
-        paths.append(write_maze_png(image, out_dir / f"{prefix}_{i:04d}.png"))
+    for i in tqdm(range(int(count)), desc=f"{prefix}s -> {out_dir}", unit=prefix, disable=not progress):
+        paths.append(write_maze_png(draw(np.random.default_rng([*base, i])), out_dir / f"{prefix}_{i:04d}.png"))
     return paths

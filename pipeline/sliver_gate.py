@@ -7,7 +7,8 @@ cleared on the way later, or fall inside the cells a complete episode may leave 
 A planner with the gate considers first only the targets the gate calls *big* (their scan
 would reveal at least `min_gain` cells); the rest only when none is.
 
-The gate is a logistic model over three counts of what a candidate node's sensor fan
+The gate is a small network (a ReLU perceptron, 16 x 16 by default; a logistic model when
+it has no hidden layer) over the logs of three counts of what a candidate node's sensor fan
 (the utility ray fan at the lidar's range) reaches:
 
 - `open_unknown`: unknown cells farther than `wall_margin` cells from every known
@@ -18,9 +19,12 @@ The gate is a logistic model over three counts of what a candidate node's sensor
 Slivers are mostly wall: the unknown they would see lies next to walls already seen (the
 inside of a wall whose face is known is never observed). So the share of open unknown
 carries most of the signal, the visible frontier the rest. Fitted by `stages.fit_gate` on
-greedy episodes in the training mazes, labelled with the scan the ground truth would give;
-an oracle gate with those labels makes greedy 7.4 % shorter on 50 fresh mazes
-(docs/findings.md, "Small frontiers last").
+greedy episodes in the training mazes and office floors (`pipeline.offices`), labelled with
+the scan the ground truth would give; an oracle gate with those labels makes greedy 7.4 %
+shorter on 50 fresh mazes (docs/findings.md, "Small frontiers last"). A logistic gate fitted
+on mazes alone rejected real targets on office floors and made routes there 15 % longer;
+fitted on both, a logistic model gives up half its gain on mazes, the perceptron almost
+none (docs/findings.md, "Off the maze generator").
 """
 
 from __future__ import annotations
@@ -66,27 +70,53 @@ def gate_inputs(counts: np.ndarray) -> np.ndarray:
     return np.log1p(np.asarray(counts, dtype=np.float64))
 
 
+Layer = tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]  # (weights: inputs x outputs, biases)
+
+
 @dataclass(frozen=True)
 class SliverGate:
-    """A fitted gate: P(big) = sigmoid(coef . log(1 + counts) + intercept) over FEATURES."""
+    """A fitted gate: P(big) = sigmoid(network(log(1 + counts))) over FEATURES.
 
-    coef: tuple[float, float, float]
-    intercept: float
+    The network is a small ReLU perceptron: `layers` of (weights, biases), the last with one
+    output. With a single layer it is the logistic model (`SliverGate.logistic`).
+    """
+
+    layers: tuple[Layer, ...]
     threshold: float = 0.5  # a target passes at P(big) >= threshold
     wall_margin: int = 2  # cells: unknown this close to a known obstacle is not "open"
     min_gain: int = 50  # the label: a scan revealing at least this many cells is big
     range_cells: float = 50.0  # the fan's reach in cells: the lidar range it was fitted at
 
     def __post_init__(self) -> None:
-        if len(self.coef) != len(FEATURES) or not all(math.isfinite(c) for c in (*self.coef, self.intercept)):
-            raise ValueError(f"a sliver gate needs {len(FEATURES)} finite coefficients and a finite intercept")
+        layers = tuple((tuple(tuple(float(w) for w in row) for row in weights), tuple(float(b) for b in biases))
+                       for weights, biases in self.layers)
+        object.__setattr__(self, "layers", layers)
+        width = len(FEATURES)
+        for index, (weights, biases) in enumerate(layers):
+            shape_ok = len(weights) == width and all(len(row) == len(biases) for row in weights) and biases
+            if not shape_ok:
+                raise ValueError(f"sliver gate layer {index}: expected {width} rows of {len(biases)} weights")
+            if not all(math.isfinite(v) for v in (*biases, *(w for row in weights for w in row))):
+                raise ValueError(f"sliver gate layer {index}: weights and biases must be finite")
+            width = len(biases)
+        if not layers or width != 1:
+            raise ValueError(f"a sliver gate needs layers from {len(FEATURES)} counts to one output")
         if not 0.0 < self.threshold < 1.0:
             raise ValueError(f"sliver gate threshold must be in (0, 1), got {self.threshold}")
 
+    @classmethod
+    def logistic(cls, coef: tuple[float, ...], intercept: float, **settings) -> "SliverGate":
+        """The one-layer gate: P(big) = sigmoid(coef . log(1 + counts) + intercept)."""
+        return cls((([(c,) for c in coef], (intercept,)),), **settings)
+
     def probability(self, counts: np.ndarray) -> np.ndarray:
         """P(big) for rows of `gate_features` counts."""
-        logit = gate_inputs(counts) @ np.asarray(self.coef) + self.intercept
-        return 1.0 / (1.0 + np.exp(-logit))
+        hidden = gate_inputs(counts).reshape(-1, len(FEATURES))
+        for index, (weights, biases) in enumerate(self.layers):
+            hidden = hidden @ np.asarray(weights) + np.asarray(biases)
+            if index < len(self.layers) - 1:
+                hidden = np.maximum(hidden, 0.0)
+        return 1.0 / (1.0 + np.exp(-hidden[:, 0]))
 
     def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
         """Boolean mask: which candidate cells the gate calls big, for a lidar reaching `range_cells`.
@@ -105,17 +135,36 @@ class SliverGate:
 
 
 def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_margin: int, range_cells: float,
-                    threshold: float = 0.5) -> SliverGate:
-    """Logistic regression (scikit-learn, L2 at its default strength) of gain >= min_gain on the counts."""
-    from sklearn.linear_model import LogisticRegression
+                    threshold: float = 0.5, hidden: tuple[int, ...] = (), seed: int = 0) -> SliverGate:
+    """Fit P(gain >= min_gain) on log(1 + counts) with scikit-learn.
 
+    No `hidden` layers: logistic regression (L2 at its default strength). Hidden layers: a ReLU
+    perceptron (Adam, batches of 200, 30 passes and at least 2,000 steps), which fits one gate to maps of unlike families where a
+    logistic model must trade one family for the other.
+    """
     labels = np.asarray(gains) >= min_gain
     if labels.all() or not labels.any():
         raise ValueError(f"cannot fit the sliver gate: every one of {labels.size} samples is "
                          f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps")
-    model = LogisticRegression(max_iter=5000).fit(gate_inputs(counts), labels)
-    return SliverGate(tuple(float(c) for c in model.coef_[0]), float(model.intercept_[0]), float(threshold),
-                      int(wall_margin), int(min_gain), float(range_cells))
+    inputs = gate_inputs(counts)
+    settings = dict(threshold=float(threshold), wall_margin=int(wall_margin), min_gain=int(min_gain),
+                    range_cells=float(range_cells))
+    if not hidden:
+        from sklearn.linear_model import LogisticRegression
+
+        model = LogisticRegression(max_iter=5000).fit(inputs, labels)
+        return SliverGate.logistic(tuple(model.coef_[0]), float(model.intercept_[0]), **settings)
+    import warnings
+
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.neural_network import MLPClassifier
+
+    passes = max(30, math.ceil(2000 * 200 / len(labels)))
+    model = MLPClassifier(tuple(int(h) for h in hidden), batch_size=200, max_iter=passes, random_state=seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # a fixed number of passes, by design
+        model.fit(inputs, labels)
+    return SliverGate(tuple((w.tolist(), b.tolist()) for w, b in zip(model.coefs_, model.intercepts_)), **settings)
 
 
 def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:
@@ -129,7 +178,7 @@ def save_gate(gate: SliverGate, path: str | Path, protocol: dict | None = None, 
     """Write the gate as JSON, with the protocol it was fitted at and anything in `record` (metrics, data)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    body = {"features": list(FEATURES), "gate": {**asdict(gate), "coef": list(gate.coef)}, "protocol": protocol, **record}
+    body = {"features": list(FEATURES), "gate": asdict(gate), "protocol": protocol, **record}
     path.write_text(json.dumps(body, indent=2) + "\n")
     return path
 
@@ -142,7 +191,8 @@ def load_gate(path: str | Path) -> tuple[SliverGate, dict | None]:
         if list(body.get("features", [])) != list(FEATURES):
             raise ValueError(f"features {body.get('features')!r}, expected {list(FEATURES)}")
         values = dict(body["gate"])
-        values["coef"] = tuple(float(c) for c in values.get("coef", ()))
+        if "coef" in values:  # a logistic gate written before the gate had layers
+            values["layers"] = (([(c,) for c in values.pop("coef")], (values.pop("intercept"),)),)
         return dataclass_from_dict(SliverGate, values, "sliver gate"), body.get("protocol")
     except (OSError, json.JSONDecodeError, KeyError, TypeError, AttributeError, ValueError) as error:
         raise ValueError(f"{path}: not a sliver gate file ({error})") from None

@@ -1,10 +1,11 @@
 """DVC stage: fit the sliver gate on greedy episodes in the training mazes.
 
-Reads only the `fit_gate` section (maps, holdout_maps, min_gain, wall_margin, threshold,
-workers) and the shared `protocol` section of params.yaml. Runs `greedy_utility` on the
-first `maps` training mazes, labels every reachable target at every decision by the cells
-its scan would truly reveal, fits the logistic gate (`pipeline.sliver_gate`) on all but the
-last `holdout_maps` mazes and measures it on those. Writes models/sliver_gate/sliver_gate.json,
+Reads only the `fit_gate` section (maps, holdout_maps, offices, office_holdout, hidden,
+min_gain, wall_margin, threshold, workers) and the shared `protocol` section of params.yaml.
+Runs `greedy_utility` on the first `maps` training mazes and the first `offices` office
+floors, labels every reachable target at every decision by the cells its scan would truly
+reveal, fits the gate (`pipeline.sliver_gate`; `hidden` layers, none: logistic) on all but
+the last `holdout_maps` mazes and `office_holdout` floors and measures it on those, per family. Writes models/sliver_gate/sliver_gate.json,
 reports/sliver_gate.json (sample counts, held-out ROC AUC of the gate and of each count
 alone, held-out accuracy at the gate's threshold) and reports/sliver_gate.png (held-out ROC
 curves). Logs one MLflow run in experiment "sliver_gate".
@@ -27,12 +28,13 @@ from pipeline.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
+TRAIN_OFFICES = Path("data/offices/train")
 GATE_PATH = Path("models/sliver_gate/sliver_gate.json")
 METRICS_PATH = Path("reports/sliver_gate.json")
 FIGURE_PATH = Path("reports/sliver_gate.png")
 EXPERIMENT = "sliver_gate"
-DEFAULTS: dict[str, Any] = {"maps": 48, "holdout_maps": 12, "min_gain": 50, "wall_margin": 2, "threshold": 0.5,
-                            "workers": 2}
+DEFAULTS: dict[str, Any] = {"maps": 48, "holdout_maps": 12, "offices": 0, "office_holdout": 0, "hidden": [],
+                            "min_gain": 50, "wall_margin": 2, "threshold": 0.5, "workers": 2}
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -42,12 +44,17 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     if unknown:
         raise ValueError(f"{params_path}: unknown fit_gate parameter(s) {unknown}; known: {sorted(DEFAULTS)}")
     section = {**DEFAULTS, **section}
-    for key in ("maps", "holdout_maps", "min_gain", "wall_margin", "workers"):
+    for key in ("maps", "holdout_maps", "offices", "office_holdout", "min_gain", "wall_margin", "workers"):
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key in ("maps", "workers") else 0):
             raise ValueError(f"{params_path}: fit_gate.{key} must be a whole number, got {value!r}")
     if not section["holdout_maps"] < section["maps"]:
         raise ValueError(f"{params_path}: fit_gate.holdout_maps must be below fit_gate.maps")
+    if section["offices"] and not section["office_holdout"] < section["offices"]:
+        raise ValueError(f"{params_path}: fit_gate.office_holdout must be below fit_gate.offices")
+    hidden = section["hidden"]
+    if not isinstance(hidden, list) or not all(isinstance(h, int) and not isinstance(h, bool) and h > 0 for h in hidden):
+        raise ValueError(f"{params_path}: fit_gate.hidden must be a list of layer widths (whole numbers > 0), got {hidden!r}")
     return section, Protocol.from_dict(params.get("protocol") or {})
 
 
@@ -72,10 +79,10 @@ def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Pa
 
     fig, ax = plt.subplots(figsize=(5, 4.5))
     for name, (fpr, tpr, auc) in curves.items():
-        ax.plot(fpr, tpr, label=f"{name} (AUC {auc:.3f})", lw=2 if name == "gate" else 1)
+        ax.plot(fpr, tpr, label=f"{name} (AUC {auc:.3f})", lw=2 if name.startswith("gate") else 1)
     ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, ls="--")
     ax.set(xlabel="slivers passed (false positive rate)", ylabel="big targets passed (true positive rate)",
-           title="Sliver gate on held-out training mazes")
+           title="Sliver gate on held-out training maps")
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -83,42 +90,60 @@ def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Pa
     plt.close(fig)
 
 
+def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path]:
+    maps = list_maps(folder)[:count] if count else []
+    if count and len(maps) <= holdout:
+        raise ValueError(f"{folder}: {len(maps)} maps, need more than fit_gate.{what} = {holdout}")
+    return maps
+
+
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Fit, measure and write the gate; returns the metrics written to reports/sliver_gate.json."""
     from sklearn.metrics import roc_curve
 
     section, protocol = read_params(params_path)
-    maps = list_maps(TRAIN_MAZES)[: section["maps"]]
-    if len(maps) <= section["holdout_maps"]:
-        raise ValueError(f"{TRAIN_MAZES}: {len(maps)} maps, need more than fit_gate.holdout_maps = {section['holdout_maps']}")
+    families = {  # family -> (maps, how many of the last are held out)
+        "mazes": (_family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"), section["holdout_maps"]),
+        "offices": (_family_maps(TRAIN_OFFICES, section["offices"], section["office_holdout"], "office_holdout"),
+                    section["office_holdout"]),
+    }
     started = time.perf_counter()
-    per_map = collect(maps, protocol, section["wall_margin"], section["workers"])
-    split = len(maps) - section["holdout_maps"]
-    fit_counts = np.concatenate([c for c, _ in per_map[:split]])
-    fit_gains = np.concatenate([g for _, g in per_map[:split]])
-    gate = fit_sliver_gate(fit_counts, fit_gains, section["min_gain"], section["wall_margin"],
-                           protocol.sensor_range_cells, section["threshold"])
+    samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"])
+    fit, held = [], {}  # (counts, gains) per fitted map; per family, those of its held-out maps
+    for family, (maps, holdout) in families.items():
+        ours, samples = samples[: len(maps)], samples[len(maps):]
+        fit += ours[: len(maps) - holdout]
+        if holdout:
+            held[family] = ours[len(maps) - holdout:]
+    fit_gains = np.concatenate([g for _, g in fit])
+    gate = fit_sliver_gate(np.concatenate([c for c, _ in fit]), fit_gains, section["min_gain"], section["wall_margin"],
+                           protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]))
     metrics: dict[str, Any] = {
-        "maps_fit": split, "maps_holdout": section["holdout_maps"], "samples_fit": int(len(fit_gains)),
+        "maps_fit": len(families["mazes"][0]) - section["holdout_maps"], "maps_holdout": section["holdout_maps"],
+        "offices_fit": len(families["offices"][0]) - section["office_holdout"] if section["offices"] else 0,
+        "offices_holdout": section["office_holdout"] if section["offices"] else 0,
+        "hidden": list(section["hidden"]), "samples_fit": int(len(fit_gains)),
         "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
-        "coef": dict(zip(FEATURES, (round(c, 4) for c in gate.coef))), "intercept": round(gate.intercept, 4),
     }
     curves = {}
-    if section["holdout_maps"]:
-        counts = np.concatenate([c for c, _ in per_map[split:]])
-        labels = np.concatenate([g for _, g in per_map[split:]]) >= gate.min_gain
+    for family, maps_held in held.items():
+        counts = np.concatenate([c for c, _ in maps_held])
+        labels = np.concatenate([g for _, g in maps_held]) >= gate.min_gain
         probability = gate.probability(counts)
-        metrics.update(samples_holdout=int(len(labels)), big_share_holdout=round(float(labels.mean()), 4),
-                       auc_holdout=round(roc_auc(probability, labels), 4),
-                       accuracy_holdout=round(float(((probability >= gate.threshold) == labels).mean()), 4),
-                       slivers_passed_holdout=round(float((probability[~labels] >= gate.threshold).mean()), 4),
-                       big_passed_holdout=round(float((probability[labels] >= gate.threshold).mean()), 4))
-        curves["gate"] = (*roc_curve(labels, probability)[:2], metrics["auc_holdout"])
-        for k, name in enumerate(FEATURES):
-            auc = round(roc_auc(gate_inputs(counts)[:, k], labels), 4)
-            metrics[f"auc_holdout_{name}"] = auc
-            curves[f"{name} alone"] = (*roc_curve(labels, counts[:, k])[:2], auc)
-    save_gate(gate, GATE_PATH, protocol.to_dict(), fitted_on={"maps": [m.name for m in maps[:split]], **metrics})
+        suffix = "holdout" if family == "mazes" else f"holdout_{family}"
+        metrics.update({f"samples_{suffix}": int(len(labels)), f"big_share_{suffix}": round(float(labels.mean()), 4),
+                        f"auc_{suffix}": round(roc_auc(probability, labels), 4),
+                        f"accuracy_{suffix}": round(float(((probability >= gate.threshold) == labels).mean()), 4),
+                        f"slivers_passed_{suffix}": round(float((probability[~labels] >= gate.threshold).mean()), 4),
+                        f"big_passed_{suffix}": round(float((probability[labels] >= gate.threshold).mean()), 4)})
+        curves[f"gate, {family}"] = (*roc_curve(labels, probability)[:2], metrics[f"auc_{suffix}"])
+        if family == "mazes":
+            for k, name in enumerate(FEATURES):
+                auc = round(roc_auc(gate_inputs(counts)[:, k], labels), 4)
+                metrics[f"auc_holdout_{name}"] = auc
+                curves[f"{name} alone, mazes"] = (*roc_curve(labels, counts[:, k])[:2], auc)
+    fitted_maps = [m.name for maps, holdout in families.values() for m in maps[: len(maps) - holdout]]
+    save_gate(gate, GATE_PATH, protocol.to_dict(), fitted_on={"maps": fitted_maps, **metrics})
     metrics["seconds"] = round(time.perf_counter() - started, 1)  # in the report only: the gate file is a pure function of its inputs
     METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
     METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")

@@ -1,11 +1,13 @@
-"""DVC stage: draw the train and test maze sets and a preview figure.
+"""DVC stage: draw the train and test maze sets, the office floors, and a preview figure.
 
 Run as `python -m stages.generate_mazes` from the repository root (the package is installed).
 Reads only the `mazes` section of params.yaml (plus `protocol.cell_size` when present), so
 DVC reruns this stage only when those values change. Train and test mazes come from seed
 sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze. `rooms` and
 `extra_loops` are per 100 m x 100 m (see `MazeConfig`), so train mazes of any side in
-`side_m` have the room density of the 100 m test mazes.
+`side_m` have the room density of the 100 m test mazes. `mazes.offices.count` office floors
+of 100 m (`pipeline.offices`, seed sequence [seed, 2, i]) go to data/offices/train: the sliver
+gate is fitted on them beside the mazes, so that it holds on maps unlike the mazes.
 """
 
 from __future__ import annotations
@@ -16,12 +18,15 @@ import cv2
 import numpy as np
 
 from pipeline.mazes import MazeConfig, generate_maze_set, write_maze_png
+from pipeline.offices import OfficeConfig, generate_office_set
 from pipeline.params_file import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")
 SPLITS = {"train": 0, "test": 1}  # split name -> second word of the seed sequence
+OFFICE_DIR = Path("data/offices/train")
+OFFICE_SEED_WORD = 2
 PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
@@ -55,6 +60,17 @@ def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig
     return config, count
 
 
+def _office_count(mazes: dict) -> int:
+    section = mazes.get("offices", {"count": 0})
+    count = section.get("count") if isinstance(section, dict) else None
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise ValueError(f"params 'mazes.offices.count' must be a non-negative integer, got {count!r}")
+    unknown = sorted(set(section) - {"count"})
+    if unknown:
+        raise ValueError(f"params 'mazes.offices' has unknown key(s) {unknown}; known: ['count']")
+    return count
+
+
 def _clear_pngs(directory: Path) -> None:
     """Remove the PNGs of an earlier run so a smaller count leaves no stale mazes behind."""
     if directory.is_dir():
@@ -83,21 +99,26 @@ def preview_image(paths: list[Path]) -> np.ndarray:
 
 
 def main(params_path: str = "params.yaml") -> None:
-    """Write data/mazes/{train,test}/maze_NNNN.png and reports/mazes_preview.png."""
+    """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and reports/mazes_preview.png."""
     mazes, cell_size = _load_params(params_path)
     seed = mazes.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"params 'mazes.seed' must be a non-negative integer, got {seed!r}")
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
+    offices = _office_count(mazes)
+    office_config = OfficeConfig(cell_size=cell_size)
     written: dict[str, list[Path]] = {}
     for split, (config, count) in splits.items():
         out_dir = MAZE_ROOT / split
         _clear_pngs(out_dir)
         written[split] = generate_maze_set(config, count, out_dir, seed=(seed, SPLITS[split]))
+    _clear_pngs(OFFICE_DIR)
+    office_paths = generate_office_set(office_config, offices, OFFICE_DIR, seed=(seed, OFFICE_SEED_WORD))
     write_maze_png(preview_image(written["test"]), PREVIEW_PATH)
     for split, paths in written.items():
         print(f"{split}: {len(paths)} mazes in {MAZE_ROOT / split}")
+    print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
     print(f"preview: {PREVIEW_PATH}")
 
 

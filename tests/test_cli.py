@@ -108,6 +108,23 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
     assert "more than the map loader reads; the largest side at 0.4 m cells is 1635 m" in huge  # not a MemoryError
 
 
+def test_mazes_draws_office_floors_on_request(tmp_path):
+    from pipeline.maps import load_map
+
+    out = tmp_path / "offices"
+    result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "office"])
+    assert result.exit_code == 0, result.output
+    paths = sorted(out.glob("office_*.png"))
+    assert [p.name for p in paths] == ["office_0000.png", "office_0001.png"]
+    floor = load_map(paths[0])
+    assert floor.free.shape == (100, 100) and floor.free.mean() > 0.7  # open floors, not mazes
+    assert "already holds office PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "office"]))
+    assert "--kind must be maze or office" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
+    assert "side_m >= 20 m" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "office", "--side", "10"]))
+    huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "h"), "--count", "1", "--kind", "office", "--side", "1e9"]))
+    assert "the largest side at 0.4 m cells is" in huge
+
+
 def _one_error_line(result) -> str:
     assert result.exit_code == 2, result.output
     assert "Traceback" not in result.output

@@ -24,6 +24,7 @@ PARAMS = {
         "extra_loops": 1,
         "train": {"count": 2, "side_m": [40, 50]},
         "test": {"count": 1, "side_m": [40, 40]},
+        "offices": {"count": 2},
     },
     "benchmark": {"ignored": True},
 }
@@ -41,6 +42,9 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     test = sorted(p.name for p in (tmp_path / "data/mazes/test").glob("*.png"))
     assert train == ["maze_0000.png", "maze_0001.png"]
     assert test == ["maze_0000.png"]
+    offices = sorted((tmp_path / "data/offices/train").glob("*.png"))
+    assert [p.name for p in offices] == ["office_0000.png", "office_0001.png"]
+    assert load_maze_png(offices[0]).free.shape == (250, 250)  # 100 m floors
     for path in (tmp_path / "data/mazes").rglob("*.png"):
         load_maze_png(path)
     preview = cv2.imread(str(tmp_path / "reports/mazes_preview.png"), cv2.IMREAD_GRAYSCALE)
@@ -59,11 +63,16 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     assert (tmp_path / "data/mazes/train/maze_0000.png").read_bytes() == first
 
 
-def test_bad_params_fail_before_any_file_is_written(tmp_path, monkeypatch):
+@pytest.mark.parametrize(("change", "message"), [
+    ({"room_blocks": [1, 3]}, "room_blocks"),
+    ({"offices": {"count": -1}}, "mazes.offices.count' must be a non-negative integer"),
+    ({"offices": {"count": 2, "side": 50}}, r"unknown key\(s\) \['side'\]"),
+])
+def test_bad_params_fail_before_any_file_is_written(tmp_path, monkeypatch, change, message):
     monkeypatch.chdir(tmp_path)
-    bad = {**PARAMS, "mazes": {**PARAMS["mazes"], "room_blocks": [1, 3]}}
+    bad = {**PARAMS, "mazes": {**PARAMS["mazes"], **change}}
     _write_params(tmp_path / "params.yaml", bad)
-    with pytest.raises(ValueError, match="room_blocks"):
+    with pytest.raises(ValueError, match=message):
         main()
     assert not (tmp_path / "data").exists() and not (tmp_path / "reports").exists()
 

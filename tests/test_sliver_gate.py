@@ -60,15 +60,28 @@ def test_the_shipped_gate_calls_the_open_end_big_and_the_notch_a_sliver():
 
 
 def test_probability_and_threshold():
-    gate = SliverGate(coef=(1.0, 0.0, 0.0), intercept=-np.log1p(9.0), threshold=0.5)
+    gate = SliverGate.logistic((1.0, 0.0, 0.0), -np.log1p(9.0), threshold=0.5)
     p = gate.probability(np.array([[0.0, 5, 5], [9.0, 5, 5], [99.0, 5, 5]]))
     assert p[0] < 0.5 and p[1] == pytest.approx(0.5) and p[2] > 0.5
     with pytest.raises(ValueError, match="threshold"):
-        SliverGate(coef=(1.0, 0.0, 0.0), intercept=0.0, threshold=1.0)
-    with pytest.raises(ValueError, match="coefficients"):
-        SliverGate(coef=(1.0, 0.0), intercept=0.0)
-    with pytest.raises(ValueError, match="coefficients"):
-        SliverGate(coef=(float("nan"), 0.0, 0.0), intercept=0.0)
+        SliverGate.logistic((1.0, 0.0, 0.0), 0.0, threshold=1.0)
+    with pytest.raises(ValueError, match="expected 3 rows"):
+        SliverGate.logistic((1.0, 0.0), 0.0)
+    with pytest.raises(ValueError, match="finite"):
+        SliverGate.logistic((float("nan"), 0.0, 0.0), 0.0)
+    with pytest.raises(ValueError, match="to one output"):
+        SliverGate(((((1.0, 1.0),) * 3, (0.0, 0.0)),))  # two outputs
+
+
+def test_a_hidden_layer_computes_relu_then_sigmoid():
+    # hidden unit 0 = relu(log1p(open) - log1p(9)), unit 1 = relu(-log1p(open)); output = 2 * unit 0 - unit 1
+    gate = SliverGate((
+        (((1.0, -1.0), (0.0, 0.0), (0.0, 0.0)), (-np.log1p(9.0), 0.0)),
+        (((2.0,), (-1.0,)), (0.0,)),
+    ))
+    p = gate.probability(np.array([[0.0, 5, 5], [99.0, 5, 5]]))
+    assert p[0] == pytest.approx(0.5)  # both units are 0 at no open unknown
+    assert p[1] == pytest.approx(1 / (1 + np.exp(-2 * (np.log1p(99.0) - np.log1p(9.0)))))
 
 
 def test_fit_learns_the_share_of_open_unknown():
@@ -77,20 +90,27 @@ def test_fit_learns_the_share_of_open_unknown():
     share = rng.uniform(0, 1, 4000)
     counts = np.column_stack([unknown * share, unknown, rng.integers(0, 60, 4000)])
     gains = np.where(share > 0.5, 200, 10) + rng.integers(0, 5, 4000)
-    gate = fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0)
     labels = gains >= 50
-    assert gate.coef[0] > 0 > gate.coef[1]
-    assert ((gate.probability(counts) >= 0.5) == labels).mean() > 0.9
-    assert roc_auc(gate.probability(counts), labels) > 0.95
+    gate = fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0)
+    (coef, _), = gate.layers
+    assert coef[0][0] > 0 > coef[1][0]  # open unknown counts for big, all unknown against
+    for fitted in (gate, fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0, hidden=(8,))):
+        assert ((fitted.probability(counts) >= 0.5) == labels).mean() > 0.9
+        assert roc_auc(fitted.probability(counts), labels) > 0.95
+    assert len(fitted.layers) == 2 and len(fitted.layers[0][1]) == 8
     with pytest.raises(ValueError, match="every one"):
         fit_sliver_gate(counts, np.zeros(4000), min_gain=50, wall_margin=2, range_cells=50.0)
 
 
 def test_file_round_trip_and_clear_errors(tmp_path):
-    gate = SliverGate(coef=(20.0, -20.0, 3.0), intercept=-7.0, threshold=0.6, wall_margin=3, min_gain=40, range_cells=25.0)
+    gate = SliverGate(((((1.0, -2.0),) * 3, (0.5, 0.0)), (((1.5,), (-1.0,)), (-0.25,))),
+                      threshold=0.6, wall_margin=3, min_gain=40, range_cells=25.0)
     path = save_gate(gate, tmp_path / "g" / "gate.json", {"cell_size": 0.4}, samples=12)
     loaded, protocol = load_gate(path)
     assert loaded == gate and protocol == {"cell_size": 0.4}
+    old = tmp_path / "logistic.json"  # a gate file of the one-layer format that came first
+    old.write_text(json.dumps({"features": list(FEATURES), "gate": {"coef": [20.0, -20.0, 3.0], "intercept": -7.0}}))
+    assert load_gate(old)[0] == SliverGate.logistic((20.0, -20.0, 3.0), -7.0)
     assert json.loads(path.read_text())["samples"] == 12
     body = json.loads(path.read_text())
     body["gate"]["typo"] = 1

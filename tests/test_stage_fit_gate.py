@@ -8,12 +8,14 @@ import shutil
 import pytest
 import yaml
 
+from pipeline.offices import OfficeConfig, generate_office_set
 from pipeline.sliver_gate import load_gate
 from stages import fit_gate
 
 
-def _project(tmp_path, generated_maze_dir, section):
+def _project(tmp_path, generated_maze_dir, section, offices=0):
     shutil.copytree(generated_maze_dir, tmp_path / "data/mazes/train")
+    generate_office_set(OfficeConfig(side_m=40.0), offices, tmp_path / "data/offices/train", seed=[5], progress=False)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "fit_gate": section}))
 
 
@@ -39,9 +41,27 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     ({"min_gain": 2.5}, "fit_gate.min_gain must be a whole number"),
     ({"mpas": 3}, r"unknown fit_gate parameter\(s\) \['mpas'\]"),
     ({"maps": 8, "holdout_maps": 4}, "3 maps, need more than fit_gate.holdout_maps = 4"),
+    ({"offices": 2, "office_holdout": 2}, "office_holdout must be below fit_gate.offices"),
+    ({"maps": 3, "holdout_maps": 1, "offices": 5, "office_holdout": 2}, "2 maps, need more than fit_gate.office_holdout = 2"),
+    ({"hidden": 16}, "fit_gate.hidden must be a list of layer widths"),
 ])
 def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, section, message):
     monkeypatch.chdir(tmp_path)
-    _project(tmp_path, generated_maze_dir, section)
+    _project(tmp_path, generated_maze_dir, section, offices=2)
     with pytest.raises(ValueError, match=message):
         fit_gate.main("params.yaml")
+
+
+def test_stage_fits_one_network_on_mazes_and_office_floors(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
+    _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "offices": 2, "office_holdout": 1,
+                                             "hidden": [8], "workers": 1}, offices=2)
+    metrics = fit_gate.main("params.yaml")
+    gate, _ = load_gate(tmp_path / "models/sliver_gate/sliver_gate.json")
+    assert [len(biases) for _, biases in gate.layers] == [8, 1]
+    assert metrics["maps_fit"] == 2 and metrics["offices_fit"] == 1 and metrics["offices_holdout"] == 1
+    assert metrics["samples_holdout"] > 0 and metrics["samples_holdout_offices"] > 0
+    assert 0.5 < metrics["auc_holdout_offices"] <= 1.0  # better than chance on a floor it was not fitted on
+    fitted_on = json.loads((tmp_path / "models/sliver_gate/sliver_gate.json").read_text())["fitted_on"]["maps"]
+    assert fitted_on == ["maze_0000.png", "maze_0001.png", "office_0000.png"]

@@ -190,7 +190,8 @@ class GraphPlanner(Planner):
         if self.graph is None:
             raise RuntimeError("reset() must be called before plan()")
         self.graph.update(observation.belief, observation.changed)
-        self.visited[self.graph.nearest_node(observation.position)] = True
+        self.robot = self.graph.nearest_node(observation.position)
+        self.visited[self.robot] = True
         self.belief = observation.belief
         self._gated = None
         return self.graph
@@ -199,12 +200,14 @@ class GraphPlanner(Planner):
         assert self.graph is not None
         return self.graph.nearest_node(observation.position)
 
-    def useful_nodes(self) -> np.ndarray:
+    def useful_nodes(self, dist: np.ndarray | None = None) -> np.ndarray:
         """Unvisited free nodes whose frontier utility is worth a visit.
 
         A visited node that still sees frontier cells saw them from there already without
         clearing them (grazing rays); going back would loop, so it is not a target. With the
-        sliver gate, only those it calls big while there are any.
+        sliver gate, only those it calls big while the robot can reach any of them (`dist`:
+        known-graph distances from the robot's node, computed when not given); a gate that
+        passed only unreachable nodes would leave the robot nothing to do.
         """
         assert self.graph is not None
         useful = np.nonzero((self.graph.utility >= self.min_utility) & ~self.visited)[0]
@@ -214,12 +217,15 @@ class GraphPlanner(Planner):
             return useful
         if self._gated is None or not np.array_equal(self._gated[0], useful):
             big = self.gate.passes(self.belief, self.graph.node_cells[useful], self.protocol.sensor_range_cells)
+            if big.any():
+                dist = self.graph.shortest_paths(self.robot)[0] if dist is None else dist
+                big &= np.isfinite(dist[useful])
             self._gated = (useful, useful[big] if big.any() else useful)
         return self._gated[1]
 
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         """The useful nodes other than the robot's own that known-free paths reach (`dist` from the robot)."""
-        targets = self.useful_nodes()
+        targets = self.useful_nodes(dist)
         return targets[np.isfinite(dist[targets]) & (targets != robot)]
 
     def nearest_useful_step(self, robot: int) -> list[Waypoint]:

@@ -24,7 +24,7 @@ def test_the_gate_keeps_a_subset_and_falls_back_when_it_passes_nothing(small_maz
     plain = make_planner("greedy_utility")
     gated = make_planner("greedy_utility", sliver_gate=True)
     nothing = make_planner("greedy_utility", sliver_gate=True, gate_file=str(save_gate(
-        SliverGate(coef=(0.0, 0.0, 0.0), intercept=-50.0), tmp_path / "never.json")))
+        SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json")))
     observation = Episode(small_maze, protocol).observe()  # the first scan
     for planner in (plain, gated, nothing):
         planner.reset(small_maze, protocol, 0)
@@ -39,3 +39,22 @@ def test_the_gate_keeps_a_subset_and_falls_back_when_it_passes_nothing(small_maz
 def test_gated_planners_complete_the_maze(small_maze, name):
     result = run_episode(small_maze, make_planner(name, sliver_gate=True), Protocol(), 0)
     assert result.complete and result.motion_violations == 0
+
+
+def test_the_gate_falls_back_when_every_node_it_passes_is_unreachable(small_maze, tmp_path):
+    """A gate that passes only nodes the robot cannot reach must not leave it without a target
+    (it did on an office-like map: the episode ended with reachable frontier left)."""
+    protocol = Protocol()
+    always = make_planner("greedy_utility", sliver_gate=True, gate_file=str(save_gate(
+        SliverGate.logistic((0.0, 0.0, 0.0), 50.0), tmp_path / "always.json")))
+    always.reset(small_maze, protocol, 0)
+    always.update_graph(Episode(small_maze, protocol).observe())
+    everything = always.useful_nodes()
+    assert everything.size > 1
+    dist = np.zeros(always.graph.node_count)
+    dist[everything[0]] = np.inf  # a known-graph distance in which only one useful node is cut off
+    always._gated = None
+    assert np.array_equal(always.useful_nodes(dist), everything[1:])  # the gate passes the reachable ones
+    dist[everything] = np.inf  # now every node the gate passes is out of reach
+    always._gated = None
+    assert np.array_equal(always.useful_nodes(dist), everything)  # so every useful node stays
