@@ -23,8 +23,8 @@ greedy episodes in the training mazes and office floors (`pipeline.offices`), la
 the scan the ground truth would give; an oracle gate with those labels makes greedy 7.4 %
 shorter on 50 fresh mazes (docs/findings.md, "Small frontiers last"). A logistic gate fitted
 on mazes alone rejected real targets on office floors and made routes there 15 % longer;
-fitted on both, a logistic model gives up half its gain on mazes, the perceptron almost
-none (docs/findings.md, "Off the maze generator").
+fitted on both, a logistic model gives up half its gain on mazes, the perceptron little
+(docs/findings.md, "Off the maze generator").
 """
 
 from __future__ import annotations

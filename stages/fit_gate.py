@@ -102,10 +102,10 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
     from sklearn.metrics import roc_curve
 
     section, protocol = read_params(params_path)
+    office_holdout = section["office_holdout"] if section["offices"] else 0
     families = {  # family -> (maps, how many of the last are held out)
         "mazes": (_family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"), section["holdout_maps"]),
-        "offices": (_family_maps(TRAIN_OFFICES, section["offices"], section["office_holdout"], "office_holdout"),
-                    section["office_holdout"]),
+        "offices": (_family_maps(TRAIN_OFFICES, section["offices"], office_holdout, "office_holdout"), office_holdout),
     }
     started = time.perf_counter()
     samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"])
@@ -120,8 +120,7 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
                            protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]))
     metrics: dict[str, Any] = {
         "maps_fit": len(families["mazes"][0]) - section["holdout_maps"], "maps_holdout": section["holdout_maps"],
-        "offices_fit": len(families["offices"][0]) - section["office_holdout"] if section["offices"] else 0,
-        "offices_holdout": section["office_holdout"] if section["offices"] else 0,
+        "offices_fit": len(families["offices"][0]) - office_holdout, "offices_holdout": office_holdout,
         "hidden": list(section["hidden"]), "samples_fit": int(len(fit_gains)),
         "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
     }

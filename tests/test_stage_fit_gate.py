@@ -22,8 +22,9 @@ def _project(tmp_path, generated_maze_dir, section, offices=0):
 def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
-    _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "workers": 1})
-    metrics = fit_gate.main("params.yaml")
+    _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "office_holdout": 2, "workers": 1})
+    metrics = fit_gate.main("params.yaml")  # no office floors: their holdout is moot, mazes alone fit a logistic gate
+    assert metrics["offices_fit"] == metrics["offices_holdout"] == 0 and "auc_holdout_offices" not in metrics
     gate, protocol = load_gate(tmp_path / "models/sliver_gate/sliver_gate.json")
     assert protocol["cell_size"] == 0.4 and gate.min_gain == 50 and gate.range_cells == 50.0
     written = json.loads((tmp_path / "reports/sliver_gate.json").read_text())
