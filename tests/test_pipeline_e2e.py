@@ -40,7 +40,8 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     params["mazes"]["train"]["side_m"] = [50, 60]
     params["collect_pairs"].update(pairs=12, pairs_per_shard=6, stop_steps=[3, 10])
     params["collect_expert"].update(episodes=2, episodes_per_shard=1)
-    params["fit_gate"].update(maps=2, holdout_maps=1)
+    params["mazes"]["offices"]["count"] = 2
+    params["fit_gate"].update(maps=2, holdout_maps=1, offices=2, office_holdout=1, hidden=[4])
     params["train_inpainter"].update(max_epochs=2, batch_size=4)
     params["build_observations"].update(max_nodes=64)
     params["train_planner"]["model"].update(max_nodes=64, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
