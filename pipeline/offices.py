@@ -40,7 +40,7 @@ class OfficeConfig:
     min_room_m: float = 8.0  # no split leaves a room narrower than this
     split_above_m: float = 20.0  # a part whose longer side exceeds this is split (unless it stops by chance)
     max_depth: int = 6  # splits on the way down to a room
-    stop_chance: float = 0.25  # below depth 3, the chance a part stays one big room
+    stop_chance: float = 0.25  # from depth 3 on, the chance a part stays one big room
     second_door_chance: float = 0.3  # the chance a long wall gets a second door
     clutter: tuple[int, int] = (0, 4)  # boxes per room
     clutter_m: tuple[float, float] = (1.2, 2.8)  # box side
@@ -63,6 +63,7 @@ class OfficeConfig:
             raise ValueError("OfficeConfig.split_above_m must be at least twice min_room_m (both halves of a split fit)")
 
     def cells(self, metres: float) -> int:
+        """A length in whole cells (at least one)."""
         return max(1, int(round(metres / self.cell_size)))
 
 
