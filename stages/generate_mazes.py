@@ -24,6 +24,7 @@ from pipeline.stage_errors import run_stage_main
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")
+OFFICE_PREVIEW_PATH = Path("reports/offices_preview.png")
 SPLITS = {"train": 0, "test": 1}  # split name -> second word of the seed sequence
 OFFICE_DIR = Path("data/offices/train")
 OFFICE_SEED_WORD = 2
@@ -99,7 +100,7 @@ def preview_image(paths: list[Path]) -> np.ndarray:
 
 
 def main(params_path: str = "params.yaml") -> None:
-    """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and reports/mazes_preview.png."""
+    """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and the previews in reports/."""
     mazes, cell_size = _load_params(params_path)
     seed = mazes.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -116,10 +117,11 @@ def main(params_path: str = "params.yaml") -> None:
     _clear_pngs(OFFICE_DIR)
     office_paths = generate_office_set(office_config, offices, OFFICE_DIR, seed=(seed, OFFICE_SEED_WORD))
     write_maze_png(preview_image(written["test"]), PREVIEW_PATH)
+    write_maze_png(preview_image(office_paths), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
     for split, paths in written.items():
         print(f"{split}: {len(paths)} mazes in {MAZE_ROOT / split}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
-    print(f"preview: {PREVIEW_PATH}")
+    print(f"previews: {PREVIEW_PATH}, {OFFICE_PREVIEW_PATH}")
 
 
 if __name__ == "__main__":

@@ -45,6 +45,8 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     offices = sorted((tmp_path / "data/offices/train").glob("*.png"))
     assert [p.name for p in offices] == ["office_0000.png", "office_0001.png"]
     assert load_maze_png(offices[0]).free.shape == (250, 250)  # 100 m floors
+    office_preview = cv2.imread(str(tmp_path / "reports/offices_preview.png"), cv2.IMREAD_GRAYSCALE)
+    assert office_preview is not None and office_preview.std() > 10
     for path in (tmp_path / "data/mazes").rglob("*.png"):
         load_maze_png(path)
     preview = cv2.imread(str(tmp_path / "reports/mazes_preview.png"), cv2.IMREAD_GRAYSCALE)
