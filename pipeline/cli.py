@@ -139,26 +139,39 @@ def planners() -> None:
 
 @app.command()
 def mazes(
-    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_NNNN.png) into (created if missing)."),
+    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_NNNN.png, cave_NNNN.png) into (created if missing)."),
     count: int = typer.Option(..., min=1, help="How many mazes."),
     seed: int = typer.Option(0, min=0, help="Maze i is drawn from seed sequence [seed, i]."),
     side: float = typer.Option(100.0, help="Side length in metres (for mazes, a multiple of the block size)."),
     kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
-                                          "wide rooms, clutter), a family the sliver gate is also fitted on."),
+                                          "wide rooms, clutter), a family the sliver gate is also fitted on; "
+                                          "cave: rough-walled caves, a family no model is fitted on."),
     cell_size: float = CellSize,
 ) -> None:
-    """Draw mazes like the benchmark's (the pipeline's generator and defaults), or office floors, into a folder.
+    """Draw mazes like the benchmark's (the pipeline's generator and defaults), office floors or caves, into a folder.
 
     More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
     `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
     """
     from pipeline.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
+    from pipeline.caves import CaveConfig, generate_cave_set
     from pipeline.offices import OfficeConfig, generate_office_set
 
-    if kind not in ("maze", "office"):
-        _fail(f"--kind must be maze or office, got {kind!r}")
+    if kind not in ("maze", "office", "cave"):
+        _fail(f"--kind must be maze, office or cave, got {kind!r}")
     if not (math.isfinite(side) and side > 0):
         _fail(f"--side must be a positive number of metres, got {side:g}")
+    if kind == "cave":
+        try:
+            cave = CaveConfig(side_m=side, cell_size=cell_size)
+        except ValueError as error:
+            _fail(str(error).replace("CaveConfig needs", "caves need").replace("CaveConfig.block_m", "the 4 m block"))
+        _check_out_dir(out)
+        if out.is_dir() and any(out.glob("cave_*.png")):
+            _fail(f"{out} already holds cave PNGs: pick an empty folder, so no old cave mixes into a set")
+        paths = generate_cave_set(cave, count, out, seed=seed)
+        typer.echo(f"wrote {len(paths)} cave{'s' if len(paths) != 1 else ''} of {side:g} m to {out}")
+        return
     if kind == "office":
         try:
             office = OfficeConfig(side_m=side, cell_size=cell_size)

@@ -119,10 +119,27 @@ def test_mazes_draws_office_floors_on_request(tmp_path):
     floor = load_map(paths[0])
     assert floor.free.shape == (100, 100) and floor.free.mean() > 0.7  # open floors, not mazes
     assert "already holds office PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "office"]))
-    assert "--kind must be maze or office" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
+    assert "--kind must be maze, office or cave" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
     assert "side_m >= 20 m" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "office", "--side", "10"]))
     huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "h"), "--count", "1", "--kind", "office", "--side", "1e9"]))
     assert "the largest side at 0.4 m cells is" in huge
+
+
+def test_mazes_draws_caves_on_request(tmp_path):
+    from pipeline.maps import load_map
+
+    out = tmp_path / "caves"
+    result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "cave"])
+    assert result.exit_code == 0, result.output
+    assert "wrote 2 caves of 40 m" in result.output
+    paths = sorted(out.glob("cave_*.png"))
+    assert [p.name for p in paths] == ["cave_0000.png", "cave_0001.png"]
+    assert load_map(paths[0]).free.shape == (100, 100)
+    assert "already holds cave PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "cave"]))
+    assert "caves need cell_size > 0 and side_m >= 20 m" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "cave", "--side", "10"]))
+    assert "the 4 m block 4 m is under 4 cells" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "c"), "--count", "1", "--kind", "cave", "--cell-size", "1.5"]))
 
 
 def _one_error_line(result) -> str:
