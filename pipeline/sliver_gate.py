@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -109,12 +110,18 @@ class SliverGate:
         """The one-layer gate: P(big) = sigmoid(coef . log(1 + counts) + intercept)."""
         return cls((([(c,) for c in coef], (intercept,)),), **settings)
 
+    @cached_property
+    def _arrays(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """The layers as numpy arrays, converted once: `probability` runs at every decision."""
+        return tuple((np.asarray(weights), np.asarray(biases)) for weights, biases in self.layers)
+
     def probability(self, counts: np.ndarray) -> np.ndarray:
         """P(big) for rows of `gate_features` counts."""
         hidden = gate_inputs(counts).reshape(-1, len(FEATURES))
-        for index, (weights, biases) in enumerate(self.layers):
-            hidden = hidden @ np.asarray(weights) + np.asarray(biases)
-            if index < len(self.layers) - 1:
+        last = len(self._arrays) - 1
+        for index, (weights, biases) in enumerate(self._arrays):
+            hidden = hidden @ weights + biases
+            if index < last:
                 hidden = np.maximum(hidden, 0.0)
         return 1.0 / (1.0 + np.exp(-hidden[:, 0]))
 
