@@ -153,35 +153,27 @@ def mazes(
     More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
     `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
     """
-    from pipeline.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
     from pipeline.caves import CaveConfig, generate_cave_set
+    from pipeline.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
     from pipeline.offices import OfficeConfig, generate_office_set
 
     if kind not in ("maze", "office", "cave"):
         _fail(f"--kind must be maze, office or cave, got {kind!r}")
     if not (math.isfinite(side) and side > 0):
         _fail(f"--side must be a positive number of metres, got {side:g}")
-    if kind == "cave":
+    if kind != "maze":
+        config_class, write_set, what = {"office": (OfficeConfig, generate_office_set, "office floor"),
+                                         "cave": (CaveConfig, generate_cave_set, "cave")}[kind]
         try:
-            cave = CaveConfig(side_m=side, cell_size=cell_size)
-        except ValueError as error:
-            _fail(str(error).replace("CaveConfig needs", "caves need").replace("CaveConfig.block_m", "the 4 m block"))
+            family = config_class(side_m=side, cell_size=cell_size)
+        except ValueError as error:  # named by this command's words, not the config's fields
+            message = str(error).replace(f"{config_class.__name__} needs", f"{what}s need")
+            _fail(message.replace("CaveConfig.block_m", "the 4 m block"))
         _check_out_dir(out)
-        if out.is_dir() and any(out.glob("cave_*.png")):
-            _fail(f"{out} already holds cave PNGs: pick an empty folder, so no old cave mixes into a set")
-        paths = generate_cave_set(cave, count, out, seed=seed)
-        typer.echo(f"wrote {len(paths)} cave{'s' if len(paths) != 1 else ''} of {side:g} m to {out}")
-        return
-    if kind == "office":
-        try:
-            office = OfficeConfig(side_m=side, cell_size=cell_size)
-        except ValueError as error:
-            _fail(str(error).replace("OfficeConfig needs", "office floors need"))
-        _check_out_dir(out)
-        if out.is_dir() and any(out.glob("office_*.png")):
-            _fail(f"{out} already holds office PNGs: pick an empty folder, so no old floor mixes into a set")
-        paths = generate_office_set(office, count, out, seed=seed)
-        typer.echo(f"wrote {len(paths)} office floor{'s' if len(paths) != 1 else ''} of {side:g} m to {out}")
+        if out.is_dir() and any(out.glob(f"{kind}_*.png")):
+            _fail(f"{out} already holds {kind} PNGs: pick an empty folder, so no old {what} mixes into a set")
+        paths = write_set(family, count, out, seed=seed)
+        typer.echo(f"wrote {len(paths)} {what}{'s' if len(paths) != 1 else ''} of {side:g} m to {out}")
         return
     try:
         config = MazeConfig(side_m=(side, side), cell_size=cell_size)
