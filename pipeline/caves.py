@@ -26,7 +26,7 @@ import numpy as np
 
 from pipeline.maps import MAX_IMAGE_PIXELS
 from pipeline.mazes import generate_map_set
-from pipeline.offices import render_office
+from pipeline.offices import render_free_map
 
 MAX_ATTEMPTS = 200  # caves drawn before giving up on one with enough open space
 
@@ -110,7 +110,7 @@ def draw_cave(config: CaveConfig, rng: np.random.Generator) -> tuple[np.ndarray,
 
 def generate_cave(config: CaveConfig, rng: np.random.Generator) -> np.ndarray:
     """Draw one cave as a maze PNG image (127 wall, 195 free, 208 start square)."""
-    return render_office(*draw_cave(config, rng))
+    return render_free_map(*draw_cave(config, rng))
 
 
 def generate_cave_set(config: CaveConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],

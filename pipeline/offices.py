@@ -139,8 +139,9 @@ def _start_cell(free: np.ndarray, rooms: list[tuple[int, int, int, int]], rng: n
     raise RuntimeError("office generator bug: no room has space for the start")
 
 
-def render_office(free: np.ndarray, start: tuple[int, int]) -> np.ndarray:
-    """The maze PNG image (two pixels per cell) with the start marked so `load_maze_png` finds it.
+def render_free_map(free: np.ndarray, start: tuple[int, int]) -> np.ndarray:
+    """The maze PNG image (two pixels per cell) of any free grid, office floor or cave, with the
+    start marked so `load_maze_png` finds it.
 
     The START_CELLS x START_CELLS square of 208 cells is placed so that its 11th cell in
     row-major order, the one the format names as the start, is `start`.
@@ -153,7 +154,7 @@ def render_office(free: np.ndarray, start: tuple[int, int]) -> np.ndarray:
 
 def generate_office(config: OfficeConfig, rng: np.random.Generator) -> np.ndarray:
     """Draw one office floor as a maze PNG image (127 wall, 195 free, 208 start square)."""
-    return render_office(*draw_office(config, rng))
+    return render_free_map(*draw_office(config, rng))
 
 
 def generate_office_set(config: OfficeConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
