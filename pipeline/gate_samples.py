@@ -7,9 +7,8 @@ import numpy as np
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.frontier import GreedyUtilityPlanner
 from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, Lidar
 from pipeline.simulator import Observation, run_episode
-from pipeline.sliver_gate import gate_features
+from pipeline.sliver_gate import TrueGain, gate_features
 
 
 class _LabellingGreedy(GreedyUtilityPlanner):
@@ -26,8 +25,7 @@ class _LabellingGreedy(GreedyUtilityPlanner):
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         super().reset(ground_truth, protocol, seed)
-        self.lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
-        self.scans: dict[int, np.ndarray] = {}  # node -> flat indices of the free cells its scan reveals
+        self.true_gain = TrueGain(ground_truth, protocol)
 
     def plan(self, observation: Observation):
         waypoints = super().plan(observation)  # updates the graph once and chooses as greedy_utility does
@@ -38,15 +36,8 @@ class _LabellingGreedy(GreedyUtilityPlanner):
         if targets.size:
             cells = graph.node_cells[targets]
             self.counts.append(gate_features(observation.belief, cells, self.range_cells, self.wall_margin))
-            flat = observation.belief.reshape(-1)
-            self.gains.append(np.array([(flat[self._scan(int(t))] != FREE).sum() for t in targets], np.int64))
+            self.gains.append(self.true_gain.gains(observation.belief, cells))
         return waypoints
-
-    def _scan(self, node: int) -> np.ndarray:
-        if node not in self.scans:
-            col, row = self.graph.node_cells[node]
-            self.scans[node] = self.lidar.scan((int(col), int(row))).free
-        return self.scans[node]
 
 
 def gate_samples(ground_truth: GroundTruthMap, protocol: Protocol, wall_margin: int = 2,

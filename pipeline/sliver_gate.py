@@ -41,7 +41,9 @@ import numpy as np
 from pipeline.frontier import frontier_mask
 from pipeline.graph import visible_counts
 from pipeline.params_file import dataclass_from_dict
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.maps import GroundTruthMap
+from pipeline.protocol import Protocol
+from pipeline.sensor import FREE, OCCUPIED, UNKNOWN, Lidar
 
 FEATURES = ("open_unknown", "unknown", "frontier")
 DEFAULT_GATE = Path("models/sliver_gate/sliver_gate.json")
@@ -69,6 +71,26 @@ def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wal
 def gate_inputs(counts: np.ndarray) -> np.ndarray:
     """What the logistic model reads: log(1 + count), so that shares become differences."""
     return np.log1p(np.asarray(counts, dtype=np.float64))
+
+
+class TrueGain:
+    """How many cells a scan from each candidate cell would reveal that the belief lacks, on the
+    ground truth: the gate's label, and the oracle gate's test (`pipeline.planners.oracle_bounds`).
+    Scans are cached per cell for the episode; only the belief changes between calls."""
+
+    def __init__(self, ground_truth: GroundTruthMap, protocol: Protocol):
+        self.lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
+        self.scans: dict[tuple[int, int], np.ndarray] = {}  # (col, row) -> flat indices of the free cells it reveals
+
+    def gains(self, belief: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """Per (col, row) cell: the free cells its scan reveals that are not known free in `belief`."""
+        flat = belief.reshape(-1)
+        return np.array([(flat[self._scan(int(col), int(row))] != FREE).sum() for col, row in cells], np.int64)
+
+    def _scan(self, col: int, row: int) -> np.ndarray:
+        if (col, row) not in self.scans:
+            self.scans[col, row] = self.lidar.scan((col, row)).free
+        return self.scans[col, row]
 
 
 Layer = tuple[tuple[tuple[float, ...], ...], tuple[float, ...]]  # (weights: inputs x outputs, biases)

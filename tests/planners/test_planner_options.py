@@ -105,6 +105,14 @@ BAD = [
     ("dare", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
     ("dare", {"candidates": 0}, "candidates must be >= 1"),
     ("dare", {"threshold": 1.5}, "threshold must be a number in [0, 1]"),
+    # the oracle bounds check their own options and pass the rest to their base planner
+    ("oracle_gate", {"min_gain": 0}, "min_gain must be >= 1"),
+    ("oracle_gate", {"veto": "yes"}, "veto must be true or false"),
+    ("oracle_gate", {"veto": True, "sliver_gate": False}, "drop sliver_gate=false"),
+    ("oracle_gate", {"base": "expert"}, "base must be a lattice planner that does not see the ground truth"),
+    ("oracle_gate", {"base": "no_such_planner"}, "base: unknown planner 'no_such_planner'"),
+    ("oracle_tail", {"handover_cells": -1}, "handover_cells must be >= 0"),
+    ("oracle_tail", {"base": "guide_tsp", "threshold": 2}, "threshold must be a number in [0, 1]"),
 ]
 
 # Valid values at the edge of each range: still accepted (and the defaults' behaviour is untouched).
@@ -124,6 +132,8 @@ GOOD = [
     ("guide", {"num_inference_steps": 1, "action_steps": 1, "candidates": 1, "stall_steps": 1, "sampler": "ddim"}),
     ("guide_noregion", {"num_inference_steps": 100}),
     ("dare", {"num_inference_steps": 100, "mode": "policy"}),
+    ("oracle_gate", {"base": "guide_tsp", "min_gain": 1, "veto": True}),
+    ("oracle_tail", {"base": "nearest_frontier", "handover_cells": 0}),
 ]
 
 

@@ -1,0 +1,127 @@
+"""Oracle bounds: a planner given the ground truth in one place only, to measure what that place can win.
+
+Each wraps an ordinary lattice planner (`base`, any registered non-oracle `GraphPlanner`, built
+with the remaining options) and lets the ground truth decide one thing:
+
+- `oracle_gate`: the base planner's sliver gate is the truth. A target passes when its scan on
+  the ground truth would reveal at least `min_gain` cells the belief lacks (the label the
+  learned gate is fitted to). With `veto=true` the learned gate still decides, and the truth
+  only vetoes the slivers it passes. If a perfect gate cannot make a planner 10 % shorter than
+  `greedy_utility`, no better gate can.
+- `oracle_tail`: the base planner drives until at most `handover_cells` ground-truth free cells
+  are still unknown, then the ground-truth `expert` finishes. It bounds what any better
+  end-game can win.
+
+They are diagnostics, never planners to deploy: `guide planners` marks them as oracles.
+Measured figures: docs/findings.md, "What a better gate can still win" and "An oracle tail".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.sliver_gate import TrueGain
+from pipeline.maps import GroundTruthMap
+from pipeline.planners.base import (GraphPlanner, Planner, Waypoint, check_int, make_planner, planner_class,
+                                    register_planner, require)
+from pipeline.planners.coverage import ExpertPlanner
+from pipeline.protocol import Protocol
+from pipeline.sensor import FREE
+from pipeline.simulator import Observation
+
+
+def _base_planner(base: str, options: dict) -> GraphPlanner:
+    """The wrapped planner; a ValueError when it is not an ordinary lattice planner."""
+    require(isinstance(base, str), f"base must be a planner name, got {base!r}")
+    try:
+        cls = planner_class(base)
+    except KeyError as error:  # an unknown name: the one-line option error, as for any other option
+        raise ValueError(f"base: {error}") from None
+    require(issubclass(cls, GraphPlanner) and not cls.uses_ground_truth,
+            f"base must be a lattice planner that does not see the ground truth (e.g. greedy_utility, guide), got {base!r}")
+    return make_planner(base, **options)
+
+
+class _OracleWrapper(Planner):
+    """Delegates to `self.base`; subclasses add the ground truth where they need it."""
+
+    uses_ground_truth = True
+
+    def __init__(self, base: str, options: dict):
+        self.base = _base_planner(base, options)
+        self.trained_models = getattr(self.base, "trained_models", [])
+
+    def check_protocol(self, protocol: Protocol) -> None:
+        self.base.check_protocol(protocol)
+
+    @property
+    def last_decision(self) -> dict:
+        return getattr(self.base, "last_decision", {})
+
+
+class TrueGainGate:
+    """A sliver gate that knows: passes the cells whose ground-truth scan reveals >= `min_gain`
+    cells the belief lacks; with `learned`, only those the learned gate passes too (a veto)."""
+
+    def __init__(self, true_gain: TrueGain, min_gain: int, learned=None):
+        self.true_gain, self.min_gain, self.learned = true_gain, min_gain, learned
+
+    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
+        big = self.true_gain.gains(belief, cells) >= self.min_gain
+        if self.learned is not None:
+            big &= self.learned.passes(belief, cells, range_cells)
+        return big
+
+
+@register_planner("oracle_gate")
+class OracleGatePlanner(_OracleWrapper):
+    """Oracle bound: `base` (default greedy_utility) with the ground truth as its sliver gate."""
+
+    description = "oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; veto=true: vetoes the learned gate's slivers)"
+
+    def __init__(self, base: str = "greedy_utility", min_gain: int = 50, veto: bool = False, **options):
+        check_int("min_gain", min_gain, 1)
+        require(isinstance(veto, bool), f"veto must be true or false, got {veto!r}")
+        if veto:
+            require(options.get("sliver_gate", True) is True, "veto=true vetoes the learned gate's slivers: drop sliver_gate=false")
+            options = {**options, "sliver_gate": True}
+        super().__init__(base, options)
+        self.min_gain, self.veto = int(min_gain), veto
+        self.learned = self.base.gate
+        self.description = f"{self.description} [base {base}: {self.base.description}]"
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.base.reset(ground_truth, protocol, seed)
+        self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned if self.veto else None)
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        return self.base.plan(observation)
+
+
+@register_planner("oracle_tail")
+class OracleTailPlanner(_OracleWrapper):
+    """Oracle bound: `base` (default greedy_utility) until `handover_cells` unknown free cells, then `expert`."""
+
+    description = "oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, then the ground-truth expert"
+
+    def __init__(self, base: str = "greedy_utility", handover_cells: int = 8000, **options):
+        check_int("handover_cells", handover_cells, 0)
+        super().__init__(base, options)
+        self.handover_cells = int(handover_cells)
+        self.expert = ExpertPlanner()
+        self.description = f"{self.description} [base {base}: {self.base.description}]"
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.base.reset(ground_truth, protocol, seed)
+        self.expert.reset(ground_truth, protocol, seed)
+        self.free_cells = int(ground_truth.free.sum())
+        self.handed_over = False
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        if not self.handed_over:
+            unknown = self.free_cells - int(np.count_nonzero(observation.belief == FREE))
+            self.handed_over = unknown <= self.handover_cells
+        if self.handed_over:
+            return self.expert.plan(observation)
+        self.expert.update_graph(observation)  # its lattice graph folds in changes incrementally
+        return self.base.plan(observation)
