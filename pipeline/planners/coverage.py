@@ -190,6 +190,10 @@ class ExpertPlanner(GraphPlanner):
                 time_limit=self.replan_time_limit_s,
             )
         self.tour = [v for v in plan.order[1:] if v != robot]
+        if not self.tour and plan.complete and len(plan.path) > 1:
+            # The plan's scans complete the episode on the way to its next viewpoint (its order is
+            # cut there), so no viewpoint is left: head for where it completes instead of giving up.
+            self.tour = [int(plan.path[-1])]
         self.planned = True
         self.fresh_search = False
 

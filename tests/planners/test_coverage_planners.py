@@ -102,3 +102,20 @@ def test_expert_starts_on_the_optimal_tour(small_maze):
     steps = min(3, len(optimal.trajectory))
     assert steps == 3
     assert expert.trajectory[:steps] == optimal.trajectory[:steps]
+
+
+def test_expert_heads_for_where_its_plan_completes_when_no_viewpoint_is_left(small_maze, monkeypatch):
+    """A plan whose scans complete the episode before its next viewpoint keeps only the robot in
+    its order (cut where it completes). The expert once took that as "nothing left" and ended the
+    episode as a failure with cells still to see (1 of 50 mazes when handed over mid-episode)."""
+    from pipeline.planners import coverage as coverage_planners
+
+    planner = make_planner("expert", **QUICK)
+    planner.reset(small_maze, PROTOCOL, 0)
+    robot = 0  # any local node: the plan below is made up
+    path = [int(v) for v in planner.model.path(robot, len(planner.model.nodes) - 1)]
+    assert len(path) > 2 and path[0] == robot
+    cut = cov.CoveragePlan(order=[robot], path=path, length=12.0, complete=True, remaining=0)
+    monkeypatch.setattr(coverage_planners, "plan_coverage", lambda *args, **kwargs: cut)
+    planner._replan(robot, np.zeros(small_maze.free.shape, dtype=bool))
+    assert planner.tour == [path[-1]]
