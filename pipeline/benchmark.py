@@ -110,9 +110,10 @@ def parse_planner_spec(text: str) -> PlannerSpec:
 _SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
 
 
-def planner_options(cls: type) -> dict[str, inspect.Parameter]:
+def planner_options(cls: type, options: dict[str, Any] | None = None) -> dict[str, inspect.Parameter]:
     """The keyword options a planner class accepts, following `**options` up to the base class
-    that receives them (the diffusion planners pass the tour's settings on that way)."""
+    that receives them (the diffusion planners pass the tour's settings on that way), or to the
+    planner a wrapper builds from them (`options_target(options)`: the oracle bounds' `base=`)."""
     accepted: dict[str, inspect.Parameter] = {}
     for klass in cls.__mro__:
         init = klass.__dict__.get("__init__")
@@ -123,6 +124,12 @@ def planner_options(cls: type) -> dict[str, inspect.Parameter]:
             if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY):
                 accepted.setdefault(parameter.name, parameter)
         if not any(p.kind == p.VAR_KEYWORD for p in parameters):
+            break
+        target = getattr(klass, "options_target", None)
+        if target is not None:
+            wrapped = target(options or {})
+            for name, parameter in ({} if wrapped is None else planner_options(wrapped, options)).items():
+                accepted.setdefault(name, parameter)
             break
     return accepted
 
@@ -163,7 +170,7 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
         seen.add(spec.label)
         if not spec.options:
             continue
-        accepted = planner_options(cls)
+        accepted = planner_options(cls, spec.options)
         unknown = sorted(set(spec.options) - set(accepted))
         if unknown:
             settable = [name for name, p in accepted.items() if option_kinds(p) is not None]

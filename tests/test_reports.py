@@ -78,12 +78,24 @@ def test_parse_planner_spec_bad(text, message):
         (["x=guide_tsp:spread=-1"], ValueError, "'x'.*spread must be a finite number > 0"),
         (["x=guide_tsp:spread=2:beta=3"], ValueError, "separated by ','"),  # a ':' where a ',' belongs
         (["nearest_frontier", "nearest_frontier=greedy_utility"], ValueError, "used twice"),
+        # an oracle bound passes the options it does not take to its base planner, and only those
+        (["x=oracle_tail:base=nearest_frontier,beta=1"], ValueError, "oracle_tail has no option beta; it accepts: base, handover_cells, min_utility"),
+        (["x=oracle_gate:base=guide_tsp,beta=abc"], ValueError, "option beta='abc' must be a number"),
+        (["x=oracle_gate:base=no_such_planner"], ValueError, "base: unknown planner 'no_such_planner'"),
     ],
 )
 def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path, planners, error, message):
     with pytest.raises(error, match=message):
         run_benchmark([small_maze_path], planners, Protocol(), tmp_path)
     assert not (tmp_path / "metrics.csv").exists()
+
+
+def test_oracle_bound_specs_reach_their_base_planner():
+    from pipeline.benchmark import build_planner, resolve_planner_specs
+
+    (spec,) = resolve_planner_specs(["t=oracle_tail:base=greedy_utility,sliver_gate=true,handover_cells=10"])
+    planner = build_planner(spec)
+    assert planner.handover_cells == 10 and planner.base.gate is not None  # sliver_gate went to the base
 
 
 def test_run_benchmark_with_labelled_variant(small_maze_path, tmp_path):

@@ -30,6 +30,9 @@ from pipeline.sensor import FREE
 from pipeline.simulator import Observation
 
 
+DEFAULT_BASE = "greedy_utility"
+
+
 def _base_planner(base: str, options: dict) -> GraphPlanner:
     """The wrapped planner; a ValueError when it is not an ordinary lattice planner."""
     require(isinstance(base, str), f"base must be a planner name, got {base!r}")
@@ -50,6 +53,15 @@ class _OracleWrapper(Planner):
     def __init__(self, base: str, options: dict):
         self.base = _base_planner(base, options)
         self.trained_models = getattr(self.base, "trained_models", [])
+
+    @classmethod
+    def options_target(cls, options: dict) -> type[Planner] | None:
+        """The planner class the options this wrapper does not take go to (its base; None: unknown
+        name, which the constructor reports)."""
+        try:
+            return planner_class(options.get("base", DEFAULT_BASE))
+        except KeyError:
+            return None
 
     def check_protocol(self, protocol: Protocol) -> None:
         self.base.check_protocol(protocol)
@@ -79,7 +91,7 @@ class OracleGatePlanner(_OracleWrapper):
 
     description = "oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; veto=true: vetoes the learned gate's slivers)"
 
-    def __init__(self, base: str = "greedy_utility", min_gain: int = 50, veto: bool = False, **options):
+    def __init__(self, base: str = DEFAULT_BASE, min_gain: int = 50, veto: bool = False, **options):
         check_int("min_gain", min_gain, 1)
         require(isinstance(veto, bool), f"veto must be true or false, got {veto!r}")
         if veto:
@@ -104,7 +116,7 @@ class OracleTailPlanner(_OracleWrapper):
 
     description = "oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, then the ground-truth expert"
 
-    def __init__(self, base: str = "greedy_utility", handover_cells: int = 8000, **options):
+    def __init__(self, base: str = DEFAULT_BASE, handover_cells: int = 8000, **options):
         check_int("handover_cells", handover_cells, 0)
         super().__init__(base, options)
         self.handover_cells = int(handover_cells)
