@@ -40,8 +40,8 @@ import numpy as np
 
 from pipeline.frontier import frontier_mask
 from pipeline.graph import visible_counts
-from pipeline.params_file import dataclass_from_dict
 from pipeline.maps import GroundTruthMap
+from pipeline.params_file import dataclass_from_dict
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN, Lidar
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.sliver_gate import TrueGain
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import (GraphPlanner, Planner, Waypoint, check_int, make_planner, planner_class,
                                     register_planner, require)
@@ -28,7 +27,7 @@ from pipeline.planners.coverage import ExpertPlanner
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE
 from pipeline.simulator import Observation
-
+from pipeline.sliver_gate import TrueGain
 
 DEFAULT_BASE = "greedy_utility"
 
