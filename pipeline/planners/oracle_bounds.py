@@ -65,10 +65,6 @@ class _OracleWrapper(Planner):
     def check_protocol(self, protocol: Protocol) -> None:
         self.base.check_protocol(protocol)
 
-    @property
-    def last_decision(self) -> dict:
-        return getattr(self.base, "last_decision", {})
-
 
 class TrueGainGate:
     """A sliver gate that knows: passes the cells whose ground-truth scan reveals >= `min_gain`
@@ -98,12 +94,12 @@ class OracleGatePlanner(_OracleWrapper):
             options = {**options, "sliver_gate": True}
         super().__init__(base, options)
         self.min_gain, self.veto = int(min_gain), veto
-        self.learned = self.base.gate
+        self.learned = self.base.gate if veto else None  # the learned gate the truth vetoes
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         self.base.reset(ground_truth, protocol, seed)
-        self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned if self.veto else None)
+        self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.base.plan(observation)
