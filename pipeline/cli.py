@@ -87,8 +87,9 @@ def _warn(message: str) -> None:
     typer.echo(f"warning: {message}", err=True)
 
 
-def _warn_unreachable(ground_truth, protocol: Protocol) -> None:
-    """A map whose free cells beyond the start's reach outnumber the done rule's slack can never complete."""
+def _warn_unreachable(ground_truth, protocol: Protocol) -> bool:
+    """A map whose free cells beyond the start's reach outnumber the done rule's slack can never
+    complete; True when that was warned about."""
     from pipeline.benchmark import unreachable_free_cells
 
     cut_off = unreachable_free_cells(ground_truth)
@@ -96,6 +97,19 @@ def _warn_unreachable(ground_truth, protocol: Protocol) -> None:
         _warn(f"{ground_truth.name}: {cut_off} free cells are not connected to the start, more than "
               f"done_unknown_cells={protocol.done_unknown_cells}: no planner can complete this map "
               "(erase stray free pixels outside the walls, or raise --done-unknown-cells)")
+    return cut_off > protocol.done_unknown_cells
+
+
+def _warn_unobservable(ground_truth, protocol: Protocol) -> None:
+    """Scans on the ground truth from every reachable lattice node: warn when the free cells none of
+    them reveals outnumber the done rule's slack (a fine SLAM map's clutter and ragged walls do this)."""
+    from pipeline.coverage import unobservable_free_cells
+
+    hidden = unobservable_free_cells(ground_truth, protocol)
+    if hidden > protocol.done_unknown_cells:
+        _warn(f"{ground_truth.name}: {hidden} free cells are seen from no lattice node the robot can reach "
+              f"(behind clutter, in nooks of the walls), more than done_unknown_cells={protocol.done_unknown_cells}: "
+              f"no planner can complete this map (raise --done-unknown-cells above {hidden})")
 
 
 def _protocol(
@@ -238,7 +252,8 @@ def explore(
         _warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
     out = out if out is not None else Path("runs/explore") / spec.label
     _check_out_dir(out)  # before the episode: a long run is not lost to an unwritable folder
-    _warn_unreachable(ground_truth, protocol)
+    if not _warn_unreachable(ground_truth, protocol):
+        _warn_unobservable(ground_truth, protocol)
     agent.check_protocol(protocol)  # before the progress bar, which a warning from inside the episode would cut
     typer.echo(f"{spec.label}: {agent.description}")
     recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=spec.label,
@@ -281,6 +296,54 @@ def explore(
     typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:
         raise typer.Exit(code=1)
+
+
+@app.command("resample-map")
+def resample_map_command(
+    map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
+    out: Path = typer.Option(..., help="The ROS map YAML to write (its .pgm image beside it)."),
+    to_cell_size: float = typer.Option(0.4, help="Metres per cell of the new map: a whole multiple of the map's own "
+                                                 "(the benchmark's 0.4 m, which the shipped models were trained at)."),
+    wall_cells: int = typer.Option(
+        1, min=1, help="A new cell is an obstacle when it holds at least this many of the old map's obstacle cells "
+                       "(1: any, so no wall is ever erased; more keeps walls thin but opens holes in thin oblique ones)."),
+    speck_area: float = typer.Option(0.1, help="Obstacles of at most this many square metres (chair legs, scan noise) "
+                                               "are erased first, so they do not become whole cells; 0 keeps every one."),
+    start: Optional[tuple[float, float]] = typer.Option(
+        None, help="Start, as in `explore`: COL ROW cell for a .npy grid or a maze PNG, X Y metres for a ROS map "
+                   "(else its YAML 'start')."),
+    cell_size: float = CellSize,
+) -> None:
+    """Write a coarser copy of a map as a ROS map (YAML + PGM) with its start: a 0.05 m SLAM map on the 0.4 m grid.
+
+    A fine map explores badly under the protocol's 720-ray lidar (rays skip cells far out, clutter
+    leaves frontier everywhere) and its cell counts mean less area than the models were fitted to.
+    """
+    from pipeline.map_resample import resample_map, write_ros_map
+    from pipeline.maps import load_map, ros_map_origin
+
+    if out.suffix.lower() not in (".yaml", ".yml"):
+        _fail(f"--out {out}: name the ROS map YAML to write (ending in .yaml)")
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        origin = ros_map_origin(map_path) if map_path.suffix.lower() in (".yaml", ".yml") else (0.0, 0.0)
+        coarse, moved = resample_map(ground_truth, to_cell_size, wall_cells, speck_area)
+    except MapError as error:
+        _fail(str(error))
+    except ValueError as error:
+        _fail(f"{map_path}: {error}")
+    if out.resolve() == map_path.resolve():
+        _fail(f"--out {out} is the map being read; write the coarser copy elsewhere")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    image = write_ros_map(coarse, out, origin)
+    if moved > 0:
+        _warn(f"the start's {to_cell_size:g} m cell is not free (a wall or speck covers part of it): "
+              f"moved {moved:.2f} m to the nearest free cell")
+    rows, cols = coarse.free.shape
+    typer.echo(f"{map_path.name}: {ground_truth.free.shape[1]}x{ground_truth.free.shape[0]} cells of "
+               f"{ground_truth.cell_size:g} m -> {cols}x{rows} cells of {to_cell_size:g} m, "
+               f"{coarse.free_cell_count} free")
+    typer.echo(f"wrote {out} and {image}")
 
 
 def _given(ctx: Optional[typer.Context], name: str) -> bool:
@@ -357,7 +420,8 @@ def benchmark(
 
     Exits 1 when an episode did not complete (the files are written either way).
     """
-    from pipeline.benchmark import DEFAULT_BASELINE, BenchmarkInterrupted, parse_planner_spec, run_benchmark
+    from pipeline.benchmark import (DEFAULT_BASELINE, BenchmarkInterrupted, parse_planner_spec, protocol_for_map,
+                                    run_benchmark)
     from pipeline.maps import list_maps, load_map
     from pipeline.tracking import check_tracking_uri, log_benchmark
 
@@ -369,8 +433,11 @@ def benchmark(
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
+        completable = {}  # map name -> its file, for maps not already warned about
         for path in map_paths:
-            _warn_unreachable(load_map(path, start=start, cell_size=cell_size), protocol)
+            ground_truth = load_map(path, start=start, cell_size=cell_size)
+            if not _warn_unreachable(ground_truth, protocol):
+                completable[ground_truth.name] = path
         specs = _with_checkpoint(list(planner), checkpoint)
         labels = [parse_planner_spec(spec).label for spec in specs]
         if baseline is None:
@@ -396,6 +463,10 @@ def benchmark(
                f"trajector{'ies' if len(frame) != 1 else 'y'}")
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
+        # Why a map failed for every planner is worth a scan per failed map, but not per map before the run.
+        for name in sorted(set(frame.loc[~frame["complete"].astype(bool), "map"]) & set(completable)):
+            ground_truth = load_map(completable[name], start=start, cell_size=cell_size)
+            _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, completable[name]))
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
         raise typer.Exit(code=1)
 

@@ -87,6 +87,25 @@ def node_cell_matrix(
     return csr_matrix((np.ones(r.size, dtype=bool), (r, c)), shape=(len(nodes), ground_truth.free.size))
 
 
+def reachable_nodes(graph: LatticeGraph) -> tuple[int, np.ndarray]:
+    """(the start's lattice node, every node reachable from it on `graph`): where a robot can ever sense."""
+    start = graph.nearest_node((0.0, 0.0))
+    return start, np.nonzero(np.isfinite(graph.shortest_paths(start)[0]))[0]
+
+
+def unobservable_free_cells(ground_truth: GroundTruthMap, protocol: Protocol) -> int:
+    """Free cells that no scan from a lattice node reachable from the start reveals.
+
+    No planner ever sees them: a robot senses only at lattice nodes, and only at those the
+    ground truth lets it reach. More of them than `done_unknown_cells` and no episode on the
+    map can complete (clutter specks and ragged walls in a fine SLAM map hide a few hundred).
+    """
+    graph = ground_truth_graph(ground_truth, protocol)
+    _, nodes = reachable_nodes(graph)
+    seen = np.unique(node_cell_matrix(ground_truth, graph, nodes, protocol).indices).size
+    return ground_truth.free_cell_count - seen
+
+
 class CoverageModel:
     """Ground-truth lattice graph, per-node scans and all-pairs shortest paths of one map.
 
@@ -100,9 +119,7 @@ class CoverageModel:
         self.ground_truth = ground_truth
         self.protocol = protocol
         self.graph = graph = ground_truth_graph(ground_truth, protocol)
-        self.start_node = graph.nearest_node((0.0, 0.0))
-        reach = np.isfinite(graph.shortest_paths(self.start_node)[0])
-        self.nodes = np.nonzero(reach)[0]
+        self.start_node, self.nodes = reachable_nodes(graph)
         self.local = np.full(graph.node_count, -1, dtype=np.int64)
         self.local[self.nodes] = np.arange(len(self.nodes))
         self.start = int(self.local[self.start_node])

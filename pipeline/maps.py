@@ -389,6 +389,15 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem, free_rule=free_rule)
 
 
+def ros_map_origin(path: str | Path) -> tuple[float, float]:
+    """The (x, y) origin in metres of a map_server YAML: where its grid's first cell lies in the map frame."""
+    path = Path(path)
+    meta = _read_yaml(path)
+    if not isinstance(meta, dict) or "origin" not in meta:
+        raise MapError(path, "YAML is missing the key 'origin' as [x, y, yaw]")
+    return _yaml_pair(meta["origin"], "YAML key 'origin'", path)
+
+
 def _metres(value: float) -> str:
     """A length in metres for a message: up to 6 decimals, no trailing zeros; %g when huge."""
     if not math.isfinite(value) or abs(value) >= 1e9:

@@ -298,6 +298,30 @@ def test_a_map_that_cannot_be_completed_is_warned_about(tmp_path):
     assert result.exit_code == 1  # incomplete, as the warning said
 
 
+def test_a_map_with_free_cells_no_scan_can_reach_is_warned_about(tmp_path):
+    """A pocket that touches the room only at one corner: 8-connected, so not cut off, yet no
+    4-connected ray gets in. Explore warns before the episode, benchmark after a failed one."""
+    grid = np.zeros((50, 50), dtype=np.uint8)
+    grid[5:35, 5:35] = 1
+    grid[35:45, 35:45] = 1  # 100 cells
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    np.save(maps / "pocket.npy", grid)
+    small = ["--node-resolution", "2", "--sensor-range", "8", "--done-unknown-cells", "20", "--max-steps", "40"]
+    result = runner.invoke(app, ["explore", "--map", str(maps / "pocket.npy"), "--start", "10", "10", "--planner",
+                                 "greedy_utility", "--out", str(tmp_path / "o"), "--no-progress", *small])
+    warning = "warning: pocket: 100 free cells are seen from no lattice node the robot can reach"
+    assert warning in result.output and "raise --done-unknown-cells above 100" in result.output
+    assert result.exit_code == 1
+    result = runner.invoke(app, ["benchmark", "--maps", str(maps), "--start", "10", "10", "--planner", "greedy_utility",
+                                 "--out", str(tmp_path / "b"), "--no-mlflow", "--workers", "1", *small])
+    assert warning in result.output and result.exit_code == 1
+    result = runner.invoke(app, ["explore", "--map", str(maps / "pocket.npy"), "--start", "10", "10", "--planner",
+                                 "greedy_utility", "--out", str(tmp_path / "o"), "--no-progress", *small[:4],
+                                 "--done-unknown-cells", "120"])
+    assert "warning" not in result.output and result.exit_code == 0
+
+
 def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_protocol(small_maze_path, tmp_path):
     """The shipped inpainter was trained on a 4 m lattice; a 2 m run goes on, with a one-line warning."""
     import warnings

@@ -247,3 +247,29 @@ def test_uncoverable_cells_make_the_plan_cover_everything_it_can(tmp_path):
     assert not plan.complete and plan.remaining == 0
     tour = [tuple(model.world[v]) for v in plan.path]
     assert unseen_after(ground_truth, tour) == ground_truth.free_cell_count - len(model.cells)
+
+
+def diagonal_pocket_map():
+    """A 30 x 30-cell room and a 10 x 10-cell pocket that touches it only at one corner: the
+    pocket is 8-connected to the start, yet no 4-connected ray (nor lattice edge) gets in."""
+    from pipeline.maps import GroundTruthMap
+
+    free = np.zeros((50, 50), dtype=bool)
+    free[5:35, 5:35] = True
+    free[35:45, 35:45] = True
+    return GroundTruthMap(free=free, start_cell=(10, 10), cell_size=0.4, name="pocket")
+
+
+def test_unobservable_free_cells_are_those_no_reachable_scan_reveals():
+    from pipeline.benchmark import unreachable_free_cells
+
+    ground_truth = diagonal_pocket_map()
+    protocol = Protocol(node_resolution=2.0, sensor_range=8.0, utility_range=4.0)
+    assert unreachable_free_cells(ground_truth) == 0  # the corner joins them for 8-connectivity
+    assert cov.unobservable_free_cells(ground_truth, protocol) == 100
+    model = cov.CoverageModel(ground_truth, protocol)
+    assert model.free_cell_count - len(model.cells) == 100
+
+
+def test_a_maze_has_no_unobservable_free_cells(generated_maze):
+    assert cov.unobservable_free_cells(generated_maze, Protocol()) == 0
