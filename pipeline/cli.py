@@ -295,7 +295,19 @@ def explore(
     )
     typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:
+        if result.failure.startswith("step limit"):
+            _warn(_step_limit_hint(ground_truth, protocol))
         raise typer.Exit(code=1)
+
+
+def _step_limit_hint(ground_truth, protocol: Protocol) -> str:
+    """What to do when a map outgrows `max_steps` (500 waypoints suit the benchmark's 100 m mazes)."""
+    rows, cols = ground_truth.free.shape
+    side = max(rows, cols) * protocol.cell_size
+    scale = max(1.0, (side / 100.0) ** 2)
+    return (f"{ground_truth.name} is {cols * protocol.cell_size:.0f} m x {rows * protocol.cell_size:.0f} m; "
+            f"--max-steps {protocol.max_steps} suits the benchmark's 100 m mazes: raise it with the map's area "
+            f"(e.g. --max-steps {int(math.ceil(protocol.max_steps * scale / 100.0) * 100)})")
 
 
 @app.command("resample-map")
@@ -433,11 +445,12 @@ def benchmark(
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
-        completable = {}  # map name -> its file, for maps not already warned about
+        map_files, completable = {}, set()  # map name -> its file; names of maps not already warned about
         for path in map_paths:
             ground_truth = load_map(path, start=start, cell_size=cell_size)
+            map_files[ground_truth.name] = path
             if not _warn_unreachable(ground_truth, protocol):
-                completable[ground_truth.name] = path
+                completable.add(ground_truth.name)
         specs = _with_checkpoint(list(planner), checkpoint)
         labels = [parse_planner_spec(spec).label for spec in specs]
         if baseline is None:
@@ -463,10 +476,13 @@ def benchmark(
                f"trajector{'ies' if len(frame) != 1 else 'y'}")
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
+        for name in sorted(set(frame.loc[frame["steps"] >= protocol.max_steps, "map"])):
+            ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
+            _warn(_step_limit_hint(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name])))
         # Why a map failed for every planner is worth a scan per failed map, but not per map before the run.
-        for name in sorted(set(frame.loc[~frame["complete"].astype(bool), "map"]) & set(completable)):
-            ground_truth = load_map(completable[name], start=start, cell_size=cell_size)
-            _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, completable[name]))
+        for name in sorted(set(frame.loc[~frame["complete"].astype(bool), "map"]) & completable):
+            ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
+            _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name]))
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
         raise typer.Exit(code=1)
 

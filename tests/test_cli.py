@@ -284,6 +284,10 @@ def test_benchmark_exits_1_when_an_episode_does_not_complete(small_maze_path, tm
                                  "--out", str(tmp_path / "b"), "--max-steps", "2", "--workers", "1"])
     assert result.exit_code == 1 and "1 of 1 episodes did not complete" in result.output
     assert (tmp_path / "b" / "metrics.csv").is_file()
+    assert "warning: small is " in result.output and "; --max-steps 2 suits the benchmark's 100 m mazes" in result.output
+    result = runner.invoke(app, ["explore", "--map", str(maps / "small.png"), "--planner", "nearest_frontier",
+                                 "--no-progress", "--out", str(tmp_path / "e"), "--max-steps", "2"])
+    assert result.exit_code == 1 and "raise it with the map's area (e.g. --max-steps 100)" in result.output
 
 
 def test_a_map_that_cannot_be_completed_is_warned_about(tmp_path):
