@@ -100,6 +100,18 @@ def _warn_unreachable(ground_truth, protocol: Protocol) -> bool:
     return cut_off > protocol.done_unknown_cells
 
 
+def _warn_fine_map(ground_truth, protocol: Protocol) -> None:
+    """A map so fine that the lidar's neighbouring rays skip cells at full range explores badly
+    (README, "Your own SLAM maps"): point at resample-map."""
+    from pipeline.sensor import DEFAULT_ANGLES
+
+    gap_cells = protocol.sensor_range * float(DEFAULT_ANGLES[1] - DEFAULT_ANGLES[0]) / ground_truth.cell_size
+    if gap_cells > 1.0:
+        _warn(f"{ground_truth.name} is drawn at {ground_truth.cell_size:g} m per cell: the lidar's rays pass "
+              f"{gap_cells:.1f} cells apart at {protocol.sensor_range:g} m and leave holes that read as frontier; "
+              "`guide resample-map --map MAP --out OUT.yaml` writes it on the benchmark's 0.4 m grid")
+
+
 def _warn_unobservable(ground_truth, protocol: Protocol) -> None:
     """Scans on the ground truth from every reachable lattice node: warn when the free cells none of
     them reveals outnumber the done rule's slack (a fine SLAM map's clutter and ragged walls do this)."""
@@ -252,6 +264,7 @@ def explore(
         _warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
     out = out if out is not None else Path("runs/explore") / spec.label
     _check_out_dir(out)  # before the episode: a long run is not lost to an unwritable folder
+    _warn_fine_map(ground_truth, protocol)
     if not _warn_unreachable(ground_truth, protocol):
         _warn_unobservable(ground_truth, protocol)
     agent.check_protocol(protocol)  # before the progress bar, which a warning from inside the episode would cut
@@ -449,6 +462,7 @@ def benchmark(
         for path in map_paths:
             ground_truth = load_map(path, start=start, cell_size=cell_size)
             map_files[ground_truth.name] = path
+            _warn_fine_map(ground_truth, protocol)
             if not _warn_unreachable(ground_truth, protocol):
                 completable.add(ground_truth.name)
         specs = _with_checkpoint(list(planner), checkpoint)

@@ -87,6 +87,9 @@ def test_the_written_map_reads_back_the_same(tmp_path):
 
 def test_resample_map_command_writes_a_map_the_planners_explore(tmp_path):
     fine = write_fine_ros_map(tmp_path, office_at_5cm(), 0.05, (3.0, 3.0))
+    result = runner.invoke(app, ["explore", "--map", str(fine), "--planner", "nearest_frontier", "--no-progress",
+                                 "--max-steps", "1", "--out", str(tmp_path / "fine")])
+    assert "warning: office is drawn at 0.05 m per cell: the lidar's rays pass 3.5 cells apart at 20 m" in result.output
     out = tmp_path / "coarse" / "office.yaml"
     result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(out)])
     assert result.exit_code == 0, result.output
