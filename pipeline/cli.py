@@ -344,6 +344,8 @@ def resample_map_command(
     A fine map explores badly under the protocol's 720-ray lidar (rays skip cells far out, clutter
     leaves frontier everywhere) and its cell counts mean less area than the models were fitted to.
     """
+    import yaml
+
     from pipeline.map_resample import resample_map, write_ros_map
     from pipeline.maps import load_map, ros_map_origin
 
@@ -357,8 +359,11 @@ def resample_map_command(
         _fail(str(error))
     except ValueError as error:
         _fail(f"{map_path}: {error}")
-    if out.resolve() == map_path.resolve():
-        _fail(f"--out {out} is the map being read; write the coarser copy elsewhere")
+    reads = {map_path.resolve()}
+    if map_path.suffix.lower() in (".yaml", ".yml"):  # loaded above, so the YAML names its image
+        reads.add((map_path.parent / yaml.safe_load(map_path.read_text())["image"]).resolve())
+    if {out.resolve(), out.with_suffix(".pgm").resolve()} & reads:
+        _fail(f"--out {out} would overwrite the map being read; write the coarser copy elsewhere")
     out.parent.mkdir(parents=True, exist_ok=True)
     image = write_ros_map(coarse, out, origin)
     if moved > 0:
@@ -493,7 +498,7 @@ def benchmark(
         for name in sorted(set(frame.loc[frame["steps"] >= protocol.max_steps, "map"])):
             ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
             _warn(_step_limit_hint(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name])))
-        # Why a map failed for every planner is worth a scan per failed map, but not per map before the run.
+        # Why a map could not be completed is worth a scan per failed map, but not one per map before the run.
         for name in sorted(set(frame.loc[~frame["complete"].astype(bool), "map"]) & completable):
             ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
             _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name]))

@@ -102,3 +102,7 @@ def test_resample_map_command_writes_a_map_the_planners_explore(tmp_path):
     assert result.exit_code == 2 and "not a whole number of the map's 0.05 m cells" in result.output
     result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(tmp_path / "c.png")])
     assert result.exit_code == 2 and "name the ROS map YAML to write" in result.output
+    before = (tmp_path / "office.pgm").read_bytes()
+    result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(tmp_path / "office.yml")])
+    assert result.exit_code == 2 and "would overwrite the map being read" in result.output
+    assert (tmp_path / "office.pgm").read_bytes() == before
