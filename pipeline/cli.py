@@ -344,24 +344,22 @@ def resample_map_command(
     A fine map explores badly under the protocol's 720-ray lidar (rays skip cells far out, clutter
     leaves frontier everywhere) and its cell counts mean less area than the models were fitted to.
     """
-    import yaml
-
     from pipeline.map_resample import resample_map, write_ros_map
-    from pipeline.maps import load_map, ros_map_origin
+    from pipeline.maps import load_map, ros_map_origin_and_image
 
     if out.suffix.lower() not in (".yaml", ".yml"):
         _fail(f"--out {out}: name the ROS map YAML to write (ending in .yaml)")
+    origin, reads = (0.0, 0.0), {map_path.resolve()}
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
-        origin = ros_map_origin(map_path) if map_path.suffix.lower() in (".yaml", ".yml") else (0.0, 0.0)
+        if map_path.suffix.lower() in (".yaml", ".yml"):
+            origin, image = ros_map_origin_and_image(map_path)
+            reads.add(image.resolve())
         coarse, moved = resample_map(ground_truth, to_cell_size, wall_cells, speck_area)
     except MapError as error:
         _fail(str(error))
     except ValueError as error:
         _fail(f"{map_path}: {error}")
-    reads = {map_path.resolve()}
-    if map_path.suffix.lower() in (".yaml", ".yml"):  # loaded above, so the YAML names its image
-        reads.add((map_path.parent / yaml.safe_load(map_path.read_text())["image"]).resolve())
     if {out.resolve(), out.with_suffix(".pgm").resolve()} & reads:
         _fail(f"--out {out} would overwrite the map being read; write the coarser copy elsewhere")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -463,10 +461,10 @@ def benchmark(
         map_paths = list_maps(maps)
         if not map_paths:
             _fail(f"{maps}: no maps in this folder (maze .png, .npy or ROS .yaml)")
-        map_files, completable = {}, set()  # map name -> its file; names of maps not already warned about
+        loaded, completable = {}, set()  # map name -> (its file, the map); names of maps not already warned about
         for path in map_paths:
             ground_truth = load_map(path, start=start, cell_size=cell_size)
-            map_files[ground_truth.name] = path
+            loaded[ground_truth.name] = (path, ground_truth)
             _warn_fine_map(ground_truth, protocol)
             if not _warn_unreachable(ground_truth, protocol):
                 completable.add(ground_truth.name)
@@ -496,12 +494,12 @@ def benchmark(
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
         for name in sorted(set(frame.loc[frame["steps"] >= protocol.max_steps, "map"])):
-            ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
-            _warn(_step_limit_hint(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name])))
+            path, ground_truth = loaded[name]
+            _warn(_step_limit_hint(ground_truth, protocol_for_map(protocol, ground_truth, path)))
         # Why a map could not be completed is worth a scan per failed map, but not one per map before the run.
         for name in sorted(set(frame.loc[~frame["complete"].astype(bool), "map"]) & completable):
-            ground_truth = load_map(map_files[name], start=start, cell_size=cell_size)
-            _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, map_files[name]))
+            path, ground_truth = loaded[name]
+            _warn_unobservable(ground_truth, protocol_for_map(protocol, ground_truth, path))
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
         raise typer.Exit(code=1)
 

@@ -389,13 +389,14 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem, free_rule=free_rule)
 
 
-def ros_map_origin(path: str | Path) -> tuple[float, float]:
-    """The (x, y) origin in metres of a map_server YAML: where its grid's first cell lies in the map frame."""
+def ros_map_origin_and_image(path: str | Path) -> tuple[tuple[float, float], Path]:
+    """A map_server YAML's (x, y) origin in metres (where its grid's first cell lies in the map
+    frame) and the image file it names, for tools that write a map beside it."""
     path = Path(path)
     meta = _read_yaml(path)
-    if not isinstance(meta, dict) or "origin" not in meta:
-        raise MapError(path, "YAML is missing the key 'origin' as [x, y, yaw]")
-    return _yaml_pair(meta["origin"], "YAML key 'origin'", path)
+    if not isinstance(meta, dict) or "origin" not in meta or not isinstance(meta.get("image"), str):
+        raise MapError(path, "YAML needs the keys 'image' and 'origin' as [x, y, yaw]")
+    return _yaml_pair(meta["origin"], "YAML key 'origin'", path), path.parent / meta["image"]
 
 
 def _metres(value: float) -> str:
