@@ -12,11 +12,19 @@ with the remaining options) and lets the ground truth decide one thing:
   are still unknown, then the ground-truth `expert` finishes. It bounds what any better
   end-game can win.
 
+A third does not wrap: `oracle_lookahead` is gated greedy that tries each of its `k` best
+targets in a copy of the episode on the ground truth and steps toward the one that completes
+soonest. It bounds what a model of the unseen map, good enough to simulate a few candidate
+routes, could win.
+
 They are diagnostics, never planners to deploy: `guide planners` marks them as oracles.
-Measured figures: docs/findings.md, "What a better gate can still win" and "An oracle tail".
+Measured figures: docs/findings.md, "What a better gate can still win", "An oracle tail" and
+"A one-step lookahead".
 """
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -24,9 +32,10 @@ from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import (GraphPlanner, Planner, Waypoint, check_int, make_planner, planner_class,
                                     register_planner, require)
 from pipeline.planners.coverage import ExpertPlanner
+from pipeline.planners.frontier import GreedyUtilityPlanner
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE
-from pipeline.simulator import Observation
+from pipeline.simulator import Episode, Observation
 from pipeline.sliver_gate import TrueGain
 
 DEFAULT_BASE = "greedy_utility"
@@ -132,3 +141,73 @@ class OracleTailPlanner(_OracleWrapper):
             return self.expert.plan(observation)
         self.expert.update_graph(observation)  # its lattice graph folds in changes incrementally
         return self.base.plan(observation)
+
+
+@register_planner("oracle_lookahead")
+class OracleLookaheadPlanner(GreedyUtilityPlanner):
+    """Oracle bound: gated greedy with a one-step lookahead on the ground truth.
+
+    At each decision its `k` best targets (utility per metre) are each tried in a copy of the
+    episode run on the ground truth: head for the target until it is reached or stops being a
+    target, then gated greedy to completion. The robot takes one step toward the target whose
+    copy completed soonest and decides again. `k=1` is gated greedy itself.
+    """
+
+    uses_ground_truth = True
+    sliver_gate_default = True
+    description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
+                   "episode on the ground truth; one step toward the one that completes soonest")
+
+    def __init__(self, k: int = 3, min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None):
+        check_int("k", k, 1)
+        super().__init__(min_utility, sliver_gate, gate_file)
+        self.k = int(k)
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.shadow = Episode(ground_truth, protocol)  # the real episode, mirrored move by move
+        self.shadow.observe()
+
+    def ranked_targets(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """Gated greedy's decision: (known-graph predecessors from the robot, reachable targets best first)."""
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        targets = self.reachable_useful(robot, dist)
+        return pred, targets[np.argsort(-graph.utility[targets] / dist[targets], kind="stable")]
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        if np.hypot(*np.subtract(observation.position, self.shadow.position)) > 1e-9:
+            self.shadow.move(observation.position)
+            self.shadow.observe()
+        pred, ranked = self.ranked_targets(observation)
+        if ranked.size == 0:
+            return []
+        choice = int(ranked[0])
+        if self.k > 1 and ranked.size > 1:
+            shared = (self.shadow.map, self.shadow.lidar, self.gate)  # read-only: not copied
+            best = np.inf
+            for target in ranked[: self.k]:
+                trial = copy.deepcopy(self, {id(obj): obj for obj in shared})
+                distance = trial.finish_in_copy(int(target), pred)
+                if distance < best:
+                    best, choice = distance, int(target)
+        return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))
+
+    def finish_in_copy(self, target: int, pred: np.ndarray) -> float:
+        """On a copy: head for `target`, then gated greedy; the distance at completion (inf: none)."""
+        episode, committed = self.shadow, True
+        while True:
+            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
+            if episode.complete:
+                return float(episode.completion_distance)
+            if episode.steps >= self.protocol.max_steps:
+                return np.inf
+            observation = episode.observe()
+            pred, ranked = self.ranked_targets(observation)
+            if ranked.size == 0:
+                return np.inf
+            if committed and (target == self.robot or target not in set(ranked.tolist())):
+                committed = False
+            if not committed:
+                target = int(ranked[0])

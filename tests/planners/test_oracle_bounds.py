@@ -64,3 +64,14 @@ def test_oracle_tail_hands_over_to_the_expert_at_the_threshold(small_maze):
     tail = run_episode(small_maze, at_once, protocol, 0)
     assert at_once.handed_over and tail.complete and tail.motion_violations == 0
     assert tail.distance_m == pytest.approx(expert.distance_m)  # handed over at the first decision
+
+
+def test_oracle_lookahead_with_one_candidate_is_gated_greedy_and_with_three_is_shorter(small_maze):
+    protocol = Protocol()
+    assert planner_class("oracle_lookahead").uses_ground_truth
+    gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
+    one = run_episode(small_maze, make_planner("oracle_lookahead", k=1), protocol, 0)
+    assert one.trajectory == gated.trajectory
+    three = run_episode(small_maze, make_planner("oracle_lookahead", k=3), protocol, 0)
+    assert three.complete and three.motion_violations == 0
+    assert three.distance_m < gated.distance_m  # it simulates its options on the truth

@@ -112,6 +112,7 @@ BAD = [
     ("oracle_gate", {"base": "expert"}, "base must be a lattice planner that does not see the ground truth"),
     ("oracle_gate", {"base": "no_such_planner"}, "base: unknown planner 'no_such_planner'"),
     ("oracle_tail", {"handover_cells": -1}, "handover_cells must be >= 0"),
+    ("oracle_lookahead", {"k": 0}, "k must be >= 1"),
     ("oracle_tail", {"base": "guide_tsp", "threshold": 2}, "threshold must be a number in [0, 1]"),
 ]
 
@@ -134,6 +135,7 @@ GOOD = [
     ("dare", {"num_inference_steps": 100, "mode": "policy"}),
     ("oracle_gate", {"base": "guide_tsp", "min_gain": 1, "veto": True}),
     ("oracle_tail", {"base": "nearest_frontier", "handover_cells": 0}),
+    ("oracle_lookahead", {"k": 2, "sliver_gate": False}),
 ]
 
 
