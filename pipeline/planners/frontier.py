@@ -25,13 +25,16 @@ class GreedyUtilityPlanner(GraphPlanner):
 
     description = "greedy: frontier utility divided by shortest-path cost"
 
-    def plan(self, observation: Observation) -> list[Waypoint]:
+    def ranked_targets(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """(known-graph predecessors from the robot, its reachable targets by utility per metre, best first)."""
         graph = self.update_graph(observation)
         robot = self.robot_node(observation)
         dist, pred = graph.shortest_paths(robot)
         targets = self.reachable_useful(robot, dist)
-        if targets.size == 0:
+        return pred, targets[np.argsort(-graph.utility[targets] / dist[targets], kind="stable")]
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        pred, ranked = self.ranked_targets(observation)
+        if ranked.size == 0:
             return []
-        score = graph.utility[targets] / dist[targets]
-        best = int(targets[np.argmax(score)])
-        return self.waypoints_along(graph.path_from_predecessors(pred, best))
+        return self.waypoints_along(self.graph.path_from_predecessors(pred, int(ranked[0])))

@@ -168,14 +168,6 @@ class OracleLookaheadPlanner(GreedyUtilityPlanner):
         self.shadow = Episode(ground_truth, protocol)  # the real episode, mirrored move by move
         self.shadow.observe()
 
-    def ranked_targets(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
-        """Gated greedy's decision: (known-graph predecessors from the robot, reachable targets best first)."""
-        graph = self.update_graph(observation)
-        robot = self.robot_node(observation)
-        dist, pred = graph.shortest_paths(robot)
-        targets = self.reachable_useful(robot, dist)
-        return pred, targets[np.argsort(-graph.utility[targets] / dist[targets], kind="stable")]
-
     def plan(self, observation: Observation) -> list[Waypoint]:
         if np.hypot(*np.subtract(observation.position, self.shadow.position)) > 1e-9:
             self.shadow.move(observation.position)
