@@ -618,6 +618,14 @@ def stage_fit_gate(params: Path = typer.Option(Path("params.yaml"), help="Parame
     _run_stage(fit_gate.main, params)
 
 
+@stage_app.command("train-block-model")
+def stage_train_block_model(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
+    """DVC stage: the block model of `sampled_lookahead` from greedy episodes in the training mazes."""
+    from stages import train_block_model
+
+    _run_stage(train_block_model.main, params)
+
+
 @stage_app.command("benchmark")
 def stage_benchmark(params: Path = typer.Option(Path("params.yaml"), help="Parameters file.")) -> None:
     """DVC stage: the configured planners on the test mazes, reports in reports/benchmark/."""

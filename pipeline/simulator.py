@@ -88,6 +88,29 @@ class Episode:
         self._first_observation = True
         self._sense()
 
+    @classmethod
+    def resume(cls, world: GroundTruthMap, protocol: Protocol, belief: np.ndarray, cell: tuple[int, int],
+               position: tuple[float, float]) -> "Episode":
+        """An episode on `world` that starts from a given belief and pose at distance 0, without a
+        first scan: a planner's rollout on a map it imagines (`sampled_lookahead`)."""
+        if belief.shape != world.shape:
+            raise ValueError(f"belief {belief.shape} and world {world.shape} differ in shape")
+        episode = cls.__new__(cls)
+        episode.map, episode.protocol = world, protocol
+        episode.belief = Belief(world.shape)
+        episode.belief.grid[...] = belief
+        episode.belief.free_count = int((belief == FREE).sum())
+        episode.lidar = Lidar(world.free, protocol.sensor_range_cells)
+        episode.cell, episode.position = (int(cell[0]), int(cell[1])), (float(position[0]), float(position[1]))
+        episode.trajectory = [episode.position]
+        episode.distance = 0.0
+        episode.completion_distance = episode.complete_after_waypoint = None
+        if episode.unknown_free_cells <= protocol.done_unknown_cells:
+            episode.completion_distance, episode.complete_after_waypoint = 0.0, 1
+        episode._pending_changes = []
+        episode._first_observation = False
+        return episode
+
     @property
     def steps(self) -> int:
         return len(self.trajectory) - 1

@@ -83,16 +83,17 @@ def no_pipeline_models(monkeypatch, tmp_path):
     """Tests never pick up models a `dvc repro` left in the working tree (models/...): a learned
     planner built without a checkpoint gets the shipped default, as in a fresh clone."""
     from pipeline import predictor_eval, sliver_gate
-    from pipeline.planners import global_graph_planners, guide
+    from pipeline.planners import global_graph_planners, guide, sampled_lookahead
 
     absent = tmp_path / "no-pipeline-models"
     monkeypatch.setattr(global_graph_planners, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
     monkeypatch.setattr(predictor_eval, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
     monkeypatch.setattr(guide, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
     monkeypatch.setattr(sliver_gate, "DEFAULT_GATE", absent / "sliver_gate.json")
+    monkeypatch.setattr(sampled_lookahead, "DEFAULT_BLOCK_MODEL", absent / "block_model.pt")
 
 
-TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate")  # "inpainter-test" sets its own location
+TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model")  # "inpainter-test" sets its own location
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,7 @@ from pipeline.maps import GroundTruthMap, load_map
 from pipeline.planners import make_planner, planner_class, planner_names
 from pipeline.planners.base import Planner, Waypoint
 from pipeline.protocol import PAPER_REAL_ROBOT, Protocol
-from pipeline.sensor import UNKNOWN
+from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.simulator import Episode, MotionError, Observation, replay, run_episode
 from pipeline.trajectories import read_trajectory_csv, write_trajectory_csv
 from tests.conftest import write_ros_map
@@ -197,3 +197,23 @@ def test_every_planner_completes_generated_mazes(generated_maze_dir, planner):
         result = run_episode(load_map(path), make_planner(planner), Protocol())
         assert result.complete, f"{planner} on {path.name}: {result.failure}"
         assert result.motion_violations == 0
+
+
+def test_resume_starts_from_a_given_belief_and_pose(small_maze):
+    protocol = Protocol()
+    episode = Episode(small_maze, protocol)
+    episode.move((4.0, 0.0))
+    observation = episode.observe()
+    resumed = Episode.resume(small_maze, protocol, observation.belief, observation.cell, observation.position)
+    assert resumed.distance == 0.0 and resumed.steps == 0 and not resumed.complete
+    assert np.array_equal(resumed.belief.grid, episode.belief.grid) and resumed.belief.grid is not episode.belief.grid
+    assert resumed.belief.free_count == episode.belief.free_count
+    assert resumed.observe().changed.size == 0  # no first scan: nothing changed yet
+    resumed.move((8.0, 0.0))
+    episode.move((8.0, 0.0))
+    assert resumed.distance == 4.0 and np.array_equal(resumed.belief.grid, episode.belief.grid)
+    known = Episode.resume(small_maze, protocol, np.where(small_maze.free, FREE, OCCUPIED).astype(np.uint8),
+                           observation.cell, observation.position)
+    assert known.complete and known.completion_distance == 0.0  # a fully known map is explored already
+    with pytest.raises(ValueError, match="differ in shape"):
+        Episode.resume(small_maze, protocol, observation.belief[1:], observation.cell, observation.position)

@@ -1,0 +1,120 @@
+"""`sampled_lookahead`: gated greedy that looks one choice ahead on maps it imagines.
+
+`oracle_lookahead` tries each of gated greedy's best targets in a copy of the episode on the
+ground truth and is 16-18 % shorter than `greedy_utility`; this planner does the same without
+the ground truth. At each decision the block model (`pipeline.models.modeling_block_model`)
+gives P(free) of every 5 m maze block from what has been seen; `samples` block maps are drawn
+from those probabilities, each cut to `horizon_m` beyond the known free space (a model sees
+no further with any use: docs/findings.md). On each drawn map, each of the `k` best targets
+(utility per metre) is tried: head for it until it is reached or stops being a target, then
+gated greedy until that map is explored. The robot steps toward the target whose rollouts are
+shortest on average and decides again. `k=1` is gated greedy itself.
+
+Figures (docs/findings.md, "A lookahead on sampled maps"): about 1 s a decision at k 3,
+4 samples; on the 12 test mazes about 9 % shorter than `greedy_utility`.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.block_maps import block_index, block_shares, drawn_world
+from pipeline.maps import GroundTruthMap
+from pipeline.models.modeling_block_model import BlockModel, load_block_model
+from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
+from pipeline.planners.frontier import GreedyUtilityPlanner
+from pipeline.planners.model_cache import load_once
+from pipeline.protocol import Protocol
+from pipeline.simulator import Episode, Observation
+
+DEFAULT_BLOCK_MODEL = Path("models/block_model/block_model.pt")
+SHIPPED_BLOCK_MODEL = Path(__file__).resolve().parent.parent / "assets" / "block_model.pt"
+
+
+def resolve_block_model(checkpoint: str | None) -> Path:
+    """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
+    if checkpoint is not None:
+        from pipeline.training.exports import require_file
+
+        return require_file(checkpoint, "a block model file")
+    for path in (DEFAULT_BLOCK_MODEL, SHIPPED_BLOCK_MODEL):
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f"no block model: neither {DEFAULT_BLOCK_MODEL} (`guide stage train-block-model`) "
+                            f"nor the shipped {SHIPPED_BLOCK_MODEL} exists; pass checkpoint=PATH")
+
+
+@register_planner("sampled_lookahead")
+class SampledLookaheadPlanner(GreedyUtilityPlanner):
+    """Gated greedy whose k best targets are each rolled out on block maps drawn from the block model."""
+
+    sliver_gate_default = True
+    description = ("gated greedy whose k best targets are each run to completion on maps drawn from the learned "
+                   "block model; one step toward the one whose rollouts are shortest")
+
+    def __init__(self, k: int = 3, samples: int = 4, horizon_m: float = 20.0, checkpoint: str | None = None,
+                 min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None,
+                 model: BlockModel | None = None):
+        check_int("k", k, 1)
+        check_int("samples", samples, 1)
+        check_number("horizon_m", horizon_m, 0.0)
+        super().__init__(min_utility, sliver_gate, gate_file)
+        self.k, self.samples, self.horizon_m = int(k), int(samples), float(horizon_m)
+        if model is None:
+            path = resolve_block_model(checkpoint)
+            model = load_once("block_model", path, load_block_model)
+            self.model_source = f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
+        else:
+            self.model_source = "injected block model"
+        self.model = model
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        # Only the map's size, start and cell size are read here: the rollouts never see its cells.
+        super().reset(ground_truth, protocol, seed)
+        self.blocks, self.block_grid = block_index(ground_truth.shape, ground_truth.cell_size, self.model.config.block_m)
+        self.start_cell, self.cell_size = ground_truth.start_cell, ground_truth.cell_size
+        self.horizon_cells = int(round(self.horizon_m / ground_truth.cell_size))
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        pred, ranked = self.ranked_targets(observation)
+        if ranked.size == 0:
+            return []
+        choice = int(ranked[0])
+        if self.k > 1 and ranked.size > 1:
+            candidates = [int(t) for t in ranked[: self.k]]
+            cost = np.zeros(len(candidates))
+            probability = self.model.free_probability(block_shares(observation.belief, self.blocks, self.block_grid))
+            shared = (self.model, self.gate, self.blocks)  # read-only: not copied
+            for _ in range(self.samples):
+                drawn = self.rng.random(probability.shape) < probability
+                world = GroundTruthMap(drawn_world(observation.belief, self.blocks, drawn, self.horizon_cells),
+                                       self.start_cell, self.cell_size, name="sampled")
+                start = Episode.resume(world, self.protocol, observation.belief, observation.cell, observation.position)
+                for i, target in enumerate(candidates):
+                    # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
+                    trial = copy.deepcopy(self, {id(obj): obj for obj in shared})
+                    episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
+                    cost[i] += trial.rollout(episode, target, pred)
+            choice = candidates[int(np.argmin(cost))]
+        return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))
+
+    def rollout(self, episode: Episode, target: int, pred: np.ndarray) -> float:
+        """On a copy of this planner: head for `target`, then gated greedy, on `episode`'s drawn map.
+        The distance when that map is explored or no target is left (inf past the step limit)."""
+        committed = True
+        while True:
+            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
+            if episode.complete:
+                return float(episode.completion_distance)
+            if episode.steps >= self.protocol.max_steps:
+                return np.inf
+            pred, ranked = self.ranked_targets(episode.observe())
+            if ranked.size == 0:  # the drawn map's walls hide the rest: its cost so far is the estimate
+                return episode.distance
+            if committed and (target == self.robot or target not in set(ranked.tolist())):
+                committed = False
+            if not committed:
+                target = int(ranked[0])

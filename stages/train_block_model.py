@@ -1,0 +1,162 @@
+"""DVC stage: train the block model that `sampled_lookahead` draws its imagined maps from.
+
+Reads only the `train_block_model` section (maps, holdout_maps, snapshot_every, epochs,
+batch_size, lr, reveal_share, model, workers, seed) and the shared `protocol` section of
+params.yaml. Runs gated `greedy_utility` on the first `maps` training mazes, takes the
+belief's block shares every `snapshot_every` steps with the maze's true blocks, trains the
+block model on all but the last `holdout_maps` mazes and measures its block error on those.
+Writes models/block_model/block_model.pt, reports/block_model.json (snapshots, per-epoch loss
+and held-out block error) and reports/block_model.png (the curves, and one held-out snapshot:
+seen, predicted, true). Logs one MLflow run in experiment "block_model".
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.maps import list_maps, load_map
+from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.parallel import map_with_progress
+from pipeline.params_file import load_params, params_section
+from pipeline.protocol import Protocol
+from pipeline.stage_errors import run_stage_main
+
+TRAIN_MAZES = Path("data/mazes/train")
+MODEL_PATH = Path("models/block_model/block_model.pt")
+METRICS_PATH = Path("reports/block_model.json")
+FIGURE_PATH = Path("reports/block_model.png")
+EXPERIMENT = "block_model"
+DEFAULTS: dict[str, Any] = {"maps": 96, "holdout_maps": 12, "snapshot_every": 3, "epochs": 4, "batch_size": 128,
+                            "lr": 3e-3, "reveal_share": 0.7, "model": {}, "workers": 2, "seed": 0}
+
+
+def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
+    params = load_params(params_path)
+    section = dict(params_section(params, "train_block_model", params_path))
+    unknown = sorted(set(section) - set(DEFAULTS))
+    if unknown:
+        raise ValueError(f"{params_path}: unknown train_block_model parameter(s) {unknown}; known: {sorted(DEFAULTS)}")
+    section = {**DEFAULTS, **section}
+    for key in ("maps", "holdout_maps", "snapshot_every", "epochs", "batch_size", "workers", "seed"):
+        value = section[key]
+        if isinstance(value, bool) or not isinstance(value, int) or value < (0 if key in ("holdout_maps", "seed") else 1):
+            raise ValueError(f"{params_path}: train_block_model.{key} must be a whole number, got {value!r}")
+    if not section["holdout_maps"] < section["maps"]:
+        raise ValueError(f"{params_path}: train_block_model.holdout_maps must be below train_block_model.maps")
+    for key, high in (("lr", None), ("reveal_share", 1.0)):
+        value = section[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or (high is not None and value > high):
+            raise ValueError(f"{params_path}: train_block_model.{key} must be a number in [0, {high or 'inf'}], got {value!r}")
+    if not isinstance(section["model"], dict):
+        raise ValueError(f"{params_path}: train_block_model.model must be a mapping of BlockModelConfig fields")
+    try:
+        config = BlockModelConfig.from_dict(section["model"])
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{params_path}: train_block_model.model: {error}") from None
+    return section, config, Protocol.from_dict(params.get("protocol") or {})
+
+
+def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarray]:
+    from pipeline.training.block_model import block_snapshots
+
+    path, protocol, block_m, every = task
+    return block_snapshots(load_map(path), Protocol.from_dict(protocol), block_m, every)
+
+
+def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarray, np.ndarray] | None, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.4))
+    epochs = [row["epoch"] for row in history]
+    axes[0].plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
+    axes[0].plot(epochs, [row["held_out_error"] for row in history], "s-", label="held-out block error")
+    axes[0].set(xlabel="epoch", title="Block model")
+    axes[0].legend(fontsize=8)
+    if example is not None:
+        shares, probability, truth = example
+        seen = np.where(shares[2] > 0.5, 0.5, shares[0] > 0.5)
+        for ax, image, title in zip(axes[1:], (seen, probability, truth), ("seen (grey: unknown)", "P(free)", "true blocks")):
+            ax.imshow(image, cmap="gray", vmin=0, vmax=1)
+            ax.set(title=title, xticks=[], yticks=[])
+    else:
+        for ax in axes[1:]:
+            ax.axis("off")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(params_path: str = "params.yaml") -> dict[str, Any]:
+    """Collect, train, measure and write the block model; returns the metrics written."""
+    from pipeline.models.modeling_block_model import save_block_model
+    from pipeline.training.block_model import BlockSamples, block_error, train_block_model
+
+    section, config, protocol = read_params(params_path)
+    maps = list_maps(TRAIN_MAZES)[: section["maps"]]
+    if len(maps) <= section["holdout_maps"]:
+        raise ValueError(f"{TRAIN_MAZES}: {len(maps)} mazes, need more than train_block_model.holdout_maps = {section['holdout_maps']}")
+    started = time.perf_counter()
+    tasks = [(str(m), protocol.to_dict(), config.block_m, section["snapshot_every"]) for m in maps]
+    collected = map_with_progress(_snapshots, tasks, section["workers"], "block snapshots", "maze")
+    fit_count = len(maps) - section["holdout_maps"]
+    train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])
+    held_out = BlockSamples([s for s, _ in collected[fit_count:]], [t for _, t in collected[fit_count:]])
+    collect_seconds = time.perf_counter() - started
+    model, history = train_block_model(train, held_out, config, section["epochs"], section["batch_size"], section["lr"],
+                                       section["reveal_share"], section["seed"],
+                                       log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True))
+    truly_free = [np.broadcast_to(t, s[:, 2].shape)[s[:, 2] > 0.5] for s, t in zip(held_out.shares, held_out.truth)]
+    all_wall_error = float(np.concatenate(truly_free).mean()) if len(held_out) else float("nan")  # guessing "wall" everywhere
+    metrics: dict[str, Any] = {
+        "maps_fit": fit_count, "maps_holdout": section["holdout_maps"],
+        "snapshots_fit": len(train), "snapshots_holdout": len(held_out),
+        "held_out_error": round(history[-1]["held_out_error"], 4) if len(held_out) else None,
+        "held_out_error_all_wall": round(all_wall_error, 4) if len(held_out) else None,
+        "history": [{k: round(v, 4) for k, v in row.items()} for row in history],
+        "parameters": sum(p.numel() for p in model.parameters()),
+    }
+    save_block_model(model, MODEL_PATH, {"maps": [m.name for m in maps[:fit_count]], "protocol": protocol.to_dict(),
+                                         **{k: v for k, v in metrics.items() if k != "history"}})
+    metrics["collect_seconds"] = round(collect_seconds, 1)
+    metrics["train_seconds"] = round(sum(row["seconds"] for row in history), 1)
+    METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
+    METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")
+    example = None
+    if len(held_out):
+        shares = held_out.shares[0][len(held_out.shares[0]) // 3]
+        example = (shares, model.free_probability(shares), held_out.truth[0])
+    figure(history, example, FIGURE_PATH)
+    log_run(section, config, protocol, metrics, history)
+    print(json.dumps({k: v for k, v in metrics.items() if k != "history"}, indent=2))
+    return metrics
+
+
+def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol, metrics: dict[str, Any],
+            history: list[dict[str, float]]) -> None:
+    from pipeline.tracking import import_mlflow, resolve_tracking_uri
+
+    mlflow = import_mlflow()
+    mlflow.set_tracking_uri(resolve_tracking_uri(None))
+    mlflow.set_experiment(EXPERIMENT)
+    with mlflow.start_run(run_name="train_block_model"):
+        mlflow.log_params({**protocol.to_dict(), **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
+                           **{f"model.{k}": v for k, v in config.to_dict().items()}})
+        mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
+        for row in history:
+            mlflow.log_metrics({"epoch_loss": row["loss"], "epoch_held_out_error": row["held_out_error"]}, step=int(row["epoch"]))
+        for path in (MODEL_PATH, METRICS_PATH, FIGURE_PATH):
+            if path.is_file():
+                mlflow.log_artifact(str(path))
+
+
+if __name__ == "__main__":
+    run_stage_main(main)

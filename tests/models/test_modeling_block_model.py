@@ -1,0 +1,48 @@
+"""The block model: shapes on any grid, the ring channel, saving and loading, config checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.modeling_block_model import BlockModel, load_block_model, save_block_model
+
+
+def test_predicts_a_probability_per_block_on_any_grid():
+    model = BlockModel(BlockModelConfig(width=8, dilations=(1, 2), groups=4)).eval()
+    shares = np.random.default_rng(0).dirichlet(np.ones(3), size=(2, 7, 9)).transpose(0, 3, 1, 2).astype(np.float32)
+    probability = model.free_probability(shares)
+    assert probability.shape == (2, 7, 9) and np.all((probability > 0) & (probability < 1))
+    assert model.free_probability(shares[0]).shape == (7, 9)
+    assert np.allclose(model.free_probability(shares[0]), probability[0], atol=1e-6)
+    with pytest.raises(ValueError, match=r"expected block shares \(B, 3, rows, cols\)"):
+        model(torch.zeros(1, 4, 5, 5))
+
+
+def test_save_and_load_round_trip(tmp_path):
+    config = BlockModelConfig(width=8, dilations=(1, 2, 4), groups=2, block_m=4.0)
+    model = BlockModel(config).eval()
+    path = save_block_model(model, tmp_path / "block_model.pt", {"maps": ["a.png"]})
+    loaded = load_block_model(path)
+    assert loaded.config == config and not loaded.training
+    shares = np.full((3, 6, 6), 1 / 3, dtype=np.float32)
+    assert np.array_equal(loaded.free_probability(shares), model.free_probability(shares))
+    torch.save({"format": "guide-inpainter/1", "config": {}}, tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="not a block model file"):
+        load_block_model(tmp_path / "other.pt")
+    with pytest.raises(FileNotFoundError, match="expected a block model file"):
+        load_block_model(tmp_path / "missing.pt")
+
+
+@pytest.mark.parametrize(("values", "message"), [
+    ({"width": 0}, "width must be a whole number"),
+    ({"width": 12, "groups": 5}, "groups must divide width 12"),
+    ({"dilations": [1, 0]}, "dilations must be whole numbers >= 1"),
+    ({"block_m": -5.0}, "block_m must be positive"),
+    ({"widht": 8}, r"unknown block model config key\(s\) \['widht'\]"),
+])
+def test_config_refuses_bad_values(values, message):
+    with pytest.raises(ValueError, match=message):
+        BlockModelConfig.from_dict(values)

@@ -1,0 +1,76 @@
+"""sampled_lookahead: rollouts on drawn maps, never on the ground truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.block_maps import block_index, true_blocks
+from pipeline.maps import GroundTruthMap
+from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.modeling_block_model import BlockModel, save_block_model
+from pipeline.planners import make_planner, planner_class
+from pipeline.planners.sampled_lookahead import SHIPPED_BLOCK_MODEL, resolve_block_model
+from pipeline.protocol import Protocol
+from pipeline.simulator import Episode, run_episode
+
+
+class KnownBlocks(BlockModel):
+    """A block model that answers fixed probabilities (the truth, or a coin) whatever it sees."""
+
+    def __init__(self, probability: np.ndarray):
+        super().__init__(BlockModelConfig(width=4, dilations=(1,), groups=1))
+        self.probability = probability
+
+    def free_probability(self, shares: np.ndarray) -> np.ndarray:
+        assert shares.shape[-2:] == self.probability.shape
+        return self.probability
+
+
+def _truth(maze) -> np.ndarray:
+    blocks, grid = block_index(maze.shape, maze.cell_size, 5.0)
+    return true_blocks(maze.free, blocks, grid).astype(np.float32)
+
+
+def test_k1_is_gated_greedy(small_maze):
+    protocol = Protocol()
+    gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
+    one = run_episode(small_maze, make_planner("sampled_lookahead", k=1, model=KnownBlocks(_truth(small_maze))), protocol, 0)
+    assert one.trajectory == gated.trajectory and one.complete
+
+
+def test_explores_without_reading_the_ground_truth(small_maze):
+    """The same decisions when reset() gets a map whose cells are all wall: only its size is read."""
+    protocol = Protocol()
+    model = KnownBlocks(np.where(_truth(small_maze) > 0, 0.9, 0.1).astype(np.float32))  # draws differ, seeded
+    blind = GroundTruthMap(np.zeros_like(small_maze.free), small_maze.start_cell, small_maze.cell_size)
+    runs = []
+    for reset_map in (small_maze, blind):
+        planner = make_planner("sampled_lookahead", k=2, samples=1, model=model)
+        planner.reset(reset_map, protocol, 3)
+        episode = Episode(small_maze, protocol)
+        while not episode.complete and episode.steps < 60:
+            episode.move(planner.plan(episode.observe())[0])
+        runs.append(episode.trajectory)
+    assert runs[0] == runs[1] and not planner_class("sampled_lookahead").uses_ground_truth
+    assert episode.complete
+
+
+def test_a_true_block_map_makes_it_no_longer_than_gated_greedy(small_maze):
+    protocol = Protocol()
+    gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
+    looked = run_episode(small_maze, make_planner("sampled_lookahead", samples=1, horizon_m=100.0,
+                                                  model=KnownBlocks(_truth(small_maze))), protocol, 0)
+    assert looked.complete and looked.motion_violations == 0
+    assert looked.distance_m <= gated.distance_m
+
+
+def test_model_file_resolution(tmp_path):
+    with pytest.raises(FileNotFoundError, match="expected a block model file"):
+        make_planner("sampled_lookahead", checkpoint=str(tmp_path / "missing.pt"))
+    path = save_block_model(BlockModel(BlockModelConfig(width=4, dilations=(1,), groups=1)), tmp_path / "b.pt")
+    planner = make_planner("sampled_lookahead", checkpoint=str(path))
+    assert planner.model.config.width == 4 and str(path) in planner.model_source
+    assert resolve_block_model(None) == SHIPPED_BLOCK_MODEL  # no models/ in tests: the shipped one
+    with pytest.raises(ValueError, match="samples"):
+        make_planner("sampled_lookahead", samples=0, checkpoint=str(path))
