@@ -3,49 +3,50 @@
 from __future__ import annotations
 
 import json
-import shutil
 
 import pytest
+import torch
 import yaml
 
 from pipeline.models.modeling_block_model import load_block_model
 from stages import train_block_model
 
-SMALL = {"maps": 3, "holdout_maps": 1, "snapshot_every": 2, "epochs": 2, "batch_size": 32, "workers": 1,
+SMALL = {"mazes": 3, "holdout_mazes": 1, "side_m": 50.0, "snapshot_every": 2, "epochs": 2, "batch_size": 32, "workers": 1,
          "model": {"width": 8, "dilations": [1, 2], "groups": 4}}
 
 
-def _project(tmp_path, generated_maze_dir, section):
-    shutil.copytree(generated_maze_dir, tmp_path / "data/mazes/train")
+def _project(tmp_path, section):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "train_block_model": section}))
 
 
-def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
+def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, mlflow_uri):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
-    _project(tmp_path, generated_maze_dir, SMALL)
+    _project(tmp_path, SMALL)
     metrics = train_block_model.main("params.yaml")
     model = load_block_model(tmp_path / "models/block_model/block_model.pt")
     assert model.config.width == 8 and model.config.dilations == (1, 2)
     written = json.loads((tmp_path / "reports/block_model.json").read_text())
-    assert written == metrics and written["maps_fit"] == 2 and written["snapshots_fit"] >= 5
+    assert written == metrics and written["mazes_fit"] == 2 and written["snapshots_fit"] >= 5
     assert [row["epoch"] for row in written["history"]] == [1, 2]
     assert 0.0 <= written["held_out_error"] <= 1.0 and 0.0 < written["held_out_error_all_wall"] < 1.0
     assert (tmp_path / "reports/block_model.png").stat().st_size > 5000
-    planner_model = load_block_model(tmp_path / "models/block_model/block_model.pt")
-    assert planner_model.config == model.config
+    trained_on = torch.load(tmp_path / "models/block_model/block_model.pt", weights_only=True)["trained_on"]
+    assert trained_on["mazes"] == {"mazes": 3, "side_m": 50.0, "maze_seed": 555}
+    assert not (tmp_path / "data").exists()  # its mazes were drawn in a temporary folder
 
 
 @pytest.mark.parametrize(("section", "message"), [
-    ({"maps": 3, "holdout_maps": 3}, "holdout_maps must be below train_block_model.maps"),
+    ({"mazes": 3, "holdout_mazes": 3}, "holdout_mazes must be below train_block_model.mazes"),
     ({"epochs": 0}, "train_block_model.epochs must be a whole number"),
     ({"reveal_share": 1.5}, r"train_block_model.reveal_share must be a number in \[0, 1.0\]"),
     ({"epoch": 3}, r"unknown train_block_model parameter\(s\) \['epoch'\]"),
-    ({"maps": 8, "holdout_maps": 4}, "3 mazes, need more than train_block_model.holdout_maps = 4"),
+    ({"side_m": 52.0}, r"train_block_model.side_m: MazeConfig.side_m \(52.0, 52.0\) holds no whole number"),
+    ({"side_m": "big"}, "train_block_model.side_m: must be a number of metres"),
     ({"model": {"width": 10, "groups": 4}}, "train_block_model.model: BlockModelConfig.groups must divide width 10"),
 ])
-def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, section, message):
+def test_stage_refuses_bad_settings(tmp_path, monkeypatch, section, message):
     monkeypatch.chdir(tmp_path)
-    _project(tmp_path, generated_maze_dir, section)
+    _project(tmp_path, section)
     with pytest.raises(ValueError, match=message):
         train_block_model.main("params.yaml")

@@ -64,7 +64,10 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
         super().__init__(min_utility, sliver_gate, gate_file)
         self.k, self.samples, self.horizon_m = int(k), int(samples), float(horizon_m)
         if model is None:
-            path = resolve_block_model(checkpoint)
+            try:
+                path = resolve_block_model(checkpoint)
+            except FileNotFoundError as error:  # an option error, reported in one line like the others
+                raise ValueError(str(error)) from None
             model = load_once("block_model", path, load_block_model)
             self.model_source = f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
         else:

@@ -113,6 +113,10 @@ BAD = [
     ("oracle_gate", {"base": "no_such_planner"}, "base: unknown planner 'no_such_planner'"),
     ("oracle_tail", {"handover_cells": -1}, "handover_cells must be >= 0"),
     ("oracle_lookahead", {"k": 0}, "k must be >= 1"),
+    ("sampled_lookahead", {"k": 0}, "k must be >= 1"),
+    ("sampled_lookahead", {"samples": 0}, "samples must be >= 1"),
+    ("sampled_lookahead", {"horizon_m": -1.0}, "horizon_m must be a finite number >= 0"),
+    ("sampled_lookahead", {"checkpoint": "no/such/block_model.pt"}, "file not found (expected a block model file)"),
     ("oracle_tail", {"base": "guide_tsp", "threshold": 2}, "threshold must be a number in [0, 1]"),
 ]
 
@@ -136,6 +140,7 @@ GOOD = [
     ("oracle_gate", {"base": "guide_tsp", "min_gain": 1, "veto": True}),
     ("oracle_tail", {"base": "nearest_frontier", "handover_cells": 0}),
     ("oracle_lookahead", {"k": 2, "sliver_gate": False}),
+    ("sampled_lookahead", {"k": 1, "samples": 1, "horizon_m": 0.0, "sliver_gate": False}),
 ]
 
 

@@ -66,7 +66,7 @@ def test_a_true_block_map_makes_it_no_longer_than_gated_greedy(small_maze):
 
 
 def test_model_file_resolution(tmp_path):
-    with pytest.raises(FileNotFoundError, match="expected a block model file"):
+    with pytest.raises(ValueError, match="expected a block model file"):
         make_planner("sampled_lookahead", checkpoint=str(tmp_path / "missing.pt"))
     path = save_block_model(BlockModel(BlockModelConfig(width=4, dilations=(1,), groups=1)), tmp_path / "b.pt")
     planner = make_planner("sampled_lookahead", checkpoint=str(path))
