@@ -47,6 +47,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     params["train_planner"]["model"].update(max_nodes=64, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
     params["train_planner"]["train"].update(max_epochs=1, batch_size=16, warmup_steps=2)
     params["report"].update(k_values=[2, 4], k_maps=1)
+    params["train_block_model"].update(mazes=3, holdout_mazes=1, side_m=50.0, epochs=1, model={"width": 8, "groups": 4})
     (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     git(project, "init", "-q")
     git(project, "add", "-A")
