@@ -74,3 +74,31 @@ def test_model_file_resolution(tmp_path):
     assert resolve_block_model(None) == SHIPPED_BLOCK_MODEL  # no models/ in tests: the shipped one
     with pytest.raises(ValueError, match="samples"):
         make_planner("sampled_lookahead", samples=0, checkpoint=str(path))
+
+
+def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, monkeypatch):
+    """Scripted rollouts: the last target costs 10 m a map, any other 9 m. Without a margin the robot
+    switches; with a 2 m margin it keeps its target; a 0.5 m margin is beaten."""
+    from pipeline.planners.sampled_lookahead import SampledLookaheadPlanner
+
+    protocol = Protocol()
+    model = KnownBlocks(_truth(small_maze))
+    chosen = {}
+
+    def decide(margin):
+        planner = make_planner("sampled_lookahead", k=3, samples=2, switch_margin_m=margin, model=model)
+        planner.reset(small_maze, protocol, 0)
+        episode = Episode(small_maze, protocol)
+        observation = episode.observe()
+        _, ranked = planner.ranked_targets(observation)
+        assert ranked.size >= 2
+        planner.last_target = int(ranked[1])
+        monkeypatch.setattr(SampledLookaheadPlanner, "rollout",
+                            lambda self, ep, target, pred: 10.0 if target == int(ranked[1]) else 9.0)
+        planner.plan(observation)
+        monkeypatch.undo()
+        chosen[margin] = planner.last_target == int(ranked[1])
+
+    for margin in (None, 2.0, 0.5):
+        decide(margin)
+    assert chosen == {None: False, 2.0: True, 0.5: False}
