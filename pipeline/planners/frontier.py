@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.planners.base import GraphPlanner, Waypoint, register_planner
-from pipeline.simulator import Observation
+from pipeline.simulator import Episode, Observation
 
 
 @register_planner("nearest_frontier")
@@ -38,3 +38,22 @@ class GreedyUtilityPlanner(GraphPlanner):
         if ranked.size == 0:
             return []
         return self.waypoints_along(self.graph.path_from_predecessors(pred, int(ranked[0])))
+
+    def finish_episode(self, episode: Episode, target: int, pred: np.ndarray) -> float | None:
+        """Head for `target` until it is reached or stops being a target, then this planner's rule, on
+        `episode` (the lookaheads run this on a copy of themselves and of an episode). The distance at
+        completion; inf past the step limit; None when no target is left before completion."""
+        committed = True
+        while True:
+            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
+            if episode.complete:
+                return float(episode.completion_distance)
+            if episode.steps >= self.protocol.max_steps:
+                return np.inf
+            pred, ranked = self.ranked_targets(episode.observe())
+            if ranked.size == 0:
+                return None
+            if committed and (target == self.robot or target not in set(ranked.tolist())):
+                committed = False
+            if not committed:
+                target = int(ranked[0])

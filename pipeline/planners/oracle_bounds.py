@@ -188,18 +188,5 @@ class OracleLookaheadPlanner(GreedyUtilityPlanner):
 
     def finish_in_copy(self, target: int, pred: np.ndarray) -> float:
         """On a copy: head for `target`, then gated greedy; the distance at completion (inf: none)."""
-        episode, committed = self.shadow, True
-        while True:
-            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
-            if episode.complete:
-                return float(episode.completion_distance)
-            if episode.steps >= self.protocol.max_steps:
-                return np.inf
-            observation = episode.observe()
-            pred, ranked = self.ranked_targets(observation)
-            if ranked.size == 0:
-                return np.inf
-            if committed and (target == self.robot or target not in set(ranked.tolist())):
-                committed = False
-            if not committed:
-                target = int(ranked[0])
+        distance = self.finish_episode(self.shadow, target, pred)
+        return np.inf if distance is None else distance

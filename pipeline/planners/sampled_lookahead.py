@@ -125,18 +125,7 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
 
     def rollout(self, episode: Episode, target: int, pred: np.ndarray) -> float:
         """On a copy of this planner: head for `target`, then gated greedy, on `episode`'s drawn map.
-        The distance when that map is explored or no target is left (inf past the step limit)."""
-        committed = True
-        while True:
-            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
-            if episode.complete:
-                return float(episode.completion_distance)
-            if episode.steps >= self.protocol.max_steps:
-                return np.inf
-            pred, ranked = self.ranked_targets(episode.observe())
-            if ranked.size == 0:  # the drawn map's walls hide the rest: its cost so far is the estimate
-                return episode.distance
-            if committed and (target == self.robot or target not in set(ranked.tolist())):
-                committed = False
-            if not committed:
-                target = int(ranked[0])
+        The distance when that map is explored or no target is left (inf past the step limit): when
+        the drawn map's walls hide the rest, its cost so far is the estimate."""
+        distance = self.finish_episode(episode, target, pred)
+        return episode.distance if distance is None else distance
