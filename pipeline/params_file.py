@@ -57,6 +57,16 @@ def params_section(params: dict[str, Any], name: str, path: str | Path) -> dict[
     return section
 
 
+def section_with_defaults(params: dict[str, Any], name: str, path: str | Path, defaults: dict[str, Any]) -> dict[str, Any]:
+    """The `name` section over `defaults`; a key that `defaults` lacks is refused, by name, as a
+    likely typo (a silently ignored setting is worse than an error)."""
+    section = params_section(params, name, path)
+    unknown = sorted(set(section) - set(defaults))
+    if unknown:
+        raise ValueError(f"{path}: unknown {name} parameter(s) {unknown}; known: {sorted(defaults)}")
+    return {**defaults, **section}
+
+
 def dataclass_from_dict(cls: type[T], values: dict[str, Any] | None, what: str) -> T:
     """`cls(**values)` where an unknown key is a ValueError naming it and the known ones.
 

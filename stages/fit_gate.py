@@ -22,7 +22,7 @@ import numpy as np
 
 from pipeline.maps import list_maps, load_map
 from pipeline.parallel import map_with_progress
-from pipeline.params_file import load_params, params_section
+from pipeline.params_file import load_params, section_with_defaults
 from pipeline.protocol import Protocol
 from pipeline.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
 from pipeline.stage_errors import run_stage_main
@@ -39,11 +39,7 @@ DEFAULTS: dict[str, Any] = {"maps": 48, "holdout_maps": 12, "offices": 0, "offic
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     params = load_params(params_path)
-    section = dict(params_section(params, "fit_gate", params_path))
-    unknown = sorted(set(section) - set(DEFAULTS))
-    if unknown:
-        raise ValueError(f"{params_path}: unknown fit_gate parameter(s) {unknown}; known: {sorted(DEFAULTS)}")
-    section = {**DEFAULTS, **section}
+    section = section_with_defaults(params, "fit_gate", params_path, DEFAULTS)
     for key in ("maps", "holdout_maps", "offices", "office_holdout", "min_gain", "wall_margin", "workers"):
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key in ("maps", "workers") else 0):

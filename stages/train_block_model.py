@@ -27,7 +27,7 @@ import numpy as np
 from pipeline.maps import load_map
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.parallel import map_with_progress
-from pipeline.params_file import load_params, params_section
+from pipeline.params_file import load_params, section_with_defaults
 from pipeline.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
@@ -41,11 +41,7 @@ DEFAULTS: dict[str, Any] = {"mazes": 160, "holdout_mazes": 16, "side_m": 100.0, 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
     params = load_params(params_path)
-    section = dict(params_section(params, "train_block_model", params_path))
-    unknown = sorted(set(section) - set(DEFAULTS))
-    if unknown:
-        raise ValueError(f"{params_path}: unknown train_block_model parameter(s) {unknown}; known: {sorted(DEFAULTS)}")
-    section = {**DEFAULTS, **section}
+    section = section_with_defaults(params, "train_block_model", params_path, DEFAULTS)
     for key in ("mazes", "holdout_mazes", "maze_seed", "snapshot_every", "epochs", "batch_size", "workers", "seed"):
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < (0 if key in ("holdout_mazes", "maze_seed", "seed") else 1):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
-from pipeline.params_file import dataclass_from_dict, load_params, params_section
+from pipeline.params_file import dataclass_from_dict, load_params, params_section, section_with_defaults
 from pipeline.protocol import Protocol
 from pipeline.training.planner import PlannerTrainConfig
 
@@ -52,3 +52,12 @@ def test_dataclass_from_dict_builds_the_config_and_refuses_a_typo():
         PlannerTrainConfig.from_dict({"max_epoch": 3})
     with pytest.raises(ValueError, match=r"unknown diffusion policy config keys \['heeds'\]"):
         DiffusionPolicyConfig.from_dict({"heeds": 2})
+
+
+def test_section_with_defaults_fills_in_and_refuses_a_typo():
+    defaults = {"epochs": 4, "lr": 0.003}
+    assert section_with_defaults({"s": {"epochs": 2}}, "s", "p.yaml", defaults) == {"epochs": 2, "lr": 0.003}
+    with pytest.raises(ValueError, match=r"p.yaml: unknown s parameter\(s\) \['epoch'\]; known: \['epochs', 'lr'\]"):
+        section_with_defaults({"s": {"epoch": 2}}, "s", "p.yaml", defaults)
+    with pytest.raises(ValueError, match="missing the 's' section"):
+        section_with_defaults({}, "s", "p.yaml", defaults)
