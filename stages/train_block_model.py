@@ -113,9 +113,8 @@ def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarra
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
     from pipeline.models.modeling_block_model import save_block_model
-    from pipeline.training.block_model import BlockSamples, block_error, train_block_model
-
     from pipeline.mazes import generate_maze_set
+    from pipeline.training.block_model import BlockSamples, block_error, train_block_model
 
     section, config, protocol = read_params(params_path)
     started = time.perf_counter()

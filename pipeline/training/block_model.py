@@ -96,8 +96,8 @@ def block_error(model: BlockModel, samples: BlockSamples, reach: int = NEAR_REAC
     return wrong / max(total, 1), truly_free / max(total, 1)
 
 
-def _batches(samples: BlockSamples, batch_size: int, rng: np.random.Generator) -> list[tuple[int, np.ndarray]]:
-    """(map index, snapshot indices) batches; a batch holds one map's grid size (maps differ in size)."""
+def _batches(samples: BlockSamples, batch_size: int, rng: np.random.Generator) -> list[list[tuple[int, int]]]:
+    """Batches of (map index, snapshot index); a batch holds one map's grid size (maps differ in size)."""
     by_shape: dict[tuple[int, int], list[tuple[int, int]]] = defaultdict(list)
     for index, shares in enumerate(samples.shares):
         by_shape[shares.shape[-2:]] += [(index, i) for i in range(len(shares))]
