@@ -69,9 +69,31 @@ def grow_within(seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray
     return region.astype(bool) | seed
 
 
+def imagined_free(belief: np.ndarray, blocks: np.ndarray, drawn_blocks: np.ndarray) -> np.ndarray:
+    """The known free cells and the unknown cells of drawn free blocks, uncut."""
+    return (belief == FREE) | ((belief == UNKNOWN) & drawn_blocks.ravel()[blocks])
+
+
 def drawn_world(belief: np.ndarray, blocks: np.ndarray, drawn_blocks: np.ndarray, horizon_cells: int) -> np.ndarray:
     """A free grid to roll out on: the known free cells, and the unknown cells of drawn free
     blocks within `horizon_cells` of them; everything else (known walls too) is wall."""
-    known = belief == FREE
-    imagined = known | ((belief == UNKNOWN) & drawn_blocks.ravel()[blocks])
-    return grow_within(known, imagined, horizon_cells)
+    return grow_within(belief == FREE, imagined_free(belief, blocks, drawn_blocks), horizon_cells)
+
+
+def exit_steps(world: np.ndarray, imagined: np.ndarray) -> np.ndarray:
+    """4-connected steps through `world` (a drawn map cut at the horizon) from every cell to the
+    nearest cell beside the cut, where `imagined` free space goes on past the horizon; inf where
+    none is reachable. A rollout that ends far from the cut leaves the robot far from what is
+    still unexplored beyond it, a cost the cut map alone does not show."""
+    world_u8 = world.astype(np.uint8)
+    beyond = (imagined & ~world).astype(np.uint8)
+    reached = cv2.dilate(beyond, _CROSS) & world_u8
+    steps = np.full(world.shape, np.inf, dtype=np.float32)
+    count = 0
+    while reached.any():
+        steps[reached.astype(bool) & np.isinf(steps)] = count
+        grown = cv2.dilate(reached, _CROSS) & world_u8
+        if np.array_equal(grown, reached):
+            break
+        reached, count = grown, count + 1
+    return steps

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.block_maps import block_index, block_shares, border_ring, drawn_world, grow_within, true_blocks
+from pipeline.block_maps import (block_index, block_shares, border_ring, drawn_world, exit_steps, grow_within,
+                                 imagined_free, true_blocks)
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 from tests.conftest import SMALL_MAZE
 
@@ -62,3 +63,25 @@ def test_drawn_world_keeps_the_known_and_adds_drawn_blocks_near_it():
     assert world[13:25, 0:12].all()  # the drawn block below, all within 15 cells of the known ones
     assert not world[:12, 14:].any()  # behind the known wall: unreachable, so cut
     assert not drawn_world(belief, blocks, np.zeros(grid, dtype=bool), 15)[12:].any()
+
+
+def test_exit_steps_count_the_way_to_where_the_cut_hides_imagined_free_space():
+    imagined = np.zeros((3, 20), dtype=bool)
+    imagined[1, :] = True  # a corridor, free all along in the drawn map
+    world = imagined.copy()
+    world[1, 15:] = False  # cut at the horizon: the corridor goes on past cell 14
+    steps = exit_steps(world, imagined)
+    assert steps[1, 14] == 0 and steps[1, 0] == 14  # cell 14 is beside the cut
+    assert np.isinf(steps[0, 0]) and np.isinf(steps[1, 15])  # walls and cut cells: no way out through the world
+    assert np.isinf(exit_steps(imagined, imagined)).all()  # nothing cut: no exit anywhere
+
+
+def test_imagined_free_is_the_drawn_world_before_its_cut():
+    blocks, grid = block_index((25, 50), 0.4, 5.0)
+    belief = np.full((25, 50), UNKNOWN, dtype=np.uint8)
+    belief[:12, :12] = FREE
+    drawn = np.zeros(grid, dtype=bool)
+    drawn[0, 3] = True  # a drawn block out of reach of the known one
+    imagined = imagined_free(belief, blocks, drawn)
+    assert imagined[:12, :12].all() and imagined[:12, 38:].all() and not imagined[:12, 13:37].any()
+    assert not drawn_world(belief, blocks, drawn, 100)[:, 38:].any()

@@ -102,3 +102,31 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
     for margin in (None, 2.0, 0.5):
         decide(margin)
     assert chosen == {None: False, 2.0: True, 0.5: False}
+
+
+def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, monkeypatch):
+    """Scripted rollouts of equal length: the first-ranked target's ends 20 cells from the cut, the
+    second's beside it. Without the exit term the tie goes to the first; with it, to the second."""
+    import pipeline.planners.sampled_lookahead as module
+
+    protocol = Protocol()
+    model = KnownBlocks(_truth(small_maze))
+
+    def decide(exit_weight):
+        planner = make_planner("sampled_lookahead", k=2, samples=2, exit_weight=exit_weight, model=model)
+        planner.reset(small_maze, protocol, 0)
+        observation = Episode(small_maze, protocol).observe()
+        _, ranked = planner.ranked_targets(observation)
+        assert ranked.size >= 2
+
+        def rollout(self, episode, target, pred):
+            episode.cell = (0, 0) if target == int(ranked[1]) else (0, 20)
+            return 10.0
+
+        monkeypatch.setattr(module.SampledLookaheadPlanner, "rollout", rollout)
+        monkeypatch.setattr(module, "exit_steps", lambda world, imagined: np.tile(np.arange(world.shape[1], dtype=np.float32), (world.shape[0], 1)))
+        planner.plan(observation)
+        monkeypatch.undo()
+        return planner.last_target == int(ranked[1])
+
+    assert not decide(0.0) and decide(1.0)
