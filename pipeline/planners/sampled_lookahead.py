@@ -31,14 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.block_maps import block_index, block_shares, exit_steps, grow_within, imagined_free
+from pipeline.block_maps import block_index, block_shares, drawn_world, exit_steps, imagined_free
 from pipeline.maps import GroundTruthMap
 from pipeline.models.modeling_block_model import BlockModel, load_block_model
 from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.frontier import GreedyUtilityPlanner
 from pipeline.planners.model_cache import load_once
 from pipeline.protocol import Protocol
-from pipeline.sensor import FREE
 from pipeline.simulator import Episode, Observation
 
 DEFAULT_BLOCK_MODEL = Path("models/block_model/block_model.pt")
@@ -67,8 +66,8 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
                    "block model; one step toward the one whose rollouts are shortest")
 
     def __init__(self, k: int = 3, samples: int = 4, horizon_m: float = 20.0, checkpoint: str | None = None,
-                 switch_margin_m: float | None = None, exit_weight: float = 0.0, min_utility: int = 2, sliver_gate: bool | None = None,
-                 gate_file: str | None = None, model: BlockModel | None = None):
+                 switch_margin_m: float | None = None, exit_weight: float = 0.0, min_utility: int = 2,
+                 sliver_gate: bool | None = None, gate_file: str | None = None, model: BlockModel | None = None):
         check_int("k", k, 1)
         check_int("samples", samples, 1)
         check_number("horizon_m", horizon_m, 0.0)
@@ -116,11 +115,11 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
             shared = (self.model, self.gate, self.blocks)  # read-only: not copied
             for _ in range(self.samples):
                 drawn = self.rng.random(probability.shape) < probability
-                imagined = imagined_free(observation.belief, self.blocks, drawn)
-                free = grow_within(observation.belief == FREE, imagined, self.horizon_cells)
+                free = drawn_world(observation.belief, self.blocks, drawn, self.horizon_cells)
                 world = GroundTruthMap(free, self.start_cell, self.cell_size, name="sampled")
                 start = Episode.resume(world, self.protocol, observation.belief, observation.cell, observation.position)
-                exits = exit_steps(free, imagined) if self.exit_weight > 0 else None
+                exits = (exit_steps(free, imagined_free(observation.belief, self.blocks, drawn))
+                         if self.exit_weight > 0 else None)
                 for i, target in enumerate(candidates):
                     # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
                     trial = copy.deepcopy(self, {id(obj): obj for obj in shared})
