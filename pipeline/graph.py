@@ -392,6 +392,74 @@ def visible_counts(
     )
 
 
+def nested_visible_counts(
+    outer_free: np.ndarray, outer_targets: tuple[np.ndarray, np.ndarray], inner_free: np.ndarray,
+    inner_targets: np.ndarray, origins: np.ndarray, range_cells: float,
+) -> np.ndarray:
+    """(n, 3): `visible_counts` of both `outer_targets` through `outer_free` and of
+    `inner_targets` through `inner_free`, in one walk per ray.
+
+    `inner_free` must lie inside `outer_free`, so that each ray's inner walk is a prefix of its
+    outer one. The sliver gate counts three fans per candidate at every decision (two through
+    the cells not known occupied, one through the known free ones), and walking them together
+    takes about half the time of three `visible_counts` calls, with the same counts.
+    """
+    outer = np.ascontiguousarray(outer_free, dtype=np.bool_)
+    inner = np.ascontiguousarray(inner_free, dtype=np.bool_)
+    if inner.shape != outer.shape or any(np.shape(t) != outer.shape for t in (*outer_targets, inner_targets)):
+        raise ValueError("nested_visible_counts: the masks differ in shape")
+    if np.any(inner & ~outer):
+        raise ValueError("nested_visible_counts: inner_free must lie inside outer_free")
+    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    return _nested_counts_kernel(
+        outer,
+        np.ascontiguousarray(outer_targets[0], dtype=np.bool_),
+        np.ascontiguousarray(outer_targets[1], dtype=np.bool_),
+        inner,
+        np.ascontiguousarray(inner_targets, dtype=np.bool_),
+        np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
+        table.offsets,
+        table.valid,
+        table.unique_index,
+        len(table.unique_offsets),
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def _nested_counts_kernel(outer, first, second, inner, third, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
+    rows, cols = outer.shape
+    n_rays, n_steps = valid.shape
+    counts = np.zeros((len(origins), 3), np.int64)
+    last_outer = np.zeros(n_unique, np.int64)  # origin + 1 that last counted each fan cell, per walk
+    last_inner = np.zeros(n_unique, np.int64)
+    for o in range(len(origins)):
+        ox, oy = origins[o, 0], origins[o, 1]
+        for r in range(n_rays):
+            inner_open = True
+            for k in range(n_steps):
+                if not valid[r, k]:
+                    break
+                x = ox + offsets[r, k, 0]
+                y = oy + offsets[r, k, 1]
+                if x < 0 or x >= cols or y < 0 or y >= rows or not outer[y, x]:
+                    break
+                u = unique_index[r, k]
+                if last_outer[u] != o + 1:
+                    last_outer[u] = o + 1
+                    if first[y, x]:
+                        counts[o, 0] += 1
+                    if second[y, x]:
+                        counts[o, 1] += 1
+                if inner_open:
+                    if not inner[y, x]:
+                        inner_open = False
+                    elif last_inner[u] != o + 1:
+                        last_inner[u] = o + 1
+                        if third[y, x]:
+                            counts[o, 2] += 1
+    return counts
+
+
 @numba.njit(cache=True, nogil=True)
 def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
     rows, cols = free.shape

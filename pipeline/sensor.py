@@ -54,7 +54,14 @@ class Lidar:
         if cached is None or cached[0] is not table:
             padded_flat = table.offsets[..., 1] * self._padded_cols + table.offsets[..., 0]
             grid_flat = table.offsets[..., 1] * self.shape[1] + table.offsets[..., 0]
-            cached = (table, padded_flat, grid_flat, np.arange(table.valid.shape[1]))
+            # The fan's distinct cells in flat order, and each ray step's place among them: the
+            # revealed cells come out sorted and once each without np.unique's hashing.
+            unique_flat = table.unique_offsets[:, 1] * self.shape[1] + table.unique_offsets[:, 0]
+            order = np.argsort(unique_flat, kind="stable")
+            place = np.empty_like(order)
+            place[order] = np.arange(order.size)
+            step_place = np.where(table.valid, place[np.maximum(table.unique_index, 0)], 0)
+            cached = (table, padded_flat, grid_flat, np.arange(table.valid.shape[1]), unique_flat[order], step_place)
             self._tables[id(table)] = cached
         return cached
 
@@ -62,7 +69,7 @@ class Lidar:
         """Cells revealed from `cell` (col, row): free cells before each ray's stop, and the
         occupied cell it stopped at (never the end cell, never a cell beyond the grid)."""
         x0, y0 = int(cell[0]), int(cell[1])
-        table, padded_flat, grid_flat, steps = self._table(x0, y0)
+        table, padded_flat, grid_flat, steps, sorted_flat, step_place = self._table(x0, y0)
         base = (y0 + self.pad) * self._padded_cols + (x0 + self.pad)
         values = self._padded[base + padded_flat]
         values[~table.valid] = self._OUTSIDE
@@ -75,7 +82,9 @@ class Lidar:
         at_stop = stop[rays]
         hit = values[rays, at_stop] == self._OCC
         occupied = origin + grid_flat[rays[hit], at_stop[hit]]
-        return ScanResult(free=np.unique(origin + grid_flat[revealed_free]), occupied=np.unique(occupied))
+        reached = np.zeros(sorted_flat.size, dtype=bool)
+        reached[step_place[revealed_free]] = True
+        return ScanResult(free=origin + sorted_flat[reached], occupied=np.unique(occupied))
 
 
 def scan(

@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from pipeline.frontier import frontier_mask
-from pipeline.graph import visible_counts
+from pipeline.graph import nested_visible_counts
 from pipeline.maps import GroundTruthMap
 from pipeline.params_file import dataclass_from_dict
 from pipeline.protocol import Protocol
@@ -58,14 +58,8 @@ def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wal
     side = 2 * wall_margin + 1
     near_wall = cv2.dilate(walls, np.ones((side, side), np.uint8)).astype(bool) if wall_margin else walls.astype(bool)
     passable = ~walls.astype(bool)
-    return np.stack(
-        [
-            visible_counts(passable, unknown & ~near_wall, cells, range_cells),
-            visible_counts(passable, unknown, cells, range_cells),
-            visible_counts(belief == FREE, frontier_mask(belief), cells, range_cells),
-        ],
-        axis=1,
-    ).astype(np.float64)
+    return nested_visible_counts(passable, (unknown & ~near_wall, unknown), belief == FREE, frontier_mask(belief),
+                                 cells, range_cells).astype(np.float64)
 
 
 def gate_inputs(counts: np.ndarray) -> np.ndarray:
@@ -146,6 +140,11 @@ class SliverGate:
             if index < last:
                 hidden = np.maximum(hidden, 0.0)
         return 1.0 / (1.0 + np.exp(-hidden[:, 0]))
+
+    def reach_cells(self, range_cells: float) -> int:
+        """How far (cells, Chebyshev) from a candidate a belief change can move its counts: the
+        fan's reach, the wall margin around what it reaches, and the frontier's neighbours."""
+        return int(math.ceil(range_cells)) + int(round(self.wall_margin * range_cells / self.range_cells)) + 1
 
     def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
         """Boolean mask: which candidate cells the gate calls big, for a lidar reaching `range_cells`.

@@ -10,6 +10,7 @@ from pipeline.graph import (
     REGION_UNOBSERVED,
     LatticeGraph,
     LatticeSpec,
+    nested_visible_counts,
     visible_counts,
 )
 from pipeline.planners import make_planner
@@ -194,3 +195,22 @@ def test_visible_counts_match_the_plain_ray_walk(seed):
     assert (got == reference_visible_counts(free, targets.astype(bool), origins, 25.0)).all()
     assert got.max() > 0
     assert visible_counts(free, targets, origins[:0], 25.0).shape == (0,)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_nested_visible_counts_equal_three_separate_fans(seed):
+    rng = np.random.default_rng(seed)
+    outer = rng.random((90, 70)) < 0.9
+    inner = outer & (rng.random((90, 70)) < 0.8)
+    first, second, third = (rng.random((3, 90, 70)) < [[[0.1]], [[0.3]], [[0.2]]])
+    origins = rng.integers(-4, 94, size=(40, 2))  # some outside the grid
+    got = nested_visible_counts(outer, (first, second), inner, third, origins, 25.0)
+    assert got.shape == (40, 3) and got.min(axis=0).min() >= 0 and (got.max(axis=0) > 0).all()
+    assert (got[:, 0] == reference_visible_counts(outer, first, origins, 25.0)).all()
+    assert (got[:, 1] == reference_visible_counts(outer, second, origins, 25.0)).all()
+    assert (got[:, 2] == reference_visible_counts(inner, third, origins, 25.0)).all()
+    assert nested_visible_counts(outer, (first, second), inner, third, origins[:0], 25.0).shape == (0, 3)
+    with pytest.raises(ValueError, match="inner_free must lie inside outer_free"):
+        nested_visible_counts(inner, (first, second), outer, third, origins, 25.0)
+    with pytest.raises(ValueError, match="differ in shape"):
+        nested_visible_counts(outer, (first, second[:-1]), inner, third, origins, 25.0)

@@ -50,7 +50,10 @@ def test_scan_matches_reference_loop_cell_for_cell(seed):
         # Anywhere, even on occupied cells or near the edge: the walk rules still apply.
         x0, y0 = int(rng.integers(0, cols)), int(rng.integers(0, rows))
         belief = Belief(ground.shape)
-        belief.apply(scan(ground, (x0, y0), range_cells))
+        result = scan(ground, (x0, y0), range_cells)
+        for cells in (result.free, result.occupied):  # each cell once, in flat order
+            np.testing.assert_array_equal(cells, np.unique(cells))
+        belief.apply(result)
         np.testing.assert_array_equal(belief.grid, reference_scan(ground, x0, y0, range_cells))
 
 

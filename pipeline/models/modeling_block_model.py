@@ -43,11 +43,15 @@ class BlockModel(nn.Module):
         return self.head(hidden)[:, 0]
 
     @torch.no_grad()
-    def free_probability(self, shares: np.ndarray) -> np.ndarray:
-        """(3, rows, cols) or (B, 3, rows, cols) shares -> P(free) of the same leading shape."""
+    def free_probability(self, shares: np.ndarray, temperature: float = 1.0) -> np.ndarray:
+        """(3, rows, cols) or (B, 3, rows, cols) shares -> P(free) of the same leading shape.
+        `temperature` > 1 softens the probabilities (logits divided by it): a model trained
+        long is overconfident, and maps drawn from it too alike."""
+        if not temperature > 0:
+            raise ValueError(f"temperature must be positive, got {temperature!r}")
         batch = np.asarray(shares, dtype=np.float32)
         single = batch.ndim == 3
-        probability = torch.sigmoid(self(torch.from_numpy(batch[None] if single else batch))).numpy()
+        probability = torch.sigmoid(self(torch.from_numpy(batch[None] if single else batch)) / temperature).numpy()
         return probability[0] if single else probability
 
 

@@ -7,6 +7,7 @@ import numbers
 from abc import ABC, abstractmethod
 from typing import Callable, TypeVar
 
+import cv2
 import numpy as np
 
 from pipeline.graph import LatticeGraph, LatticeSpec
@@ -178,23 +179,50 @@ class GraphPlanner(Planner):
         elif gate_file is not None:
             raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
         self._gated: tuple[np.ndarray, np.ndarray] | None = None  # (useful nodes, those the gate passes) this decision
+        # The gate's verdict per node, kept until a belief change comes within its reach: a
+        # verdict reads only the belief around its node, and most nodes are far from each scan.
+        self._gate_known = self._gate_big = np.zeros(0, dtype=bool)
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
         self.visited = np.zeros(self.graph.node_count, dtype=bool)
         self.protocol = protocol
         self.rng = np.random.default_rng(seed)
+        self._gate_known = np.zeros(self.graph.node_count, dtype=bool)
+        self._gate_big = np.zeros(self.graph.node_count, dtype=bool)
 
     def update_graph(self, observation: Observation) -> LatticeGraph:
         """Fold the cells changed since the last decision into the graph; returns it."""
         if self.graph is None:
             raise RuntimeError("reset() must be called before plan()")
         self.graph.update(observation.belief, observation.changed)
+        if self.gate is not None:
+            self._forget_gate_verdicts(observation.belief.shape, observation.changed)
         self.robot = self.graph.nearest_node(observation.position)
         self.visited[self.robot] = True
         self.belief = observation.belief
         self._gated = None
         return self.graph
+
+    def _forget_gate_verdicts(self, shape: tuple[int, int], changed: np.ndarray | None) -> None:
+        """Drop the gate verdicts of the nodes within the gate's reach of a changed cell (all on
+        the first observation, whose changes are not listed)."""
+        if changed is None or self._gate_known.size != self.graph.node_count:
+            self._gate_known = np.zeros(self.graph.node_count, dtype=bool)
+            self._gate_big = np.zeros(self.graph.node_count, dtype=bool)
+            return
+        if changed.size == 0 or not self._gate_known.any():
+            return
+        known = np.nonzero(self._gate_known)[0]
+        touched = np.zeros(shape, dtype=np.uint8)
+        touched.flat[changed] = 1
+        total = cv2.integral(touched)  # (rows + 1, cols + 1) running sums: one box sum per node
+        reach = self.gate.reach_cells(self.protocol.sensor_range_cells)
+        cols, rows = self.graph.node_cells[known, 0], self.graph.node_cells[known, 1]
+        top, bottom = np.clip(rows - reach, 0, shape[0]), np.clip(rows + reach + 1, 0, shape[0])
+        left, right = np.clip(cols - reach, 0, shape[1]), np.clip(cols + reach + 1, 0, shape[1])
+        inside = total[bottom, right] - total[top, right] - total[bottom, left] + total[top, left]
+        self._gate_known[known[inside > 0]] = False
 
     def robot_node(self, observation: Observation) -> int:
         assert self.graph is not None
@@ -216,7 +244,12 @@ class GraphPlanner(Planner):
         if self.gate is None or useful.size == 0:
             return useful
         if self._gated is None or not np.array_equal(self._gated[0], useful):
-            big = self.gate.passes(self.belief, self.graph.node_cells[useful], self.protocol.sensor_range_cells)
+            unjudged = useful[~self._gate_known[useful]]
+            if unjudged.size:
+                self._gate_big[unjudged] = self.gate.passes(self.belief, self.graph.node_cells[unjudged],
+                                                            self.protocol.sensor_range_cells)
+                self._gate_known[unjudged] = True
+            big = self._gate_big[useful]
             if big.any():
                 dist = self.graph.shortest_paths(self.robot)[0] if dist is None else dist
                 big &= np.isfinite(dist[useful])

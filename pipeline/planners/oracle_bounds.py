@@ -25,6 +25,7 @@ Measured figures: docs/findings.md, "What a better gate can still win", "An orac
 from __future__ import annotations
 
 import copy
+import math
 
 import numpy as np
 
@@ -81,6 +82,12 @@ class TrueGainGate:
 
     def __init__(self, true_gain: TrueGain, min_gain: int, learned=None):
         self.true_gain, self.min_gain, self.learned = true_gain, min_gain, learned
+
+    def reach_cells(self, range_cells: float) -> int:
+        """How far (cells, Chebyshev) from a candidate a belief change can move its verdict: the
+        scan's reach, or the learned gate's when it vetoes."""
+        reach = int(math.ceil(range_cells)) + 1
+        return max(reach, self.learned.reach_cells(range_cells)) if self.learned is not None else reach
 
     def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
         big = self.true_gain.gains(belief, cells) >= self.min_gain

@@ -19,6 +19,12 @@ def test_predicts_a_probability_per_block_on_any_grid():
     assert np.allclose(model.free_probability(shares[0]), probability[0], atol=1e-6)
     with pytest.raises(ValueError, match=r"expected block shares \(B, 3, rows, cols\)"):
         model(torch.zeros(1, 4, 5, 5))
+    logits = model(torch.from_numpy(shares)).detach().numpy()
+    softened = model.free_probability(shares, temperature=2.0)
+    assert np.allclose(softened, 1 / (1 + np.exp(-logits / 2)), atol=1e-6)
+    assert np.all(np.abs(softened - 0.5) < np.abs(probability - 0.5) + 1e-7)  # pulled toward 0.5
+    with pytest.raises(ValueError, match="temperature must be positive"):
+        model.free_probability(shares, temperature=0.0)
 
 
 def test_save_and_load_round_trip(tmp_path):

@@ -58,3 +58,31 @@ def test_the_gate_falls_back_when_every_node_it_passes_is_unreachable(small_maze
     dist[everything] = np.inf  # now every node the gate passes is out of reach
     always._gated = None
     assert np.array_equal(always.useful_nodes(dist), everything)  # so every useful node stays
+
+
+def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_dir):
+    """Verdicts are kept per node until a belief change comes within the gate's reach; every kept
+    one must be what the gate says on the belief of the moment, and some must be kept."""
+    from pipeline.maps import load_map
+
+    protocol = Protocol()
+    checked = kept = 0
+    for path in sorted(generated_maze_dir.glob("*.png")):
+        planner = make_planner("greedy_utility", sliver_gate=True)
+        plan, judged_before = planner.plan, [np.zeros(0, dtype=bool)]
+
+        def checked_plan(observation, planner=planner, plan=plan, judged_before=judged_before):
+            nonlocal checked, kept
+            waypoints = plan(observation)
+            known = np.nonzero(planner._gate_known)[0]
+            fresh = planner.gate.passes(observation.belief, planner.graph.node_cells[known], protocol.sensor_range_cells)
+            assert np.array_equal(planner._gate_big[known], fresh)
+            if judged_before[0].size == planner._gate_known.size:
+                kept += int((judged_before[0] & planner._gate_known).sum())
+            judged_before[0] = planner._gate_known.copy()
+            checked += known.size
+            return waypoints
+
+        planner.plan = checked_plan
+        assert run_episode(load_map(path), planner, protocol, 0).complete
+    assert checked > 0 and kept > 0

@@ -118,6 +118,7 @@ BAD = [
     ("sampled_lookahead", {"horizon_m": -1.0}, "horizon_m must be a finite number >= 0"),
     ("sampled_lookahead", {"switch_margin_m": -1.0}, "switch_margin_m must be a finite number >= 0"),
     ("sampled_lookahead", {"exit_weight": -1.0}, "exit_weight must be a finite number >= 0"),
+    ("sampled_lookahead", {"temperature": 0.0}, "temperature must be a finite number > 0"),
     ("sampled_lookahead", {"checkpoint": "no/such/block_model.pt"}, "file not found (expected a block model file)"),
     ("oracle_tail", {"base": "guide_tsp", "threshold": 2}, "threshold must be a number in [0, 1]"),
 ]

@@ -22,7 +22,7 @@ class KnownBlocks(BlockModel):
         super().__init__(BlockModelConfig(width=4, dilations=(1,), groups=1))
         self.probability = probability
 
-    def free_probability(self, shares: np.ndarray) -> np.ndarray:
+    def free_probability(self, shares: np.ndarray, temperature: float = 1.0) -> np.ndarray:
         assert shares.shape[-2:] == self.probability.shape
         return self.probability
 
