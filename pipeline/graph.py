@@ -379,17 +379,10 @@ def visible_counts(
     A ray walks from the origin and stops at the first cell that is not free; the cells
     before that are visible. Each visible cell counts once per origin however many rays
     reach it. Compiled with numba: this ray walk was 60 % of the simulator's time in NumPy.
+    The walk is `nested_visible_counts`' with no inner fan.
     """
-    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
-    return _visible_counts_kernel(
-        np.ascontiguousarray(free, dtype=np.bool_),
-        np.ascontiguousarray(targets, dtype=np.bool_),
-        np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
-        table.offsets,
-        table.valid,
-        table.unique_index,
-        len(table.unique_offsets),
-    )
+    nothing = np.zeros(np.shape(free), dtype=np.bool_)
+    return nested_visible_counts(free, (targets, nothing), nothing, nothing, origins, range_cells)[:, 0]
 
 
 def nested_visible_counts(
@@ -457,30 +450,4 @@ def _nested_counts_kernel(outer, first, second, inner, third, origins, offsets, 
                         last_inner[u] = o + 1
                         if third[y, x]:
                             counts[o, 2] += 1
-    return counts
-
-
-@numba.njit(cache=True, nogil=True)
-def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
-    rows, cols = free.shape
-    n_rays, n_steps = valid.shape
-    counts = np.zeros(len(origins), np.int64)
-    last_origin = np.zeros(n_unique, np.int64)  # origin + 1 that last saw each fan cell: no clearing per origin
-    for o in range(len(origins)):
-        ox, oy = origins[o, 0], origins[o, 1]
-        seen_targets = 0
-        for r in range(n_rays):
-            for k in range(n_steps):
-                if not valid[r, k]:
-                    break
-                x = ox + offsets[r, k, 0]
-                y = oy + offsets[r, k, 1]
-                if x < 0 or x >= cols or y < 0 or y >= rows or not free[y, x]:
-                    break
-                u = unique_index[r, k]
-                if last_origin[u] != o + 1:
-                    last_origin[u] = o + 1
-                    if targets[y, x]:
-                        seen_targets += 1
-        counts[o] = seen_targets
     return counts
