@@ -382,7 +382,7 @@ def visible_counts(
     The walk is `nested_visible_counts`' with no inner fan.
     """
     nothing = np.zeros(np.shape(free), dtype=np.bool_)
-    return nested_visible_counts(free, (targets, nothing), nothing, nothing, origins, range_cells)[:, 0]
+    return _fan_counts(free, targets, nothing, nothing, nothing, origins, range_cells)[:, 0]
 
 
 def nested_visible_counts(
@@ -397,19 +397,19 @@ def nested_visible_counts(
     the cells not known occupied, one through the known free ones), and walking them together
     takes about half the time of three `visible_counts` calls, with the same counts.
     """
-    outer = np.ascontiguousarray(outer_free, dtype=np.bool_)
-    inner = np.ascontiguousarray(inner_free, dtype=np.bool_)
+    outer, inner = np.asarray(outer_free, dtype=np.bool_), np.asarray(inner_free, dtype=np.bool_)
     if inner.shape != outer.shape or any(np.shape(t) != outer.shape for t in (*outer_targets, inner_targets)):
         raise ValueError("nested_visible_counts: the masks differ in shape")
     if np.any(inner & ~outer):
         raise ValueError("nested_visible_counts: inner_free must lie inside outer_free")
+    return _fan_counts(outer, *outer_targets, inner, inner_targets, origins, range_cells)
+
+
+def _fan_counts(outer, first, second, inner, third, origins, range_cells: float) -> np.ndarray:
+    """The compiled walk on contiguous bool copies of the masks, unchecked (the callers check)."""
     table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
     return _nested_counts_kernel(
-        outer,
-        np.ascontiguousarray(outer_targets[0], dtype=np.bool_),
-        np.ascontiguousarray(outer_targets[1], dtype=np.bool_),
-        inner,
-        np.ascontiguousarray(inner_targets, dtype=np.bool_),
+        *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in (outer, first, second, inner, third)),
         np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
         table.offsets,
         table.valid,

@@ -181,7 +181,7 @@ class GraphPlanner(Planner):
         self._gated: tuple[np.ndarray, np.ndarray] | None = None  # (useful nodes, those the gate passes) this decision
         # The gate's verdict per node, kept until a belief change comes within its reach: a
         # verdict reads only the belief around its node, and most nodes are far from each scan.
-        self._gate_known = self._gate_big = np.zeros(0, dtype=bool)
+        self._gate_known, self._gate_big = np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
