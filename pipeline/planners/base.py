@@ -176,6 +176,8 @@ class GraphPlanner(Planner):
             path = resolve_gate_path(gate_file)
             self.gate = load_gate(path)[0]
             self.gate_source = f"sliver gate {path if path != SHIPPED_GATE else '(shipped)'}"
+            # Which gate a run used belongs in its run.json: gated routes move with the gate's fit.
+            self.description = f"{self.description} [{self.gate_source}]"
         elif gate_file is not None:
             raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
         self._gated: tuple[np.ndarray, np.ndarray] | None = None  # (useful nodes, those the gate passes) this decision

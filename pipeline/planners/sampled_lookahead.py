@@ -94,6 +94,7 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
         else:
             self.model_source = "injected block model"
         self.model = model
+        self.description = f"{type(self).description} [{self.model_source}; {self.gate_source}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         # Only the map's size, start and cell size are read here: the rollouts never see its cells.

@@ -17,6 +17,7 @@ from pipeline.sliver_gate import SliverGate, save_gate
 def test_which_planners_gate_by_default(name, gated):
     assert (make_planner(name).gate is not None) == gated
     assert (make_planner(name, sliver_gate=not gated).gate is not None) == (not gated)  # the option overrides
+    assert ("sliver gate" in make_planner(name, sliver_gate=True).description)  # run.json says which gate ran
 
 
 def test_the_gate_keeps_a_subset_and_falls_back_when_it_passes_nothing(small_maze, tmp_path):

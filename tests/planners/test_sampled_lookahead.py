@@ -71,6 +71,7 @@ def test_model_file_resolution(tmp_path):
     path = save_block_model(BlockModel(BlockModelConfig(width=4, dilations=(1,), groups=1)), tmp_path / "b.pt")
     planner = make_planner("sampled_lookahead", checkpoint=str(path))
     assert planner.model.config.width == 4 and str(path) in planner.model_source
+    assert str(path) in planner.description and "sliver gate (shipped)" in planner.description
     assert resolve_block_model(None) == SHIPPED_BLOCK_MODEL  # no models/ in tests: the shipped one
     with pytest.raises(ValueError, match="samples"):
         make_planner("sampled_lookahead", samples=0, checkpoint=str(path))
