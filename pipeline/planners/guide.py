@@ -64,6 +64,7 @@ from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD
 from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
 from pipeline.planners.global_graph_planners import GuideTspPlanner, InpaintFn
 from pipeline.planners.model_cache import load_once
+from pipeline.planners.sampled_lookahead import BlockLookahead, block_model_for, gated_greedy_like
 from pipeline.protocol import Protocol
 from pipeline.sensor import FREE
 from pipeline.simulator import Observation
@@ -140,11 +141,20 @@ class _DiffusionPlanner(GuideTspPlanner):
         count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
         stall_steps: int = 3,  # mode policy; dev mazes (6 x 100 m): 3 -> 634 m, 6 -> 673 m (candidates=8)
         candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
+        lookahead: int = 0,  # mode tour: roll out the best `lookahead` options on block-model maps; 0 = off
+        lookahead_samples: int = 4,
+        block_model: str | None = None,
         **tour_options,
     ):
         # Options that need no model are checked before anything is loaded.
         if mode not in ("tour", "policy"):
             raise ValueError(f"mode must be tour or policy, got {mode!r}")
+        check_int("lookahead", lookahead, 0, note="0 = off; the number of best tour options rolled out")
+        if lookahead == 1 or (lookahead and mode != "tour"):
+            raise ValueError(f"lookahead must be 0 (off) or at least 2, in mode tour; got {lookahead!r} in mode {mode}")
+        BlockLookahead.check_options(lookahead_samples, 20.0, 0.0, 1.0)
+        if block_model is not None and not lookahead:
+            raise ValueError("block_model is given but the lookahead is off; add lookahead=3")
         check_number("prior_weight", prior_weight, 0.0, note="0 = the policy does not vote")
         check_int("stall_steps", stall_steps, 1)
         check_int("candidates", candidates, 1)
@@ -192,13 +202,20 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.candidates = int(candidates)
         self.mode = mode
         self.prior_weight = float(prior_weight)
+        self.lookahead: BlockLookahead | None = None
+        self.lookahead_k = int(lookahead)
+        lookahead_source = ""
+        if lookahead:
+            model, lookahead_source = block_model_for(block_model)
+            self.lookahead = BlockLookahead(model, lookahead_samples)
+            lookahead_source = f"; lookahead {lookahead} x {lookahead_samples} maps, {lookahead_source}"
         # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
         # every other field of a `global_graph=` option is kept.
         self.global_config = replace(self.global_config, max_nodes=config.max_nodes,
                                      use_region_evaluation=self.region_evaluation)
         self.description = (
             f"{self.base_description} [mode {mode}; policy {self.policy_source}; {self.predictor_source}; "
-            f"{self.gate_source}; K={self.num_inference_steps}]"
+            f"{self.gate_source}; K={self.num_inference_steps}{lookahead_source}]"
         )
 
     @staticmethod
@@ -225,6 +242,9 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.decisions = 0
         self.fallbacks = 0
         self.generator = torch.Generator().manual_seed(int(seed))
+        if self.lookahead is not None:
+            self.lookahead.reset(ground_truth)
+            self.lookahead_rng = np.random.default_rng(seed)  # its own draws: the rest of the planner's are unchanged
 
     # ------------------------------------------------------------------ decisions
     def observe_step(self, observation: Observation) -> GraphObservation:
@@ -405,6 +425,13 @@ class _DiffusionPlanner(GuideTspPlanner):
         votes = self.target_votes(robot, paths, options)
         scores = options["scores"] * (1.0 + self.prior_weight * votes)
         best = int(np.argmax(scores))
+        costs = None
+        if self.lookahead is not None and len(scores) > 1:
+            # The best options by score, each rolled out on maps drawn from the block model; the shortest wins.
+            top = np.argsort(-scores, kind="stable")[: self.lookahead_k]
+            costs = self.lookahead.costs(gated_greedy_like(self), observation, [options["tours"][j][0] for j in top],
+                                         pred, self.lookahead_rng)
+            best = int(top[int(np.argmin(costs))])
         tour = options["tours"][best]
         target = tour[0]
         self.previous = target
@@ -430,6 +457,7 @@ class _DiffusionPlanner(GuideTspPlanner):
             "target": target,
             "tour": tour,
             "votes": votes,
+            "lookahead_costs": costs,
             "sampled": True,
             "fallback": not aligned,
             "fallback_share": self.fallbacks / self.decisions,

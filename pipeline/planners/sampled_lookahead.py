@@ -38,7 +38,7 @@ import numpy as np
 from pipeline.block_maps import block_index, block_shares, drawn_world, exit_steps, imagined_free
 from pipeline.maps import GroundTruthMap
 from pipeline.models.modeling_block_model import BlockModel, load_block_model
-from pipeline.planners.base import Waypoint, check_int, check_number, register_planner
+from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.planners.frontier import GreedyUtilityPlanner
 from pipeline.planners.model_cache import load_once
 from pipeline.protocol import Protocol
@@ -61,6 +61,17 @@ def resolve_block_model(checkpoint: str | None) -> Path:
                             f"nor the shipped {SHIPPED_BLOCK_MODEL} exists; pass checkpoint=PATH")
 
 
+def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> tuple[BlockModel, str]:
+    """(the block model, where it came from): `model` when injected, else loaded once per path."""
+    if model is not None:
+        return model, "injected block model"
+    try:
+        path = resolve_block_model(checkpoint)
+    except FileNotFoundError as error:  # an option error, reported in one line like the others
+        raise ValueError(str(error)) from None
+    return load_once("block_model", path, load_block_model), f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
+
+
 @register_planner("sampled_lookahead")
 class SampledLookaheadPlanner(GreedyUtilityPlanner):
     """Gated greedy whose k best targets are each rolled out on block maps drawn from the block model."""
@@ -73,35 +84,20 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
                  switch_margin_m: float | None = None, exit_weight: float = 0.0, temperature: float = 1.0, min_utility: int = 2,
                  sliver_gate: bool | None = None, gate_file: str | None = None, model: BlockModel | None = None):
         check_int("k", k, 1)
-        check_int("samples", samples, 1)
-        check_number("horizon_m", horizon_m, 0.0)
         if switch_margin_m is not None:
             check_number("switch_margin_m", switch_margin_m, 0.0)
             switch_margin_m = float(switch_margin_m)
-        check_number("exit_weight", exit_weight, 0.0)
-        check_number("temperature", temperature, 0.0, low_open=True)
+        BlockLookahead.check_options(samples, horizon_m, exit_weight, temperature)  # before anything is loaded
         super().__init__(min_utility, sliver_gate, gate_file)
-        self.exit_weight, self.temperature = float(exit_weight), float(temperature)
-        self.k, self.samples, self.horizon_m = int(k), int(samples), float(horizon_m)
-        self.switch_margin_m = switch_margin_m
-        if model is None:
-            try:
-                path = resolve_block_model(checkpoint)
-            except FileNotFoundError as error:  # an option error, reported in one line like the others
-                raise ValueError(str(error)) from None
-            model = load_once("block_model", path, load_block_model)
-            self.model_source = f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
-        else:
-            self.model_source = "injected block model"
+        self.k, self.switch_margin_m = int(k), switch_margin_m
+        model, self.model_source = block_model_for(checkpoint, model)
         self.model = model
+        self.lookahead = BlockLookahead(model, samples, horizon_m, exit_weight, temperature)
         self.description = f"{type(self).description} [{self.model_source}; {self.gate_source}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        # Only the map's size, start and cell size are read here: the rollouts never see its cells.
         super().reset(ground_truth, protocol, seed)
-        self.blocks, self.block_grid = block_index(ground_truth.shape, ground_truth.cell_size, self.model.config.block_m)
-        self.start_cell, self.cell_size = ground_truth.start_cell, ground_truth.cell_size
-        self.horizon_cells = int(round(self.horizon_m / ground_truth.cell_size))
+        self.lookahead.reset(ground_truth)
         self.last_target: int | None = None
 
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -116,34 +112,84 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
                 if self.last_target not in candidates:
                     candidates.append(self.last_target)
                 incumbent = candidates.index(self.last_target)
-            cost = np.zeros(len(candidates))
-            probability = self.model.free_probability(block_shares(observation.belief, self.blocks, self.block_grid),
-                                                     self.temperature)
-            shared = (self.model, self.gate, self.blocks)  # read-only: not copied
-            for _ in range(self.samples):
-                drawn = self.rng.random(probability.shape) < probability
-                free = drawn_world(observation.belief, self.blocks, drawn, self.horizon_cells)
-                world = GroundTruthMap(free, self.start_cell, self.cell_size, name="sampled")
-                start = Episode.resume(world, self.protocol, observation.belief, observation.cell, observation.position)
-                exits = (exit_steps(free, imagined_free(observation.belief, self.blocks, drawn))
-                         if self.exit_weight > 0 else None)
-                for i, target in enumerate(candidates):
-                    # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
-                    trial = copy.deepcopy(self, {id(obj): obj for obj in shared})
-                    episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
-                    cost[i] += trial.rollout(episode, target, pred)
-                    if exits is not None and np.isfinite(exits[episode.cell]):
-                        cost[i] += self.exit_weight * float(exits[episode.cell]) * self.cell_size
+            cost = self.lookahead.costs(self, observation, candidates, pred, self.rng)
             best = int(np.argmin(cost))
-            if self.switch_margin_m is not None and cost[best] >= cost[incumbent] - self.switch_margin_m * self.samples:
+            if self.switch_margin_m is not None and cost[best] >= cost[incumbent] - self.switch_margin_m:
                 best = incumbent
             choice = candidates[best]
         self.last_target = choice
         return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))
 
-    def rollout(self, episode: Episode, target: int, pred: np.ndarray) -> float:
-        """On a copy of this planner: head for `target`, then gated greedy, on `episode`'s drawn map.
-        The distance when that map is explored or no target is left (inf past the step limit): when
-        the drawn map's walls hide the rest, its cost so far is the estimate."""
-        distance = self.finish_episode(episode, target, pred)
+
+#: What a gated-greedy rollout reads of a graph planner: its lattice graph, visits and gate state.
+GRAPH_STATE = ("min_utility", "graph", "visited", "protocol", "rng", "gate", "gate_source", "_gated",
+               "_gate_known", "_gate_big", "robot", "belief")
+
+
+def gated_greedy_like(planner: GraphPlanner) -> GreedyUtilityPlanner:
+    """A greedy planner in `planner`'s current graph state (shared, not copied; gated when `planner` is):
+    the rollout policy when a planner with another rule (`guide`) looks ahead. Rollouts run on copies."""
+    view = GreedyUtilityPlanner.__new__(GreedyUtilityPlanner)
+    view.__dict__.update({name: getattr(planner, name) for name in GRAPH_STATE})
+    return view
+
+
+class BlockLookahead:
+    """The mean distance of gated-greedy rollouts toward each candidate target, on block maps drawn
+    from the block model: the simulator `sampled_lookahead` and `guide:lookahead=K` consult.
+
+    Each of `samples` maps is drawn from the model's P(free) per block given the current belief,
+    cut to `horizon_m` beyond the known free space; on each, every candidate is tried on a copy of
+    the rollout planner (head for it until reached or no longer a target, then that planner's rule
+    until the drawn map is explored). Options as `sampled_lookahead`'s.
+    """
+
+    def __init__(self, model: BlockModel, samples: int = 4, horizon_m: float = 20.0, exit_weight: float = 0.0,
+                 temperature: float = 1.0):
+        self.check_options(samples, horizon_m, exit_weight, temperature)
+        self.model, self.samples, self.horizon_m = model, int(samples), float(horizon_m)
+        self.exit_weight, self.temperature = float(exit_weight), float(temperature)
+
+    @staticmethod
+    def check_options(samples: int, horizon_m: float, exit_weight: float, temperature: float) -> None:
+        check_int("samples", samples, 1)
+        check_number("horizon_m", horizon_m, 0.0)
+        check_number("exit_weight", exit_weight, 0.0)
+        check_number("temperature", temperature, 0.0, low_open=True)
+
+    def reset(self, ground_truth: GroundTruthMap) -> None:
+        """Only the map's size, start and cell size are read: the rollouts never see its cells."""
+        self.blocks, self.block_grid = block_index(ground_truth.shape, ground_truth.cell_size, self.model.config.block_m)
+        self.start_cell, self.cell_size = ground_truth.start_cell, ground_truth.cell_size
+        self.horizon_cells = int(round(self.horizon_m / ground_truth.cell_size))
+
+    def costs(self, planner: GreedyUtilityPlanner, observation: Observation, candidates: list[int], pred: np.ndarray,
+              rng: np.random.Generator) -> np.ndarray:
+        """Mean rollout distance (m) per candidate target; `pred`: the planner's known-graph predecessors from the robot."""
+        cost = np.zeros(len(candidates))
+        probability = self.model.free_probability(block_shares(observation.belief, self.blocks, self.block_grid),
+                                                 self.temperature)
+        shared = {id(obj): obj for obj in (self, self.model, planner.gate)}  # read-only: not copied
+        for _ in range(self.samples):
+            drawn = rng.random(probability.shape) < probability
+            free = drawn_world(observation.belief, self.blocks, drawn, self.horizon_cells)
+            world = GroundTruthMap(free, self.start_cell, self.cell_size, name="sampled")
+            start = Episode.resume(world, planner.protocol, observation.belief, observation.cell, observation.position)
+            exits = (exit_steps(free, imagined_free(observation.belief, self.blocks, drawn))
+                     if self.exit_weight > 0 else None)
+            for i, target in enumerate(candidates):
+                # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
+                trial = copy.deepcopy(planner, dict(shared))
+                episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
+                cost[i] += self.rollout(trial, episode, target, pred)
+                if exits is not None and np.isfinite(exits[episode.cell]):
+                    cost[i] += self.exit_weight * float(exits[episode.cell]) * self.cell_size
+        return cost / self.samples
+
+    @staticmethod
+    def rollout(trial: GreedyUtilityPlanner, episode: Episode, target: int, pred: np.ndarray) -> float:
+        """On `trial` (a copy of the rollout planner): head for `target`, then its rule, on `episode`'s
+        drawn map. The distance when that map is explored or no target is left (inf past the step
+        limit): when the drawn map's walls hide the rest, its cost so far is the estimate."""
+        distance = trial.finish_episode(episode, target, pred)
         return episode.distance if distance is None else distance

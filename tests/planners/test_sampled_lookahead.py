@@ -80,7 +80,7 @@ def test_model_file_resolution(tmp_path):
 def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, monkeypatch):
     """Scripted rollouts: the last target costs 10 m a map, any other 9 m. Without a margin the robot
     switches; with a 2 m margin it keeps its target; a 0.5 m margin is beaten."""
-    from pipeline.planners.sampled_lookahead import SampledLookaheadPlanner
+    from pipeline.planners.sampled_lookahead import BlockLookahead
 
     protocol = Protocol()
     model = KnownBlocks(_truth(small_maze))
@@ -94,8 +94,8 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
         _, ranked = planner.ranked_targets(observation)
         assert ranked.size >= 2
         planner.last_target = int(ranked[1])
-        monkeypatch.setattr(SampledLookaheadPlanner, "rollout",
-                            lambda self, ep, target, pred: 10.0 if target == int(ranked[1]) else 9.0)
+        monkeypatch.setattr(BlockLookahead, "rollout",
+                            staticmethod(lambda trial, ep, target, pred: 10.0 if target == int(ranked[1]) else 9.0))
         planner.plan(observation)
         monkeypatch.undo()
         chosen[margin] = planner.last_target == int(ranked[1])
@@ -120,14 +120,72 @@ def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, mo
         _, ranked = planner.ranked_targets(observation)
         assert ranked.size >= 2
 
-        def rollout(self, episode, target, pred):
+        def rollout(trial, episode, target, pred):
             episode.cell = (0, 0) if target == int(ranked[1]) else (0, 20)
             return 10.0
 
-        monkeypatch.setattr(module.SampledLookaheadPlanner, "rollout", rollout)
+        monkeypatch.setattr(module.BlockLookahead, "rollout", staticmethod(rollout))
         monkeypatch.setattr(module, "exit_steps", lambda world, imagined: np.tile(np.arange(world.shape[1], dtype=np.float32), (world.shape[0], 1)))
         planner.plan(observation)
         monkeypatch.undo()
         return planner.last_target == int(ranked[1])
 
     assert not decide(0.0) and decide(1.0)
+
+
+def _guide(**options):
+    from pipeline.planners.guide import SHIPPED_POLICY
+
+    blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
+    return make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options)
+
+
+def test_guide_lookahead_takes_the_tour_option_whose_rollouts_are_shortest(small_maze, monkeypatch):
+    """Scripted rollouts: equal costs keep guide's own choice (the best-scored option); making the
+    last option's rollouts shorter makes it the target."""
+    from pipeline.planners.sampled_lookahead import BlockLookahead
+
+    protocol = Protocol()
+    seen: list[int] = []
+
+    def decide(cheap: int | None) -> dict:
+        planner = _guide(lookahead=3, lookahead_samples=2, block_model=str(SHIPPED_BLOCK_MODEL))
+        planner.reset(small_maze, protocol, 0)
+        observation = Episode(small_maze, protocol).observe()
+
+        def rollout(trial, episode, target, pred):
+            assert trial is not planner and trial.graph is not planner.graph  # a copy, not guide itself
+            seen.append(target)
+            return 5.0 if target == cheap else 10.0
+
+        monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(rollout))
+        planner.plan(observation)
+        monkeypatch.undo()
+        return planner.last_decision
+
+    plain = _guide()
+    plain.reset(small_maze, protocol, 0)
+    plain.plan(Episode(small_maze, protocol).observe())
+    tied = decide(None)
+    candidates = list(dict.fromkeys(seen))
+    assert 2 <= len(candidates) <= 3 and len(seen) == 2 * len(candidates)  # options x 2 drawn maps
+    assert tied["target"] == plain.last_decision["target"] == candidates[0]
+    assert list(tied["lookahead_costs"]) == [10.0] * len(candidates)
+    assert decide(candidates[-1])["target"] == candidates[-1]
+
+
+def test_guide_lookahead_explores_a_maze(small_maze):
+    result = run_episode(small_maze, _guide(lookahead=2, lookahead_samples=1), Protocol(), 0)
+    assert result.complete and result.motion_violations == 0
+
+
+def test_guide_lookahead_options_are_checked():
+    with pytest.raises(ValueError, match="lookahead must be 0"):
+        _guide(lookahead=1)
+    with pytest.raises(ValueError, match="in mode policy"):
+        _guide(lookahead=3, mode="policy")
+    with pytest.raises(ValueError, match="lookahead is off"):
+        _guide(block_model="x.pt")
+    with pytest.raises(ValueError, match="samples"):
+        _guide(lookahead=3, lookahead_samples=0)
+    assert "lookahead 3 x 4 maps, block model (shipped)" in _guide(lookahead=3).description
