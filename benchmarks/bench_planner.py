@@ -2,12 +2,14 @@
 
 Usage: python benchmarks/bench_planner.py [--maps data/mazes/test] [--count 2] [--k 10 30 50 100]
                                           [--planner guide --planner dare] [--steps 60]
+                                          [--option lookahead=3 ...]
 Runs each planner for up to `--steps` waypoints on the first `--count` test mazes and
 times every plan() call. A *full decision* is one that sampled a new action chunk: graph
 update, node prediction, region evaluation, observation, K denoising steps; the other calls
 execute the cached second step (T_a = 2) and only update the graph. Prints the median and
 p95 of full decisions and of all calls, per planner and K. One torch thread, as in the
-benchmark workers.
+benchmark workers. `--option KEY=VALUE` passes planner options (as `guide:KEY=VALUE` in
+`guide benchmark`), e.g. `--option lookahead=3` to time `guide` with its block-model lookahead.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pipeline.benchmark import parse_option_value
 from pipeline.maps import list_maps, load_map
 from pipeline.planners import make_planner
 from pipeline.protocol import Protocol
@@ -53,14 +56,19 @@ def main() -> None:
     parser.add_argument("--planner", action="append", default=None)
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--checkpoint", default=None)
+    parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a planner option; repeatable")
     args = parser.parse_args()
+    for option in args.option:
+        if "=" not in option:
+            parser.error(f"--option takes KEY=VALUE, got {option!r}")
     torch.set_num_threads(1)
     maps = list_maps(Path(args.maps))[: args.count]
     protocol = Protocol(max_steps=args.steps)
     print(f"{'planner':<8} {'K':>4} {'full decision ms (median / p95)':>32} {'all calls ms (median)':>22} {'full decisions':>15}")
     for name in args.planner or ["guide", "dare"]:
         for k in args.k:
-            options = {"num_inference_steps": k}
+            options = {key: parse_option_value(value) for key, value in (o.split("=", 1) for o in args.option)}
+            options["num_inference_steps"] = k
             if args.checkpoint:
                 options["checkpoint"] = args.checkpoint
             full, every = [], []

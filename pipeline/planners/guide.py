@@ -143,6 +143,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         candidates: int = 8,  # plans sampled per decision; mode policy with 1 = the plain policy of the paper
         lookahead: int = 0,  # mode tour: roll out the best `lookahead` options on block-model maps; 0 = off
         lookahead_samples: int = 4,
+        lookahead_targets: str = "greedy",  # what is rolled out: guide's choice + gated greedy's best, or guide's best tour options
         block_model: str | None = None,
         **tour_options,
     ):
@@ -153,6 +154,8 @@ class _DiffusionPlanner(GuideTspPlanner):
         if lookahead == 1 or (lookahead and mode != "tour"):
             raise ValueError(f"lookahead must be 0 (off) or at least 2, in mode tour; got {lookahead!r} in mode {mode}")
         BlockLookahead.check_options(lookahead_samples, 20.0, 0.0, 1.0)
+        if lookahead_targets not in ("greedy", "tour"):
+            raise ValueError(f"lookahead_targets must be greedy or tour, got {lookahead_targets!r}")
         if block_model is not None and not lookahead:
             raise ValueError("block_model is given but the lookahead is off; add lookahead=3")
         check_number("prior_weight", prior_weight, 0.0, note="0 = the policy does not vote")
@@ -203,7 +206,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.mode = mode
         self.prior_weight = float(prior_weight)
         self.lookahead: BlockLookahead | None = None
-        self.lookahead_k = int(lookahead)
+        self.lookahead_k, self.lookahead_targets = int(lookahead), lookahead_targets
         lookahead_source = ""
         if lookahead:
             model, lookahead_source = block_model_for(block_model)
@@ -425,15 +428,20 @@ class _DiffusionPlanner(GuideTspPlanner):
         votes = self.target_votes(robot, paths, options)
         scores = options["scores"] * (1.0 + self.prior_weight * votes)
         best = int(np.argmax(scores))
-        costs = None
-        if self.lookahead is not None and len(scores) > 1:
-            # The best options by score, each rolled out on maps drawn from the block model; the shortest wins.
-            top = np.argsort(-scores, kind="stable")[: self.lookahead_k]
-            costs = self.lookahead.costs(gated_greedy_like(self), observation, [options["tours"][j][0] for j in top],
-                                         pred, self.lookahead_rng)
-            best = int(top[int(np.argmin(costs))])
         tour = options["tours"][best]
         target = tour[0]
+        costs = None
+        if self.lookahead is not None:
+            # Candidate targets, each rolled out on maps drawn from the block model; the shortest wins.
+            if self.lookahead_targets == "tour":
+                candidates = [options["tours"][j][0] for j in np.argsort(-scores, kind="stable")[: self.lookahead_k]]
+            else:  # guide's own choice, then gated greedy's best by utility per metre
+                ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
+                candidates = list(dict.fromkeys([target] + [int(t) for t in ranked[: self.lookahead_k]]))
+            if len(candidates) > 1:
+                costs = self.lookahead.costs(gated_greedy_like(self), observation, candidates, pred, self.lookahead_rng)
+                target = candidates[int(np.argmin(costs))]
+                tour = [target] + [t for t in tour if t != target]
         self.previous = target
         # The chunk: a sample's steps while each one shortens the known-graph distance to the target by its length.
         to_target, _ = graph.shortest_paths(target)

@@ -140,16 +140,17 @@ def _guide(**options):
     return make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options)
 
 
-def test_guide_lookahead_takes_the_tour_option_whose_rollouts_are_shortest(small_maze, monkeypatch):
-    """Scripted rollouts: equal costs keep guide's own choice (the best-scored option); making the
-    last option's rollouts shorter makes it the target."""
+@pytest.mark.parametrize("targets", ["greedy", "tour"])
+def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze, monkeypatch, targets):
+    """Scripted rollouts: equal costs keep guide's own choice (the first candidate: its best-scored
+    option); making the last candidate's rollouts shorter makes it the target."""
     from pipeline.planners.sampled_lookahead import BlockLookahead
 
     protocol = Protocol()
     seen: list[int] = []
 
     def decide(cheap: int | None) -> dict:
-        planner = _guide(lookahead=3, lookahead_samples=2, block_model=str(SHIPPED_BLOCK_MODEL))
+        planner = _guide(lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model=str(SHIPPED_BLOCK_MODEL))
         planner.reset(small_maze, protocol, 0)
         observation = Episode(small_maze, protocol).observe()
 
@@ -168,7 +169,8 @@ def test_guide_lookahead_takes_the_tour_option_whose_rollouts_are_shortest(small
     plain.plan(Episode(small_maze, protocol).observe())
     tied = decide(None)
     candidates = list(dict.fromkeys(seen))
-    assert 2 <= len(candidates) <= 3 and len(seen) == 2 * len(candidates)  # options x 2 drawn maps
+    # guide's choice and greedy's best 3, or guide's best 3 options; each on 2 drawn maps
+    assert 2 <= len(candidates) <= (4 if targets == "greedy" else 3) and len(seen) == 2 * len(candidates)
     assert tied["target"] == plain.last_decision["target"] == candidates[0]
     assert list(tied["lookahead_costs"]) == [10.0] * len(candidates)
     assert decide(candidates[-1])["target"] == candidates[-1]
@@ -188,4 +190,6 @@ def test_guide_lookahead_options_are_checked():
         _guide(block_model="x.pt")
     with pytest.raises(ValueError, match="samples"):
         _guide(lookahead=3, lookahead_samples=0)
+    with pytest.raises(ValueError, match="lookahead_targets must be greedy or tour"):
+        _guide(lookahead=3, lookahead_targets="best")
     assert "lookahead 3 x 4 maps, block model (shipped)" in _guide(lookahead=3).description
