@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from pipeline.benchmark import parse_planner_spec
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -58,7 +60,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
     metrics = json.loads((project / "reports/benchmark.json").read_text())
-    assert set(metrics) == set(params["benchmark"]["planners"])
+    assert set(metrics) == {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
     assert all(m["completion_rate"] == 1.0 for m in metrics.values())
     assert json.loads((project / "reports/pairs_summary.json").read_text())["pairs"] == 12
     assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
