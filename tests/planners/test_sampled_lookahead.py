@@ -188,8 +188,36 @@ def test_guide_lookahead_options_are_checked():
         _guide(lookahead=3, mode="policy")
     with pytest.raises(ValueError, match="lookahead is off"):
         _guide(block_model="x.pt")
+    with pytest.raises(ValueError, match="lookahead is off"):
+        _guide(lookahead_commit=False)
     with pytest.raises(ValueError, match="samples"):
         _guide(lookahead=3, lookahead_samples=0)
     with pytest.raises(ValueError, match="lookahead_targets must be greedy or tour"):
         _guide(lookahead=3, lookahead_targets="best")
     assert "lookahead 3 x 4 maps, block model (shipped)" in _guide(lookahead=3).description
+
+
+def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small_maze, monkeypatch):
+    """With lookahead_commit (the default) the rollouts run only when the last target is reached or
+    is no longer a target; in between each decision keeps it. Without, every sampled decision rolls out."""
+    from pipeline.planners.sampled_lookahead import BlockLookahead
+
+    protocol = Protocol()
+    calls: list[int] = []
+    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(lambda trial, ep, target, pred: calls.append(target) or 10.0))
+    rounds = {}
+    for commit in (None, False):
+        planner = _guide(lookahead=2, lookahead_samples=1, **({} if commit is None else {"lookahead_commit": commit}))
+        planner.reset(small_maze, protocol, 0)
+        episode = Episode(small_maze, protocol)
+        decisions = []  # (rolled out, target)
+        for _ in range(10):
+            before = len(calls)
+            episode.move(planner.plan(episode.observe())[0])
+            if planner.last_decision.get("sampled"):
+                decisions.append((len(calls) > before, planner.last_decision["target"]))
+        rounds[commit] = sum(rolled for rolled, _ in decisions)
+        if commit is None:
+            for (_, previous), (rolled, target) in zip(decisions, decisions[1:]):
+                assert rolled or target == previous
+    assert 1 <= rounds[None] < rounds[False]
