@@ -56,8 +56,9 @@ about 0.3-0.5 s a decision instead of 35 ms (docs/findings.md). The rollouts con
 greedy, so they price greedy's candidates better than guide's tour options. With
 `lookahead_commit` (on unless set false) the robot keeps the lookahead's target, without new
 rollouts, until it is reached or no longer a target, as the rollouts themselves assumed: the
-test mazes 435.7 m and 50 fresh mazes -1.1 % +- 3.2 against re-deciding at every sampled
-decision, at about a third of the decision time (per-maze median about 110 ms).
+test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at every sampled
+decision, at a third of the time per planner call (about 100 ms median; a full decision that
+rolls out still takes 0.3-0.5 s).
 
 Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/planner_dare/ for
 `dare`) from the pipeline; else the default shipped in pipeline/assets/ when present.
