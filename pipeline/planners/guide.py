@@ -160,6 +160,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         lookahead_samples: int = 4,
         lookahead_targets: str = "greedy",  # what is rolled out: guide's choice + gated greedy's best, or guide's best tour options
         lookahead_commit: bool | None = None,  # keep the lookahead's target until reached or no longer a target; None = on
+        lookahead_rollout: str | None = None,  # fast (greedy walking whole paths) or full (gated greedy, a choice per node); None = fast
         block_model: str | None = None,
         **tour_options,
     ):
@@ -172,8 +173,10 @@ class _DiffusionPlanner(GuideTspPlanner):
         BlockLookahead.check_options(lookahead_samples, 20.0, 0.0, 1.0)
         if lookahead_targets not in ("greedy", "tour"):
             raise ValueError(f"lookahead_targets must be greedy or tour, got {lookahead_targets!r}")
-        if (block_model is not None or lookahead_commit is not None) and not lookahead:
-            raise ValueError("block_model or lookahead_commit is given but the lookahead is off; add lookahead=3")
+        if lookahead_rollout not in (None, "fast", "full"):
+            raise ValueError(f"lookahead_rollout must be fast or full, got {lookahead_rollout!r}")
+        if (block_model is not None or lookahead_commit is not None or lookahead_rollout is not None) and not lookahead:
+            raise ValueError("block_model, lookahead_commit or lookahead_rollout is given but the lookahead is off; add lookahead=3")
         check_number("prior_weight", prior_weight, 0.0, note="0 = the policy does not vote")
         check_int("stall_steps", stall_steps, 1)
         check_int("candidates", candidates, 1)
@@ -224,11 +227,13 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.lookahead: BlockLookahead | None = None
         self.lookahead_k, self.lookahead_targets = int(lookahead), lookahead_targets
         self.lookahead_commit = lookahead_commit is not False
+        self.lookahead_rollout = lookahead_rollout or "fast"
         lookahead_source = ""
         if lookahead:
             model, lookahead_source = block_model_for(block_model)
-            self.lookahead = BlockLookahead(model, lookahead_samples)
-            lookahead_source = f"; lookahead {lookahead} x {lookahead_samples} maps, {lookahead_source}"
+            self.lookahead = BlockLookahead(model, lookahead_samples, per_target=self.lookahead_rollout == "fast")
+            lookahead_source = (f"; lookahead {lookahead} x {lookahead_samples} maps, {self.lookahead_rollout} rollouts, "
+                                f"{lookahead_source}")
         # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
         # every other field of a `global_graph=` option is kept.
         self.global_config = replace(self.global_config, max_nodes=config.max_nodes,
@@ -461,7 +466,8 @@ class _DiffusionPlanner(GuideTspPlanner):
                 ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
                 candidates = list(dict.fromkeys([target] + [int(t) for t in ranked[: self.lookahead_k]]))
             if len(candidates) > 1:
-                costs = self.lookahead.costs(gated_greedy_like(self), observation, candidates, pred, self.lookahead_rng)
+                rollout_planner = gated_greedy_like(self, gated=self.lookahead_rollout == "full")
+                costs = self.lookahead.costs(rollout_planner, observation, candidates, pred, self.lookahead_rng)
                 target = candidates[int(np.argmin(costs))]
                 tour = [target] + [t for t in tour if t != target]
             self.lookahead_choice = target

@@ -127,11 +127,14 @@ GRAPH_STATE = ("min_utility", "graph", "visited", "protocol", "rng", "gate", "ga
                "_gate_known", "_gate_big", "robot", "belief")
 
 
-def gated_greedy_like(planner: GraphPlanner) -> GreedyUtilityPlanner:
-    """A greedy planner in `planner`'s current graph state (shared, not copied; gated when `planner` is):
-    the rollout policy when a planner with another rule (`guide`) looks ahead. Rollouts run on copies."""
+def gated_greedy_like(planner: GraphPlanner, gated: bool = True) -> GreedyUtilityPlanner:
+    """A greedy planner in `planner`'s current graph state (shared, not copied; gated when `planner` is
+    and `gated`): the rollout policy when a planner with another rule (`guide`) looks ahead. Rollouts
+    run on copies."""
     view = GreedyUtilityPlanner.__new__(GreedyUtilityPlanner)
     view.__dict__.update({name: getattr(planner, name) for name in GRAPH_STATE})
+    if not gated:
+        view.gate, view._gated = None, None
     return view
 
 
@@ -142,14 +145,17 @@ class BlockLookahead:
     Each of `samples` maps is drawn from the model's P(free) per block given the current belief,
     cut to `horizon_m` beyond the known free space; on each, every candidate is tried on a copy of
     the rollout planner (head for it until reached or no longer a target, then that planner's rule
-    until the drawn map is explored). Options as `sampled_lookahead`'s.
+    until the drawn map is explored). Options as `sampled_lookahead`'s; with `per_target` the
+    rollout planner walks each target's whole path before choosing again
+    (`GreedyUtilityPlanner.finish_episode`).
     """
 
     def __init__(self, model: BlockModel, samples: int = 4, horizon_m: float = 20.0, exit_weight: float = 0.0,
-                 temperature: float = 1.0):
+                 temperature: float = 1.0, per_target: bool = False):
         self.check_options(samples, horizon_m, exit_weight, temperature)
         self.model, self.samples, self.horizon_m = model, int(samples), float(horizon_m)
         self.exit_weight, self.temperature = float(exit_weight), float(temperature)
+        self.per_target = bool(per_target)
 
     @staticmethod
     def check_options(samples: int, horizon_m: float, exit_weight: float, temperature: float) -> None:
@@ -182,15 +188,15 @@ class BlockLookahead:
                 # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
                 trial = copy.deepcopy(planner, dict(shared))
                 episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
-                cost[i] += self.rollout(trial, episode, target, pred)
+                cost[i] += self.rollout(trial, episode, target, pred, self.per_target)
                 if exits is not None and np.isfinite(exits[episode.cell]):
                     cost[i] += self.exit_weight * float(exits[episode.cell]) * self.cell_size
         return cost / self.samples
 
     @staticmethod
-    def rollout(trial: GreedyUtilityPlanner, episode: Episode, target: int, pred: np.ndarray) -> float:
+    def rollout(trial: GreedyUtilityPlanner, episode: Episode, target: int, pred: np.ndarray, per_target: bool = False) -> float:
         """On `trial` (a copy of the rollout planner): head for `target`, then its rule, on `episode`'s
         drawn map. The distance when that map is explored or no target is left (inf past the step
         limit): when the drawn map's walls hide the rest, its cost so far is the estimate."""
-        distance = trial.finish_episode(episode, target, pred)
+        distance = trial.finish_episode(episode, target, pred, per_target)
         return episode.distance if distance is None else distance

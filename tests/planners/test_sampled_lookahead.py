@@ -95,7 +95,7 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
         assert ranked.size >= 2
         planner.last_target = int(ranked[1])
         monkeypatch.setattr(BlockLookahead, "rollout",
-                            staticmethod(lambda trial, ep, target, pred: 10.0 if target == int(ranked[1]) else 9.0))
+                            staticmethod(lambda trial, ep, target, pred, per_target=False: 10.0 if target == int(ranked[1]) else 9.0))
         planner.plan(observation)
         monkeypatch.undo()
         chosen[margin] = planner.last_target == int(ranked[1])
@@ -120,7 +120,7 @@ def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, mo
         _, ranked = planner.ranked_targets(observation)
         assert ranked.size >= 2
 
-        def rollout(trial, episode, target, pred):
+        def rollout(trial, episode, target, pred, per_target=False):
             episode.cell = (0, 0) if target == int(ranked[1]) else (0, 20)
             return 10.0
 
@@ -154,7 +154,7 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
         planner.reset(small_maze, protocol, 0)
         observation = Episode(small_maze, protocol).observe()
 
-        def rollout(trial, episode, target, pred):
+        def rollout(trial, episode, target, pred, per_target=False):
             assert trial is not planner and trial.graph is not planner.graph  # a copy, not guide itself
             seen.append(target)
             return 5.0 if target == cheap else 10.0
@@ -194,7 +194,7 @@ def test_guide_lookahead_options_are_checked():
         _guide(lookahead=3, lookahead_samples=0)
     with pytest.raises(ValueError, match="lookahead_targets must be greedy or tour"):
         _guide(lookahead=3, lookahead_targets="best")
-    assert "lookahead 3 x 4 maps, block model (shipped)" in _guide(lookahead=3).description
+    assert "lookahead 3 x 4 maps, fast rollouts, block model (shipped)" in _guide(lookahead=3).description
 
 
 def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small_maze, monkeypatch):
@@ -204,7 +204,7 @@ def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small
 
     protocol = Protocol()
     calls: list[int] = []
-    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(lambda trial, ep, target, pred: calls.append(target) or 10.0))
+    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(lambda trial, ep, target, pred, per_target=False: calls.append(target) or 10.0))
     rounds = {}
     for commit in (None, False):
         planner = _guide(lookahead=2, lookahead_samples=1, **({} if commit is None else {"lookahead_commit": commit}))
@@ -221,3 +221,61 @@ def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small
             for (_, previous), (rolled, target) in zip(decisions, decisions[1:]):
                 assert rolled or target == previous
     assert 1 <= rounds[None] < rounds[False]
+
+
+def test_per_target_rollouts_choose_only_on_arrival(small_maze):
+    """`finish_episode(per_target=True)` walks each chosen target's whole path before choosing again:
+    every choice after the first is made standing on the last target, and there are no more of them
+    than when greedy chooses at every node. Both finish the maze."""
+    import copy
+
+    from pipeline.planners.frontier import GreedyUtilityPlanner
+
+    protocol = Protocol()
+    base = make_planner("greedy_utility")
+    base.reset(small_maze, protocol, 0)
+    start = Episode(small_maze, protocol)
+    pred, ranked = base.ranked_targets(start.observe())
+    results = {}
+    for per_target in (False, True):
+        planner, episode = copy.deepcopy(base), copy.deepcopy(start)
+        choices = []  # (robot node when choosing, the target it then walks to)
+        ranked_targets = planner.ranked_targets
+
+        def counting(observation, ranked_targets=ranked_targets, planner=planner, choices=choices):
+            pred, ranked = ranked_targets(observation)
+            choices.append((planner.robot, int(ranked[0]) if ranked.size else None))
+            return pred, ranked
+
+        planner.ranked_targets = counting
+        distance = GreedyUtilityPlanner.finish_episode(planner, episode, int(ranked[0]), pred, per_target)
+        assert distance is not None and np.isfinite(distance) and episode.complete
+        results[per_target] = choices
+    walked = [(None, int(ranked[0]))] + results[True]
+    assert all(robot == target for (_, target), (robot, _) in zip(walked, walked[1:]))
+    assert len(results[True]) <= len(results[False])
+
+
+@pytest.mark.parametrize("rollout", [None, "fast", "full"])
+def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
+    """Fast rollouts (the default): ungated greedy walking whole paths; full: gated greedy choosing at every node."""
+    from pipeline.planners.sampled_lookahead import BlockLookahead
+
+    seen = []
+    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(
+        lambda trial, ep, target, pred, per_target=False: seen.append((trial.gate is None, per_target)) or 10.0))
+    planner = _guide(lookahead=3, lookahead_samples=1, sliver_gate=True,
+                     **({} if rollout is None else {"lookahead_rollout": rollout}))
+    assert planner.gate is not None
+    planner.reset(small_maze, Protocol(), 0)
+    planner.plan(Episode(small_maze, Protocol()).observe())
+    fast = rollout != "full"
+    assert seen and set(seen) == {(fast, fast)}
+    assert planner.gate is not None  # guide's own gate is untouched
+
+
+def test_guide_lookahead_rollout_option_is_checked():
+    with pytest.raises(ValueError, match="lookahead_rollout must be fast or full"):
+        _guide(lookahead=3, lookahead_rollout="quick")
+    with pytest.raises(ValueError, match="lookahead is off"):
+        _guide(lookahead_rollout="fast")
