@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numba
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -101,6 +102,8 @@ class LatticeGraph:
         self.node_state = np.full(self.node_count, NODE_UNKNOWN, dtype=np.int8)
         self.utility = np.zeros(self.node_count, dtype=np.int64)
         self.frontier = np.zeros(spec.shape, dtype=bool)
+        # Region labels feed the global graph only: a lookahead's rollout copies turn them off.
+        self.track_regions = True
         self.belief = np.full(spec.shape, UNKNOWN, dtype=np.uint8)
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
@@ -209,7 +212,8 @@ class LatticeGraph:
         self._update_nodes(belief, box)
         self._update_edges(belief, box)
         self._update_utilities(belief, frontier_box)
-        self._update_regions(belief, frontier_box)
+        if self.track_regions:
+            self._update_regions(belief, frontier_box)
 
     def _nodes_in_box(self, box: tuple[int, int, int, int], margin: float = 0.0) -> np.ndarray:
         x0, x1, y0, y1 = box
@@ -250,7 +254,7 @@ class LatticeGraph:
             return
         rows, cols = belief.shape
         # Skip nodes with no frontier cell in their range's bounding square (summed-area table).
-        integral = np.pad(self.frontier, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+        integral = cv2.integral(self.frontier.view(np.uint8))  # (rows + 1, cols + 1) running sums
         rc = int(np.ceil(r))
         c = self.node_cells[ids]
         xa, xb = np.clip(c[:, 0] - rc, 0, cols), np.clip(c[:, 0] + rc + 1, 0, cols)

@@ -58,7 +58,11 @@ greedy, so they price greedy's candidates better than guide's tour options. With
 rollouts, until it is reached or no longer a target, as the rollouts themselves assumed: the
 test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at every sampled
 decision, at a third of the time per planner call (about 100 ms median; a full decision that
-rolls out still takes 0.3-0.5 s).
+rolls out still takes 0.25-0.5 s).
+`lookahead_rollout=fast` rolls out plain greedy (no sliver gate) that walks each target's whole
+path before choosing again: half the time a full decision (127 against 248 ms median), but on 50
+fresh mazes +5.2 % +- 4.2 longer than with the default `full` rollouts (gated greedy choosing at
+every node): it gives up most of the lookahead's gain, so it stays an option (docs/findings.md).
 
 Checkpoints: `checkpoint` wins; else models/planner_guide/policy.pt (models/planner_dare/ for
 `dare`) from the pipeline; else the default shipped in pipeline/assets/ when present.
@@ -160,7 +164,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         lookahead_samples: int = 4,
         lookahead_targets: str = "greedy",  # what is rolled out: guide's choice + gated greedy's best, or guide's best tour options
         lookahead_commit: bool | None = None,  # keep the lookahead's target until reached or no longer a target; None = on
-        lookahead_rollout: str | None = None,  # fast (greedy walking whole paths) or full (gated greedy, a choice per node); None = fast
+        lookahead_rollout: str | None = None,  # full (gated greedy, a choice per node) or fast (greedy walking whole paths); None = full
         block_model: str | None = None,
         **tour_options,
     ):
@@ -227,7 +231,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         self.lookahead: BlockLookahead | None = None
         self.lookahead_k, self.lookahead_targets = int(lookahead), lookahead_targets
         self.lookahead_commit = lookahead_commit is not False
-        self.lookahead_rollout = lookahead_rollout or "fast"
+        self.lookahead_rollout = lookahead_rollout or "full"
         lookahead_source = ""
         if lookahead:
             model, lookahead_source = block_model_for(block_model)

@@ -187,6 +187,7 @@ class BlockLookahead:
             for i, target in enumerate(candidates):
                 # A fresh memo per copy: deepcopy records what it copied in the memo it is given.
                 trial = copy.deepcopy(planner, dict(shared))
+                trial.graph.track_regions = False  # greedy never reads them
                 episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
                 cost[i] += self.rollout(trial, episode, target, pred, self.per_target)
                 if exits is not None and np.isfinite(exits[episode.cell]):

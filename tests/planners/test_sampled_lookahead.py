@@ -194,7 +194,7 @@ def test_guide_lookahead_options_are_checked():
         _guide(lookahead=3, lookahead_samples=0)
     with pytest.raises(ValueError, match="lookahead_targets must be greedy or tour"):
         _guide(lookahead=3, lookahead_targets="best")
-    assert "lookahead 3 x 4 maps, fast rollouts, block model (shipped)" in _guide(lookahead=3).description
+    assert "lookahead 3 x 4 maps, full rollouts, block model (shipped)" in _guide(lookahead=3).description
 
 
 def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small_maze, monkeypatch):
@@ -258,7 +258,7 @@ def test_per_target_rollouts_choose_only_on_arrival(small_maze):
 
 @pytest.mark.parametrize("rollout", [None, "fast", "full"])
 def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
-    """Fast rollouts (the default): ungated greedy walking whole paths; full: gated greedy choosing at every node."""
+    """Full rollouts (the default): gated greedy choosing at every node; fast: ungated greedy walking whole paths."""
     from pipeline.planners.sampled_lookahead import BlockLookahead
 
     seen = []
@@ -269,7 +269,7 @@ def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
     assert planner.gate is not None
     planner.reset(small_maze, Protocol(), 0)
     planner.plan(Episode(small_maze, Protocol()).observe())
-    fast = rollout != "full"
+    fast = rollout == "fast"
     assert seen and set(seen) == {(fast, fast)}
     assert planner.gate is not None  # guide's own gate is untouched
 
