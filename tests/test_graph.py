@@ -65,6 +65,25 @@ def test_incremental_updates_equal_a_fresh_build(small_maze):
 
 
 
+
+def test_a_graph_without_region_tracking_differs_only_in_its_regions(small_maze):
+    """Rollout copies turn region labels off: nodes, edges, frontier and utilities stay exact."""
+    episode, _ = partial_episode(small_maze)
+    graphs = {}
+    for track in (True, False):
+        graph = LatticeGraph(spec_for(small_maze))
+        graph.update(Episode(small_maze, Protocol()).belief.grid, None)
+        graph.track_regions = track
+        replay = Episode(small_maze, Protocol())
+        for point in episode.trajectory[1:]:
+            replay.move(point)
+            graph.update(replay.belief.grid, replay.observe().changed)
+        graphs[track] = graph
+    tracked, untracked = graphs[True], graphs[False]
+    for name in ("node_state", "edge_valid", "frontier", "utility"):
+        np.testing.assert_array_equal(getattr(tracked, name), getattr(untracked, name))
+    assert tracked.region_observed.sum() > untracked.region_observed.sum()
+
 def test_neighbours_follow_the_edges_as_the_graph_grows(small_maze):
     """Neighbour lists are cached per graph change: each update must be seen."""
     episode, _ = partial_episode(small_maze, steps=6)
