@@ -51,11 +51,9 @@ class GreedyUtilityPlanner(GraphPlanner):
             return self._finish_per_target(episode, target, pred)
         committed = True
         while True:
-            episode.move(self.waypoints_along(self.graph.path_from_predecessors(pred, target))[0])
-            if episode.complete:
-                return float(episode.completion_distance)
-            if episode.steps >= self.protocol.max_steps:
-                return np.inf
+            ended = self._move_to(episode, self.graph.path_from_predecessors(pred, target)[1])
+            if ended is not None:
+                return ended
             pred, ranked = self.ranked_targets(episode.observe())
             if ranked.size == 0:
                 return None
@@ -67,12 +65,20 @@ class GreedyUtilityPlanner(GraphPlanner):
     def _finish_per_target(self, episode: Episode, target: int, pred: np.ndarray) -> float | None:
         while True:
             for node in self.graph.path_from_predecessors(pred, target)[1:]:
-                episode.move(tuple(map(float, self.graph.node_world[node])))
-                if episode.complete:
-                    return float(episode.completion_distance)
-                if episode.steps >= self.protocol.max_steps:
-                    return np.inf
+                ended = self._move_to(episode, node)
+                if ended is not None:
+                    return ended
             pred, ranked = self.ranked_targets(episode.observe())
             if ranked.size == 0:
                 return None
             target = int(ranked[0])
+
+    def _move_to(self, episode: Episode, node: int) -> float | None:
+        """One rollout move to a neighbouring `node`; the rollout's result if it ends there
+        (the distance at completion, inf at the step limit), else None."""
+        episode.move(tuple(map(float, self.graph.node_world[node])))
+        if episode.complete:
+            return float(episode.completion_distance)
+        if episode.steps >= self.protocol.max_steps:
+            return np.inf
+        return None
