@@ -9,7 +9,8 @@ update, node prediction, region evaluation, observation, K denoising steps; the 
 execute the cached second step (T_a = 2) and only update the graph. Prints the median and
 p95 of full decisions and of all calls, per planner and K. One torch thread, as in the
 benchmark workers. `--option KEY=VALUE` passes planner options (as `guide:KEY=VALUE` in
-`guide benchmark`), e.g. `--option lookahead=3` to time `guide` with its block-model lookahead.
+`guide benchmark`), e.g. `--option lookahead=3` to time `guide` with its block-model lookahead;
+then a second line per K gives the full decisions that rolled out (chose a new target) apart.
 """
 
 from __future__ import annotations
@@ -29,11 +30,11 @@ from pipeline.simulator import run_episode
 
 
 class TimedPlanner:
-    """Wraps a planner and records (milliseconds, sampled) per plan() call."""
+    """Wraps a planner and records (milliseconds, sampled, rolled out) per plan() call."""
 
     def __init__(self, planner):
         self.planner = planner
-        self.calls: list[tuple[float, bool]] = []
+        self.calls: list[tuple[float, bool, bool]] = []
 
     def __getattr__(self, name):
         return getattr(self.planner, name)
@@ -44,7 +45,9 @@ class TimedPlanner:
     def plan(self, observation):
         t0 = time.perf_counter()
         out = self.planner.plan(observation)
-        self.calls.append(((time.perf_counter() - t0) * 1e3, bool(self.planner.last_decision.get("sampled", False))))
+        decision = self.planner.last_decision
+        self.calls.append(((time.perf_counter() - t0) * 1e3, bool(decision.get("sampled", False)),
+                           decision.get("lookahead_costs") is not None))
         return out
 
 
@@ -71,13 +74,18 @@ def main() -> None:
             options["num_inference_steps"] = k
             if args.checkpoint:
                 options["checkpoint"] = args.checkpoint
-            full, every = [], []
+            full, rolled, every = [], [], []
             for path in maps:
                 timed = TimedPlanner(make_planner(name, **options))
                 run_episode(load_map(path), timed, protocol)
-                full += [ms for ms, sampled in timed.calls[1:] if sampled]  # the first call also loads the model
-                every += [ms for ms, _ in timed.calls[1:]]
+                calls = timed.calls[1:]  # the first call also loads the model
+                full += [ms for ms, sampled, _ in calls if sampled]
+                rolled += [ms for ms, sampled, rolled_out in calls if sampled and rolled_out]
+                every += [ms for ms, _, _ in calls]
             print(f"{name:<8} {k:>4} {np.median(full):>18.1f} / {np.percentile(full, 95):>8.1f} {np.median(every):>22.1f} {len(full):>15}")
+            if rolled:
+                print(f"{'':<8} {'':>4} {np.median(rolled):>18.1f} / {np.percentile(rolled, 95):>8.1f} {'':>22} {len(rolled):>15}"
+                      "  <- of which rolled out")
 
 
 if __name__ == "__main__":

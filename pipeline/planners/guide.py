@@ -60,7 +60,7 @@ test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at 
 decision, at a third of the time per planner call (about 100 ms median; a full decision that
 rolls out still takes 0.25-0.5 s).
 `lookahead_rollout=fast` rolls out plain greedy (no sliver gate) that walks each target's whole
-path before choosing again: half the time a full decision (127 against 248 ms median), but on 50
+path before choosing again: half the time a full decision (127 against 248 ms median, one spell), but on 50
 fresh mazes +5.2 % +- 4.2 longer than with the default `full` rollouts (gated greedy choosing at
 every node): it gives up most of the lookahead's gain, so it stays an option (docs/findings.md).
 
