@@ -23,6 +23,9 @@ UNKNOWN = np.uint8(128)
 
 DEFAULT_ANGLES = sensor_angles(0.5)
 
+# Cell values of the lidar's padded map (ground truth plus a border beyond the grid).
+PADDED_OCCUPIED, PADDED_FREE, PADDED_OUTSIDE = 0, 1, 2
+
 
 @dataclass(frozen=True)
 class ScanResult:
@@ -39,14 +42,12 @@ class Lidar:
     revealing anything, exactly as the protocol's walk stops at the grid's edge.
     """
 
-    _OCC, _FREE, _OUTSIDE = 0, 1, 2
-
     def __init__(self, ground_free: np.ndarray, range_cells: float, angles: np.ndarray = DEFAULT_ANGLES):
         self.shape = ground_free.shape
         self.range_cells = float(range_cells)
         self.angles = angles
         self.pad = int(np.ceil(range_cells)) + 1
-        padded = np.full((self.shape[0] + 2 * self.pad, self.shape[1] + 2 * self.pad), self._OUTSIDE, dtype=np.uint8)
+        padded = np.full((self.shape[0] + 2 * self.pad, self.shape[1] + 2 * self.pad), PADDED_OUTSIDE, dtype=np.uint8)
         padded[self.pad : -self.pad, self.pad : -self.pad] = ground_free.astype(np.uint8)
         self._padded = padded.reshape(-1)
         self._padded_cols = padded.shape[1]
@@ -97,10 +98,10 @@ def _walk_rays(padded, base, padded_flat, grid_flat, valid, step_place, n_cells)
     for r in range(n_rays):
         for k in range(n_steps):
             if not valid[r, k]:
-                break  # past the range or the grid's edge: stop, revealing nothing
+                break  # past the ray's range
             value = padded[base + padded_flat[r, k]]
-            if value != 1:  # Lidar._FREE
-                if value == 0:  # Lidar._OCC: revealed, and the ray stops
+            if value != PADDED_FREE:
+                if value == PADDED_OCCUPIED:  # revealed, and the ray stops
                     occupied[hits] = grid_flat[r, k]
                     hits += 1
                 break
