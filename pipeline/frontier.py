@@ -11,7 +11,10 @@ _NEIGHBOUR_KERNEL = np.ones((3, 3), dtype=np.float32)
 _NEIGHBOUR_KERNEL[1, 1] = 0.0
 
 
-def frontier_mask(belief: np.ndarray, min_unknown_neighbours: int = 2) -> np.ndarray:
+FRONTIER_MIN_UNKNOWN_NEIGHBOURS = 2  # DARE's rule, below
+
+
+def frontier_mask(belief: np.ndarray, min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS) -> np.ndarray:
     """Free cells with at least `min_unknown_neighbours` unknown cells among their 8 neighbours.
 
     Requiring two (as DARE does) ignores single grazing-ray gaps along walls, which no

@@ -8,15 +8,17 @@ near the cells that changed; nothing is rebuilt from scratch.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numba
 import numpy as np
-from scipy.sparse import coo_matrix
+from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from pipeline.frontier import frontier_mask, update_frontier_window
+from pipeline.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask, update_frontier_window
 from pipeline.geometry import ray_table, sensor_angles, walk_offsets
 from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
 
@@ -36,7 +38,7 @@ class LatticeSpec:
     node_resolution: float
     utility_range: float
     region_size: float
-    frontier_min_unknown_neighbours: int = 2
+    frontier_min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 
     @classmethod
     def for_map(cls, ground_truth, protocol) -> "LatticeSpec":
@@ -108,6 +110,7 @@ class LatticeGraph:
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
         self._adjacency = None
+        self._search_matrix = None
         self._neighbour_lists: tuple[np.ndarray, np.ndarray] | None = None
         self.utility_range_cells = spec.utility_range / spec.cell_size
         region_cells = spec.region_size / spec.cell_size
@@ -124,6 +127,24 @@ class LatticeGraph:
         np.add.at(self.nodes_per_region, (self.node_region[:, 0], self.node_region[:, 1]), 1)
         self.region_observed = np.zeros(self.region_shape, dtype=np.int64)
         self.region_frontier = np.zeros(self.region_shape, dtype=np.int64)
+
+    #: What a copy shares with its original: the lattice's geometry, fixed at construction, and
+    #: caches that are replaced, never changed in place. The lookahead copies the graph a dozen
+    #: times a decision; the edge walks alone are megabytes.
+    SHARED_ON_COPY = frozenset((
+        "spec", "lattice_i", "lattice_j", "node_ij", "node_world", "node_cells", "node_flat", "node_count", "_id_grid",
+        "edge_nodes", "_edge_walks", "_walk_rows", "_edge_box", "edge_length", "utility_range_cells", "_region_cells",
+        "_region_origin", "region_col_of_x", "region_row_of_y", "_region_offset", "region_shape", "node_region",
+        "nodes_per_region", "_search_entries", "_adjacency", "_search_matrix", "_neighbour_lists",
+    ))
+
+    def __deepcopy__(self, memo: dict) -> "LatticeGraph":
+        """A copy whose state (node states, edges, frontier, utilities, regions) is its own."""
+        clone = LatticeGraph.__new__(LatticeGraph)
+        memo[id(self)] = clone
+        for name, value in self.__dict__.items():
+            clone.__dict__[name] = value if name in self.SHARED_ON_COPY else copy.deepcopy(value, memo)
+        return clone
 
     # ----------------------------------------------------------------- construction
     @property
@@ -143,8 +164,8 @@ class LatticeGraph:
         """The lattice node nearest to a world position."""
         i = int(np.round(xy[0] / self.spec.node_resolution))
         j = int(np.round(xy[1] / self.spec.node_resolution))
-        i = int(np.clip(i, self.lattice_i[0], self.lattice_i[-1]))
-        j = int(np.clip(j, self.lattice_j[0], self.lattice_j[-1]))
+        i = min(max(i, int(self.lattice_i[0])), int(self.lattice_i[-1]))
+        j = min(max(j, int(self.lattice_j[0])), int(self.lattice_j[-1]))
         return self.node_id(i, j)
 
     def _build_candidate_edges(self) -> None:
@@ -182,12 +203,25 @@ class LatticeGraph:
                 count += len(ea)
         self.edge_nodes = np.concatenate(nodes) if nodes else np.zeros((0, 2), dtype=np.int64)
         self._edge_walks = list(zip(groups, walks_fwd, walks_bwd))
+        # Every edge's two walks as rows of flat cells, padded with -1: the compiled edge test's input.
+        longest = max((w.shape[1] for w in walks_fwd), default=0)
+        self._walk_rows = np.full((2, len(self.edge_nodes), longest), -1, dtype=np.int32)
+        for group, fwd, bwd in self._edge_walks:
+            self._walk_rows[0, group, : fwd.shape[1]] = fwd
+            self._walk_rows[1, group, : bwd.shape[1]] = bwd
         ends = self.node_cells[self.edge_nodes]
         self._edge_box = np.stack(
             [ends[..., 0].min(1), ends[..., 0].max(1), ends[..., 1].min(1), ends[..., 1].max(1)], axis=1
         )
         diff = self.node_world[self.edge_nodes[:, 1]] - self.node_world[self.edge_nodes[:, 0]]
         self.edge_length = np.hypot(diff[:, 0], diff[:, 1])
+        # Both directions of every candidate edge in `search_matrix`'s order (by row; higher
+        # neighbours first, each ascending): (edge, row, column) per entry.
+        edge = np.tile(np.arange(len(self.edge_nodes)), 2)
+        rows = np.concatenate([self.edge_nodes[:, 0], self.edge_nodes[:, 1]])
+        cols = np.concatenate([self.edge_nodes[:, 1], self.edge_nodes[:, 0]])
+        order = np.lexsort((cols, cols < rows, rows))
+        self._search_entries = (edge[order], rows[order], cols[order].astype(np.int32))
 
     # ----------------------------------------------------------------- updates
     def update(self, belief: np.ndarray, changed_flat: np.ndarray | None = None) -> None:
@@ -226,22 +260,13 @@ class LatticeGraph:
         self.node_state[ids] = node_states_in(belief, self.node_flat[ids])
 
     def _update_edges(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
-        x0, x1, y0, y1 = box
-        eb = self._edge_box
-        free_flat = belief.reshape(-1) == FREE
-        changed = False
-        for group, fwd, bwd in self._edge_walks:
-            gb = eb[group]
-            cand = ~self.edge_valid[group] & (gb[:, 0] <= x1) & (gb[:, 1] >= x0) & (gb[:, 2] <= y1) & (gb[:, 3] >= y0)
-            idx = np.nonzero(cand)[0]
-            if idx.size == 0:
-                continue
-            ok = free_flat[fwd[idx]].all(axis=1) | free_flat[bwd[idx]].all(axis=1)
-            if ok.any():
-                self.edge_valid[group.start + idx[ok]] = True
-                changed = True
+        """An invalid edge whose bounding box meets `box` becomes valid when either of its walks
+        crosses only known-free cells (a compiled loop: it ran once per rollout step)."""
+        changed = _validate_edges(self.edge_valid, self._edge_box, np.array(box, dtype=np.int64),
+                                  self._walk_rows, np.ascontiguousarray(belief).reshape(-1), FREE)
         if changed:
             self._adjacency = None
+            self._search_matrix = None
             self._neighbour_lists = None
 
     def _update_utilities(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
@@ -313,9 +338,30 @@ class LatticeGraph:
         return self._adjacency
 
     def shortest_paths(self, source: int) -> tuple[np.ndarray, np.ndarray]:
-        """Distances (metres, inf if unreachable) and predecessors from `source`."""
-        dist, pred = dijkstra(self.adjacency(), directed=False, indices=source, return_predecessors=True)
+        """Distances (metres, inf if unreachable) and predecessors from `source`.
+
+        The same search as scipy's undirected Dijkstra on `adjacency()`, run as a directed one
+        on `search_matrix()`: undirected, scipy transposes the matrix at every call, a third of
+        the lookahead's rollout time in shortest paths.
+        """
+        dist, pred = dijkstra(self.search_matrix(), directed=True, indices=source, return_predecessors=True)
         return dist, pred
+
+    def search_matrix(self) -> csr_matrix:
+        """Both directions of every valid edge, each node's row listing its higher-id neighbours
+        first and then its lower-id ones, each ascending: the order in which scipy's undirected
+        Dijkstra scans a node's edges (the upper-triangle row, then the transpose's). Scanned in
+        that order, ties between equally long paths resolve as they do undirected: the same
+        distances and the same predecessors. Built once per change of the edges."""
+        if self._search_matrix is None:
+            edge, rows, cols = self._search_entries
+            keep = self.edge_valid[edge]
+            indptr = np.zeros(self.node_count + 1, dtype=np.int32)
+            np.cumsum(np.bincount(rows[keep], minlength=self.node_count), out=indptr[1:])
+            self._search_matrix = csr_matrix(
+                (self.edge_length[edge[keep]], cols[keep], indptr), shape=(self.node_count,) * 2
+            )
+        return self._search_matrix
 
     @staticmethod
     def path_from_predecessors(predecessors: np.ndarray, target: int) -> list[int]:
@@ -375,6 +421,30 @@ class LatticeGraph:
         return self.region_centroids()[self.region_labels() == REGION_UNOBSERVED]
 
 
+@numba.njit(cache=True, nogil=True)
+def _validate_edges(valid, edge_box, box, walk_rows, belief_flat, free_value):  # pragma: no cover - compiled
+    """Mark valid the invalid edges meeting `box` (x0, x1, y0, y1) with a walk all `free_value`; whether any was."""
+    x0, x1, y0, y1 = box[0], box[1], box[2], box[3]
+    changed = False
+    for e in range(valid.shape[0]):
+        if valid[e] or edge_box[e, 0] > x1 or edge_box[e, 1] < x0 or edge_box[e, 2] > y1 or edge_box[e, 3] < y0:
+            continue
+        for direction in range(2):
+            clear = True
+            for k in range(walk_rows.shape[2]):
+                cell = walk_rows[direction, e, k]
+                if cell < 0:
+                    break
+                if belief_flat[cell] != free_value:
+                    clear = False
+                    break
+            if clear:
+                valid[e] = True
+                changed = True
+                break
+    return changed
+
+
 def visible_counts(
     free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float
 ) -> np.ndarray:
@@ -409,9 +479,16 @@ def nested_visible_counts(
     return _fan_counts(outer, *outer_targets, inner, inner_targets, origins, range_cells)
 
 
+@lru_cache(maxsize=16)
+def utility_fan(range_cells: float):
+    """The utility's ray fan from the origin: `ray_table`'s, without recomputing its ray ends at
+    every call (the fans are counted thousands of times a lookahead decision)."""
+    return ray_table(0, 0, range_cells, UTILITY_ANGLES)
+
+
 def _fan_counts(outer, first, second, inner, third, origins, range_cells: float) -> np.ndarray:
     """The compiled walk on contiguous bool copies of the masks, unchecked (the callers check)."""
-    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    table = utility_fan(float(range_cells))
     return _nested_counts_kernel(
         *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in (outer, first, second, inner, third)),
         np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),

@@ -11,6 +11,7 @@ import re
 import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import cv2
@@ -61,8 +62,9 @@ class GroundTruthMap:
     def shape(self) -> tuple[int, int]:
         return self.free.shape  # type: ignore[return-value]
 
-    @property
+    @cached_property
     def free_cell_count(self) -> int:
+        """Counted once: episodes ask at every step whether they are done (the map is never changed)."""
         return int(self.free.sum())
 
 

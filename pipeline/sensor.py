@@ -64,7 +64,6 @@ class Lidar:
         cached = self._tables.get(id(table))
         if cached is None or cached[0] is not table:
             padded_flat = table.offsets[..., 1] * self._padded_cols + table.offsets[..., 0]
-            grid_flat = table.offsets[..., 1] * self.shape[1] + table.offsets[..., 0]
             # The fan's distinct cells in flat order, and each ray step's place among them: the
             # revealed cells come out sorted and once each without np.unique's hashing.
             unique_flat = table.unique_offsets[:, 1] * self.shape[1] + table.unique_offsets[:, 0]
@@ -72,7 +71,7 @@ class Lidar:
             place = np.empty_like(order)
             place[order] = np.arange(order.size)
             step_place = np.where(table.valid, place[np.maximum(table.unique_index, 0)], 0)
-            cached = (table, padded_flat, grid_flat, unique_flat[order], step_place)
+            cached = (table, padded_flat, unique_flat[order], step_place)
             self._tables[id(table)] = cached
         return cached
 
@@ -80,21 +79,19 @@ class Lidar:
         """Cells revealed from `cell` (col, row): free cells before each ray's stop, and the
         occupied cell it stopped at (never the end cell, never a cell beyond the grid)."""
         x0, y0 = int(cell[0]), int(cell[1])
-        table, padded_flat, grid_flat, sorted_flat, step_place = self._table(x0, y0)
+        table, padded_flat, sorted_flat, step_place = self._table(x0, y0)
         base = (y0 + self.pad) * self._padded_cols + (x0 + self.pad)
-        reached, occupied = _walk_rays(self._padded, base, padded_flat, grid_flat, table.valid, step_place,
-                                       sorted_flat.size)
+        reached, stopped = _walk_rays(self._padded, base, padded_flat, table.valid, step_place, sorted_flat.size)
         origin = y0 * self.shape[1] + x0
-        return ScanResult(free=origin + sorted_flat[reached], occupied=origin + np.unique(occupied))
+        return ScanResult(free=origin + sorted_flat[reached], occupied=origin + sorted_flat[stopped])
 
 
 @numba.njit(cache=True, nogil=True)
-def _walk_rays(padded, base, padded_flat, grid_flat, valid, step_place, n_cells):  # pragma: no cover - compiled
-    """(which of the fan's distinct cells are seen free, grid offsets of the occupied stops)."""
+def _walk_rays(padded, base, padded_flat, valid, step_place, n_cells):  # pragma: no cover - compiled
+    """(which of the fan's distinct cells are seen free, which are occupied cells a ray stopped at)."""
     n_rays, n_steps = valid.shape
     reached = np.zeros(n_cells, np.bool_)
-    occupied = np.empty(n_rays, np.int64)
-    hits = 0
+    stopped = np.zeros(n_cells, np.bool_)
     for r in range(n_rays):
         for k in range(n_steps):
             if not valid[r, k]:
@@ -102,11 +99,10 @@ def _walk_rays(padded, base, padded_flat, grid_flat, valid, step_place, n_cells)
             value = padded[base + padded_flat[r, k]]
             if value != PADDED_FREE:
                 if value == PADDED_OCCUPIED:  # revealed, and the ray stops
-                    occupied[hits] = grid_flat[r, k]
-                    hits += 1
+                    stopped[step_place[r, k]] = True
                 break
             reached[step_place[r, k]] = True
-    return reached, occupied[:hits]
+    return reached, stopped
 
 
 def scan(

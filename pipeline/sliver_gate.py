@@ -50,15 +50,18 @@ DEFAULT_GATE = Path("models/sliver_gate/sliver_gate.json")
 SHIPPED_GATE = Path(__file__).resolve().parent / "assets" / "sliver_gate.json"
 
 
-def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wall_margin: int) -> np.ndarray:
-    """(n, 3) counts of FEATURES for each candidate cell (col, row) of `cells` on `belief`."""
+def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wall_margin: int,
+                  frontier: np.ndarray | None = None) -> np.ndarray:
+    """(n, 3) counts of FEATURES for each candidate cell (col, row) of `cells` on `belief`;
+    `frontier`: `frontier_mask(belief)` when the caller keeps it (the lattice graph does)."""
     cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
     unknown = belief == UNKNOWN
     walls = (belief == OCCUPIED).astype(np.uint8)
     side = 2 * wall_margin + 1
     near_wall = cv2.dilate(walls, np.ones((side, side), np.uint8)).astype(bool) if wall_margin else walls.astype(bool)
     passable = ~walls.astype(bool)
-    return nested_visible_counts(passable, (unknown & ~near_wall, unknown), belief == FREE, frontier_mask(belief),
+    frontier = frontier_mask(belief) if frontier is None else frontier
+    return nested_visible_counts(passable, (unknown & ~near_wall, unknown), belief == FREE, frontier,
                                  cells, range_cells).astype(np.float64)
 
 
@@ -146,7 +149,8 @@ class SliverGate:
         fan's reach, the wall margin around what it reaches, and the frontier's neighbours."""
         return int(math.ceil(range_cells)) + int(round(self.wall_margin * range_cells / self.range_cells)) + 1
 
-    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
+    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float,
+               frontier: np.ndarray | None = None) -> np.ndarray:
         """Boolean mask: which candidate cells the gate calls big, for a lidar reaching `range_cells`.
 
         On a map drawn at another scale (the sensor reaching k times as many cells) the fan,
@@ -156,7 +160,7 @@ class SliverGate:
         if len(cells) == 0:
             return np.zeros(0, dtype=bool)
         scale = range_cells / self.range_cells
-        counts = gate_features(belief, cells, range_cells, int(round(self.wall_margin * scale)))
+        counts = gate_features(belief, cells, range_cells, int(round(self.wall_margin * scale)), frontier)
         if scale != 1.0:
             counts = counts / np.array([scale**2, scale**2, scale])
         return self.probability(counts) >= self.threshold

@@ -141,6 +141,47 @@ def test_shortest_paths_follow_valid_edges(small_maze):
     assert length == pytest.approx(dist[target])
 
 
+def test_shortest_paths_equal_scipys_undirected_search(small_maze):
+    """The directed search on `search_matrix` gives the distances and, among equally long paths,
+    the predecessors of scipy's undirected search on the adjacency: every planner's routes rest
+    on those ties."""
+    from scipy.sparse.csgraph import dijkstra
+
+    episode, batches = partial_episode(small_maze, steps=14)
+    graph = LatticeGraph(spec_for(small_maze))
+    replay = Episode(small_maze, Protocol())
+    graph.update(replay.belief.grid, None)
+    searched = 0
+    for point in episode.trajectory[1:]:
+        replay.move(point)
+        graph.update(replay.belief.grid, replay.observe().changed)
+        for source in graph.free_nodes[::3]:
+            dist, pred = graph.shortest_paths(int(source))
+            want_dist, want_pred = dijkstra(graph.adjacency(), directed=False, indices=int(source), return_predecessors=True)
+            np.testing.assert_array_equal(dist, want_dist)
+            np.testing.assert_array_equal(pred, want_pred)
+            searched += 1
+    assert searched > 50
+
+
+def test_a_copied_graph_shares_its_geometry_and_owns_its_state(small_maze):
+    import copy
+
+    episode, _ = partial_episode(small_maze, steps=6)
+    graph = LatticeGraph(spec_for(small_maze))
+    graph.update(episode.belief.grid, None)
+    clone = copy.deepcopy(graph)
+    assert clone.edge_nodes is graph.edge_nodes and clone._walk_rows is graph._walk_rows
+    assert_same_graph(clone, graph)
+    for name in ("node_state", "utility", "frontier", "edge_valid", "region_observed"):
+        assert getattr(clone, name) is not getattr(graph, name)
+    before = graph.edge_valid.copy(), graph.utility.copy()
+    clone.update(small_maze.free.astype(np.uint8) * FREE, None)  # everything known free: the clone's state moves
+    assert clone.edge_valid.sum() > before[0].sum()
+    np.testing.assert_array_equal(graph.edge_valid, before[0])
+    np.testing.assert_array_equal(graph.utility, before[1])
+
+
 def test_utility_counts_visible_frontier_cells():
     belief = np.full((60, 60), OCCUPIED, dtype=np.uint8)
     belief[10:50, 10:30] = FREE  # a known room ...

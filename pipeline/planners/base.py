@@ -10,6 +10,7 @@ from typing import Callable, TypeVar
 import cv2
 import numpy as np
 
+from pipeline.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.graph import LatticeGraph, LatticeSpec
 from pipeline.maps import GroundTruthMap
 from pipeline.protocol import Protocol
@@ -239,24 +240,39 @@ class GraphPlanner(Planner):
         known-graph distances from the robot's node, computed when not given); a gate that
         passed only unreachable nodes would leave the robot nothing to do.
         """
-        assert self.graph is not None
-        useful = np.nonzero((self.graph.utility >= self.min_utility) & ~self.visited)[0]
-        if useful.size == 0:
-            useful = np.nonzero((self.graph.utility > 0) & ~self.visited)[0]
+        useful = self.ungated_useful_nodes()
         if self.gate is None or useful.size == 0:
             return useful
         if self._gated is None or not np.array_equal(self._gated[0], useful):
-            unjudged = useful[~self._gate_known[useful]]
-            if unjudged.size:
-                self._gate_big[unjudged] = self.gate.passes(self.belief, self.graph.node_cells[unjudged],
-                                                            self.protocol.sensor_range_cells)
-                self._gate_known[unjudged] = True
-            big = self._gate_big[useful]
+            big = self.gate_verdicts(useful)
             if big.any():
                 dist = self.graph.shortest_paths(self.robot)[0] if dist is None else dist
                 big &= np.isfinite(dist[useful])
             self._gated = (useful, useful[big] if big.any() else useful)
         return self._gated[1]
+
+    def ungated_useful_nodes(self) -> np.ndarray:
+        """Unvisited free nodes that see at least `min_utility` frontier cells (any, when none
+        does), before the gate."""
+        assert self.graph is not None
+        useful = np.nonzero((self.graph.utility >= self.min_utility) & ~self.visited)[0]
+        if useful.size == 0:
+            useful = np.nonzero((self.graph.utility > 0) & ~self.visited)[0]
+        return useful
+
+    def gate_verdicts(self, nodes: np.ndarray) -> np.ndarray:
+        """Whether the gate calls each of `nodes` big, judged now for those without a kept verdict."""
+        unjudged = nodes[~self._gate_known[nodes]]
+        if unjudged.size:
+            self._gate_big[unjudged] = self.gate.passes(self.belief, self.graph.node_cells[unjudged],
+                                                        self.protocol.sensor_range_cells, self._gate_frontier())
+            self._gate_known[unjudged] = True
+        return self._gate_big[nodes]
+
+    def _gate_frontier(self) -> np.ndarray | None:
+        """The graph's frontier when it is the one the gate reads (`frontier_mask`'s default), else None."""
+        same_rule = self.graph.spec.frontier_min_unknown_neighbours == FRONTIER_MIN_UNKNOWN_NEIGHBOURS
+        return self.graph.frontier if same_rule else None
 
     def reachable_useful(self, robot: int, dist: np.ndarray) -> np.ndarray:
         """The useful nodes other than the robot's own that known-free paths reach (`dist` from the robot)."""

@@ -54,13 +54,48 @@ class GreedyUtilityPlanner(GraphPlanner):
             ended = self._move_to(episode, self.graph.path_from_predecessors(pred, target)[1])
             if ended is not None:
                 return ended
-            pred, ranked = self.ranked_targets(episode.observe())
-            if ranked.size == 0:
+            pred, order = self._ungated_ranking(episode.observe())
+            if order.size == 0:
                 return None
-            if committed and (target == self.robot or target not in set(ranked.tolist())):
+            if committed and (target == self.robot or not self._is_gated_target(target, order)):
                 committed = False
             if not committed:
-                target = int(ranked[0])
+                target = self._best_gated(order)
+
+    # The rollouts ask only for the best target and whether one target is still a target, so they
+    # judge the gate lazily, down the ungated ranking, instead of on every useful node as
+    # `ranked_targets` does: the same choices (a verdict reads only the belief around its node)
+    # for about a quarter of the gate's fans.
+    def _ungated_ranking(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
+        """(predecessors from the robot, its reachable useful nodes before the gate, by utility per
+        metre, best first): `ranked_targets` without the gate."""
+        graph = self.update_graph(observation)
+        dist, pred = graph.shortest_paths(self.robot)
+        useful = self.ungated_useful_nodes()
+        reachable = useful[np.isfinite(dist[useful]) & (useful != self.robot)]
+        return pred, reachable[np.argsort(-graph.utility[reachable] / dist[reachable], kind="stable")]
+
+    def _first_big(self, order: np.ndarray, batch: int = 4) -> int | None:
+        """Position in `order` of the first node the gate calls big (None when none is), judging a few at a time."""
+        for start in range(0, order.size, batch):
+            big = self.gate_verdicts(order[start : start + batch])
+            if big.any():
+                return start + int(np.argmax(big))
+        return None
+
+    def _best_gated(self, order: np.ndarray) -> int:
+        """`ranked_targets`' first target from the ungated ranking `order`: the best node the gate
+        calls big, else the best of all (the gate passes everything when it passes none)."""
+        first = None if self.gate is None else self._first_big(order)
+        return int(order[0 if first is None else first])
+
+    def _is_gated_target(self, node: int, order: np.ndarray) -> bool:
+        """Whether `node` is among `ranked_targets`' targets, from the ungated ranking `order`."""
+        if not np.any(order == node):
+            return False
+        if self.gate is None or self.gate_verdicts(np.array([node]))[0]:
+            return True
+        return self._first_big(order) is None
 
     def _finish_per_target(self, episode: Episode, target: int, pred: np.ndarray) -> float | None:
         while True:

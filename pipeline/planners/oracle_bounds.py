@@ -89,10 +89,11 @@ class TrueGainGate:
         reach = int(math.ceil(range_cells)) + 1
         return max(reach, self.learned.reach_cells(range_cells)) if self.learned is not None else reach
 
-    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float) -> np.ndarray:
+    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float,
+               frontier: np.ndarray | None = None) -> np.ndarray:
         big = self.true_gain.gains(belief, cells) >= self.min_gain
         if self.learned is not None:
-            big &= self.learned.passes(belief, cells, range_cells)
+            big &= self.learned.passes(belief, cells, range_cells, frontier)
         return big
 
 

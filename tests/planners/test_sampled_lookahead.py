@@ -236,24 +236,29 @@ def test_per_target_rollouts_choose_only_on_arrival(small_maze):
     base.reset(small_maze, protocol, 0)
     start = Episode(small_maze, protocol)
     pred, ranked = base.ranked_targets(start.observe())
-    results = {}
+    results, updates = {}, {}
     for per_target in (False, True):
         planner, episode = copy.deepcopy(base), copy.deepcopy(start)
         choices = []  # (robot node when choosing, the target it then walks to)
-        ranked_targets = planner.ranked_targets
+        ranked_targets, update_graph = planner.ranked_targets, planner.update_graph
+        count = [0]  # graph updates: one per choice, whichever way the rollout ranks its targets
 
         def counting(observation, ranked_targets=ranked_targets, planner=planner, choices=choices):
             pred, ranked = ranked_targets(observation)
             choices.append((planner.robot, int(ranked[0]) if ranked.size else None))
             return pred, ranked
 
-        planner.ranked_targets = counting
+        def updating(observation, update_graph=update_graph, count=count):
+            count[0] += 1
+            return update_graph(observation)
+
+        planner.ranked_targets, planner.update_graph = counting, updating
         distance = GreedyUtilityPlanner.finish_episode(planner, episode, int(ranked[0]), pred, per_target)
         assert distance is not None and np.isfinite(distance) and episode.complete
-        results[per_target] = choices
+        results[per_target], updates[per_target] = choices, count[0]
     walked = [(None, int(ranked[0]))] + results[True]
     assert all(robot == target for (_, target), (robot, _) in zip(walked, walked[1:]))
-    assert len(results[True]) <= len(results[False])
+    assert updates[True] == len(results[True]) <= updates[False]
 
 
 @pytest.mark.parametrize("rollout", [None, "fast", "full"])
