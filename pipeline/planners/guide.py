@@ -57,8 +57,12 @@ greedy, so they price greedy's candidates better than guide's tour options. With
 `lookahead_commit` (on unless set false) the robot keeps the lookahead's target, without new
 rollouts, until it is reached or no longer a target, as the rollouts themselves assumed: the
 test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at every sampled
-decision, at a third of the time per planner call (about 100 ms median; a full decision that
-rolls out still takes 0.25-0.5 s).
+decision, at a third of the time per planner call. A full decision takes about 170 ms median in one
+process (2026-11-25, after the faster rollouts of that day; 270 ms before).
+`lookahead_workers=2` forks a second process that takes rollouts from the same queue, and gated
+greedy's candidates start rolling out before guide's own denoising: the same routes, and about
+95 ms median a full decision on 2 cores (`pipeline.planners.rollout_worker`). It is off by
+default because `guide benchmark --workers 2` already keeps both cores busy with episodes.
 `lookahead_rollout=fast` rolls out plain greedy (no sliver gate) that walks each target's whole
 path before choosing again: half the time a full decision (127 against 248 ms median, one spell), but on 50
 fresh mazes +5.2 % +- 4.2 longer than with the default `full` rollouts (gated greedy choosing at
@@ -165,6 +169,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         lookahead_targets: str = "greedy",  # what is rolled out: guide's choice + gated greedy's best, or guide's best tour options
         lookahead_commit: bool | None = None,  # keep the lookahead's target until reached or no longer a target; None = on
         lookahead_rollout: str | None = None,  # full (gated greedy, a choice per node) or fast (greedy walking whole paths); None = full
+        lookahead_workers: int | None = None,  # 2: half the drawn maps rolled out in a second process; None = 1
         block_model: str | None = None,
         **tour_options,
     ):
@@ -174,13 +179,15 @@ class _DiffusionPlanner(GuideTspPlanner):
         check_int("lookahead", lookahead, 0, note="0 = off; the number of best tour options rolled out")
         if lookahead == 1 or (lookahead and mode != "tour"):
             raise ValueError(f"lookahead must be 0 (off) or at least 2, in mode tour; got {lookahead!r} in mode {mode}")
-        BlockLookahead.check_options(lookahead_samples, 20.0, 0.0, 1.0)
+        BlockLookahead.check_options(lookahead_samples, 20.0, 0.0, 1.0, 1 if lookahead_workers is None else lookahead_workers)
         if lookahead_targets not in ("greedy", "tour"):
             raise ValueError(f"lookahead_targets must be greedy or tour, got {lookahead_targets!r}")
         if lookahead_rollout not in (None, "fast", "full"):
             raise ValueError(f"lookahead_rollout must be fast or full, got {lookahead_rollout!r}")
-        if (block_model is not None or lookahead_commit is not None or lookahead_rollout is not None) and not lookahead:
-            raise ValueError("block_model, lookahead_commit or lookahead_rollout is given but the lookahead is off; add lookahead=3")
+        lookahead_only = (block_model, lookahead_commit, lookahead_rollout, lookahead_workers)
+        if any(option is not None for option in lookahead_only) and not lookahead:
+            raise ValueError("block_model, lookahead_commit, lookahead_rollout or lookahead_workers is given but the "
+                             "lookahead is off; add lookahead=3")
         check_number("prior_weight", prior_weight, 0.0, note="0 = the policy does not vote")
         check_int("stall_steps", stall_steps, 1)
         check_int("candidates", candidates, 1)
@@ -235,9 +242,11 @@ class _DiffusionPlanner(GuideTspPlanner):
         lookahead_source = ""
         if lookahead:
             model, lookahead_source = block_model_for(block_model)
-            self.lookahead = BlockLookahead(model, lookahead_samples, per_target=self.lookahead_rollout == "fast")
-            lookahead_source = (f"; lookahead {lookahead} x {lookahead_samples} maps, {self.lookahead_rollout} rollouts, "
-                                f"{lookahead_source}")
+            self.lookahead = BlockLookahead(model, lookahead_samples, per_target=self.lookahead_rollout == "fast",
+                                            workers=lookahead_workers or 1)
+            processes = f" in {self.lookahead.workers} processes" if self.lookahead.workers > 1 else ""
+            lookahead_source = (f"; lookahead {lookahead} x {lookahead_samples} maps, {self.lookahead_rollout} rollouts"
+                                f"{processes}, {lookahead_source}")
         # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
         # every other field of a `global_graph=` option is kept.
         self.global_config = replace(self.global_config, max_nodes=config.max_nodes,
@@ -449,6 +458,14 @@ class _DiffusionPlanner(GuideTspPlanner):
                 self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
                 return [tuple(map(float, graph.node_world[nxt]))]
         self.queue = []
+        kept = self.lookahead_choice
+        committed = self.lookahead_commit and kept is not None and kept != robot and kept in set(useful.tolist())
+        rollouts, greedy = None, []
+        if self.lookahead is not None and not committed and self.lookahead_targets == "greedy":
+            ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
+            greedy = [int(t) for t in ranked[: self.lookahead_k]]
+            if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the denoising
+                rollouts = self.lookahead.start(self._rollout_planner(), observation, greedy, pred, self.lookahead_rng)
         options = self.first_target_scores(robot, dist, useful)
         deltas, expected = self.sample_plans()
         paths = self.candidate_paths(robot, deltas, expected)
@@ -458,8 +475,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         tour = options["tours"][best]
         target = tour[0]
         costs = None
-        kept = self.lookahead_choice
-        if self.lookahead_commit and kept is not None and kept != robot and kept in set(useful.tolist()):
+        if committed:
             target = kept  # committed: the rollouts assumed the robot heads there until reached or no longer a target
             tour = [target] + [t for t in tour if t != target]
         elif self.lookahead is not None:
@@ -467,11 +483,11 @@ class _DiffusionPlanner(GuideTspPlanner):
             if self.lookahead_targets == "tour":
                 candidates = [options["tours"][j][0] for j in np.argsort(-scores, kind="stable")[: self.lookahead_k]]
             else:  # guide's own choice, then gated greedy's best by utility per metre
-                ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
-                candidates = list(dict.fromkeys([target] + [int(t) for t in ranked[: self.lookahead_k]]))
+                candidates = list(dict.fromkeys([target] + greedy))
             if len(candidates) > 1:
-                rollout_planner = gated_greedy_like(self, gated=self.lookahead_rollout == "full")
-                costs = self.lookahead.costs(rollout_planner, observation, candidates, pred, self.lookahead_rng)
+                if rollouts is None:
+                    rollouts = self.lookahead.start(self._rollout_planner(), observation, candidates, pred, self.lookahead_rng)
+                costs = self.lookahead.finish(rollouts, candidates)
                 target = candidates[int(np.argmin(costs))]
                 tour = [target] + [t for t in tour if t != target]
             self.lookahead_choice = target
@@ -504,6 +520,10 @@ class _DiffusionPlanner(GuideTspPlanner):
             "fallback_share": self.fallbacks / self.decisions,
         }
         return [tuple(map(float, graph.node_world[chunk[0]]))]
+
+    def _rollout_planner(self):
+        """What the lookahead rolls out: gated greedy in this planner's graph state (ungated for fast rollouts)."""
+        return gated_greedy_like(self, gated=self.lookahead_rollout == "full")
 
     def plan_policy(self, observation: Observation, robot: int) -> list[Waypoint]:
         """Mode policy: the sampled plans ranked by `rank_candidates`, stall guard as the safety net."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -148,6 +150,12 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
 
     protocol = Protocol()
     seen: list[int] = []
+    order: list[int] = []  # the candidates in guide's order (rollouts may run in another: greedy's start first)
+    finish = BlockLookahead.finish
+
+    def recording_finish(self, rollouts, candidates):
+        order[:] = candidates
+        return finish(self, rollouts, candidates)
 
     def decide(cheap: int | None) -> dict:
         planner = _guide(lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model=str(SHIPPED_BLOCK_MODEL))
@@ -160,6 +168,7 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
             return 5.0 if target == cheap else 10.0
 
         monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(rollout))
+        monkeypatch.setattr(BlockLookahead, "finish", recording_finish)
         planner.plan(observation)
         monkeypatch.undo()
         return planner.last_decision
@@ -168,7 +177,8 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
     plain.reset(small_maze, protocol, 0)
     plain.plan(Episode(small_maze, protocol).observe())
     tied = decide(None)
-    candidates = list(dict.fromkeys(seen))
+    candidates = list(order)
+    assert set(seen) == set(candidates)
     # guide's choice and greedy's best 3, or guide's best 3 options; each on 2 drawn maps
     assert 2 <= len(candidates) <= (4 if targets == "greedy" else 3) and len(seen) == 2 * len(candidates)
     assert tied["target"] == plain.last_decision["target"] == candidates[0]
@@ -284,3 +294,85 @@ def test_guide_lookahead_rollout_option_is_checked():
         _guide(lookahead=3, lookahead_rollout="quick")
     with pytest.raises(ValueError, match="lookahead is off"):
         _guide(lookahead_rollout="fast")
+
+
+def _lookahead_decision(small_maze, workers: int, steps: int = 6):
+    """A gated greedy planner a few steps into the small maze, and a lookahead with `workers` processes on it."""
+    from pipeline.planners.sampled_lookahead import BlockLookahead, gated_greedy_like
+
+    protocol = Protocol()
+    planner = make_planner("greedy_utility", sliver_gate=True)
+    planner.reset(small_maze, protocol, 0)
+    episode = Episode(small_maze, protocol)
+    for _ in range(steps):
+        episode.move(planner.plan(episode.observe())[0])
+    observation = episode.observe()
+    pred, ranked = planner.ranked_targets(observation)
+    lookahead = BlockLookahead(KnownBlocks(np.where(_truth(small_maze) > 0, 0.8, 0.2).astype(np.float32)),
+                               samples=3, workers=workers)
+    lookahead.reset(small_maze)
+    return lookahead, gated_greedy_like(planner), observation, [int(t) for t in ranked[:4]], pred
+
+
+def test_a_second_process_gives_the_same_rollout_costs(small_maze):
+    """Two processes share one decision's rollouts, also a batch added after the start (guide's own
+    target, known only after its denoising), and find the costs one process finds, to the bit."""
+    alone, planner, observation, candidates, pred = _lookahead_decision(small_maze, workers=1)
+    assert len(candidates) >= 3
+    want = alone.costs(planner, observation, candidates, pred, np.random.default_rng(5))
+    paired = _lookahead_decision(small_maze, workers=2)[0]
+    try:
+        for first in (candidates, candidates[1:]):  # everything at the start, then one candidate added at the end
+            rollouts = paired.start(planner, observation, first, pred, np.random.default_rng(5))
+            assert rollouts.remote
+            np.testing.assert_array_equal(paired.finish(rollouts, candidates), want)
+        worker = paired._worker
+        assert worker is not None and worker.pid != os.getpid()
+    finally:
+        paired.close()
+    assert paired._worker is None
+
+
+def test_a_dead_worker_leaves_the_rollouts_to_the_planner(small_maze):
+    """A worker killed from outside: the planner runs its share itself (the same costs) and forks another next time."""
+    import signal
+
+    alone, planner, observation, candidates, pred = _lookahead_decision(small_maze, workers=1)
+    want = alone.costs(planner, observation, candidates, pred, np.random.default_rng(2))
+    paired = _lookahead_decision(small_maze, workers=2)[0]
+    try:
+        paired.costs(planner, observation, candidates, pred, np.random.default_rng(2))
+        first = paired._worker.pid
+        os.kill(first, signal.SIGKILL)
+        os.waitpid(first, 0)
+        np.testing.assert_array_equal(paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want)
+        np.testing.assert_array_equal(paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want)
+        assert paired._worker is not None and paired._worker.pid != first
+    finally:
+        paired.close()
+
+
+def test_copies_of_a_lookahead_leave_its_worker_behind(small_maze):
+    import copy
+    import pickle
+
+    paired, planner, observation, candidates, pred = _lookahead_decision(small_maze, workers=2)
+    try:
+        paired.costs(planner, observation, candidates, pred, np.random.default_rng(0))
+        assert paired._worker is not None
+        assert copy.deepcopy(paired)._worker is None and pickle.loads(pickle.dumps(paired))._worker is None
+    finally:
+        paired.close()
+
+
+def test_guide_with_two_lookahead_processes_takes_the_same_route(small_maze):
+    routes = [run_episode(small_maze, _guide(lookahead=2, lookahead_samples=2, lookahead_workers=workers), Protocol(), 0)
+              for workers in (1, 2)]
+    assert routes[0].trajectory == routes[1].trajectory and routes[1].complete
+    with pytest.raises(ValueError, match="workers must be in 1..2"):
+        _guide(lookahead=3, lookahead_workers=3)
+    with pytest.raises(ValueError, match="lookahead is off"):
+        _guide(lookahead_workers=2)
+    assert "full rollouts in 2 processes" in _guide(lookahead=3, lookahead_workers=2).description
+    with pytest.raises(ValueError, match="workers must be in 1..2"):
+        make_planner("sampled_lookahead", workers=0, model=KnownBlocks(_truth(small_maze)))
