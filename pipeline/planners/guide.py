@@ -449,23 +449,27 @@ class _DiffusionPlanner(GuideTspPlanner):
         """
         graph = self.graph
         assert graph is not None
-        self.observe_step(observation)
-        self.decisions += 1
         target = self.previous
+        queued = None  # the next step of the last chunk, when it is still on the way to a target
         if self.queue and target is not None and target in set(useful.tolist()):
-            nxt = int(self.queue.pop(0))
+            nxt = int(self.queue[0])
             if nxt in set(graph.neighbours(robot).tolist()) and dist[nxt] < np.inf:
-                self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
-                return [tuple(map(float, graph.node_world[nxt]))]
-        self.queue = []
+                queued = nxt
         kept = self.lookahead_choice
         committed = self.lookahead_commit and kept is not None and kept != robot and kept in set(useful.tolist())
         rollouts, greedy = None, []
-        if self.lookahead is not None and not committed and self.lookahead_targets == "greedy":
+        if queued is None and self.lookahead is not None and not committed and self.lookahead_targets == "greedy":
             ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
             greedy = [int(t) for t in ranked[: self.lookahead_k]]
-            if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the denoising
+            if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the prediction and denoising
                 rollouts = self.lookahead.start(self._rollout_planner(), observation, greedy, pred, self.lookahead_rng)
+        self.observe_step(observation)
+        self.decisions += 1
+        if queued is not None:
+            self.queue.pop(0)
+            self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
+            return [tuple(map(float, graph.node_world[queued]))]
+        self.queue = []
         options = self.first_target_scores(robot, dist, useful)
         deltas, expected = self.sample_plans()
         paths = self.candidate_paths(robot, deltas, expected)
