@@ -520,6 +520,8 @@ def _fan_counts(outer, first, second, inner, third, origins, range_cells: float)
     )
 
 
+# The walk of `_nested_counts_kernel` with one count, written out again on purpose: 10.7 against
+# 13.0 us an origin, and a shared inline helper for the ray step made both kernels 17 times slower.
 @numba.njit(cache=True, nogil=True)
 def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
     rows, cols = free.shape
