@@ -60,8 +60,8 @@ test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at 
 decision, at a third of the time per planner call. A full decision takes about 170 ms median in one
 process (2026-11-25, after the faster rollouts of that day; 270 ms before).
 `lookahead_workers=2` forks a second process that takes rollouts from the same queue, and gated
-greedy's candidates start rolling out before guide's own denoising: the same routes, and about
-95 ms median a full decision on 2 cores (`pipeline.planners.rollout_worker`). It is off by
+greedy's candidates start rolling out before guide's own prediction and denoising: the same routes,
+and about 90-95 ms median a full decision on 2 cores (`pipeline.planners.rollout_worker`). It is off by
 default because `guide benchmark --workers 2` already keeps both cores busy with episodes.
 `lookahead_rollout=fast` rolls out plain greedy (no sliver gate) that walks each target's whole
 path before choosing again: half the time a full decision (127 against 248 ms median, one spell), but on 50
@@ -169,7 +169,7 @@ class _DiffusionPlanner(GuideTspPlanner):
         lookahead_targets: str = "greedy",  # what is rolled out: guide's choice + gated greedy's best, or guide's best tour options
         lookahead_commit: bool | None = None,  # keep the lookahead's target until reached or no longer a target; None = on
         lookahead_rollout: str | None = None,  # full (gated greedy, a choice per node) or fast (greedy walking whole paths); None = full
-        lookahead_workers: int | None = None,  # 2: half the drawn maps rolled out in a second process; None = 1
+        lookahead_workers: int | None = None,  # 2: the rollouts shared with a forked second process; None = 1
         block_model: str | None = None,
         **tour_options,
     ):

@@ -69,6 +69,7 @@ class RolloutWorker:
             raise RuntimeError("a rollout worker needs os.fork (POSIX)")
         self.spec, self.state_names = planner.graph.spec, tuple(name for name in state_names if name != "graph")
         self.counter = multiprocessing.Value("q", 0)
+        self.pending = False  # a batch was sent and its answer not yet received
         parent_end, child_end = Pipe()
         # Python's advice for a fork without exec: leave the objects alive now (the models, the
         # lattice: half a million) out of every later cyclic collection. A full collection walked
@@ -100,8 +101,11 @@ class RolloutWorker:
         self._send(("more", candidates))
 
     def _send(self, message) -> None:
+        if self.pending:  # a decision that failed before collecting its rollouts: drop the stale answer
+            self.receive()
         self.counter.value = 0  # the worker is idle between batches: nothing races this reset
         self.connection.send(message)
+        self.pending = True
 
     def take(self, count: int, run: Callable[[int], float]) -> dict[int, float]:
         """The parent's share of the current batch."""
@@ -110,6 +114,7 @@ class RolloutWorker:
     def receive(self) -> dict[int, float]:
         """The worker's share of the current batch (RuntimeError on its failure, EOFError when gone)."""
         kind, payload = self.connection.recv()
+        self.pending = False
         if kind == "error":
             raise RuntimeError(f"rollout worker failed:\n{payload}")
         return payload

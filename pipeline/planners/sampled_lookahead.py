@@ -179,7 +179,7 @@ class BlockLookahead:
         check_number("horizon_m", horizon_m, 0.0)
         check_number("exit_weight", exit_weight, 0.0)
         check_number("temperature", temperature, 0.0, low_open=True)
-        check_int("workers", workers, 1, 2, note="2: half the drawn maps in a second process")
+        check_int("workers", workers, 1, 2, note="2: the rollouts shared with a second process")
 
     def reset(self, ground_truth: GroundTruthMap) -> None:
         """Only the map's size, start and cell size are read: the rollouts never see its cells."""

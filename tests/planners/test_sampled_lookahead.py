@@ -376,3 +376,16 @@ def test_guide_with_two_lookahead_processes_takes_the_same_route(small_maze):
     assert "full rollouts in 2 processes" in _guide(lookahead=3, lookahead_workers=2).description
     with pytest.raises(ValueError, match="workers must be in 1..2"):
         make_planner("sampled_lookahead", workers=0, model=KnownBlocks(_truth(small_maze)))
+
+
+def test_a_decision_that_never_collects_its_rollouts_leaves_no_stale_answer(small_maze):
+    """A decision that fails between `start` and `finish` (its worker batch never received): the next
+    decision still gets its own costs, not the abandoned batch's."""
+    alone, planner, observation, candidates, pred = _lookahead_decision(small_maze, workers=1)
+    want = alone.costs(planner, observation, candidates[:2], pred, np.random.default_rng(9))
+    paired = _lookahead_decision(small_maze, workers=2)[0]
+    try:
+        paired.start(planner, observation, candidates, pred, np.random.default_rng(1))  # abandoned
+        np.testing.assert_array_equal(paired.costs(planner, observation, candidates[:2], pred, np.random.default_rng(9)), want)
+    finally:
+        paired.close()
