@@ -106,6 +106,12 @@ class LatticeGraph:
         self.frontier = np.zeros(spec.shape, dtype=bool)
         # Region labels feed the global graph only: a lookahead's rollout copies turn them off.
         self.track_regions = True
+        # Rollout copies may also leave a node's utility as a bound, the frontier cells in its range's
+        # square, until a ranking needs it exactly (`stale` marks those; `exact_utilities` counts them).
+        self.lazy_utilities = False
+        self.stale = np.zeros(self.node_count, dtype=bool)
+        self.utility_version = 0  # counts changes of `utility`, for rankings kept between them
+        self._known_free: np.ndarray | None = None  # belief == FREE, made once per update when asked
         self.belief = np.full(spec.shape, UNKNOWN, dtype=np.uint8)
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
@@ -246,6 +252,8 @@ class LatticeGraph:
         `changed_flat=None` means everything may have changed (first call).
         """
         self.belief = belief  # the belief this graph reflects (read-only; the node image is drawn from it)
+        self._known_free = None
+        self.utility_version += 1
         rows, cols = belief.shape
         if changed_flat is None:
             box = (0, cols - 1, 0, rows - 1)
@@ -290,6 +298,7 @@ class LatticeGraph:
         r = self.utility_range_cells
         near = self._nodes_in_box(box, margin=r + 1)
         self.utility[near] = 0
+        self.stale[near] = False
         ids = near[self.node_state[near] == NODE_FREE]
         if ids.size == 0 or not self.frontier.any():
             return
@@ -300,13 +309,30 @@ class LatticeGraph:
         c = self.node_cells[ids]
         xa, xb = np.clip(c[:, 0] - rc, 0, cols), np.clip(c[:, 0] + rc + 1, 0, cols)
         ya, yb = np.clip(c[:, 1] - rc, 0, rows), np.clip(c[:, 1] + rc + 1, 0, rows)
-        near = integral[yb, xb] - integral[ya, xb] - integral[yb, xa] + integral[ya, xa]
-        ids = ids[near > 0]
+        in_square = integral[yb, xb] - integral[ya, xb] - integral[yb, xa] + integral[ya, xa]
+        ids, in_square = ids[in_square > 0], in_square[in_square > 0]
         if ids.size == 0:
+            return
+        if self.lazy_utilities:  # the square holds every frontier cell the fan can see: a bound
+            self.utility[ids] = in_square
+            self.stale[ids] = True
             return
         self.utility[ids] = visible_counts(
             belief == FREE, self.frontier, self.node_cells[ids], r
         )
+
+    def exact_utilities(self, nodes: np.ndarray) -> None:
+        """Count the visible frontier of those of `nodes` whose utility is still a bound. The count
+        on the current belief is the one at the update that left the bound: any later change in
+        the node's range would have set a new bound."""
+        todo = nodes[self.stale[nodes]]
+        if todo.size:
+            if self._known_free is None:
+                self._known_free = self.belief == FREE
+            self.utility[todo] = visible_counts(self._known_free, self.frontier, self.node_cells[todo],
+                                                self.utility_range_cells)
+            self.stale[todo] = False
+            self.utility_version += 1
 
     def _update_regions(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         x0, x1, y0, y1 = box

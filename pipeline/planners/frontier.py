@@ -54,48 +54,73 @@ class GreedyUtilityPlanner(GraphPlanner):
             ended = self._move_to(episode, self.graph.path_from_predecessors(pred, target)[1])
             if ended is not None:
                 return ended
-            pred, order = self._ungated_ranking(episode.observe())
-            if order.size == 0:
+            graph = self.update_graph(episode.observe())
+            dist, pred = graph.shortest_paths(self.robot)
+            if self._ranking_prefix(dist, 1).size == 0:
                 return None
-            if committed and (target == self.robot or not self._is_gated_target(target, order)):
+            if committed and (target == self.robot or not self._is_gated_target(target, dist)):
                 committed = False
             if not committed:
-                target = self._best_gated(order)
+                target = self._best_gated(dist)
 
-    # The rollouts ask only for the best target and whether one target is still a target, so they
-    # judge the gate lazily, down the ungated ranking, instead of on every useful node as
-    # `ranked_targets` does: the same choices (a verdict reads only the belief around its node)
-    # for about a quarter of the gate's fans.
-    def _ungated_ranking(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
-        """(predecessors from the robot, its reachable useful nodes before the gate, by utility per
-        metre, best first): `ranked_targets` without the gate."""
-        graph = self.update_graph(observation)
-        dist, pred = graph.shortest_paths(self.robot)
-        useful = self.ungated_useful_nodes()
-        reachable = useful[np.isfinite(dist[useful]) & (useful != self.robot)]
-        return pred, reachable[np.argsort(-graph.utility[reachable] / dist[reachable], kind="stable")]
+    # The rollouts ask only for the best target and whether one target is still a target. So they
+    # rank lazily: the gate is asked down the ungated ranking a few nodes at a time, instead of on
+    # every useful node as `ranked_targets` does, and on a rollout copy whose graph keeps bounds
+    # for utilities (`LatticeGraph.lazy_utilities`) only the nodes that reach the top are counted.
+    # The choices are `ranked_targets`' own: a verdict reads only the belief around its node, and
+    # a bound only falls when counted.
+    def _ranking_prefix(self, dist: np.ndarray, count: int) -> np.ndarray:
+        """The first `count` nodes of the ungated ranking: the reachable useful nodes by utility per
+        metre, best first (ties by node id), with every utility in it counted exactly."""
+        graph = self.graph
+        while True:
+            kept = getattr(self, "_ranking", None)  # (utilities' version, dist, order): sorted once per change
+            if kept is None or kept[0] != graph.utility_version or kept[1] is not dist:
+                useful = self.ungated_useful_nodes()
+                reachable = useful[np.isfinite(dist[useful]) & (useful != self.robot)]
+                kept = (graph.utility_version, dist,
+                        reachable[np.argsort(-graph.utility[reachable] / dist[reachable], kind="stable")])
+                self._ranking = kept
+            order = kept[2]
+            top = order[:count]
+            if not graph.stale[top].any():  # below the top, a bound's score can only fall: the top stands
+                return top
+            bounds = order[: max(count, 4)]  # the next few too: one count for several
+            graph.exact_utilities(bounds[graph.stale[bounds]])
 
-    def _first_big(self, order: np.ndarray, batch: int = 4) -> int | None:
-        """Position in `order` of the first node the gate calls big (None when none is), judging a few at a time."""
-        for start in range(0, order.size, batch):
-            big = self.gate_verdicts(order[start : start + batch])
+    def _first_big(self, dist: np.ndarray, batch: int = 4) -> int | None:
+        """The first node of the ungated ranking the gate calls big (None when none is), judging a few at a time."""
+        start = 0
+        while True:
+            top = self._ranking_prefix(dist, start + batch)
+            if top.size <= start:
+                return None
+            big = self.gate_verdicts(top[start:])
             if big.any():
-                return start + int(np.argmax(big))
-        return None
+                return int(top[start + int(np.argmax(big))])
+            start = top.size
 
-    def _best_gated(self, order: np.ndarray) -> int:
-        """`ranked_targets`' first target from the ungated ranking `order`: the best node the gate
-        calls big, else the best of all (the gate passes everything when it passes none)."""
-        first = None if self.gate is None else self._first_big(order)
-        return int(order[0 if first is None else first])
+    def _best_gated(self, dist: np.ndarray) -> int:
+        """`ranked_targets`' first target: the best node the gate calls big, else the best of all (the
+        gate passes everything when it passes none)."""
+        first = None if self.gate is None else self._first_big(dist)
+        return int(self._ranking_prefix(dist, 1)[0]) if first is None else first
 
-    def _is_gated_target(self, node: int, order: np.ndarray) -> bool:
-        """Whether `node` is among `ranked_targets`' targets, from the ungated ranking `order`."""
-        if not np.any(order == node):
+    def _is_gated_target(self, node: int, dist: np.ndarray) -> bool:
+        """Whether `node` is among `ranked_targets`' targets."""
+        graph = self.graph
+        if self.visited[node] or node == self.robot or not np.isfinite(dist[node]):
             return False
+        graph.exact_utilities(np.array([node]))
+        if graph.utility[node] < self.min_utility:
+            if graph.utility[node] == 0:
+                return False
+            graph.exact_utilities(np.nonzero(graph.stale)[0])  # useful only when no node sees min_utility
+            if not np.any(self.ungated_useful_nodes() == node):
+                return False
         if self.gate is None or self.gate_verdicts(np.array([node]))[0]:
             return True
-        return self._first_big(order) is None
+        return self._first_big(dist) is None
 
     def _finish_per_target(self, episode: Episode, target: int, pred: np.ndarray) -> float | None:
         while True:

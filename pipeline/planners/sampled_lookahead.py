@@ -263,6 +263,7 @@ class BlockLookahead:
         shared = {id(obj): obj for obj in (self, self.model, planner.gate)}  # read-only: not copied
         trial = copy.deepcopy(planner, shared)
         trial.graph.track_regions = False  # greedy never reads them
+        trial.graph.lazy_utilities = not self.per_target  # counted when a rollout's ranking needs them
         episode = copy.deepcopy(start, {id(start.map): start.map, id(start.lidar): start.lidar})
         cost = self.rollout(trial, episode, target, context.pred, self.per_target)
         if exits is not None and np.isfinite(exits[episode.cell]):

@@ -89,11 +89,13 @@ def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_
     assert checked > 0 and kept > 0
 
 
+@pytest.mark.parametrize("lazy_utilities", [False, True])
 @pytest.mark.parametrize("gate", ["fitted", "passes_nothing"])
-def test_lazy_gating_chooses_what_the_full_ranking_chooses(small_maze, tmp_path, gate):
-    """Rollouts judge the gate lazily, down the ungated ranking (`_best_gated`, `_is_gated_target`):
-    at every decision of a gated-greedy episode they must give `ranked_targets`' first target and its
-    targets, also when the gate passes nothing and every useful node stays a target."""
+def test_lazy_ranking_chooses_what_the_full_ranking_chooses(small_maze, tmp_path, gate, lazy_utilities):
+    """Rollouts rank lazily (`_best_gated`, `_is_gated_target`): the gate down the ungated ranking,
+    and on rollout copies utilities kept as bounds until they reach the top. At every decision of a
+    gated-greedy episode they must give `ranked_targets`' first target and its targets, also when
+    the gate passes nothing and every useful node stays a target."""
     protocol = Protocol()
     options = {} if gate == "fitted" else {"gate_file": str(save_gate(
         SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json"))}
@@ -102,18 +104,23 @@ def test_lazy_gating_chooses_what_the_full_ranking_chooses(small_maze, tmp_path,
     episode = Episode(small_maze, protocol)
     planner.reset(small_maze, protocol, 0)
     lazy.reset(small_maze, protocol, 0)
-    decisions = 0
+    lazy.graph.lazy_utilities = lazy_utilities
+    decisions = bounded = 0
     while not episode.complete and episode.steps < 200:
         observation = episode.observe()
         pred, ranked = planner.ranked_targets(observation)
-        _, order = lazy._ungated_ranking(observation)
+        lazy.update_graph(observation)
+        dist, _ = lazy.graph.shortest_paths(lazy.robot)
+        bounded += int(lazy.graph.stale.sum())
         if ranked.size == 0:
-            assert order.size == 0
+            assert lazy._ranking_prefix(dist, 1).size == 0
             break
-        assert lazy._best_gated(order) == int(ranked[0])
+        assert lazy._best_gated(dist) == int(ranked[0])
         targets = set(ranked.tolist())
-        assert all(lazy._is_gated_target(int(node), order) == (int(node) in targets) for node in order)
-        assert not lazy._is_gated_target(lazy.robot, order)
+        for node in range(planner.graph.node_count):
+            assert lazy._is_gated_target(node, dist) == (node in targets), node
+        assert not (lazy.graph.stale & (lazy.graph.utility == 0)).any()
         episode.move(planner.waypoints_along(planner.graph.path_from_predecessors(pred, int(ranked[0])))[0])
         decisions += 1
     assert decisions > 10 and episode.complete
+    assert (bounded > 0) == lazy_utilities  # the lazy graph did keep bounds
