@@ -57,11 +57,11 @@ greedy, so they price greedy's candidates better than guide's tour options. With
 `lookahead_commit` (on unless set false) the robot keeps the lookahead's target, without new
 rollouts, until it is reached or no longer a target, as the rollouts themselves assumed: the
 test mazes 435.7 m, and +0.9 % +- 2.0 on 100 fresh mazes against re-deciding at every sampled
-decision, at a third of the time per planner call. A full decision takes about 170 ms median in one
+decision, at a third of the time per planner call. A full decision takes about 150 ms median in one
 process (2026-11-25, after the faster rollouts of that day; 270 ms before).
 `lookahead_workers=2` forks a second process that takes rollouts from the same queue, and gated
 greedy's candidates start rolling out before guide's own prediction and denoising: the same routes,
-and about 90-95 ms median a full decision on 2 cores (`pipeline.planners.rollout_worker`). It is off by
+and about 87-95 ms median a full decision on 2 cores (`pipeline.planners.rollout_worker`). It is off by
 default because `guide benchmark --workers 2` already keeps both cores busy with episodes.
 `lookahead_rollout=fast` rolls out plain greedy (no sliver gate) that walks each target's whole
 path before choosing again: half the time a full decision (127 against 248 ms median, one spell), but on 50
