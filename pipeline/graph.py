@@ -498,12 +498,7 @@ def visible_counts(
     The walk is `nested_visible_counts`' with one count and no inner fan, in a kernel of its
     own: the utility update counts it at every rollout step.
     """
-    table = utility_fan(float(range_cells))
-    return _visible_counts_kernel(
-        *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in (free, targets)),
-        np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
-        table.offsets, table.valid, table.unique_index, len(table.unique_offsets),
-    )
+    return _visible_counts_kernel(*_fan_kernel_inputs((free, targets), origins, range_cells))
 
 
 def nested_visible_counts(
@@ -523,7 +518,7 @@ def nested_visible_counts(
         raise ValueError("nested_visible_counts: the masks differ in shape")
     if np.any(inner & ~outer):
         raise ValueError("nested_visible_counts: inner_free must lie inside outer_free")
-    return _fan_counts(outer, *outer_targets, inner, inner_targets, origins, range_cells)
+    return _nested_counts_kernel(*_fan_kernel_inputs((outer, *outer_targets, inner, inner_targets), origins, range_cells))
 
 
 @lru_cache(maxsize=16)
@@ -533,16 +528,14 @@ def utility_fan(range_cells: float):
     return ray_table(0, 0, range_cells, UTILITY_ANGLES)
 
 
-def _fan_counts(outer, first, second, inner, third, origins, range_cells: float) -> np.ndarray:
-    """The compiled walk on contiguous bool copies of the masks, unchecked (the callers check)."""
+def _fan_kernel_inputs(masks, origins, range_cells: float) -> tuple:
+    """A fan kernel's arguments: contiguous bool copies of `masks`, the origins as int64 (col, row)
+    rows, and the utility fan's table (the callers check the masks)."""
     table = utility_fan(float(range_cells))
-    return _nested_counts_kernel(
-        *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in (outer, first, second, inner, third)),
+    return (
+        *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in masks),
         np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
-        table.offsets,
-        table.valid,
-        table.unique_index,
-        len(table.unique_offsets),
+        table.offsets, table.valid, table.unique_index, len(table.unique_offsets),
     )
 
 

@@ -54,8 +54,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from pipeline.geometry import ray_table
-from pipeline.graph import UTILITY_ANGLES
+from pipeline.graph import utility_fan
 from pipeline.maps import GroundTruthMap
 from pipeline.planners.base import GraphPlanner, Waypoint, check_int, check_number, register_planner
 from pipeline.protocol import Protocol
@@ -76,7 +75,7 @@ def visible_frontier_cells(
     """
     rows, cols = free.shape
     origins = np.asarray(origins, dtype=np.int64).reshape(-1, 2)
-    table = ray_table(0, 0, range_cells, UTILITY_ANGLES)
+    table = utility_fan(float(range_cells))
     offsets, valid = table.offsets, table.valid
     pad = int(np.abs(offsets).max()) + 1
     # Padded with blocked cells, so a ray that leaves the grid stops there with no bounds checks.
