@@ -3,8 +3,8 @@
 Usage: python benchmarks/bench_expert.py [--maze PATH ...] [--count N] [--seed S] [--nf]
 Without --maze it generates N 100 m mazes with the project's generator, maze i drawn from
 default_rng([S, 1, i]). `optimal` runs under the oracle motion rule
-(`pipeline.coverage.run_oracle_episode`), `expert` and `nearest_frontier` under the
-simulator's own rule (`pipeline.simulator.run_episode`). The coverage model (ground-truth
+(`pipeline.planners.references.coverage.run_oracle_episode`), `expert` and `nearest_frontier` under the
+simulator's own rule (`pipeline.world.simulator.run_episode`). The coverage model (ground-truth
 graph, scans, all-pairs paths) is built once per map and shared; its time is printed apart.
 """
 
@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.coverage import coverage_model, run_oracle_episode
-from pipeline.maps import load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.planners.references.coverage import coverage_model, run_oracle_episode
+from pipeline.world.maps import load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.simulator import run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import run_episode
 
 
 def main() -> None:

@@ -55,7 +55,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     if args.model is not None:
-        from pipeline.training.inpainter import load_inpainter
+        from pipeline.models.modeling_inpainter import load_inpainter
 
         model, config = load_inpainter(args.model)
         name = str(args.model)

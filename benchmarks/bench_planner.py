@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pipeline.benchmark import parse_option_value
-from pipeline.maps import list_maps, load_map
+from pipeline.evaluation.benchmark import parse_option_value
+from pipeline.world.maps import list_maps, load_map
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.simulator import run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import run_episode
 
 
 class TimedPlanner:

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.maps import load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.world.maps import load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.sensor import Lidar
-from pipeline.simulator import run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import Lidar
+from pipeline.world.simulator import run_episode
 
 
 def main() -> None:

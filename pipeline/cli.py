@@ -13,8 +13,8 @@ from typing import Optional
 
 import typer
 
-from pipeline.maps import MapError
-from pipeline.protocol import Protocol
+from pipeline.world.maps import MapError
+from pipeline.world.protocol import Protocol
 
 app = typer.Typer(
     help="GUIDE exploration: maps, simulator, planners, benchmarks and the DVC pipeline's stages.",
@@ -90,7 +90,7 @@ def _warn(message: str) -> None:
 def _warn_unreachable(ground_truth, protocol: Protocol) -> bool:
     """A map whose free cells beyond the start's reach outnumber the done rule's slack can never
     complete; True when that was warned about."""
-    from pipeline.benchmark import unreachable_free_cells
+    from pipeline.evaluation.benchmark import unreachable_free_cells
 
     cut_off = unreachable_free_cells(ground_truth)
     if cut_off > protocol.done_unknown_cells:
@@ -103,7 +103,7 @@ def _warn_unreachable(ground_truth, protocol: Protocol) -> bool:
 def _warn_fine_map(ground_truth, protocol: Protocol) -> None:
     """A map so fine that the lidar's neighbouring rays skip cells at full range explores badly
     (README, "Your own SLAM maps"): point at resample-map."""
-    from pipeline.sensor import DEFAULT_ANGLES
+    from pipeline.world.sensor import DEFAULT_ANGLES
 
     gap_cells = protocol.sensor_range * float(DEFAULT_ANGLES[1] - DEFAULT_ANGLES[0]) / ground_truth.cell_size
     if gap_cells > 1.0:
@@ -115,7 +115,7 @@ def _warn_fine_map(ground_truth, protocol: Protocol) -> None:
 def _warn_unobservable(ground_truth, protocol: Protocol) -> None:
     """Scans on the ground truth from every reachable lattice node: warn when the free cells none of
     them reveals outnumber the done rule's slack (a fine SLAM map's clutter and ragged walls do this)."""
-    from pipeline.coverage import unobservable_free_cells
+    from pipeline.planners.references.coverage import unobservable_free_cells
 
     hidden = unobservable_free_cells(ground_truth, protocol)
     if hidden > protocol.done_unknown_cells:
@@ -179,9 +179,9 @@ def mazes(
     More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
     `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
     """
-    from pipeline.caves import CaveConfig, generate_cave_set
-    from pipeline.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
-    from pipeline.offices import OfficeConfig, generate_office_set
+    from pipeline.world.caves import CaveConfig, generate_cave_set
+    from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
+    from pipeline.world.offices import OfficeConfig, generate_office_set
 
     if kind not in ("maze", "office", "cave"):
         _fail(f"--kind must be maze, office or cave, got {kind!r}")
@@ -239,13 +239,13 @@ def explore(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
 ) -> None:
     """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF), run.json."""
-    from pipeline.benchmark import build_planner, protocol_for_map, resolve_planner_specs
-    from pipeline.maps import load_map
-    from pipeline.render import EpisodeRecorder, render_final
+    from pipeline.evaluation.benchmark import build_planner, protocol_for_map, resolve_planner_specs
+    from pipeline.world.maps import load_map
+    from pipeline.reporting.render import EpisodeRecorder, render_final
     from tqdm import tqdm
 
-    from pipeline.simulator import run_episode
-    from pipeline.trajectories import write_metrics_csv, write_trajectory_csv
+    from pipeline.world.simulator import run_episode
+    from pipeline.world.trajectories import write_metrics_csv, write_trajectory_csv
 
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
@@ -344,8 +344,8 @@ def resample_map_command(
     A fine map explores badly under the protocol's 720-ray lidar (rays skip cells far out, clutter
     leaves frontier everywhere) and its cell counts mean less area than the models were fitted to.
     """
-    from pipeline.map_resample import resample_map, write_ros_map
-    from pipeline.maps import load_map, ros_map_origin_and_image
+    from pipeline.world.resample import resample_map, write_ros_map
+    from pipeline.world.maps import load_map, ros_map_origin_and_image
 
     if out.suffix.lower() not in (".yaml", ".yml"):
         _fail(f"--out {out}: name the ROS map YAML to write (ending in .yaml)")
@@ -383,7 +383,7 @@ def _given(ctx: Optional[typer.Context], name: str) -> bool:
 
 def _final_belief(ground_truth, result, protocol):
     """The belief at the end of an episode, rebuilt by replaying its trajectory."""
-    from pipeline.simulator import Episode
+    from pipeline.world.simulator import Episode
 
     episode = Episode(ground_truth, protocol)
     for waypoint in result.trajectory[1:]:
@@ -394,9 +394,9 @@ def _final_belief(ground_truth, result, protocol):
 def _with_checkpoint(specs: list[str], checkpoint: Optional[Path]) -> list[str]:
     """`specs` with checkpoint=PATH added to each diffusion planner's; ValueError when a checkpoint
     is given but no planner uses a policy, or a spec names its own checkpoint too."""
-    from pipeline.benchmark import parse_planner_spec
+    from pipeline.evaluation.benchmark import parse_planner_spec
     from pipeline.planners import planner_class
-    from pipeline.training.exports import require_file
+    from pipeline.models.exports import require_file
 
     if checkpoint is None:
         return specs
@@ -448,10 +448,11 @@ def benchmark(
 
     Exits 1 when an episode did not complete (the files are written either way).
     """
-    from pipeline.benchmark import (DEFAULT_BASELINE, BenchmarkInterrupted, parse_planner_spec, protocol_for_map,
+    from pipeline.evaluation.benchmark import (DEFAULT_BASELINE, BenchmarkInterrupted, parse_planner_spec, protocol_for_map,
                                     run_benchmark)
-    from pipeline.maps import list_maps, load_map
-    from pipeline.tracking import check_tracking_uri, log_benchmark
+    from pipeline.world.maps import list_maps, load_map
+    from pipeline.common.mlflow_store import check_tracking_uri
+    from pipeline.reporting.tracking import log_benchmark
 
     _check_out_dir(out)
     protocol = _protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
@@ -521,10 +522,10 @@ def replay(
 
     Exits 1 when the trajectory breaks the motion rule or does not complete the map.
     """
-    from pipeline.benchmark import protocol_for_map
-    from pipeline.maps import load_map
-    from pipeline.simulator import replay as replay_trajectory
-    from pipeline.trajectories import read_trajectory_csv
+    from pipeline.evaluation.benchmark import protocol_for_map
+    from pipeline.world.maps import load_map
+    from pipeline.world.simulator import replay as replay_trajectory
+    from pipeline.world.trajectories import read_trajectory_csv
 
     protocol = _protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9)
     try:
@@ -583,7 +584,7 @@ def eval_predictor(
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
 ) -> None:
     """Structural-inference precision (paper Table I) at exploration steps 15/30/45/60."""
-    from pipeline.predictor_eval import inpainter_path
+    from pipeline.evaluation.predictor_eval import inpainter_path
     from stages import eval_predictor as eval_stage
 
     if threshold is not None and not 0.0 <= threshold <= 1.0:  # NaN fails this too

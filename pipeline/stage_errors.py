@@ -10,8 +10,7 @@ from __future__ import annotations
 import sys
 from typing import Any, Callable
 
-from pipeline.maps import MapError
-from pipeline.planners.base import UnknownPlannerError
+from pipeline.world.maps import MapError
 
 UPSTREAM_HINT = " (run the upstream stages first: `dvc repro`)"
 
@@ -21,7 +20,7 @@ def user_error_message(error: BaseException) -> str | None:
     if isinstance(error, (MapError, FileNotFoundError)):
         upstream = any(part in str(error) for part in ("data/", "models/")) and "stage" not in str(error)
         return f"{error}" + (UPSTREAM_HINT if upstream else "")
-    if isinstance(error, (ValueError, UnknownPlannerError)):
+    if isinstance(error, ValueError):  # an unknown planner name too (`UnknownPlannerError`)
         return str(error)
     if isinstance(error, SystemExit) and isinstance(error.code, str):  # a stage's own sys.exit("error: ...")
         return error.code.removeprefix("error: ")

@@ -11,12 +11,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipeline.benchmark import run_benchmark, summarise
-from pipeline.maps import list_maps, load_map
-from pipeline.params_file import load_params
-from pipeline.protocol import Protocol
+from pipeline.evaluation.benchmark import run_benchmark, summarise
+from pipeline.world.maps import list_maps, load_map
+from pipeline.common.params import load_params
+from pipeline.world.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
-from pipeline.tracking import log_benchmark
+from pipeline.reporting.tracking import log_benchmark
 
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/benchmark")
@@ -56,8 +56,8 @@ def distance_chart(summary, path: Path) -> None:
 
 def trajectory_figure(map_path: Path, frame, out_dir: Path, path: Path, protocol: Protocol) -> None:
     """The first test maze with every planner's path side by side."""
-    from pipeline.render import render_comparison, save_png
-    from pipeline.trajectories import read_trajectory_csv
+    from pipeline.reporting.render import render_comparison, save_png
+    from pipeline.world.trajectories import read_trajectory_csv
 
     ground_truth = load_map(map_path, cell_size=protocol.cell_size)
     rows = frame[frame["map"] == ground_truth.name]

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.global_graph import FEATURE_NAMES
-from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD
-from pipeline.parallel import map_with_progress
-from pipeline.params_file import load_params, params_section
+from pipeline.prediction.global_graph import FEATURE_NAMES
+from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.params import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 EXPERT_DIR = Path("data/expert")
@@ -36,11 +36,11 @@ def _shard_observations(task: tuple) -> dict:
     import torch
 
     torch.set_num_threads(1)
-    from pipeline.collect import load_expert_episodes
-    from pipeline.node_predictor import NodePredictor, NodePredictorConfig
-    from pipeline.planner_data import ObservationConfig, concatenate, episode_observations
-    from pipeline.planners.global_graph_planners import cached_inpainter
-    from pipeline.protocol import Protocol
+    from pipeline.data.expert_episodes import load_expert_episodes
+    from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
+    from pipeline.data.observations import ObservationConfig, concatenate, episode_observations
+    from pipeline.models.defaults import cached_inpainter
+    from pipeline.world.protocol import Protocol
 
     protocol = Protocol.from_dict(protocol_dict)
     predictor_config = NodePredictorConfig(threshold, min_component, count_threshold=count_threshold)
@@ -54,9 +54,9 @@ def _shard_observations(task: tuple) -> dict:
 
 
 def main(params_path: str = "params.yaml") -> dict:
-    from pipeline.shards import MANIFEST, read_manifest
-    from pipeline.planner_data import concatenate, save_observations
-    from pipeline.protocol import Protocol
+    from pipeline.data.shards import MANIFEST, read_manifest
+    from pipeline.data.observations import concatenate, save_observations
+    from pipeline.world.protocol import Protocol
 
     params = load_params(params_path)
     section = params_section(params, "build_observations", params_path)

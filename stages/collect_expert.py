@@ -12,11 +12,12 @@ import json
 import time
 from pathlib import Path
 
-from pipeline.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard, load_expert_episodes
-from pipeline.maps import GroundTruthMap, list_maps
-from pipeline.params_file import load_params, params_section
-from pipeline.protocol import Protocol
-from pipeline.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.world.maps import GroundTruthMap, list_maps
+from pipeline.common.params import load_params, params_section
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
@@ -27,7 +28,7 @@ PREVIEW = Path("reports/expert_episode.png")
 
 def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     """The first stored episode: its final rebuilt belief and the expert's path."""
-    from pipeline.render import render_frame, save_png
+    from pipeline.reporting.render import render_frame, save_png
 
     episode = load_expert_episodes(shard_path(out_dir, 0))[0]
     belief = None

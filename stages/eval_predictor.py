@@ -21,12 +21,12 @@ from typing import Any, Optional
 
 import pandas as pd
 
-from pipeline.global_graph import GlobalGraphConfig, RegionEvaluationConfig
-from pipeline.maps import MapError, list_maps, load_map
-from pipeline.node_predictor import NodePredictorConfig
-from pipeline.params_file import load_params
-from pipeline.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
-from pipeline.protocol import Protocol
+from pipeline.prediction.global_graph import GlobalGraphConfig, RegionEvaluationConfig
+from pipeline.world.maps import MapError, list_maps, load_map
+from pipeline.prediction.node_predictor import NodePredictorConfig
+from pipeline.common.params import load_params
+from pipeline.evaluation.predictor_eval import COLUMNS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
+from pipeline.world.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
 TEST_MAZES = Path("data/mazes/test")
@@ -76,7 +76,7 @@ def run(
     """Evaluate on every map in `maps_dir`; writes precision.csv, precision_detail.csv, table1.md
     and (optionally) fig3.png; with `sweep_thresholds` also precision_by_threshold.csv,
     threshold_sweep.png and the sweep's table in table1.md, from the same explorations."""
-    from pipeline.predictor_eval import (
+    from pipeline.evaluation.predictor_eval import (
         evaluate_predictor,
         evaluate_with_sweep,
         load_inpaint_fn,
@@ -131,7 +131,7 @@ def run(
 
 
 def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protocol: Protocol, maps: str) -> str:
-    from pipeline.tracking import import_mlflow, resolve_tracking_uri
+    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 
     mlflow = import_mlflow()
 
@@ -174,7 +174,7 @@ def compare_with(checkpoint: Optional[str], maps_dir: str | Path, out_dir: str |
                  predictor_config: NodePredictorConfig, graph_config: GlobalGraphConfig, protocol: Protocol) -> pd.DataFrame | None:
     """Table I with another inpainter export on the same explorations: precision_compare.csv (a header
     only when `checkpoint` is None, so the stage's outputs always exist) and a section of table1.md."""
-    from pipeline.predictor_eval import comparison_markdown, evaluate_predictor, load_inpaint_fn
+    from pipeline.evaluation.predictor_eval import comparison_markdown, evaluate_predictor, load_inpaint_fn
 
     out_dir = Path(out_dir)
     if checkpoint is None:
@@ -194,7 +194,7 @@ def cli_main(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str
              threshold: float = TABLE1_THRESHOLD, start: tuple[float, float] | None = None) -> pd.DataFrame:
     """`guide eval-predictor`: default steps and predictor settings at tau `threshold` (the planners'
     by default), OUT/precision.csv (+ table1.md, fig3.png; with `sweep` the same at SWEEP_THRESHOLDS)."""
-    from pipeline.predictor_eval import PAPER_STEPS
+    from pipeline.evaluation.predictor_eval import PAPER_STEPS
 
     if not 0.0 <= threshold <= 1.0:
         raise ValueError(f"threshold (tau) must lie in [0, 1], got {threshold}")

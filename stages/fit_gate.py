@@ -4,7 +4,7 @@ Reads only the `fit_gate` section (maps, holdout_maps, offices, office_holdout, 
 min_gain, wall_margin, threshold, workers) and the shared `protocol` section of params.yaml.
 Runs `greedy_utility` on the first `maps` training mazes and the first `offices` office
 floors, labels every reachable target at every decision by the cells its scan would truly
-reveal, fits the gate (`pipeline.sliver_gate`; `hidden` layers, none: logistic) on all but
+reveal, fits the gate (`pipeline.planners.extensions.sliver_gate`; `hidden` layers, none: logistic) on all but
 the last `holdout_maps` mazes and `office_holdout` floors and measures it on those, per family. Writes models/sliver_gate/sliver_gate.json,
 reports/sliver_gate.json (sample counts, held-out ROC AUC of the gate and of each count
 alone, held-out accuracy at the gate's threshold) and reports/sliver_gate.png (held-out ROC
@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.maps import list_maps, load_map
-from pipeline.parallel import map_with_progress
-from pipeline.params_file import load_params, section_with_defaults
-from pipeline.protocol import Protocol
-from pipeline.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
+from pipeline.world.maps import list_maps, load_map
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.params import load_params, section_with_defaults
+from pipeline.world.protocol import Protocol
+from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
 from pipeline.stage_errors import run_stage_main
 
 TRAIN_MAZES = Path("data/mazes/train")
@@ -55,7 +55,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
 
 
 def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
-    from pipeline.gate_samples import gate_samples
+    from pipeline.data.gate_samples import gate_samples
 
     path, protocol, wall_margin = task
     return gate_samples(load_map(path), Protocol.from_dict(protocol), wall_margin)
@@ -150,7 +150,7 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 
 def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
-    from pipeline.tracking import import_mlflow, resolve_tracking_uri
+    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))

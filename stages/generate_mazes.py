@@ -6,7 +6,7 @@ DVC reruns this stage only when those values change. Train and test mazes come f
 sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze. `rooms` and
 `extra_loops` are per 100 m x 100 m (see `MazeConfig`), so train mazes of any side in
 `side_m` have the room density of the 100 m test mazes. `mazes.offices.count` office floors
-of 100 m (`pipeline.offices`, seed sequence [seed, 2, i]) go to data/offices/train: the sliver
+of 100 m (`pipeline.world.offices`, seed sequence [seed, 2, i]) go to data/offices/train: the sliver
 gate is fitted on them beside the mazes, so that it holds on maps unlike the mazes.
 """
 
@@ -17,9 +17,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.mazes import MazeConfig, generate_maze_set, write_maze_png
-from pipeline.offices import OfficeConfig, generate_office_set
-from pipeline.params_file import load_params, params_section
+from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
+from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.common.params import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 MAZE_ROOT = Path("data/mazes")

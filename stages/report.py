@@ -22,11 +22,11 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.benchmark import PlannerSpec, run_benchmark
-from pipeline.maps import MapError, list_maps
-from pipeline.params_file import load_params
-from pipeline.protocol import Protocol
-from pipeline.reports import (
+from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
+from pipeline.world.maps import MapError, list_maps
+from pipeline.common.params import load_params
+from pipeline.world.protocol import Protocol
+from pipeline.reporting.report import (
     ABLATION_PLANNERS,
     K_PLANNERS,
     log_tables_to_mlflow,

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.maps import load_map
+from pipeline.world.maps import load_map
 from pipeline.models.configuration_block_model import BlockModelConfig
-from pipeline.parallel import map_with_progress
-from pipeline.params_file import load_params, section_with_defaults
-from pipeline.protocol import Protocol
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.params import load_params, section_with_defaults
+from pipeline.world.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
 MODEL_PATH = Path("models/block_model/block_model.pt")
@@ -68,7 +68,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConf
 
 def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
     """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
-    from pipeline.mazes import MazeConfig
+    from pipeline.world.mazes import MazeConfig
 
     side = section["side_m"]
     if isinstance(side, bool) or not isinstance(side, (int, float)):
@@ -113,7 +113,7 @@ def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarra
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
     from pipeline.models.modeling_block_model import save_block_model
-    from pipeline.mazes import generate_maze_set
+    from pipeline.world.mazes import generate_maze_set
     from pipeline.training.block_model import BlockSamples, block_error, train_block_model
 
     section, config, protocol = read_params(params_path)
@@ -156,7 +156,7 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol, metrics: dict[str, Any],
             history: list[dict[str, float]]) -> None:
-    from pipeline.tracking import import_mlflow, resolve_tracking_uri
+    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))

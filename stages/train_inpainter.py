@@ -20,8 +20,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from pipeline.params_file import load_params, params_section
-from pipeline.protocol import Protocol
+from pipeline.common.params import load_params, params_section
+from pipeline.world.protocol import Protocol
 from pipeline.stage_errors import run_stage_main
 
 DATA_DIR = Path("data/pairs")
@@ -141,14 +141,8 @@ def main(
     artifact_location: Optional[str] = None,
 ) -> dict[str, Any]:
     from pipeline.models import InpainterConfig, TracedInpainter
-    from pipeline.training.inpainter import (
-        TrainConfig,
-        evaluate_inpainter,
-        load_inpainter,
-        read_export,
-        split_pairs,
-        train_inpainter,
-    )
+    from pipeline.training.inpainter import TrainConfig, evaluate_inpainter, split_pairs, train_inpainter
+    from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 
     params = load_params(params_path)
     section = dict(params_section(params, "train_inpainter", params_path))
@@ -173,7 +167,7 @@ def main(
     )
     if export_path is None:  # another process of a multi-device run: rank zero exports and reports
         return {}
-    export = read_export(export_path)
+    export = read_inpainter_export(export_path)
     model, config = load_inpainter(export_path)
     if run["threads"]:
         import torch

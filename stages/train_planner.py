@@ -12,7 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
-from pipeline.params_file import load_params, params_section
+from pipeline.common.params import load_params, params_section
 from pipeline.stage_errors import run_stage_main
 
 VARIANTS = ("guide", "dare")
@@ -52,7 +52,8 @@ def plot_curves(history: list[dict], path: Path, title: str) -> None:
 
 def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: str | None = None,
          devices: str | None = None, resume: bool = False, max_epochs: int | None = None) -> dict:
-    from pipeline.training.planner import load_policy, train_planner
+    from pipeline.training.policy import train_planner
+    from pipeline.models.modeling_diffusion import load_policy
 
     if variant not in VARIANTS:
         raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")

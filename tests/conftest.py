@@ -12,8 +12,8 @@ import pytest
 os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 os.environ.setdefault("DVC_NO_ANALYTICS", "1")
 
-from pipeline.maps import GroundTruthMap, load_maze_png  # noqa: E402
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png  # noqa: E402
+from pipeline.world.maps import GroundTruthMap, load_maze_png  # noqa: E402
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png  # noqa: E402
 
 WALL, FREE, START = 127, 195, 208
 
@@ -82,15 +82,13 @@ def write_ros_map(directory: Path, free: np.ndarray, resolution: float, start_xy
 def no_pipeline_models(monkeypatch, tmp_path):
     """Tests never pick up models a `dvc repro` left in the working tree (models/...): a learned
     planner built without a checkpoint gets the shipped default, as in a fresh clone."""
-    from pipeline import predictor_eval, sliver_gate
-    from pipeline.planners import global_graph_planners, guide, sampled_lookahead
+    from pipeline.models import defaults
 
     absent = tmp_path / "no-pipeline-models"
-    monkeypatch.setattr(global_graph_planners, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
-    monkeypatch.setattr(predictor_eval, "DEFAULT_CHECKPOINT", absent / "inpainter.pt")
-    monkeypatch.setattr(guide, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
-    monkeypatch.setattr(sliver_gate, "DEFAULT_GATE", absent / "sliver_gate.json")
-    monkeypatch.setattr(sampled_lookahead, "DEFAULT_BLOCK_MODEL", absent / "block_model.pt")
+    monkeypatch.setattr(defaults, "PIPELINE_INPAINTER", absent / "inpainter.pt")
+    monkeypatch.setattr(defaults, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
+    monkeypatch.setattr(defaults, "PIPELINE_GATE", absent / "sliver_gate.json")
+    monkeypatch.setattr(defaults, "PIPELINE_BLOCK_MODEL", absent / "block_model.pt")
 
 
 TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model")  # "inpainter-test" sets its own location
@@ -105,7 +103,7 @@ def mlflow_uri(tmp_path_factory) -> str:
     """
     import mlflow
 
-    from pipeline.reports import TABLE_EXPERIMENTS
+    from pipeline.reporting.report import TABLE_EXPERIMENTS
 
     folder = tmp_path_factory.mktemp("mlflow")
     uri = f"sqlite:///{folder / 'mlflow.db'}"
@@ -118,9 +116,9 @@ def mlflow_uri(tmp_path_factory) -> str:
 @pytest.fixture(scope="session")
 def expert_shard_dir(generated_maze_dir, tmp_path_factory) -> Path:
     """Two expert episodes on generated 50 m mazes, stored as the collect_expert stage stores them."""
-    from pipeline.collect import ExpertConfig, collect_expert_shard
-    from pipeline.maps import list_maps
-    from pipeline.shards import run_shards
+    from pipeline.data.collect import ExpertConfig, collect_expert_shard
+    from pipeline.world.maps import list_maps
+    from pipeline.data.shards import run_shards
 
     directory = tmp_path_factory.mktemp("expert")
     config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), episodes_per_shard=1,

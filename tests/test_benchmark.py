@@ -1,14 +1,13 @@
-from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from pipeline.benchmark import run_benchmark
-from pipeline.maps import MapError, list_maps
-from pipeline.protocol import Protocol
-from pipeline.simulator import replay
-from pipeline.trajectories import METRICS_COLUMNS, read_trajectory_csv
-from pipeline.maps import load_map
+from pipeline.evaluation.benchmark import run_benchmark
+from pipeline.world.maps import MapError, list_maps
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import replay
+from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv
+from pipeline.world.maps import load_map
 
 
 def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_path):
@@ -36,7 +35,7 @@ def metrics_frame_of(distances: dict[str, list[float]]) -> pd.DataFrame:
 
 
 def test_summary_compares_with_the_baseline_map_by_map():
-    from pipeline.benchmark import summary_markdown
+    from pipeline.evaluation.benchmark import summary_markdown
 
     frame = metrics_frame_of({"greedy_utility": [100, 200, 300], "nf": [110, 220, 330]})
     text = summary_markdown(frame, Protocol())
@@ -50,7 +49,7 @@ def test_summary_compares_with_the_baseline_map_by_map():
 
 
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
-    from pipeline.benchmark import summarise, summary_markdown
+    from pipeline.evaluation.benchmark import summarise, summary_markdown
 
     frame = metrics_frame_of({"optimal": [80, 160, 240], "nf": [110, 220, 330]})
     summary = summarise(frame)
@@ -78,7 +77,7 @@ def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
 
 
 def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze_path):
-    from pipeline.benchmark import EpisodeTask, PlannerSpec, resolve_planner_specs, run_task
+    from pipeline.evaluation.benchmark import EpisodeTask, PlannerSpec, resolve_planner_specs, run_task
 
     plain = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0)
     assert plain.label == "nearest_frontier" and plain.options == {}
@@ -131,10 +130,10 @@ def test_a_protocol_mismatch_is_said_once_before_the_episodes(generated_maze_dir
     """Not once per episode and worker: the planners are checked in the calling process, the workers stay quiet."""
     import warnings
 
-    from pipeline.planners import global_graph_planners as ggp
-    from pipeline.protocol import ProtocolMismatchWarning
+    from pipeline.models import defaults
+    from pipeline.world.protocol import ProtocolMismatchWarning
 
-    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+    shipped = defaults.SHIPPED_INPAINTER
     maps = list_maps(generated_maze_dir)[:2]
     spec = f"tsp=guide_tsp:checkpoint={shipped}"
     with warnings.catch_warnings(record=True) as caught:
@@ -149,7 +148,7 @@ def test_a_ros_map_is_recorded_and_summarised_at_its_own_cell_size(tmp_path):
     import json
     from dataclasses import replace
 
-    from pipeline.protocol import PAPER_REAL_ROBOT
+    from pipeline.world.protocol import PAPER_REAL_ROBOT
     from tests.conftest import write_ros_map
     from tests.test_simulator import office_grid
 
@@ -181,7 +180,7 @@ def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir
     """Ctrl-C after one episode: its trajectory, metrics.csv and summary.md stay; the CLI exits 130."""
     from typer.testing import CliRunner
 
-    import pipeline.benchmark as benchmark
+    import pipeline.evaluation.benchmark as benchmark
     from pipeline.cli import app
 
     finished = benchmark.run_task

@@ -6,10 +6,10 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.caves import CaveConfig, draw_cave, generate_cave, generate_cave_set, grow_chambers
-from pipeline.graph import LatticeGraph, LatticeSpec
-from pipeline.maps import load_maze_png
-from pipeline.protocol import Protocol
+from pipeline.world.caves import CaveConfig, draw_cave, generate_cave, generate_cave_set, grow_chambers
+from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.world.maps import load_maze_png
+from pipeline.world.protocol import Protocol
 
 
 def test_a_cave_is_one_connected_space_inside_a_wall_ring_with_rough_walls():

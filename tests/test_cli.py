@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from pipeline.cli import app
-from pipeline.mazes import write_maze_png
+from pipeline.world.mazes import write_maze_png
 from tests.conftest import maze_from_blocks
 
 runner = CliRunner()
@@ -87,7 +87,7 @@ def test_benchmark_command_logs_one_mlflow_run_per_planner(generated_maze_dir, t
 
 
 def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path):
-    from pipeline.maps import load_map
+    from pipeline.world.maps import load_map
 
     out = tmp_path / "set"
     result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "30"])
@@ -109,7 +109,7 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
 
 
 def test_mazes_draws_office_floors_on_request(tmp_path):
-    from pipeline.maps import load_map
+    from pipeline.world.maps import load_map
 
     out = tmp_path / "offices"
     result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "office"])
@@ -126,7 +126,7 @@ def test_mazes_draws_office_floors_on_request(tmp_path):
 
 
 def test_mazes_draws_caves_on_request(tmp_path):
-    from pipeline.maps import load_map
+    from pipeline.world.maps import load_map
 
     out = tmp_path / "caves"
     result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "cave"])
@@ -331,7 +331,7 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
     import warnings
 
     from pipeline.cli import _warning_line
-    from pipeline.protocol import ProtocolMismatchWarning
+    from pipeline.world.protocol import ProtocolMismatchWarning
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -346,8 +346,8 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
 
 
 def test_maps_with_one_name_are_refused(tmp_path):
-    from pipeline.benchmark import check_unique_map_names
-    from pipeline.maps import MapError
+    from pipeline.evaluation.benchmark import check_unique_map_names
+    from pipeline.world.maps import MapError
 
     check_unique_map_names([tmp_path / "a.png", tmp_path / "b.png"], ["a", "b"])
     with pytest.raises(MapError, match="same name 'a'.*overwrite"):
@@ -355,7 +355,7 @@ def test_maps_with_one_name_are_refused(tmp_path):
 
 
 def test_tracking_store_check():
-    from pipeline.tracking import check_tracking_uri
+    from pipeline.common.mlflow_store import check_tracking_uri
 
     assert check_tracking_uri("sqlite:///mlflow.db") == "sqlite:///mlflow.db"
     with pytest.raises(ValueError, match="no MLflow server answers"):

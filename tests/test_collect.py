@@ -1,20 +1,20 @@
 import numpy as np
 import pytest
 
-from pipeline.collect import (
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.pairs import load_pairs
+from pipeline.data.collect import (
     ExpertConfig,
     PairsConfig,
     collect_expert_shard,
     collect_pairs_shard,
     future_waypoints,
-    load_expert_episodes,
     random_open_start,
-    load_pairs,
 )
-from pipeline.maps import list_maps, load_map
-from pipeline.protocol import Protocol
-from pipeline.shards import read_manifest, run_shards, shard_path
-from pipeline.simulator import Episode
+from pipeline.world.maps import list_maps, load_map
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import read_manifest, run_shards, shard_path
+from pipeline.world.simulator import Episode
 
 
 def pairs_config(maze_dir, **overrides):
@@ -101,13 +101,13 @@ def test_collection_sources_exist_and_are_the_stages_dvc_deps():
 
     import yaml
 
-    from pipeline.collect import EXPERT_SOURCES, PAIRS_SOURCES
-    from pipeline.shards import source_digest
+    from pipeline.data.collect import EXPERT_SOURCES, PAIRS_SOURCES
+    from pipeline.data.shards import source_digest
 
     root = Path(__file__).resolve().parent.parent
     stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]
     for stage, sources in (("collect_pairs", PAIRS_SOURCES), ("collect_expert", EXPERT_SOURCES)):
         assert {f"pipeline/{s}" for s in sources} <= set(stages[stage]["deps"]), stage
-        assert all((root / "pipeline" / s).is_file() for s in sources)
+        assert all((root / "pipeline" / s).exists() for s in sources)
     # The digest of a subset differs from the whole package's, and is stable.
     assert source_digest(PAIRS_SOURCES) == source_digest(PAIRS_SOURCES) != source_digest()

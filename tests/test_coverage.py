@@ -8,14 +8,15 @@ import threading
 import numpy as np
 import pytest
 
-from pipeline import coverage as cov
-from pipeline.geometry import segment_is_known_free
-from pipeline.graph import WINDOW_RADIUS
-from pipeline.maps import load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.protocol import Protocol
-from pipeline.sensor import scan
-from pipeline.simulator import replay
+from pipeline.lattice import tsp
+from pipeline.planners.references import coverage as cov
+from pipeline.world.geometry import segment_is_known_free
+from pipeline.lattice.graph import WINDOW_RADIUS
+from pipeline.world.maps import load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import scan
+from pipeline.world.simulator import replay
 
 PROTOCOL = Protocol()
 FAST = {"restarts": 4, "lns_iterations": 5}  # the search defaults are for benchmarks, not needed here
@@ -148,7 +149,7 @@ def test_objective_counts_only_uncovered_cells_and_survives_an_empty_set(maze):
 # --------------------------------------------------------------------------- TSP
 def brute_force_open(dist: np.ndarray) -> float:
     n = len(dist)
-    return min(cov.path_cost(dist, [0, *p]) for p in itertools.permutations(range(1, n)))
+    return min(tsp.path_cost(dist, [0, *p]) for p in itertools.permutations(range(1, n)))
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 7])
@@ -156,9 +157,9 @@ def test_open_tsp_exact_for_small_instances(n):
     rng = np.random.default_rng(n)
     points = rng.random((n, 2)) * 50
     dist = np.hypot(*(points[:, None] - points[None]).transpose(2, 0, 1))
-    order = cov.open_tsp_order(dist)
+    order = tsp.open_tsp_order(dist)
     assert order[0] == 0 and sorted(order) == list(range(n))
-    assert cov.path_cost(dist, order) == pytest.approx(brute_force_open(dist))
+    assert tsp.path_cost(dist, order) == pytest.approx(brute_force_open(dist))
 
 
 def test_open_tsp_heuristic_on_graph_distances(small_maze):
@@ -168,10 +169,10 @@ def test_open_tsp_heuristic_on_graph_distances(small_maze):
     for _ in range(5):
         nodes = [model.start] + [int(v) for v in rng.choice(model.node_count, size=9, replace=False) if v != model.start]
         dist = model.dist[np.ix_(nodes, nodes)]
-        heuristic = cov.open_tsp_order(dist, exact_max_nodes=0)
+        heuristic = tsp.open_tsp_order(dist, exact_max_nodes=0)
         assert heuristic[0] == 0 and sorted(heuristic) == list(range(len(nodes)))
-        exact = cov.open_tsp_order(dist)
-        assert cov.path_cost(dist, heuristic) <= 1.05 * cov.path_cost(dist, exact) + 1e-6
+        exact = tsp.open_tsp_order(dist)
+        assert tsp.path_cost(dist, heuristic) <= 1.05 * tsp.path_cost(dist, exact) + 1e-6
 
 
 def test_open_tsp_lin_kernighan_terminates_where_float_lengths_loop(small_maze):
@@ -181,13 +182,13 @@ def test_open_tsp_lin_kernighan_terminates_where_float_lengths_loop(small_maze):
     nodes = [v for v in nodes if v < model.node_count]
     dist = model.dist[np.ix_(nodes, nodes)]
     result: list[np.ndarray] = []
-    worker = threading.Thread(target=lambda: result.append(cov.open_tsp_order(dist, exact_max_nodes=0)), daemon=True)
+    worker = threading.Thread(target=lambda: result.append(tsp.open_tsp_order(dist, exact_max_nodes=0)), daemon=True)
     worker.start()
     worker.join(timeout=20)
     assert not worker.is_alive(), "open_tsp_order did not terminate"
     order = result[0]
     assert order[0] == 0 and sorted(order) == list(range(len(nodes)))
-    assert cov.path_cost(dist, order) <= cov.path_cost(dist, cov._nearest_neighbour(dist)) + 1e-6
+    assert tsp.path_cost(dist, order) <= tsp.path_cost(dist, tsp._nearest_neighbour_open(dist)) + 1e-6
 
 
 # --------------------------------------------------------------------------- tours
@@ -252,7 +253,7 @@ def test_uncoverable_cells_make_the_plan_cover_everything_it_can(tmp_path):
 def diagonal_pocket_map():
     """A 30 x 30-cell room and a 10 x 10-cell pocket that touches it only at one corner: the
     pocket is 8-connected to the start, yet no 4-connected ray (nor lattice edge) gets in."""
-    from pipeline.maps import GroundTruthMap
+    from pipeline.world.maps import GroundTruthMap
 
     free = np.zeros((50, 50), dtype=bool)
     free[5:35, 5:35] = True
@@ -261,7 +262,7 @@ def diagonal_pocket_map():
 
 
 def test_unobservable_free_cells_are_those_no_reachable_scan_reveals():
-    from pipeline.benchmark import unreachable_free_cells
+    from pipeline.evaluation.benchmark import unreachable_free_cells
 
     ground_truth = diagonal_pocket_map()
     protocol = Protocol(node_resolution=2.0, sensor_range=8.0, utility_range=4.0)

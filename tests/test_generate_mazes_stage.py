@@ -11,7 +11,7 @@ import cv2
 import pytest
 import yaml
 
-from pipeline.maps import load_maze_png
+from pipeline.world.maps import load_maze_png
 from stages.generate_mazes import main
 
 PARAMS = {

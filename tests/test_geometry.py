@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pipeline.geometry import segment_is_known_free, walk_cells, walk_offsets
+from pipeline.world.geometry import segment_is_known_free, walk_cells, walk_offsets
 
 
 @pytest.mark.parametrize("dx,dy", [(0, 0), (5, 0), (0, -7), (10, 10), (-20, 7), (3, -11)])

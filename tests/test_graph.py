@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from pipeline.geometry import segment_is_known_free
-from pipeline.graph import (
+from pipeline.world.geometry import segment_is_known_free
+from pipeline.lattice.graph import (
     NODE_FREE,
     NODE_OCCUPIED,
     REGION_BOUNDARY,
@@ -14,9 +14,9 @@ from pipeline.graph import (
     visible_counts,
 )
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
-from pipeline.simulator import Episode, run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.simulator import Episode, run_episode
 
 
 def spec_for(ground_truth, protocol=Protocol()):
@@ -228,8 +228,8 @@ def test_lattice_at_real_robot_resolution():
 
 def reference_visible_counts(free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float) -> np.ndarray:
     """The ray-fan count written plainly in NumPy: every ray's cells up to its first non-free cell."""
-    from pipeline.geometry import ray_table
-    from pipeline.graph import UTILITY_ANGLES
+    from pipeline.world.geometry import ray_table
+    from pipeline.lattice.graph import UTILITY_ANGLES
 
     rows, cols = free.shape
     table = ray_table(0, 0, range_cells, UTILITY_ANGLES)

@@ -14,7 +14,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pipeline.maps import (
+from pipeline.world.maps import (
     GroundTruthMap,
     MapError,
     list_maps,

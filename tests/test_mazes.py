@@ -1,4 +1,4 @@
-"""Tests of pipeline.mazes: format, reproducibility and the layout rules of the samples."""
+"""Tests of pipeline.world.mazes: format, reproducibility and the layout rules of the samples."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.maps import load_maze_png, maze_cells_from_image
-from pipeline.mazes import (
+from pipeline.world.maps import load_maze_png, maze_cells_from_image
+from pipeline.world.mazes import (
     FREE_VALUE,
     START_VALUE,
     WALL_VALUE,

@@ -1,8 +1,8 @@
 import numpy as np
 
-from pipeline.graph import LatticeGraph, LatticeSpec
-from pipeline.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN
-from pipeline.node_image import (
+from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN
+from pipeline.prediction.node_image import (
     PIXEL_FREE,
     PIXEL_OBSTACLE,
     PIXEL_UNKNOWN,
@@ -11,7 +11,7 @@ from pipeline.node_image import (
     observed_node_states,
     pad_size_for,
 )
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 
 def test_pad_sizes_follow_the_paper():

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.maps import load_maze_png
-from pipeline.offices import OfficeConfig, draw_office, generate_office, generate_office_set
+from pipeline.world.maps import load_maze_png
+from pipeline.world.offices import OfficeConfig, draw_office, generate_office, generate_office_set
 
 
 def test_an_office_floor_is_one_open_connected_space_with_a_free_start():

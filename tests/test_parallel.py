@@ -1,6 +1,6 @@
 """The ordered parallel map the per-map and per-shard stages share."""
 
-from pipeline.parallel import map_with_progress
+from pipeline.common.parallel import map_with_progress
 
 
 def _square_minus(x: int) -> int:

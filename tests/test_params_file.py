@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
-from pipeline.params_file import dataclass_from_dict, load_params, params_section, section_with_defaults
-from pipeline.protocol import Protocol
-from pipeline.training.planner import PlannerTrainConfig
+from pipeline.common.params import dataclass_from_dict, load_params, params_section, section_with_defaults
+from pipeline.world.protocol import Protocol
+from pipeline.training.policy import PlannerTrainConfig
 
 
 def test_load_params_reads_sections_and_names_the_file_when_it_cannot(tmp_path):

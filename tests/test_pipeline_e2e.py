@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pipeline.benchmark import parse_planner_spec
+from pipeline.evaluation.benchmark import parse_planner_spec
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -80,12 +80,12 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()
-    from pipeline.protocol import Protocol
-    from pipeline.training.inpainter import read_export
-    from pipeline.training.planner import read_policy_export
+    from pipeline.world.protocol import Protocol
+    from pipeline.models.modeling_inpainter import read_inpainter_export
+    from pipeline.models.modeling_diffusion import read_policy_export
 
     trained_at = Protocol.from_dict(params["protocol"]).to_dict()
-    assert read_export(project / "models/inpainter/inpainter.pt")["protocol"] == trained_at
+    assert read_inpainter_export(project / "models/inpainter/inpainter.pt")["protocol"] == trained_at
     assert read_policy_export(project / "models/planner_guide/policy.pt")["observations"]["protocol"] == trained_at
     assert "trained at other protocol values" not in run.stdout + run.stderr  # its own models match its protocol
     again = subprocess.run(["dvc", "status"], cwd=project, env=env, capture_output=True, text=True)

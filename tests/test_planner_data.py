@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from pipeline.collect import load_expert_episodes
-from pipeline.graph_observation import expert_action_deltas, rotate_steps
-from pipeline.node_predictor import NodePredictor
-from pipeline.planner_data import (
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.prediction.graph_observation import expert_action_deltas, rotate_steps
+from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.data.observations import (
     ObservationConfig,
     PlannerDataset,
     concatenate,
@@ -14,8 +14,8 @@ from pipeline.planner_data import (
     load_observations,
     save_observations,
 )
-from pipeline.protocol import Protocol
-from pipeline.shards import shard_path
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import shard_path
 
 
 @pytest.fixture(scope="module")

@@ -4,10 +4,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline.maps import list_maps
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.node_predictor import NodePredictorConfig
-from pipeline.predictor_eval import (
+from pipeline.world.maps import list_maps
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.prediction.node_predictor import NodePredictorConfig
+from pipeline.evaluation.predictor_eval import (
     COLUMNS,
     DETAIL_COLUMNS,
     all_free_inpaint,
@@ -51,7 +51,7 @@ def test_oracle_predictions_are_all_free(maze_paths):
 
 def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
     """Pre(k) is over all of V_u: a centroid on a wall counts against it, as in the paper."""
-    import pipeline.predictor_eval as predictor_eval
+    import pipeline.evaluation.predictor_eval as predictor_eval
 
     monkeypatch.setattr(predictor_eval.Prediction, "centroid_cells",
                         lambda self: np.array([[0, 0], [-5, 3]]))  # a border wall and a cell off the map
@@ -62,8 +62,8 @@ def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
 
 
 def test_cells_free_in_truth_is_false_off_the_map(maze_paths):
-    from pipeline.maps import load_map
-    from pipeline.predictor_eval import cells_free_in_truth
+    from pipeline.world.maps import load_map
+    from pipeline.evaluation.predictor_eval import cells_free_in_truth
 
     ground_truth = load_map(maze_paths[0])
     col, row = ground_truth.start_cell
@@ -103,16 +103,16 @@ def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match="not found"):
         load_inpaint_fn(str(tmp_path / "nope.pt"))
     monkeypatch.chdir(tmp_path)
-    import pipeline.planners.global_graph_planners as planners_module
+    import pipeline.models.defaults as planners_module
 
-    monkeypatch.setattr(planners_module, "SHIPPED_CHECKPOINT", tmp_path / "no_shipped.pt")
+    monkeypatch.setattr(planners_module, "SHIPPED_INPAINTER", tmp_path / "no_shipped.pt")
     with pytest.raises(FileNotFoundError, match="train_inpainter"):
         load_inpaint_fn(None)
 
 
 def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, mlflow_uri):
     import stages.eval_predictor as stage
-    import pipeline.predictor_eval as predictor_eval
+    import pipeline.evaluation.predictor_eval as predictor_eval
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -156,7 +156,7 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
 def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp_path, monkeypatch, mlflow_uri):
     """compare_checkpoint: Table I again with that export; the table says which steps reach the paper's."""
     import stages.eval_predictor as stage
-    import pipeline.predictor_eval as predictor_eval
+    import pipeline.evaluation.predictor_eval as predictor_eval
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -187,7 +187,7 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
 
 def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
     import stages.eval_predictor as stage
-    import pipeline.predictor_eval as predictor_eval
+    import pipeline.evaluation.predictor_eval as predictor_eval
 
     seen = []
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
@@ -210,7 +210,7 @@ def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
 def test_cli_main_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, monkeypatch):
     """`guide eval-predictor --threshold 0.7` gives what the sweep reports at tau 0.7, and its table says so."""
     import stages.eval_predictor as stage
-    import pipeline.predictor_eval as predictor_eval
+    import pipeline.evaluation.predictor_eval as predictor_eval
 
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: graded_inpaint)

@@ -6,7 +6,7 @@ import yaml
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.configuration_inpainter import InpainterConfig
-from pipeline.training.planner import PlannerTrainConfig
+from pipeline.training.policy import PlannerTrainConfig
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -40,8 +40,9 @@ def test_every_profile_uses_the_planners_tau():
     """The benchmark's planners use node_predictor's two taus (graph nodes, utility count); the policy's
     training observations and Table I must see predictions at the same ones, or the policy is trained
     on another graph and Table I measures nodes the planners never hold."""
-    from pipeline.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
-    from pipeline.planners.global_graph_planners import GuideTspPlanner, MapExPlanner
+    from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
+    from pipeline.planners.baselines.mapex import MapExPlanner
+    from pipeline.planners.guide.guide_tsp import GuideTspPlanner
 
     assert DEFAULT_COUNT_THRESHOLD < DEFAULT_THRESHOLD
     assert NodePredictorConfig().threshold == DEFAULT_THRESHOLD

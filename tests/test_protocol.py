@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.protocol import MODEL_INPUT_FIELDS, Protocol, model_input_differences
+from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol, model_input_differences
 
 
 def test_bad_values_are_refused_with_the_parameter_named():

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pipeline import render
-from pipeline.maps import GroundTruthMap
+from pipeline.reporting import render
+from pipeline.world.maps import GroundTruthMap
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
-from pipeline.simulator import run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.simulator import run_episode
 
 ROWS, COLS = 60, 80
 

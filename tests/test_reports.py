@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline import reports
-from pipeline.benchmark import PlannerSpec, parse_planner_spec, run_benchmark
-from pipeline.protocol import Protocol
-from pipeline.trajectories import METRICS_COLUMNS, read_trajectory_csv, write_metrics_csv, write_trajectory_csv
+from pipeline.reporting import report as reports
+from pipeline.evaluation.benchmark import PlannerSpec, parse_planner_spec, run_benchmark
+from pipeline.world.protocol import Protocol
+from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv, write_metrics_csv, write_trajectory_csv
 
 
 # --------------------------------------------------------------------------- planner specs
@@ -91,7 +91,7 @@ def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path, 
 
 
 def test_oracle_bound_specs_reach_their_base_planner():
-    from pipeline.benchmark import build_planner, resolve_planner_specs
+    from pipeline.evaluation.benchmark import build_planner, resolve_planner_specs
 
     (spec,) = resolve_planner_specs(["t=oracle_tail:base=greedy_utility,sliver_gate=true,handover_cells=10"])
     planner = build_planner(spec)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from pipeline.geometry import sensor_angles
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN, Belief, scan
+from pipeline.world.geometry import sensor_angles
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, scan
 
 
 def reference_scan(ground_free: np.ndarray, x0: int, y0: int, range_cells: float) -> np.ndarray:

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.shards import MANIFEST, ShardJob, read_manifest, run_shards, shard_path, write_shard
+from pipeline.data.shards import MANIFEST, ShardJob, read_manifest, run_shards, shard_path, write_shard
 
 
 def make_counting_shard(job: ShardJob) -> dict:
@@ -78,7 +78,7 @@ def test_manifest_bytes_depend_only_on_the_data_and_provenance_is_returned(tmp_p
 
 
 def test_shard_count_rounds_up_to_whole_shards_and_says_so(capsys):
-    from pipeline.shards import shard_count_for
+    from pipeline.data.shards import shard_count_for
 
     assert shard_count_for(300, 100, "pairs") == 3 and capsys.readouterr().out == ""
     assert shard_count_for(250, 100, "pairs") == 3

@@ -3,14 +3,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pipeline.geometry import walk_cells
-from pipeline.maps import GroundTruthMap, load_map
+from pipeline.world.geometry import walk_cells
+from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.planners import make_planner, planner_class, planner_names
-from pipeline.planners.base import Planner, Waypoint
-from pipeline.protocol import PAPER_REAL_ROBOT, Protocol
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
-from pipeline.simulator import Episode, MotionError, Observation, replay, run_episode
-from pipeline.trajectories import read_trajectory_csv, write_trajectory_csv
+from pipeline.world.planner import Planner, Waypoint
+from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.simulator import Episode, MotionError, replay, run_episode
+from pipeline.world.planner import Observation
+from pipeline.world.trajectories import read_trajectory_csv, write_trajectory_csv
 from tests.conftest import write_ros_map
 
 

@@ -7,15 +7,14 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
-from pipeline.sliver_gate import (
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
+from pipeline.planners.extensions.sliver_gate import (
     FEATURES,
-    SHIPPED_GATE,
     SliverGate,
     fit_sliver_gate,
     gate_features,
     load_gate,
-    resolve_gate_path,
     roc_auc,
     save_gate,
 )

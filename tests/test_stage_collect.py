@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.collect import load_expert_episodes, load_pairs
-from pipeline.maps import load_map
-from pipeline.node_image import PAD_SIZES
-from pipeline.protocol import Protocol
-from pipeline.shards import MANIFEST, read_manifest, shard_path
-from pipeline.simulator import LATTICE_TOLERANCE_M
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.pairs import load_pairs
+from pipeline.world.maps import load_map
+from pipeline.prediction.node_image import PAD_SIZES
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import MANIFEST, read_manifest, shard_path
+from pipeline.world.simulator import LATTICE_TOLERANCE_M
 from stages import collect_expert, collect_pairs
 
 PAIRS = dict(seed=5, pairs=6, pairs_per_shard=3, planners=["nearest_frontier", "greedy_utility"], snapshot_every=2,

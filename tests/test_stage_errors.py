@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.maps import MapError
-from pipeline.planners.base import UnknownPlannerError
+from pipeline.world.maps import MapError
+from pipeline.planners.registry import UnknownPlannerError
 from pipeline.stage_errors import UPSTREAM_HINT, run_stage_main, user_error_message
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,8 +8,8 @@ import shutil
 import pytest
 import yaml
 
-from pipeline.offices import OfficeConfig, generate_office_set
-from pipeline.sliver_gate import load_gate
+from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.planners.extensions.sliver_gate import load_gate
 from stages import fit_gate
 
 

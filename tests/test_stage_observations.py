@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.collect import ExpertConfig, ExpertEpisode, collect_expert_shard, load_expert_episodes
-from pipeline.global_graph import FEATURE_NAMES
-from pipeline.maps import list_maps
-from pipeline.planner_data import load_observations
-from pipeline.protocol import Protocol
-from pipeline.shards import MANIFEST, run_shards, shard_path
+from pipeline.data.collect import ExpertConfig, collect_expert_shard
+from pipeline.data.expert_episodes import ExpertEpisode, load_expert_episodes
+from pipeline.prediction.global_graph import FEATURE_NAMES
+from pipeline.world.maps import list_maps
+from pipeline.data.observations import load_observations
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import MANIFEST, run_shards, shard_path
 from stages import build_observations
 
 SHIPPED_INPAINTER = Path(__file__).resolve().parents[1] / "pipeline/assets/inpainter.pt"

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.protocol import Protocol
-from pipeline.simulator import replay
-from pipeline.trajectories import MAX_COORDINATE_M, read_trajectory_csv, write_trajectory_csv
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import replay
+from pipeline.world.trajectories import MAX_COORDINATE_M, read_trajectory_csv, write_trajectory_csv
 
 
 def refused(path, *fragments: str) -> str:

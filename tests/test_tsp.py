@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from pipeline.tsp import path_length, tsp_path
+from pipeline.lattice.tsp import path_length, tsp_path
 
 
 def _random_metric(n: int, rng: np.random.Generator) -> np.ndarray:

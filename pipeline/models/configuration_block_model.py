@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from pipeline.params_file import dataclass_from_dict
+from pipeline.common.params import dataclass_from_dict
 
 INPUT_CHANNELS = 4  # known-free share, known-wall share, unknown share, outer ring
 

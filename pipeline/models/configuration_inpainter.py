@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from pipeline.params_file import dataclass_from_dict
+from pipeline.common.params import dataclass_from_dict
 
 # How a node image (255 free, 0 obstacle, 128 unknown) becomes the network's input channels.
 #   signed: [+1 free / -1 obstacle / 0 unknown, unknown mask]                   -> 2 channels

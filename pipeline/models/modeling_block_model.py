@@ -14,8 +14,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from pipeline.block_maps import block_shares, border_ring
+from pipeline.prediction.block_maps import block_shares, border_ring
 from pipeline.models.configuration_block_model import INPUT_CHANNELS, BlockModelConfig
+from pipeline.models.exports import read_weights_file, write_weights_file
 
 BLOCK_MODEL_FORMAT = "guide-block-model/1"
 
@@ -61,8 +62,6 @@ def belief_free_probability(model: BlockModel, belief: np.ndarray, blocks: np.nd
 
 
 def save_block_model(model: BlockModel, path: str | Path, trained_on: dict[str, Any] | None = None) -> Path:
-    from pipeline.training.exports import write_weights_file
-
     payload = {"format": BLOCK_MODEL_FORMAT, "config": model.config.to_dict(),
                "state_dict": model.state_dict(), "trained_on": trained_on or {}}
     return write_weights_file(payload, path)
@@ -70,8 +69,6 @@ def save_block_model(model: BlockModel, path: str | Path, trained_on: dict[str, 
 
 def load_block_model(path: str | Path) -> BlockModel:
     """The model in `path`, in eval mode; a one-line error if it is not a block model file."""
-    from pipeline.training.exports import read_weights_file
-
     payload = read_weights_file(path, "a block model file")
     if payload.get("format") != BLOCK_MODEL_FORMAT:
         raise ValueError(f"{path}: not a block model file (format {payload.get('format')!r}, expected {BLOCK_MODEL_FORMAT!r})")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 from typing import Any, Mapping
 
 import torch
@@ -25,6 +26,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.exports import export_kind, read_weights_file, write_weights_file
 
 OBS_KEYS = ("features", "node_mask", "neighbors", "robot")
 
@@ -430,3 +432,28 @@ class DiffusionPolicy(nn.Module):
         raw = self.sample(obs, num_inference_steps=num_inference_steps, generator=generator, obs_z=obs_z)
         deltas, expected = decode_actions(raw, self.config)
         return {"deltas": deltas, "expected": expected, "raw": raw}
+
+
+# ----------------------------------------------------------------------------- export / load
+def export_policy(policy: DiffusionPolicy, path: str | Path, **extra: Any) -> Path:
+    return write_weights_file({"config": policy.config.to_dict(), "state_dict": policy.state_dict(), **extra}, path)
+
+
+def read_policy_export(path: str | Path) -> dict[str, Any]:
+    """The export's dict (config, EMA state_dict, metadata); loads tensors only, never pickled code."""
+    data = read_weights_file(path, "a planner checkpoint")
+    if export_kind(data) == "inpainter":
+        raise ValueError(f"{path}: an inpainter export, not a planner policy (pass it as the inpainter: "
+                         "inpainter_checkpoint= for guide, checkpoint= for guide_tsp and mapex)")
+    if "config" not in data or "state_dict" not in data:
+        raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
+    return data
+
+
+def load_policy(path: str | Path) -> tuple[DiffusionPolicy, dict[str, Any]]:
+    """(the exported EMA policy in eval mode, the export's metadata)."""
+    data = read_policy_export(path)
+    policy = DiffusionPolicy(DiffusionPolicyConfig.from_dict(data["config"]))
+    policy.load_state_dict(data["state_dict"])
+    meta = {k: v for k, v in data.items() if k not in ("state_dict",)}
+    return policy.eval(), meta

@@ -18,13 +18,15 @@ official code puts an `nn.Identity`.
 from __future__ import annotations
 
 import copy
-from typing import Mapping, Optional
+from pathlib import Path
+from typing import Any, Mapping, Optional
 
 import numpy as np
 import torch
 import torch.nn as nn
 
 from pipeline.models.configuration_inpainter import InpainterConfig
+from pipeline.models.exports import INPAINTER_FORMAT, export_kind, read_weights_file, write_weights_file
 
 PIXEL_FREE_MIN = 192  # node image values >= this are free nodes (255)
 PIXEL_OBSTACLE_MAX = 63  # values <= this are obstacle nodes (0); anything between is unknown (128)
@@ -443,3 +445,51 @@ class TracedInpainter:
         batch = torch.from_numpy(np.ascontiguousarray(array[None] if single else array)).unsqueeze(1)
         probs = self(batch)[:, 0].float().cpu().numpy()
         return probs[0] if single else probs
+
+
+# ----------------------------------------------------------------------------- export / load
+def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) -> Path:
+    """Write `inpainter.pt`: {format, config, state_dict, ...extra}; atomic."""
+    payload = {
+        "format": INPAINTER_FORMAT,
+        "config": generator.config.to_dict(),
+        "state_dict": {k: v.detach().cpu().clone() for k, v in generator.state_dict().items()},
+        "num_parameters": generator.num_parameters(),
+        **extra,
+    }
+    return write_weights_file(payload, path)
+
+
+def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
+    """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
+    return inpainter_from_payload(read_weights_file(path, "an inpainter export", map_location), path)
+
+
+def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[InpainterModel, InpainterConfig]:
+    """`load_inpainter` on a payload already read (`read_inpainter_export`), for callers that want its metadata too."""
+    if export_kind(payload) == "policy":
+        raise ValueError(f"{path}: a planner policy export, not an inpainter export")
+    try:
+        if "config" in payload and "state_dict" in payload:
+            config = InpainterConfig.from_dict(payload["config"])
+            state = payload["state_dict"]
+        elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
+            config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
+            state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
+        else:
+            raise ValueError("neither an exported inpainter nor an inpainter training checkpoint")
+    except (KeyError, TypeError, ValueError) as error:  # e.g. a planner checkpoint: another model's config
+        raise ValueError(f"{path}: not an inpainter export ({str(error)[:200]})") from None
+    model = InpainterModel(config)
+    model.load_state_dict(state)
+    return model.eval(), config
+
+
+def read_inpainter_export(path: str | Path) -> dict[str, Any]:
+    """The whole exported payload (config, state_dict, metrics, history, timings)."""
+    return read_weights_file(path, "an inpainter export")
+
+
+def is_inpainter_export(payload: dict[str, Any]) -> bool:
+    """Whether a checkpoint's dict is one of our `inpainter.pt` exports (`export_inpainter`)."""
+    return payload.get("format") == INPAINTER_FORMAT and "config" in payload and "state_dict" in payload

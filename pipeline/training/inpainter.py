@@ -42,17 +42,19 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from pipeline.collect import load_pairs
+from pipeline.data.pairs import load_pairs
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.models.modeling_inpainter import (
     PIXEL_FREE_MIN,
     PIXEL_OBSTACLE_MAX,
     InpainterModel,
+    export_inpainter,
+    is_inpainter_export,
     load_big_lama_generator,
 )
-from pipeline.params_file import dataclass_from_dict
-from pipeline.shards import read_manifest
-from pipeline.training.exports import INPAINTER_FORMAT, export_kind, read_weights_file, write_weights_file
+from pipeline.common.params import dataclass_from_dict
+from pipeline.data.shards import read_manifest
+from pipeline.models.exports import export_kind
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,
@@ -539,48 +541,6 @@ class InpainterLightning(L.LightningModule):
 
 
 # ----------------------------------------------------------------------------- export / load
-def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) -> Path:
-    """Write `inpainter.pt`: {format, config, state_dict, ...extra}; atomic."""
-    payload = {
-        "format": INPAINTER_FORMAT,
-        "config": generator.config.to_dict(),
-        "state_dict": {k: v.detach().cpu().clone() for k, v in generator.state_dict().items()},
-        "num_parameters": generator.num_parameters(),
-        **extra,
-    }
-    return write_weights_file(payload, path)
-
-
-def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
-    """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
-    return inpainter_from_payload(read_weights_file(path, "an inpainter export", map_location), path)
-
-
-def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[InpainterModel, InpainterConfig]:
-    """`load_inpainter` on a payload already read (`read_export`), for callers that want its metadata too."""
-    if export_kind(payload) == "policy":
-        raise ValueError(f"{path}: a planner policy export, not an inpainter export")
-    try:
-        if "config" in payload and "state_dict" in payload:
-            config = InpainterConfig.from_dict(payload["config"])
-            state = payload["state_dict"]
-        elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
-            config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
-            state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
-        else:
-            raise ValueError("neither an exported inpainter nor an inpainter training checkpoint")
-    except (KeyError, TypeError, ValueError) as error:  # e.g. a planner checkpoint: another model's config
-        raise ValueError(f"{path}: not an inpainter export ({str(error)[:200]})") from None
-    model = InpainterModel(config)
-    model.load_state_dict(state)
-    return model.eval(), config
-
-
-def read_export(path: str | Path) -> dict[str, Any]:
-    """The whole exported payload (config, state_dict, metrics, history, timings)."""
-    return read_weights_file(path, "an inpainter export")
-
-
 # What torch.save wrote before its zip format: a pickled magic number (protocol 2) opens the file.
 _LEGACY_TORCH_HEAD = pickle.dumps(0x1950A86A20F9469CFC6C, protocol=2)
 
@@ -618,11 +578,6 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
 
 
 # ----------------------------------------------------------------------------- entry point
-def is_inpainter_export(payload: dict[str, Any]) -> bool:
-    """Whether a checkpoint's dict is one of our `inpainter.pt` exports (`export_inpainter`)."""
-    return payload.get("format") == INPAINTER_FORMAT and "config" in payload and "state_dict" in payload
-
-
 def is_big_lama_layout(config: InpainterConfig) -> bool:
     reference = InpainterConfig.big_lama(in_channels=config.in_channels, out_channels=config.out_channels,
                                          input_encoding=config.input_encoding)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline import coverage as cov
-from pipeline.geometry import segment_is_known_free
-from pipeline.maps import load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.planners.references import coverage as cov
+from pipeline.world.geometry import segment_is_known_free
+from pipeline.world.maps import load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_class, planner_names
-from pipeline.protocol import Protocol
-from pipeline.simulator import replay, run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import replay, run_episode
 
 PROTOCOL = Protocol()
 FAST = {"restarts": 4, "lns_iterations": 5}  # the search defaults are for benchmarks
@@ -73,7 +73,7 @@ def test_expert_detours_when_the_next_edge_is_not_known_yet(small_maze):
 
 def test_expert_steps_are_known_free_each_decision(small_maze):
     """Every proposed waypoint is one move whose segment is known free in the belief it saw."""
-    from pipeline.simulator import Episode
+    from pipeline.world.simulator import Episode
 
     episode = Episode(small_maze, PROTOCOL)
     planner = make_planner("expert", **FAST)
@@ -108,7 +108,7 @@ def test_expert_heads_for_where_its_plan_completes_when_no_viewpoint_is_left(sma
     """A plan whose scans complete the episode before its next viewpoint keeps only the robot in
     its order (cut where it completes). The expert once took that as "nothing left" and ended the
     episode as a failure with cells still to see (1 of 50 mazes when handed over mid-episode)."""
-    from pipeline.planners import coverage as coverage_planners
+    from pipeline.planners.references import coverage_planners
 
     planner = make_planner("expert", **QUICK)
     planner.reset(small_maze, PROTOCOL, 0)

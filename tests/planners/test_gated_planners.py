@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.simulator import Episode, run_episode
-from pipeline.sliver_gate import SliverGate, save_gate
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import Episode, run_episode
+from pipeline.planners.extensions.sliver_gate import SliverGate, save_gate
 
 
 @pytest.mark.parametrize(("name", "gated"), [("greedy_utility", False), ("nearest_frontier", False),
@@ -64,7 +64,7 @@ def test_the_gate_falls_back_when_every_node_it_passes_is_unreachable(small_maze
 def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_dir):
     """Verdicts are kept per node until a belief change comes within the gate's reach; every kept
     one must be what the gate says on the belief of the moment, and some must be kept."""
-    from pipeline.maps import load_map
+    from pipeline.world.maps import load_map
 
     protocol = Protocol()
     checked = kept = 0

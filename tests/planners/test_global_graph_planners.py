@@ -1,4 +1,4 @@
-"""Tests of guide_tsp and mapex (pipeline/planners/global_graph_planners.py)."""
+"""Tests of guide_tsp and mapex (pipeline/planners/guide/guide_tsp.py, pipeline/planners/baselines/mapex.py)."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.graph import LatticeGraph, LatticeSpec
-from pipeline.maps import GroundTruthMap, load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.node_image import ground_truth_states, node_states_image
-from pipeline.node_predictor import pad_to_multiple
-from pipeline.planners import global_graph_planners as ggp
+from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.world.maps import GroundTruthMap, load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.prediction.node_image import ground_truth_states, node_states_image
+from pipeline.prediction.node_predictor import pad_to_multiple
+from pipeline.models import defaults
 from pipeline.planners import make_planner, planner_names
-from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, UNKNOWN
-from pipeline.simulator import Episode, run_episode
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, UNKNOWN
+from pipeline.world.simulator import Episode, run_episode
 
 PROTOCOL = Protocol()
 
@@ -40,26 +40,26 @@ def oracle_inpainter(ground_truth: GroundTruthMap):
 def no_shipped_model(monkeypatch, tmp_path):
     """These tests build the predictor planners without any inpainter unless they give one
     (conftest already hides models/ in the working tree)."""
-    monkeypatch.setattr(ggp, "SHIPPED_CHECKPOINT", tmp_path / "absent" / "shipped.pt")
+    monkeypatch.setattr(defaults, "SHIPPED_INPAINTER", tmp_path / "absent" / "shipped.pt")
 
 
 def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkeypatch):
-    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+    shipped = defaults.ASSETS / "inpainter.pt"
     if not shipped.is_file():
         pytest.fail("the package ships pipeline/assets/inpainter.pt")
-    monkeypatch.setattr(ggp, "SHIPPED_CHECKPOINT", shipped)
+    monkeypatch.setattr(defaults, "SHIPPED_INPAINTER", shipped)
     planner = make_planner("guide_tsp")
     assert "shipped default inpainter" in planner.description and planner.predictor is not None
 
 
 def test_the_shipped_models_record_the_protocol_they_were_trained_at():
     """pipeline/assets/README.md: the maze benchmark's defaults, which the planners check against."""
-    from pipeline.planners.guide import SHIPPED_POLICY
-    from pipeline.training.inpainter import read_export
-    from pipeline.training.planner import read_policy_export
+    from pipeline.models.defaults import SHIPPED_POLICY
+    from pipeline.models.modeling_inpainter import read_inpainter_export
+    from pipeline.models.modeling_diffusion import read_policy_export
 
-    shipped = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
-    assert read_export(shipped)["protocol"] == Protocol().to_dict()
+    shipped = defaults.ASSETS / "inpainter.pt"
+    assert read_inpainter_export(shipped)["protocol"] == Protocol().to_dict()
     for path in SHIPPED_POLICY.values():
         assert read_policy_export(path)["observations"]["protocol"] == Protocol().to_dict(), path
 
@@ -138,7 +138,7 @@ def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze
 def test_guide_tsp_keeps_its_target_through_a_cycle_on_an_unchanged_map(maze):
     """Replanning on an unchanged map flipped between two first targets and walked between two
     nodes until max_steps; back at a node with nothing new seen, the target chosen there is kept."""
-    from pipeline.simulator import Observation
+    from pipeline.world.simulator import Observation
 
     planner = make_planner("guide_tsp")
     planner.reset(maze, PROTOCOL, 0)
@@ -195,7 +195,7 @@ def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
     """The shipped policy's observations were made at tau 0.8 / count 0.5: other taus run, with a warning."""
     import warnings
 
-    from pipeline.planners.guide import SHIPPED_POLICY
+    from pipeline.models.defaults import SHIPPED_POLICY
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     with warnings.catch_warnings():
@@ -208,7 +208,7 @@ def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
         make_planner("guide_noregion", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, count_threshold=0.3)
 
 
-SHIPPED_INPAINTER = Path(ggp.__file__).resolve().parent.parent / "assets" / "inpainter.pt"
+SHIPPED_INPAINTER = defaults.SHIPPED_INPAINTER
 
 
 def copy_with_protocol(source: Path, target: Path, protocol: Protocol, *keys: str) -> Path:
@@ -230,7 +230,7 @@ def test_predictor_planners_warn_when_their_inpainter_was_trained_at_another_pro
     import re
     import warnings
 
-    from pipeline.protocol import ProtocolMismatchWarning
+    from pipeline.world.protocol import ProtocolMismatchWarning
 
     halved = Protocol(node_resolution=2.0)
     with warnings.catch_warnings():
@@ -252,8 +252,8 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
     """The policy's observations record the protocol they were built at; the export carries it."""
     import warnings
 
-    from pipeline.planners.guide import SHIPPED_POLICY
-    from pipeline.protocol import ProtocolMismatchWarning
+    from pipeline.models.defaults import SHIPPED_POLICY
+    from pipeline.world.protocol import ProtocolMismatchWarning
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     wide = Protocol(sensor_range=30.0, utility_range=15.0)
@@ -271,8 +271,8 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
 @pytest.mark.parametrize("name, region_evaluation", [("guide", True), ("guide_noregion", False)])
 def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_policy_fixes(name, region_evaluation, maze):
     """max_nodes comes from the policy and region evaluation from the variant; the rest of the option is used."""
-    from pipeline.global_graph import GlobalGraphConfig
-    from pipeline.planners.guide import SHIPPED_POLICY
+    from pipeline.prediction.global_graph import GlobalGraphConfig
+    from pipeline.models.defaults import SHIPPED_POLICY
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     option = GlobalGraphConfig(centroid_links=1, max_nodes=7, use_region_evaluation=not region_evaluation)

@@ -9,7 +9,7 @@ import re
 import pytest
 
 from pipeline.planners import make_planner, planner_names
-from pipeline.planners.base import check_int, check_number
+from pipeline.planners.options import check_int, check_number
 
 NAN, INF = math.nan, math.inf
 LEARNED = ("guide", "guide_noregion", "dare")
@@ -183,7 +183,7 @@ def test_valid_edge_values_are_accepted(name, options):
 
 def test_spec_errors_reach_the_benchmark_before_any_episode():
     """`--planner label=name:key=value` goes through the constructor's checks (the CLI's one-line error)."""
-    from pipeline.benchmark import build_planner, resolve_planner_specs
+    from pipeline.evaluation.benchmark import build_planner, resolve_planner_specs
 
     for spec, message in (("o=optimal:restarts=0", "planner 'o': restarts must be >= 1, got 0"),
                           ("t=guide_tsp:threshold=2", "planner 't': threshold must be a number in [0, 1], got 2")):

@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.maps import load_maze_png
+from pipeline.world.maps import load_maze_png
 from pipeline.planners import make_planner
-from pipeline.planners.global_graph_planners import SHIPPED_CHECKPOINT
-from pipeline.planners.guide import SHIPPED_POLICY
-from pipeline.protocol import Protocol
-from pipeline.simulator import run_episode
+from pipeline.models.defaults import SHIPPED_INPAINTER, SHIPPED_POLICY
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import run_episode
 
 BENCHMARK = Protocol()
 QUARTER = Protocol(cell_size=0.1, node_resolution=1.0, sensor_range=5.0, utility_range=2.5, region_size=5.0)
-INPAINTER = str(SHIPPED_CHECKPOINT)
+INPAINTER = str(SHIPPED_INPAINTER)
 
 PLANNERS = {
     "nearest_frontier": {},
@@ -38,7 +37,7 @@ PLANNERS = {
 
 
 # The learned planners' models were trained at the full-scale protocol: at a quarter scale they say so.
-@pytest.mark.filterwarnings("ignore::pipeline.protocol.ProtocolMismatchWarning")
+@pytest.mark.filterwarnings("ignore::pipeline.world.protocol.ProtocolMismatchWarning")
 @pytest.mark.parametrize("name", sorted(PLANNERS))
 def test_a_quarter_scale_map_is_explored_on_the_same_waypoints(name, small_maze_path):
     runs = []

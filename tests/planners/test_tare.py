@@ -6,15 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.frontier import frontier_mask
-from pipeline.graph import visible_counts
-from pipeline.maps import GroundTruthMap, load_maze_png
-from pipeline.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.lattice.frontier import frontier_mask
+from pipeline.lattice.graph import visible_counts
+from pipeline.world.maps import GroundTruthMap, load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_names
-from pipeline.planners.tare import TarePlanner, greedy_set_cover, visible_frontier_cells
-from pipeline.protocol import Protocol
-from pipeline.sensor import FREE, OCCUPIED, UNKNOWN
-from pipeline.simulator import Episode, Observation, replay, run_episode
+from pipeline.planners.baselines.tare import TarePlanner, greedy_set_cover, visible_frontier_cells
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.simulator import Episode, replay, run_episode
+from pipeline.world.planner import Observation
 
 PROTOCOL = Protocol()
 

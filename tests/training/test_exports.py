@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from pipeline.training.exports import read_weights_file
+from pipeline.models.exports import read_weights_file
 
 
 class Gadget:

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.block_maps import block_index, true_blocks
-from pipeline.maps import list_maps, load_map
+from pipeline.prediction.block_maps import block_index, true_blocks
+from pipeline.world.maps import list_maps, load_map
 from pipeline.models.configuration_block_model import BlockModelConfig
-from pipeline.protocol import Protocol
+from pipeline.world.protocol import Protocol
 from pipeline.training.block_model import (BlockSamples, _reveal, block_error, block_snapshots, near_unknown,
                                           train_block_model)
 

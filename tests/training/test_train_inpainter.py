@@ -12,27 +12,10 @@ import torch
 import yaml
 
 from pipeline.models import InpainterConfig, InpainterModel
-from pipeline.protocol import Protocol
-from pipeline.shards import write_shard
-from pipeline.training.inpainter import (
-    NodeImagePairDataset,
-    SizeGroupedBatchSampler,
-    TrainConfig,
-    dihedral,
-    evaluate_inpainter,
-    hide_box,
-    hole_counts,
-    inpainting_loss,
-    load_inpainter,
-    maze_count,
-    maze_ids,
-    pair_count,
-    precision_recall_f1,
-    read_export,
-    read_init_checkpoint,
-    split_pairs,
-    train_inpainter,
-)
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import write_shard
+from pipeline.training.inpainter import NodeImagePairDataset, SizeGroupedBatchSampler, TrainConfig, dihedral, evaluate_inpainter, hide_box, hole_counts, inpainting_loss, maze_count, maze_ids, pair_count, precision_recall_f1, read_init_checkpoint, split_pairs, train_inpainter
+from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
 
 TINY = {"ngf": 4, "n_blocks": 1}
@@ -166,7 +149,7 @@ def test_rollout_split_keeps_the_tail_of_each_shard_and_size(pairs_dir):
     train, val = split_pairs(pairs_dir, 0.25, "rollout")
     assert set(train) == set(val) == {32, 40}
     assert all(len(train[s]["observed"]) == 2 * 4 and len(val[s]["observed"]) == 2 * 2 for s in (32, 40))
-    from pipeline.collect import load_pairs
+    from pipeline.data.pairs import load_pairs
 
     first = load_pairs([pairs_dir / "shard_00000.npz"])
     np.testing.assert_array_equal(val[32]["observed"][:2], first[32]["observed"][4:])
@@ -220,7 +203,7 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
                            experiment_name="inpainter-test", artifact_location=artifacts)
     assert path == out / "inpainter.pt" and path.is_file()
     assert (out / "last.ckpt").is_file() and (out / "best.ckpt").is_file()
-    export = read_export(path)
+    export = read_inpainter_export(path)
     assert export["epochs"] == 1 and [h["epoch"] for h in export["history"]] == [0]
     assert np.isfinite(export["history"][0]["train_loss"]) and 0 <= export["history"][0]["val_f1"] <= 1
     assert export["pairs"] == {"train": 16, "val": 8}
@@ -234,7 +217,7 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
     # not trained again: its record, timing included, is the first run's).
     path = train_inpainter(TINY, pairs_dir, out, max_epochs=2, resume=True, tracking_uri=mlflow_uri, train_config=FAST,
                            experiment_name="inpainter-test", artifact_location=artifacts)
-    export = read_export(path)
+    export = read_inpainter_export(path)
     assert export["epochs"] == 2 and [h["epoch"] for h in export["history"]] == [0, 1]
     assert export["history"][0] == first_epoch
     ckpt = torch.load(out / "last.ckpt", map_location="cpu", weights_only=True)
@@ -254,7 +237,7 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
 def test_training_reduces_the_loss(pairs_dir, tmp_path):
     path = train_inpainter(TINY, pairs_dir, tmp_path / "fit", max_epochs=4, mlflow=False,
                            train_config={**FAST, "lr": 0.01, "augment": False, "split": "maze"})
-    export = read_export(path)
+    export = read_inpainter_export(path)
     assert export["pairs"] == {"train": 18, "val": 6} and export["mazes"] == {"train": 18, "val": 6}
     history = export["history"]
     assert history[-1]["train_loss"] < history[0]["train_loss"]
@@ -274,7 +257,7 @@ def test_adversarial_training_runs(pairs_dir, tmp_path):
                            train_config={**FAST, "adversarial_weight": 0.1, "discriminator_width": 8})
     state = torch.load(tmp_path / "gan" / "last.ckpt", map_location="cpu", weights_only=True)["state_dict"]
     assert any(k.startswith("discriminator.") for k in state)
-    assert not any(k.startswith("discriminator.") for k in read_export(path)["state_dict"])
+    assert not any(k.startswith("discriminator.") for k in read_inpainter_export(path)["state_dict"])
 
 
 def test_fresh_run_clears_stale_checkpoints(pairs_dir, tmp_path):
@@ -424,7 +407,7 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
     assert {"val_precision", "val_recall", "val_f1", "num_parameters", "train_seconds", "predict_ms_48",
             "val_mazes", "split"} <= set(written)
     # The protocol the pairs were drawn at travels with the model, for the planners' check.
-    assert read_export("models/inpainter/inpainter.pt")["protocol"] == Protocol(node_resolution=2.0).to_dict()
+    assert read_inpainter_export("models/inpainter/inpainter.pt")["protocol"] == Protocol(node_resolution=2.0).to_dict()
     # The metrics say where the model was trained, at the stage's thread count (params threads: 1).
     assert written["trained_on"]["threads"] == 1 and written["trained_on"]["torch"] == torch.__version__
 
@@ -458,14 +441,14 @@ def test_two_process_training_exports_once(pairs_dir, tmp_path, adversarial_weig
     assert done.returncode == 0, done.stderr[-3000:]
     lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
     assert sorted(lines) == [f"exported: {out / 'inpainter.pt'}", "exported: None"]
-    assert read_export(out / "inpainter.pt")["epochs"] == 1
+    assert read_inpainter_export(out / "inpainter.pt")["epochs"] == 1
 
 
 def test_max_minutes_caps_the_wall_clock(pairs_dir, tmp_path):
     """A time cap (a timed GPU lease) stops a long run early and still exports a model."""
     path = train_inpainter(TINY, pairs_dir, tmp_path / "capped", max_epochs=200, mlflow=False,
                            train_config={**FAST, "max_minutes": 0.05})
-    export = read_export(path)
+    export = read_inpainter_export(path)
     assert 1 <= export["epochs"] < 200
     assert load_inpainter(path)[0] is not None
     for bad in (0, -1.0, "ten", True):

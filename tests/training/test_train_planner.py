@@ -7,15 +7,16 @@ import numpy as np
 import pytest
 import torch
 
-from pipeline.collect import load_expert_episodes
-from pipeline.maps import list_maps, load_map
-from pipeline.node_predictor import NodePredictor
-from pipeline.planner_data import ObservationConfig, concatenate, episode_observations, save_observations
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.world.maps import list_maps, load_map
+from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.data.observations import ObservationConfig, concatenate, episode_observations, save_observations
 from pipeline.planners import make_planner
-from pipeline.protocol import Protocol
-from pipeline.shards import shard_path
-from pipeline.simulator import Episode, run_episode
-from pipeline.training.planner import PlannerTrainConfig, load_policy, read_policy_export, split_episodes, train_planner
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import shard_path
+from pipeline.world.simulator import Episode, run_episode
+from pipeline.training.policy import PlannerTrainConfig, split_episodes, train_planner
+from pipeline.models.modeling_diffusion import load_policy, read_policy_export
 
 TINY_MODEL = dict(max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1,
                   num_inference_steps=5)
@@ -223,7 +224,7 @@ def test_diffusion_planner_options_are_checked(trained):
 
 
 def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_path):
-    import pipeline.planners.guide as guide_module
+    import pipeline.models.defaults as guide_module
 
     monkeypatch.setattr(guide_module, "PIPELINE_POLICY", {k: tmp_path / f"{k}.pt" for k in ("guide", "dare")})
     planner = make_planner("dare")
@@ -235,7 +236,7 @@ def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_
 
 DDP_SCRIPT = """
 import sys
-from pipeline.training.planner import train_planner
+from pipeline.training.policy import train_planner
 path = train_planner(sys.argv[1], sys.argv[2], {model}, {train}, accelerator="cpu", devices=2, mlflow=False)
 print("exported:", path)
 """

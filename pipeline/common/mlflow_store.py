@@ -1,0 +1,75 @@
+"""The MLflow store: which one runs log to, and a check that it can be used before any work.
+
+MLflow 3 refuses the old ./mlruns file store; the default here is a local sqlite file.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
+
+
+def import_mlflow():
+    """mlflow, imported only when tracking is asked for (it is slow to import), with its telemetry
+    off unless the user set MLFLOW_DISABLE_TELEMETRY (runs here log to a local store), and without
+    the INFO lines a new store prints (its tables and schema migrations, a new experiment)."""
+    os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
+    import mlflow
+
+    for name in ("alembic", "mlflow.store.db.utils", "mlflow.tracking.fluent"):
+        logging.getLogger(name).setLevel(logging.WARNING)
+    return mlflow
+
+
+def resolve_tracking_uri(uri: str | None = None) -> str:
+    """The CLI's value, else MLFLOW_TRACKING_URI, else the local sqlite store."""
+    return uri or os.environ.get("MLFLOW_TRACKING_URI") or DEFAULT_TRACKING_URI
+
+
+SERVER_SCHEMES = ("http", "https", "databricks", "postgresql", "mysql", "mssql")
+
+
+def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
+    """The resolved store, checked before any work: ValueError in one line when it cannot be used.
+
+    MLflow itself only finds out when the first run is logged, after a whole benchmark,
+    and then retries for minutes (a server that does not answer, a read-only folder).
+    """
+    uri = resolve_tracking_uri(uri)
+    scheme = uri.split(":", 1)[0].lower() if ":" in uri else ""
+    if scheme == "sqlite":
+        if not uri.startswith("sqlite:///"):
+            raise ValueError(f"tracking store {uri!r}: a sqlite store is sqlite:///RELATIVE/PATH.db or sqlite:////ABSOLUTE/PATH.db")
+        path = Path(uri[len("sqlite:///"):])
+        folder = path.parent  # "." for a bare file name
+        if not folder.is_dir():
+            raise ValueError(f"tracking store {uri!r}: folder {folder} does not exist")
+        try:  # sqlite writes its journal beside the database: the folder must take new files
+            tempfile.TemporaryFile(dir=folder).close()
+        except OSError as error:
+            raise ValueError(f"tracking store {uri!r}: cannot write in {folder} ({error.strerror})") from None
+        if path.exists() and not os.access(path, os.W_OK):
+            raise ValueError(f"tracking store {uri!r}: {path} is not writable")
+        return uri
+    if scheme in ("http", "https"):
+        import urllib.error
+        import urllib.request
+
+        try:
+            urllib.request.urlopen(f"{uri.rstrip('/')}/health", timeout=timeout_s).close()
+        except urllib.error.HTTPError:
+            return uri  # something answers; MLflow reports what it thinks of it
+        except (urllib.error.URLError, OSError, ValueError) as error:
+            reason = getattr(error, "reason", error)
+            raise ValueError(f"tracking store {uri!r}: no MLflow server answers ({reason})") from None
+        return uri
+    if scheme in SERVER_SCHEMES:
+        return uri
+    raise ValueError(
+        f"tracking store {uri!r} is not one MLflow 3 can log to here: use sqlite:///mlflow.db (the default), "
+        "an http(s):// tracking server or a database URI"
+    )

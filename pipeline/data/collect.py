@@ -1,0 +1,203 @@
+"""Training data: Stage I node-image pairs and Stage II expert episodes, written as shards.
+
+Stage I rolls out a mix of planners with random early stopping, so partial maps of every
+stage of exploration appear, and snapshots (observed, ground-truth) node images.
+Stage II stores expert episodes as raw state: per step the cells the scan revealed (a
+compact, exact diff of the belief), the robot's position and the expert's next T_p
+waypoints, plus the ground-truth grid, so that graph observations can be rebuilt later
+with any node predictor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.world.maps import GroundTruthMap, load_map
+from pipeline.prediction.node_image import PAD_SIZES, node_image_pair
+from pipeline.planners import make_planner
+from pipeline.world.protocol import Protocol
+from pipeline.data.shards import ShardJob, shard_path, write_shard
+from pipeline.world.simulator import Episode, run_episode
+
+
+# The library code that determines each data set, as the folders (and files) of the pipeline
+# package that its collection runs: the shard fingerprints hash them, and they are the stages'
+# code dependencies in dvc.yaml (a test derives both from the import graph).
+COLLECTION_SOURCES = ("__init__.py", "common", "data", "lattice", "models", "planners", "prediction", "stage_errors.py", "world")
+PAIRS_SOURCES = COLLECTION_SOURCES
+EXPERT_SOURCES = COLLECTION_SOURCES
+
+
+def lattice_graph_for(ground_truth: GroundTruthMap, protocol: Protocol) -> LatticeGraph:
+    return LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
+
+
+# ----------------------------------------------------------------------------- Stage I
+@dataclass(frozen=True)
+class PairsConfig:
+    """Stage I collection: which mazes, how many pairs, and how rollouts are drawn."""
+
+    maps: tuple[str, ...]
+    pairs_per_shard: int
+    planners: tuple[str, ...]
+    snapshot_every: int = 4
+    stop_steps: tuple[int, int] = (5, 200)  # random early stop, inclusive
+    seed: int = 0
+    protocol: Protocol = Protocol()
+
+
+def collect_pairs_shard(job: ShardJob) -> dict[str, Any]:
+    """Roll out until the shard holds `pairs_per_shard` pairs; write it; return its counts."""
+    config: PairsConfig = job.params["config"]
+    rng = np.random.default_rng([config.seed, job.index])
+    sizes = {size: [] for size in PAD_SIZES}
+    count = 0
+    episodes = 0
+    while count < config.pairs_per_shard:
+        ground_truth = load_map(rng.choice(config.maps), cell_size=config.protocol.cell_size)
+        planner = make_planner(str(rng.choice(config.planners)))
+        stop = int(rng.integers(config.stop_steps[0], config.stop_steps[1] + 1))
+        graph = lattice_graph_for(ground_truth, config.protocol)
+        offset = int(rng.integers(0, config.snapshot_every))
+        captured: list = []
+
+        def snapshot(episode: Episode) -> None:
+            if episode.steps % config.snapshot_every == offset and len(captured) + count < config.pairs_per_shard:
+                captured.append(node_image_pair(graph, episode.belief.grid, ground_truth.free))
+
+        run_episode(ground_truth, planner, replace(config.protocol, max_steps=stop), seed=int(rng.integers(1 << 31)), on_step=snapshot)
+        episodes += 1
+        for pair in captured:
+            sizes[pair.observed.shape[0]].append(pair)
+        count += len(captured)
+    arrays: dict[str, np.ndarray] = {"fingerprint": np.array(job.fingerprint)}
+    for size, pairs in sizes.items():
+        if pairs:
+            arrays[f"observed_{size}"] = np.stack([p.observed for p in pairs])
+            arrays[f"target_{size}"] = np.stack([p.target for p in pairs])
+            arrays[f"valid_{size}"] = np.stack([p.valid for p in pairs])
+    arrays["summary_pairs"] = np.array(count)
+    arrays["summary_episodes"] = np.array(episodes)
+    path = shard_path(job.out_dir, job.index)
+    write_shard(path, arrays)
+    return {"pairs": count, "episodes": episodes, "bytes": path.stat().st_size}
+
+
+# ----------------------------------------------------------------------------- Stage II
+@dataclass(frozen=True)
+class ExpertConfig:
+    """Stage II collection: expert episodes on training mazes."""
+
+    maps: tuple[str, ...]
+    episodes_per_shard: int
+    planner: str = "expert"
+    horizon: int = 8  # T_p future waypoints stored per step
+    seed: int = 0
+    protocol: Protocol = Protocol()
+    random_starts: bool = False  # each episode from a random open cell instead of the map's marked start
+
+
+def random_open_start(ground_truth: GroundTruthMap, rng: np.random.Generator, clearance_m: float = 0.8) -> GroundTruthMap:
+    """The map with its start moved to a random cell whose square of +-`clearance_m` is free.
+
+    The expert is deterministic on a map, so episodes from one marked start repeat each other
+    step for step (24 episodes on 8 mazes held about 16 distinct ones); other starts give
+    other tours, and the clearance keeps the start off walls, as a marked start room does.
+    """
+    radius = max(0, int(round(clearance_m / ground_truth.cell_size)))
+    kernel = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+    open_cells = cv2.erode(ground_truth.free.astype(np.uint8), kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    candidates = np.argwhere(open_cells)
+    if not len(candidates):
+        return ground_truth
+    row, col = candidates[int(rng.integers(len(candidates)))]
+    return replace(ground_truth, start_cell=(int(col), int(row)))
+
+
+def future_waypoints(trajectory: np.ndarray, horizon: int) -> np.ndarray:
+    """For each step t, the next `horizon` waypoints after t (the last one repeated at the end)."""
+    steps = len(trajectory)
+    index = np.arange(steps)[:, None] + np.arange(1, horizon + 1)[None, :]
+    return trajectory[np.minimum(index, steps - 1)]
+
+
+def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, seed: int) -> dict[str, Any]:
+    """Run the expert and keep, per step, the belief diff the step's scan made."""
+    previous = {"grid": None}
+    change_index: list[np.ndarray] = []
+    change_value: list[np.ndarray] = []
+
+    def record(episode: Episode) -> None:
+        grid = episode.belief.grid.reshape(-1)
+        if previous["grid"] is None:
+            changed = np.nonzero(grid != 128)[0]
+        else:
+            changed = np.nonzero(grid != previous["grid"])[0]
+        change_index.append(changed.astype(np.int32))
+        change_value.append(grid[changed].copy())
+        previous["grid"] = grid.copy()
+
+    result = run_episode(ground_truth, make_planner(config.planner), config.protocol, seed=seed, on_step=record)
+    trajectory = np.asarray(result.trajectory, dtype=np.float32)
+    return {
+        "result": result,
+        "trajectory": trajectory,
+        "targets": future_waypoints(trajectory, config.horizon),
+        "change_index": change_index,
+        "change_value": change_value,
+    }
+
+
+def collect_expert_shard(job: ShardJob) -> dict[str, Any]:
+    """Write `episodes_per_shard` expert episodes as one shard of raw per-step state."""
+    config: ExpertConfig = job.params["config"]
+    rng = np.random.default_rng([config.seed, job.index])
+    maps, shapes, starts, grids, trajectories, targets = [], [], [], [], [], []
+    step_counts, change_counts, change_index, change_value, complete, distance = [], [], [], [], [], []
+    for _ in range(config.episodes_per_shard):
+        map_path = str(rng.choice(config.maps))
+        ground_truth = load_map(map_path, cell_size=config.protocol.cell_size)
+        if config.random_starts:
+            ground_truth = random_open_start(ground_truth, rng)
+        record = record_expert_episode(ground_truth, config, seed=int(rng.integers(1 << 31)))
+        maps.append(Path(map_path).name)
+        shapes.append(ground_truth.shape)
+        starts.append(ground_truth.start_cell)
+        grids.append(np.packbits(ground_truth.free.reshape(-1)))
+        trajectories.append(record["trajectory"])
+        targets.append(record["targets"])
+        step_counts.append(len(record["trajectory"]))
+        change_counts.extend(len(c) for c in record["change_index"])
+        change_index.extend(record["change_index"])
+        change_value.extend(record["change_value"])
+        complete.append(record["result"].complete)
+        distance.append(record["result"].distance_m)
+    grid_lengths = [len(g) for g in grids]
+    arrays = {
+        "fingerprint": np.array(job.fingerprint),
+        "map_names": np.array(maps),
+        "map_shapes": np.array(shapes, dtype=np.int32),
+        "start_cells": np.array(starts, dtype=np.int32),
+        "ground_truth_bits": np.concatenate(grids),
+        "ground_truth_bit_lengths": np.array(grid_lengths, dtype=np.int64),
+        "step_counts": np.array(step_counts, dtype=np.int32),  # waypoints incl. the start, per episode
+        "positions": np.concatenate(trajectories),  # (sum steps, 2) metres
+        "future_waypoints": np.concatenate(targets),  # (sum steps, T_p, 2) metres
+        "change_counts": np.array(change_counts, dtype=np.int32),  # per step
+        "change_index": np.concatenate(change_index) if change_index else np.zeros(0, np.int32),
+        "change_value": np.concatenate(change_value) if change_value else np.zeros(0, np.uint8),
+        "complete": np.array(complete),
+        "distance_m": np.array(distance, dtype=np.float64),
+        "summary_episodes": np.array(len(maps)),
+        "summary_steps": np.array(int(sum(step_counts))),
+        "summary_complete": np.array(int(sum(complete))),
+    }
+    path = shard_path(job.out_dir, job.index)
+    write_shard(path, arrays)
+    return {"episodes": len(maps), "steps": int(sum(step_counts)), "complete": int(sum(complete)), "bytes": path.stat().st_size}

@@ -1,0 +1,138 @@
+"""Where each trained model is found, and its loader: one place for every default model path.
+
+A planner that needs a model takes the file it is given; else the one the pipeline trained
+(`models/...`, relative to the folder it runs in, where `dvc repro` writes them); else the one
+shipped in `pipeline/assets/`. A file is read once per process (`pipeline.models.cache`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pipeline.models.cache import load_once
+from pipeline.models.exports import require_file
+from pipeline.models.modeling_block_model import BlockModel, load_block_model
+from pipeline.models.modeling_diffusion import load_policy
+from pipeline.models.modeling_inpainter import TracedInpainter, inpainter_from_payload, read_inpainter_export
+from pipeline.prediction.node_predictor import InpaintFn
+
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
+
+PIPELINE_INPAINTER = Path("models/inpainter/inpainter.pt")
+SHIPPED_INPAINTER = ASSETS / "inpainter.pt"
+PIPELINE_POLICY = {"guide": Path("models/planner_guide/policy.pt"), "dare": Path("models/planner_dare/policy.pt")}
+SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
+PIPELINE_BLOCK_MODEL = Path("models/block_model/block_model.pt")
+SHIPPED_BLOCK_MODEL = ASSETS / "block_model.pt"
+PIPELINE_GATE = Path("models/sliver_gate/sliver_gate.json")
+SHIPPED_GATE = ASSETS / "sliver_gate.json"
+
+
+# ----------------------------------------------------------------------------- inpainter
+def _read_inpainter(path: Path) -> tuple[InpaintFn, dict | None]:
+    payload = read_inpainter_export(path)
+    model, _ = inpainter_from_payload(payload, path)
+    return TracedInpainter(model).predict, payload.get("protocol")
+
+
+def _load_inpainter_once(path: str | Path) -> tuple[InpaintFn, dict | None]:
+    return load_once("inpainter", path, _read_inpainter)
+
+
+def cached_inpainter(path: str | Path) -> InpaintFn:
+    """The trained inpainter at `path` as a node image -> probability function, loaded once per process."""
+    return _load_inpainter_once(path)[0]
+
+
+def inpainter_protocol(path: str | Path) -> dict | None:
+    """The protocol the inpainter at `path` was trained at, as recorded in its export (None: not recorded)."""
+    return _load_inpainter_once(path)[1]
+
+
+def inpainter_path(checkpoint: str | Path | None = None) -> Path:
+    """`checkpoint`, else the pipeline's trained inpainter, else the shipped default; FileNotFoundError if none is there."""
+    path = Path(checkpoint) if checkpoint else PIPELINE_INPAINTER
+    if not checkpoint and not path.is_file() and SHIPPED_INPAINTER.is_file():
+        path = SHIPPED_INPAINTER
+    if not path.is_file():
+        if checkpoint:
+            raise FileNotFoundError(f"inpainter checkpoint {path} not found")
+        raise FileNotFoundError(
+            f"no inpainter checkpoint given, {PIPELINE_INPAINTER} does not exist and no default is shipped "
+            f"({SHIPPED_INPAINTER}): train one with `dvc repro train_inpainter` or pass --checkpoint PATH"
+        )
+    return path
+
+
+def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tuple[InpaintFn | None, str, Path | None]:
+    """(inpaint function or None, a few words saying which predictor is used, its file or None)."""
+    if inpaint is not None:
+        return inpaint, "injected inpainter", None
+    if checkpoint is not None:
+        path = require_file(checkpoint, "an inpainter export")
+        return cached_inpainter(path), f"trained inpainter {checkpoint}", path
+    if PIPELINE_INPAINTER.is_file():
+        return cached_inpainter(PIPELINE_INPAINTER), f"trained inpainter {PIPELINE_INPAINTER}", PIPELINE_INPAINTER
+    if SHIPPED_INPAINTER.is_file():
+        return cached_inpainter(SHIPPED_INPAINTER), "shipped default inpainter", SHIPPED_INPAINTER
+    return None, "no inpainter found: nothing predicted (frontier-only fallback)", None
+
+
+# ----------------------------------------------------------------------------- diffusion policy
+def _read_policy(path: Path) -> tuple[object, dict]:
+    policy, meta = load_policy(path)
+    return policy.trace_denoiser(), dict(meta.get("observations") or {})
+
+
+def cached_policy(path: str | Path) -> tuple[object, dict]:
+    """(the exported policy at `path`, the metadata of the observations it was trained on: variant,
+    threshold, count_threshold, ...; {} for an export without it), loaded once per process (eval
+    mode, traced denoiser)."""
+    return load_once("policy", path, _read_policy)
+
+
+def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
+    """`checkpoint`, else the pipeline's `kind` ("guide" or "dare") policy, else the shipped one."""
+    if checkpoint is not None:
+        return require_file(checkpoint, "a planner checkpoint")
+    for path in (PIPELINE_POLICY[kind], SHIPPED_POLICY[kind]):
+        if path.is_file():
+            return path
+    raise FileNotFoundError(
+        f"no trained {kind} policy: neither {PIPELINE_POLICY[kind]} nor the shipped {SHIPPED_POLICY[kind]} exists; "
+        f"run `dvc repro train_planner` or pass --checkpoint PATH"
+    )
+
+
+# ----------------------------------------------------------------------------- block model
+def resolve_block_model(checkpoint: str | None) -> Path:
+    """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
+    if checkpoint is not None:
+        return require_file(checkpoint, "a block model file")
+    for path in (PIPELINE_BLOCK_MODEL, SHIPPED_BLOCK_MODEL):
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f"no block model: neither {PIPELINE_BLOCK_MODEL} (`dvc repro train_block_model`) "
+                            f"nor the shipped {SHIPPED_BLOCK_MODEL} exists; pass checkpoint=PATH")
+
+
+def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> tuple[BlockModel, str]:
+    """(the block model, where it came from): `model` when injected, else loaded once per path."""
+    if model is not None:
+        return model, "injected block model"
+    try:
+        path = resolve_block_model(checkpoint)
+    except FileNotFoundError as error:  # an option error, reported in one line like the others
+        raise ValueError(str(error)) from None
+    return load_once("block_model", path, load_block_model), f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
+
+
+# ----------------------------------------------------------------------------- sliver gate
+def resolve_gate_path(gate_file: str | Path | None) -> Path:
+    """`gate_file`, else the pipeline's fitted gate in models/ when present, else the shipped one."""
+    if gate_file is not None:
+        path = Path(gate_file)
+        if not path.is_file():
+            raise ValueError(f"sliver gate file {path} does not exist")
+        return path
+    return PIPELINE_GATE if PIPELINE_GATE.is_file() else SHIPPED_GATE

@@ -1,0 +1,91 @@
+"""Lattice planners that predict free nodes V_p in unknown space (Algorithm 1), with the node predictor.
+
+The inpainter: an `inpaint` callable (uint8 node image -> free probability; tests pass an
+oracle) wins; else a `checkpoint` path; else the pipeline's trained inpainter, else the shipped
+one (`pipeline.models.defaults`). With none, nothing is predicted and the planner reduces to
+its frontier-only version (the instance's `description` says which predictor is in use).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.models.defaults import inpainter_protocol, resolve_inpainter
+from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.options import check_int, check_number
+from pipeline.prediction.node_predictor import (DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, InpaintFn, NodePredictor,
+                                                NodePredictorConfig)
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation
+from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
+
+
+class PredictingPlanner(GraphPlanner):
+    """A lattice-graph planner with a node predictor (or none)."""
+
+    base_description = ""
+
+    def __init__(
+        self,
+        min_utility: int = 2,
+        checkpoint: str | None = None,
+        inpaint: InpaintFn | None = None,
+        threshold: float = DEFAULT_THRESHOLD,
+        min_component: int = 3,
+        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
+        sliver_gate: bool | None = None,
+        gate_file: str | None = None,
+    ):
+        super().__init__(min_utility=min_utility, sliver_gate=sliver_gate, gate_file=gate_file)
+        # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
+        check_number("threshold", threshold, 0.0, 1.0)
+        check_number("count_threshold", count_threshold, 0.0, 1.0, none="threshold")
+        check_int("min_component", min_component, 0, note="0 or 1 = keep every prediction")
+        fn, source, path = resolve_inpainter(inpaint, checkpoint)
+        config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
+        self.predictor = None if fn is None else NodePredictor(fn, config)
+        self.predictor_source = source
+        # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
+        self.trained_models: list[tuple[str, dict | None]] = [] if path is None else [(str(path), inpainter_protocol(path))]
+        self.description = f"{self.base_description} [{source}; {self.gate_source}]"
+        self.last_decision: dict = {}
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.check_protocol(protocol)
+
+    def check_protocol(self, protocol: Protocol) -> None:
+        # A model sees node images and graphs drawn at the protocol it was trained at; others still run.
+        for model, trained in self.trained_models:
+            differences = model_input_differences(trained, protocol)
+            if differences:  # one warning per model and protocol: the same text from this one line
+                warnings.warn(
+                    f"{model} was trained at other protocol values ({', '.join(differences)}): its inputs mean "
+                    f"something else here, so expect weaker predictions; retrain at your maps' values "
+                    f"(params.yaml: protocol)",
+                    ProtocolMismatchWarning,
+                )
+
+    def predict(self) -> np.ndarray:
+        """V_p at `threshold`."""
+        if self.predictor is None or self.graph is None:
+            return np.zeros(0, dtype=np.int64)
+        return self.predictor.predict(self.graph)
+
+    def predict_with_counted(self) -> tuple[np.ndarray, np.ndarray]:
+        """(V_p at `threshold` for the graph, V_p at `count_threshold` for the utility boost)."""
+        if self.predictor is None or self.graph is None:
+            none = np.zeros(0, dtype=np.int64)
+            return none, none
+        return self.predictor.predict_with_counted(self.graph)
+
+    def locate(self, observation: Observation) -> tuple[LatticeGraph, int, np.ndarray, np.ndarray, np.ndarray]:
+        """Every decision's start: the updated graph, the robot's node, known-graph distances and
+        predecessors from it, and the useful nodes it can reach (empty: nothing left to explore)."""
+        graph = self.update_graph(observation)
+        robot = self.robot_node(observation)
+        dist, pred = graph.shortest_paths(robot)
+        return graph, robot, dist, pred, self.reachable_useful(robot, dist)

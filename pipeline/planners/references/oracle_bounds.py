@@ -1,0 +1,203 @@
+"""Oracle bounds: a planner given the ground truth in one place only, to measure what that place can win.
+
+Each wraps an ordinary lattice planner (`base`, any registered non-oracle `GraphPlanner`, built
+with the remaining options) and lets the ground truth decide one thing:
+
+- `oracle_gate`: the base planner's sliver gate is the truth. A target passes when its scan on
+  the ground truth would reveal at least `min_gain` cells the belief lacks (the label the
+  learned gate is fitted to). With `veto=true` the learned gate still decides, and the truth
+  only vetoes the slivers it passes. If a perfect gate cannot make a planner 10 % shorter than
+  `greedy_utility`, no better gate can.
+- `oracle_tail`: the base planner drives until at most `handover_cells` ground-truth free cells
+  are still unknown, then the ground-truth `expert` finishes. It bounds what any better
+  end-game can win.
+
+A third does not wrap: `oracle_lookahead` is gated greedy that tries each of its `k` best
+targets in a copy of the episode on the ground truth and steps toward the one that completes
+soonest. It bounds what a model of the unseen map, good enough to simulate a few candidate
+routes, could win.
+
+They are diagnostics, never planners to deploy: `guide planners` marks them as oracles.
+Measured figures: docs/findings.md, "What a better gate can still win", "An oracle tail" and
+"A one-step lookahead".
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+
+from pipeline.world.maps import GroundTruthMap
+from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.options import check_int, require
+from pipeline.planners.registry import make_planner, planner_class, register_planner
+from pipeline.world.planner import Planner, Waypoint
+from pipeline.planners.references.coverage_planners import ExpertPlanner
+from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE
+from pipeline.world.simulator import Episode
+from pipeline.world.planner import Observation
+from pipeline.planners.extensions.sliver_gate import TrueGain
+
+DEFAULT_BASE = "greedy_utility"
+
+
+def _base_planner(base: str, options: dict) -> GraphPlanner:
+    """The wrapped planner; a ValueError when it is not an ordinary lattice planner."""
+    require(isinstance(base, str), f"base must be a planner name, got {base!r}")
+    try:
+        cls = planner_class(base)
+    except KeyError as error:  # an unknown name: the one-line option error, as for any other option
+        raise ValueError(f"base: {error}") from None
+    require(issubclass(cls, GraphPlanner) and not cls.uses_ground_truth,
+            f"base must be a lattice planner that does not see the ground truth (e.g. greedy_utility, guide), got {base!r}")
+    return make_planner(base, **options)
+
+
+class _OracleWrapper(Planner):
+    """Delegates to `self.base`; subclasses add the ground truth where they need it."""
+
+    uses_ground_truth = True
+
+    def __init__(self, base: str, options: dict):
+        self.base = _base_planner(base, options)
+        self.trained_models = getattr(self.base, "trained_models", [])
+
+    @classmethod
+    def options_target(cls, options: dict) -> type[Planner] | None:
+        """The planner class the options this wrapper does not take go to (its base; None: unknown
+        name, which the constructor reports)."""
+        try:
+            return planner_class(options.get("base", DEFAULT_BASE))
+        except KeyError:
+            return None
+
+    def check_protocol(self, protocol: Protocol) -> None:
+        self.base.check_protocol(protocol)
+
+
+class TrueGainGate:
+    """A sliver gate that knows: passes the cells whose ground-truth scan reveals >= `min_gain`
+    cells the belief lacks; with `learned`, only those the learned gate passes too (a veto)."""
+
+    def __init__(self, true_gain: TrueGain, min_gain: int, learned=None):
+        self.true_gain, self.min_gain, self.learned = true_gain, min_gain, learned
+
+    def reach_cells(self, range_cells: float) -> int:
+        """How far (cells, Chebyshev) from a candidate a belief change can move its verdict: the
+        scan's reach, or the learned gate's when it vetoes."""
+        reach = int(math.ceil(range_cells)) + 1
+        return max(reach, self.learned.reach_cells(range_cells)) if self.learned is not None else reach
+
+    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float,
+               frontier: np.ndarray | None = None) -> np.ndarray:
+        big = self.true_gain.gains(belief, cells) >= self.min_gain
+        if self.learned is not None:
+            big &= self.learned.passes(belief, cells, range_cells, frontier)
+        return big
+
+
+@register_planner("oracle_gate")
+class OracleGatePlanner(_OracleWrapper):
+    """Oracle bound: `base` (default greedy_utility) with the ground truth as its sliver gate."""
+
+    description = "oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; veto=true: vetoes the learned gate's slivers)"
+
+    def __init__(self, base: str = DEFAULT_BASE, min_gain: int = 50, veto: bool = False, **options):
+        check_int("min_gain", min_gain, 1)
+        require(isinstance(veto, bool), f"veto must be true or false, got {veto!r}")
+        if veto:
+            require(options.get("sliver_gate", True) is True, "veto=true vetoes the learned gate's slivers: drop sliver_gate=false")
+            options = {**options, "sliver_gate": True}
+        super().__init__(base, options)
+        self.min_gain, self.veto = int(min_gain), veto
+        self.learned = self.base.gate if veto else None  # the learned gate the truth vetoes
+        self.description = f"{self.description} [base {base}: {self.base.description}]"
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.base.reset(ground_truth, protocol, seed)
+        self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        return self.base.plan(observation)
+
+
+@register_planner("oracle_tail")
+class OracleTailPlanner(_OracleWrapper):
+    """Oracle bound: `base` (default greedy_utility) until `handover_cells` unknown free cells, then `expert`."""
+
+    description = "oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, then the ground-truth expert"
+
+    def __init__(self, base: str = DEFAULT_BASE, handover_cells: int = 8000, **options):
+        check_int("handover_cells", handover_cells, 0)
+        super().__init__(base, options)
+        self.handover_cells = int(handover_cells)
+        self.expert = ExpertPlanner()
+        self.description = f"{self.description} [base {base}: {self.base.description}]"
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.base.reset(ground_truth, protocol, seed)
+        self.expert.reset(ground_truth, protocol, seed)
+        self.free_cells = int(ground_truth.free.sum())
+        self.handed_over = False
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        if not self.handed_over:
+            unknown = self.free_cells - int(np.count_nonzero(observation.belief == FREE))
+            self.handed_over = unknown <= self.handover_cells
+        if self.handed_over:
+            return self.expert.plan(observation)
+        self.expert.update_graph(observation)  # its lattice graph folds in changes incrementally
+        return self.base.plan(observation)
+
+
+@register_planner("oracle_lookahead")
+class OracleLookaheadPlanner(GreedyUtilityPlanner):
+    """Oracle bound: gated greedy with a one-step lookahead on the ground truth.
+
+    At each decision its `k` best targets (utility per metre) are each tried in a copy of the
+    episode run on the ground truth: head for the target until it is reached or stops being a
+    target, then gated greedy to completion. The robot takes one step toward the target whose
+    copy completed soonest and decides again. `k=1` is gated greedy itself.
+    """
+
+    uses_ground_truth = True
+    sliver_gate_default = True
+    description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
+                   "episode on the ground truth; one step toward the one that completes soonest")
+
+    def __init__(self, k: int = 3, min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None):
+        check_int("k", k, 1)
+        super().__init__(min_utility, sliver_gate, gate_file)
+        self.k = int(k)
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.shadow = Episode(ground_truth, protocol)  # the real episode, mirrored move by move
+        self.shadow.observe()
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        if np.hypot(*np.subtract(observation.position, self.shadow.position)) > 1e-9:
+            self.shadow.move(observation.position)
+            self.shadow.observe()
+        pred, ranked = self.ranked_targets(observation)
+        if ranked.size == 0:
+            return []
+        choice = int(ranked[0])
+        if self.k > 1 and ranked.size > 1:
+            shared = (self.shadow.map, self.shadow.lidar, self.gate)  # read-only: not copied
+            best = np.inf
+            for target in ranked[: self.k]:
+                trial = copy.deepcopy(self, {id(obj): obj for obj in shared})
+                distance = trial.finish_in_copy(int(target), pred)
+                if distance < best:
+                    best, choice = distance, int(target)
+        return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))
+
+    def finish_in_copy(self, target: int, pred: np.ndarray) -> float:
+        """On a copy: head for `target`, then gated greedy; the distance at completion (inf: none)."""
+        distance = self.finish_episode(self.shadow, target, pred)
+        return np.inf if distance is None else distance

@@ -1,0 +1,62 @@
+"""MLflow runs of a benchmark: one run per planner, with its options, summary metrics and tables."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.evaluation.benchmark import RUN_RECORD, summarise
+from pipeline.world.protocol import Protocol
+
+
+def log_benchmark(
+    frame: pd.DataFrame,
+    out_dir: str | Path,
+    protocol: Protocol,
+    maps: str,
+    tracking_uri: str | None = None,
+    experiment: str = "benchmark",
+) -> list[str]:
+    """One MLflow run per planner: protocol params, the planner's name, options and description
+    (from the benchmark's run.json), summary metrics, summary and metrics.csv.
+
+    Returns the run ids.
+    """
+    mlflow = import_mlflow()
+    out_dir = Path(out_dir)
+    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
+    mlflow.set_experiment(experiment)
+    summary = summarise(frame)
+    record_path = out_dir / RUN_RECORD
+    record = json.loads(record_path.read_text()) if record_path.is_file() else {}
+    run_ids = []
+    for planner, row in summary.iterrows():
+        with mlflow.start_run(run_name=str(planner)) as run:
+            ran = record.get("planners", {}).get(str(planner), {})
+            variant = {
+                "planner_name": ran.get("name", planner),
+                "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+                "planner_description": str(ran.get("description", ""))[:500],
+                "seed": record.get("seed"),
+            } if ran else {}
+            mlflow.log_params(
+                {**record.get("protocol", protocol.to_dict()), "planner": planner, "maps": maps, "episodes": int(row.episodes),
+                 **variant}
+            )
+            mlflow.log_metrics(
+                {
+                    "distance_mean_m": float(row.distance_mean_m),
+                    "distance_std_m": float(row.distance_std_m),
+                    "completion_rate": float(row.completion_rate),
+                    "decision_ms_median": float(row.decision_ms_median),
+                    "decision_ms_p95": float(row.decision_ms_p95),
+                }
+            )
+            for name in ("summary.md", "metrics.csv"):
+                if (out_dir / name).is_file():
+                    mlflow.log_artifact(str(out_dir / name))
+            run_ids.append(run.info.run_id)
+    return run_ids

@@ -1,0 +1,562 @@
+"""Ground-truth maps: loading the three formats of docs/protocol.md into one `GroundTruthMap`.
+
+Every loader fails with `MapError` (file + reason) rather than a traceback, so the CLI
+can print one line and exit 2 on any malformed input.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import threading
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from pipeline.common.params import yaml_problem
+
+MAZE_FREE_MIN = 150  # maze PNG: value > 150 is free ...
+MAZE_FREE_BAND = (50, 80)  # ... and so is a value in [50, 80]
+MAZE_START_VALUE = 208
+MAZE_START_INDEX = 10  # the 11th start-marker cell in row-major order
+MAZE_PNG_SUFFIXES = (".png",)
+ROS_YAML_SUFFIXES = (".yaml", ".yml")
+NPY_SUFFIXES = (".npy",)
+MAX_IMAGE_PIXELS = 1 << 26  # 64 Mpixel: beyond this an image is refused, not decoded
+MAX_GRID_CELLS = 1 << 26  # the same bound for .npy grids
+MAX_YAML_BYTES = 1 << 20  # a map_server YAML is a few lines
+MAX_ORIGIN_YAW = 1e-9  # radians: a ROS map rotated by more is refused (the grid is axis-aligned)
+MAZE_FREE_RULE = (
+    f"in a maze PNG, a cell (the minimum of a 2x2 pixel block) is free when its grey value is above "
+    f"{MAZE_FREE_MIN} or within {MAZE_FREE_BAND[0]}-{MAZE_FREE_BAND[1]}"
+)
+NPY_FREE_RULE = "in a .npy grid, 1 or True means free and 0 or any other value is an obstacle"
+
+
+class MapError(Exception):
+    """A map that cannot be used; the message names the file and the reason."""
+
+    def __init__(self, path: str | Path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+@dataclass(frozen=True)
+class GroundTruthMap:
+    """A ground-truth occupancy grid: `free[row, col]` is True where the cell is free."""
+
+    free: np.ndarray
+    start_cell: tuple[int, int]  # (col, row)
+    cell_size: float
+    name: str = "map"
+    # How this map's format decides free cells, for error messages ("in a .npy grid, 1 ..."); "" if unknown.
+    free_rule: str = field(default="", compare=False, repr=False)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.free.shape  # type: ignore[return-value]
+
+    @cached_property
+    def free_cell_count(self) -> int:
+        """Counted once: episodes ask at every step whether they are done (the map is never changed)."""
+        return int(self.free.sum())
+
+
+def validate_grid(free: np.ndarray, start_cell: tuple[int, int], path: str | Path, free_rule: str = "") -> None:
+    """Reject grids the simulator cannot run: wrong rank, no free cell, bad start.
+
+    `free_rule` (how the map's format marks free cells) is quoted when no cell is free.
+    """
+    if free.ndim != 2:
+        raise MapError(path, f"grid must be 2-D, got {free.ndim}-D array of shape {free.shape}")
+    if free.shape[0] < 1 or free.shape[1] < 1:
+        raise MapError(path, f"grid is empty (shape {free.shape})")
+    if not free.any():
+        raise MapError(path, f"map has no free cell: {free_rule}" if free_rule else "map has no free cell")
+    col, row = start_cell
+    if not (0 <= col < free.shape[1] and 0 <= row < free.shape[0]):
+        raise MapError(path, f"start cell (col {col}, row {row}) lies outside the {free.shape[1]}x{free.shape[0]} grid")
+    if not free[row, col]:
+        raise MapError(path, f"start cell (col {col}, row {row}) is on an occupied cell")
+
+
+def _peek_image_size(data: np.ndarray) -> tuple[int, int] | None:
+    """(width, height) from a PNG or PNM header, read before decoding; None if not recognised.
+
+    Lets a tiny file that declares an enormous image be rejected before OpenCV allocates it.
+    """
+    head = data[:1024].tobytes()
+    if head.startswith(b"\x89PNG\r\n\x1a\n") and len(head) >= 24 and head[12:16] == b"IHDR":
+        return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    if len(head) >= 2 and head[:1] == b"P" and head[1:2] in b"123456":
+        tokens: list[int] = []
+        position = 2
+        while len(tokens) < 2 and position < len(head):
+            char = head[position : position + 1]
+            if char == b"#":
+                newline = head.find(b"\n", position)
+                if newline < 0:
+                    return None
+                position = newline + 1
+            elif char.isspace():
+                position += 1
+            elif char.isdigit():
+                match = re.match(rb"\d+", head[position:])
+                assert match is not None
+                tokens.append(int(match.group()))
+                position += match.end()
+            else:
+                return None
+        if len(tokens) == 2:
+            return tokens[0], tokens[1]
+    return None
+
+
+def _is_file(path: Path) -> bool:
+    """Path.is_file that says False (not raises) for a name the OS rejects (too long, NUL byte)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+_OPENCV_QUIET_LOCK = threading.Lock()
+_opencv_quiet_depth = 0
+_opencv_saved_level: int | None = None
+
+
+@contextmanager
+def _opencv_quiet():
+    """Silence OpenCV's own logging (its `[ WARN:0@...]` lines on a corrupt image) for the block.
+
+    Counted, so overlapping blocks in several threads restore the level saved by the first.
+    """
+    global _opencv_quiet_depth, _opencv_saved_level
+    logging = getattr(getattr(cv2, "utils", None), "logging", None)
+    if logging is None:  # an OpenCV build without the logging bindings
+        yield
+        return
+    with _OPENCV_QUIET_LOCK:
+        if _opencv_quiet_depth == 0:
+            _opencv_saved_level = logging.getLogLevel()
+            logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+        _opencv_quiet_depth += 1
+    try:
+        yield
+    finally:
+        with _OPENCV_QUIET_LOCK:
+            _opencv_quiet_depth -= 1
+            if _opencv_quiet_depth == 0 and _opencv_saved_level is not None:
+                logging.setLogLevel(_opencv_saved_level)
+                _opencv_saved_level = None
+
+
+def _read_gray_image(path: Path) -> np.ndarray:
+    """An image file as a 2-D uint8 array (colour converted to gray, 16-bit reduced to 8)."""
+    if not _is_file(path):
+        raise MapError(path, "file not found")
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError as error:
+        raise MapError(path, f"cannot read the file ({error.strerror or type(error).__name__})") from None
+    if data.size == 0:
+        raise MapError(path, "not a readable image (the file is empty)")
+    declared = _peek_image_size(data)
+    if declared is not None and declared[0] * declared[1] > MAX_IMAGE_PIXELS:
+        raise MapError(
+            path, f"image of {declared[0]}x{declared[1]} pixels exceeds the limit of {MAX_IMAGE_PIXELS} pixels"
+        )
+    try:
+        with _opencv_quiet():
+            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    except cv2.error as error:
+        raise MapError(path, f"not a readable image (OpenCV: {_first_line(error)})") from None
+    if image is None or image.size == 0:
+        raise MapError(path, "not a readable image")
+    if image.ndim == 2 or image.shape[2] == 1:
+        image = image.reshape(image.shape[0], image.shape[1])
+    elif image.shape[2] == 2:  # gray + alpha
+        image = np.ascontiguousarray(image[:, :, 0])
+    if image.dtype not in (np.uint8, np.uint16):
+        raise MapError(path, f"unsupported pixel type {image.dtype} (expected 8- or 16-bit)")
+    if image.ndim == 3:
+        if image.shape[2] == 3:
+            image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+        elif image.shape[2] == 4:
+            image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY)
+        else:
+            raise MapError(path, f"unsupported image with {image.shape[2]} channels")
+    if image.dtype == np.uint16:
+        # 16-bit images: keep the top byte so thresholds stay in 0..255.
+        image = (image >> 8).astype(np.uint8)
+    if image.size > MAX_IMAGE_PIXELS:
+        raise MapError(
+            path, f"image of {image.shape[1]}x{image.shape[0]} pixels exceeds the limit of {MAX_IMAGE_PIXELS} pixels"
+        )
+    return image
+
+
+def _first_line(error: BaseException) -> str:
+    """The gist of an exception's message, short enough for a one-line error."""
+    lines = [line.strip() for line in str(error).strip().splitlines() if line.strip()]
+    text = lines[-1] if lines else type(error).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def _check_cell_size(cell_size: float, path: Path) -> float:
+    try:
+        value = float(cell_size)
+    except (TypeError, ValueError, OverflowError):
+        raise MapError(path, f"cell size must be a number, got {cell_size!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise MapError(path, f"cell size must be a positive number, got {cell_size!r}")
+    return value
+
+
+def maze_cells_from_image(image: np.ndarray) -> np.ndarray:
+    """Downsample a maze image by 2, taking the minimum of each 2x2 block (docs/protocol.md)."""
+    rows, cols = image.shape[0] // 2, image.shape[1] // 2
+    cropped = image[: rows * 2, : cols * 2]
+    return cropped.reshape(rows, 2, cols, 2).min(axis=(1, 3))
+
+
+def maze_free_mask(cells: np.ndarray) -> np.ndarray:
+    low, high = MAZE_FREE_BAND
+    return (cells > MAZE_FREE_MIN) | ((cells >= low) & (cells <= high))
+
+
+def load_maze_png(
+    path: str | Path, cell_size: float = 0.4, start_cell: tuple[int, int] | None = None
+) -> GroundTruthMap:
+    """Load a DARE/GUIDE maze PNG (twice the grid resolution, start marked by value 208).
+
+    `start_cell` (col, row on the reduced grid) overrides the marker, e.g. to explore one maze
+    from several starts, or gives the start of an image without one.
+    """
+    path = Path(path)
+    cell_size = _check_cell_size(cell_size, path)
+    image = _read_gray_image(path)
+    if image.shape[0] < 2 or image.shape[1] < 2:
+        raise MapError(path, f"image of {image.shape[1]}x{image.shape[0]} pixels is too small for a 2x2 reduction")
+    cells = maze_cells_from_image(image)
+    if start_cell is not None:
+        start = _start_cell(start_cell, path)
+    else:
+        rows, cols = np.nonzero(cells == MAZE_START_VALUE)
+        if rows.size <= MAZE_START_INDEX:
+            raise MapError(
+                path,
+                f"no start marker: need at least {MAZE_START_INDEX + 1} cells of value {MAZE_START_VALUE} "
+                f"after the 2x2 reduction, found {rows.size}; or give the start cell (--start COL ROW)",
+            )
+        start = (int(cols[MAZE_START_INDEX]), int(rows[MAZE_START_INDEX]))
+    free = maze_free_mask(cells)
+    validate_grid(free, start, path, MAZE_FREE_RULE)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem, free_rule=MAZE_FREE_RULE)
+
+
+def _read_yaml(path: Path) -> object:
+    """The parsed YAML document of a file, or MapError."""
+    if not _is_file(path):
+        raise MapError(path, "file not found")
+    try:
+        size = path.stat().st_size
+        if size > MAX_YAML_BYTES:
+            raise MapError(path, f"YAML file of {size} bytes is too large for a map description")
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise MapError(path, "not valid YAML (the file is not UTF-8 text)") from None
+    except OSError as error:
+        raise MapError(path, f"cannot read the file ({error.strerror or type(error).__name__})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        raise MapError(path, f"not valid YAML ({yaml_problem(error)})") from None
+    except RecursionError:
+        raise MapError(path, "not valid YAML (nested too deeply)") from None
+
+
+def _as_float(value: object, what: str, path: Path) -> float:
+    """A finite float from a YAML value or argument, or MapError naming `what`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str, np.integer, np.floating)):
+        raise MapError(path, f"{what} must be a number, got {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise MapError(path, f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise MapError(path, f"{what} must be a finite number, got {value!r}")
+    return number
+
+
+def _yaml_number(meta: dict, key: str, path: Path) -> float:
+    if key not in meta:
+        raise MapError(path, f"YAML is missing the key '{key}'")
+    return _as_float(meta[key], f"YAML key '{key}'", path)
+
+
+def _yaml_pair(value: object, what: str, path: Path) -> tuple[float, float]:
+    if not (isinstance(value, (list, tuple, np.ndarray)) and len(value) >= 2):
+        raise MapError(path, f"{what} must be a list [x, y, ...], got {value!r}")
+    return _as_float(value[0], what, path), _as_float(value[1], what, path)
+
+
+def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) -> GroundTruthMap:
+    """Load a ROS map_server map (YAML + PGM/PNG image) the way map_server's trinary mode does.
+
+    The start comes from `start_xy` (metres, map frame) or from a `start: [x, y]` YAML key.
+    Cells between the thresholds (map_server's "unknown") count as occupied: the ground
+    truth must say free or not.
+    """
+    path = Path(path)
+    meta = _read_yaml(path)
+    if not isinstance(meta, dict):
+        raise MapError(path, f"YAML must be a mapping with the map_server keys, got {type(meta).__name__}")
+    if "image" not in meta:
+        raise MapError(path, "YAML is missing the key 'image' (the map image's file name)")
+    if not isinstance(meta["image"], str) or not meta["image"].strip():
+        raise MapError(path, f"YAML key 'image' must be the map image's file name, got {meta['image']!r}")
+    resolution = _yaml_number(meta, "resolution", path)
+    if resolution <= 0:
+        raise MapError(path, f"resolution must be positive, got {resolution}")
+    if "origin" not in meta:
+        raise MapError(path, "YAML is missing the key 'origin' as [x, y, yaw]")
+    origin_x, origin_y = _yaml_pair(meta["origin"], "YAML key 'origin'", path)
+    if len(meta["origin"]) >= 3:
+        yaw = _as_float(meta["origin"][2], "YAML key 'origin' yaw", path)
+        if abs(yaw) >= MAX_ORIGIN_YAW:
+            raise MapError(
+                path, f"origin yaw {yaw:g} rad is not supported; rotate the image to be axis-aligned and set the yaw to 0"
+            )
+    occupied_thresh = _yaml_number(meta, "occupied_thresh", path)
+    free_thresh = _yaml_number(meta, "free_thresh", path)
+    for key, value in (("occupied_thresh", occupied_thresh), ("free_thresh", free_thresh)):
+        if not 0.0 <= value <= 1.0:
+            raise MapError(path, f"YAML key '{key}' must lie in [0, 1], got {value}")
+    negate = meta.get("negate", 0)
+    if isinstance(negate, bool) or negate in (0, 1):
+        negate = bool(negate)
+    else:
+        raise MapError(path, f"YAML key 'negate' must be 0 or 1, got {negate!r}")
+    mode = meta.get("mode", "trinary")
+    if mode not in ("trinary", "scale"):
+        raise MapError(path, f"YAML key 'mode' {mode!r} is not supported (use trinary or scale)")
+
+    if start_xy is None:
+        if "start" not in meta:
+            raise MapError(path, "no start: pass --start X Y or add a 'start: [x, y]' key (metres, map frame)")
+        start_x, start_y = _yaml_pair(meta["start"], "YAML key 'start'", path)
+    else:
+        start_x, start_y = _yaml_pair(start_xy, "start (x, y)", path)
+
+    image_path = Path(meta["image"])
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path
+    try:
+        image = _read_gray_image(image_path)
+    except MapError as error:
+        raise MapError(path, f"map image {error.path}: {error.reason}") from None
+    # map_server: occupancy p = (255 - value) / 255 (or value / 255 when negated); p > occupied
+    # is occupied, else p < free is free, else unknown. A lookup table keeps its double maths.
+    values = np.arange(256, dtype=np.float64)
+    occupancy = values / 255.0 if negate else (255.0 - values) / 255.0
+    free_lut = ~(occupancy > occupied_thresh) & (occupancy < free_thresh)
+    # map_server: image row 0 is the top (largest y); our rows grow with y, so flip.
+    free = np.ascontiguousarray(free_lut[image][::-1, :])
+    free_rule = _ros_free_rule(free_lut, free_thresh, occupied_thresh, negate)
+    if not free.any():
+        raise MapError(path, f"map has no free cell: {free_rule}")
+
+    rows, cols = free.shape
+    col_f = (start_x - origin_x) / resolution
+    row_f = (start_y - origin_y) / resolution
+    start_text = f"start ({_metres(start_x)}, {_metres(start_y)}) m"
+    if not (math.isfinite(col_f) and math.isfinite(row_f) and 0 <= col_f < cols and 0 <= row_f < rows):
+        raise MapError(
+            path,
+            f"{start_text} lies outside the map, which spans x {_metres(origin_x)} to "
+            f"{_metres(origin_x + cols * resolution)} m and y {_metres(origin_y)} to "
+            f"{_metres(origin_y + rows * resolution)} m ({cols}x{rows} cells of {_metres(resolution)} m)",
+        )
+    start = (math.floor(col_f), math.floor(row_f))
+    if 0 <= start[0] < cols and 0 <= start[1] < rows and not free[start[1], start[0]]:
+        raise MapError(path, f"{start_text}, cell (col {start[0]}, row {start[1]}), is on an occupied cell")
+    validate_grid(free, start, path, free_rule)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=resolution, name=path.stem, free_rule=free_rule)
+
+
+def ros_map_origin_and_image(path: str | Path) -> tuple[tuple[float, float], Path]:
+    """A map_server YAML's (x, y) origin in metres (where its grid's first cell lies in the map
+    frame) and the image file it names, for tools that write a map beside it."""
+    path = Path(path)
+    meta = _read_yaml(path)
+    if not isinstance(meta, dict) or "origin" not in meta or not isinstance(meta.get("image"), str):
+        raise MapError(path, "YAML needs the keys 'image' and 'origin' as [x, y, yaw]")
+    return _yaml_pair(meta["origin"], "YAML key 'origin'", path), path.parent / meta["image"]
+
+
+def _metres(value: float) -> str:
+    """A length in metres for a message: up to 6 decimals, no trailing zeros; %g when huge."""
+    if not math.isfinite(value) or abs(value) >= 1e9:
+        return f"{value:.6g}"
+    text = f"{value:.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def _ros_free_rule(free_lut: np.ndarray, free_thresh: float, occupied_thresh: float, negate: bool) -> str:
+    """Which pixel values a ROS map's thresholds make free, for error messages."""
+    values = np.flatnonzero(free_lut)
+    settings = f"with free_thresh {free_thresh:g}, occupied_thresh {occupied_thresh:g} and negate {int(negate)}"
+    if values.size == 0:
+        return f"in this ROS map, {settings}, no pixel value is free"
+    return f"in this ROS map, {settings}, a pixel is free when its value is within {values[0]}-{values[-1]}"
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """A 2-D boolean/integer array from a .npy file, checking its header before loading it."""
+    if not _is_file(path):
+        raise MapError(path, "file not found")
+    try:
+        with open(path, "rb") as stream:
+            try:
+                version = np.lib.format.read_magic(stream)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(stream)
+                elif version == (2, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(stream)
+                else:
+                    raise MapError(
+                        path, f"not a readable .npy array (unsupported format version {version[0]}.{version[1]})"
+                    )
+            except MapError:
+                raise
+            except Exception as error:  # numpy raises ValueError and friends for a bad header
+                raise MapError(path, f"not a readable .npy array ({_first_line(error)})") from None
+            data_offset = stream.tell()
+        file_size = path.stat().st_size
+    except OSError as error:
+        raise MapError(path, f"cannot read the file ({error.strerror or type(error).__name__})") from None
+    if dtype.hasobject or dtype.kind not in "biu" or dtype.fields is not None or dtype.subdtype is not None:
+        raise MapError(path, f"grid must be boolean or integer (1 = free), got dtype {dtype}")
+    if len(shape) != 2:
+        raise MapError(path, f"grid must be 2-D, got {len(shape)}-D array of shape {shape}")
+    if any(size < 0 for size in shape):
+        raise MapError(path, f"not a readable .npy array (negative shape {shape} in its header)")
+    cells = math.prod(shape)
+    if cells > MAX_GRID_CELLS:
+        raise MapError(path, f"grid of shape {shape} exceeds the limit of {MAX_GRID_CELLS} cells")
+    if file_size - data_offset < cells * dtype.itemsize:
+        raise MapError(
+            path, f"truncated .npy file: shape {shape} of {dtype} needs {cells * dtype.itemsize} bytes of data, "
+            f"found {file_size - data_offset}"
+        )
+    try:
+        array = np.load(str(path), allow_pickle=False)
+    except Exception as error:  # numpy raises several types for corrupt files
+        raise MapError(path, f"not a readable .npy array ({_first_line(error)})") from None
+    if not isinstance(array, np.ndarray) or array.shape != tuple(shape) or array.dtype != dtype:
+        raise MapError(path, "not a readable .npy array (contents disagree with its header)")
+    return array
+
+
+def _start_cell(start: object, path: Path) -> tuple[int, int]:
+    """(col, row) as two integers, or MapError."""
+    if not (isinstance(start, (list, tuple, np.ndarray)) and len(start) == 2):
+        raise MapError(path, f"start cell must be two integers (col, row), got {start!r}")
+    cell = []
+    for value in start:
+        number = _as_float(value, "start cell", path)
+        if not number.is_integer():
+            raise MapError(path, f"start cell must be two integers (col, row), got {tuple(start)!r}")
+        cell.append(int(number))
+    return cell[0], cell[1]
+
+
+def load_npy_grid(
+    path: str | Path, start_cell: tuple[int, int] | None, cell_size: float = 0.4
+) -> GroundTruthMap:
+    """Load a NumPy boolean/uint8 grid (1 = free); the start cell (col, row) is required."""
+    path = Path(path)
+    cell_size = _check_cell_size(cell_size, path)
+    array = _read_npy(path)
+    if start_cell is None:
+        raise MapError(path, "a .npy grid needs its start cell: pass --start COL ROW")
+    start = _start_cell(start_cell, path)
+    free = np.ascontiguousarray(array == 1)
+    if free.size and not free.any():
+        raise MapError(path, f"map has no free cell: {NPY_FREE_RULE}; {_values_found(array)}")
+    validate_grid(free, start, path, NPY_FREE_RULE)
+    return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=path.stem, free_rule=NPY_FREE_RULE)
+
+
+def _values_found(array: np.ndarray, shown: int = 5) -> str:
+    """'the grid holds the values 0, 255' (at most `shown` of them) for an error message."""
+    values = np.unique(array)
+    listed = ", ".join(str(int(v)) for v in values[:shown])
+    more = f" and {values.size - shown} more" if values.size > shown else ""
+    noun = "value" if values.size == 1 else "values"
+    return f"the grid holds the {noun} {listed}{more}"
+
+
+def load_map(
+    path: str | Path,
+    start: tuple[float, float] | None = None,
+    cell_size: float = 0.4,
+) -> GroundTruthMap:
+    """Load any supported map by its suffix.
+
+    `start` is (col, row) for a .npy grid or a maze PNG (where it overrides the PNG's own
+    marked start) and (x, y) metres for a ROS map. `cell_size` applies to maze PNGs and grids
+    (a ROS map has its own).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix in ROS_YAML_SUFFIXES:
+        return load_ros_map(path, start_xy=start)
+    if suffix in NPY_SUFFIXES:
+        return load_npy_grid(path, start, cell_size)
+    if suffix in MAZE_PNG_SUFFIXES:
+        return load_maze_png(path, cell_size, start)
+    if path.is_dir():
+        raise MapError(path, "is a folder; pass one map file (`guide benchmark --maps` takes folders)")
+    if not _is_file(path):
+        raise MapError(path, "file not found")
+    raise MapError(path, f"unknown map format '{suffix}' (expected a maze .png, a ROS map .yaml or a .npy grid)")
+
+
+def list_maps(directory: str | Path) -> list[Path]:
+    """Every map in a directory: maze PNGs, .npy grids and ROS YAMLs (not the images a YAML names).
+
+    Only lists; a listed file may still fail to load (with MapError) when it is malformed.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise MapError(directory, "not a directory")
+    entries = sorted(entry for entry in directory.iterdir() if entry.is_file())
+    named_images: set[Path] = set()
+    for yaml_path in entries:
+        if yaml_path.suffix.lower() not in ROS_YAML_SUFFIXES:
+            continue
+        try:
+            meta = _read_yaml(yaml_path)
+        except MapError:
+            continue  # listed anyway: loading it reports what is wrong
+        if isinstance(meta, dict) and isinstance(meta.get("image"), str):
+            try:
+                named_images.add((directory / meta["image"]).resolve())
+            except (OSError, ValueError, RuntimeError):
+                continue
+    maps = []
+    for entry in entries:
+        suffix = entry.suffix.lower()
+        if suffix in ROS_YAML_SUFFIXES or suffix in NPY_SUFFIXES:
+            maps.append(entry)
+        elif suffix in MAZE_PNG_SUFFIXES and entry.resolve() not in named_images:
+            maps.append(entry)
+    return maps

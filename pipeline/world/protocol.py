@@ -1,0 +1,79 @@
+"""The benchmark protocol's values (docs/protocol.md), one frozen object passed everywhere."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from pipeline.common.params import dataclass_from_dict
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """Every protocol value is a parameter; the defaults are the maze benchmark's."""
+
+    cell_size: float = 0.4
+    node_resolution: float = 4.0
+    sensor_range: float = 20.0
+    utility_range: float = 10.0
+    region_size: float = 20.0
+    done_unknown_cells: int = 250
+    max_steps: int = 500
+
+    def __post_init__(self) -> None:
+        for name in ("cell_size", "node_resolution", "sensor_range", "utility_range", "region_size"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):  # NaN and inf fail here, not deep in a ray table
+                raise ValueError(f"protocol.{name} must be a positive finite number, got {value}")
+        if self.node_resolution < self.cell_size:
+            raise ValueError("protocol.node_resolution must be at least one cell")
+        if self.max_steps < 1:
+            raise ValueError("protocol.max_steps must be at least 1")
+        if self.done_unknown_cells < 0:
+            raise ValueError("protocol.done_unknown_cells must be >= 0")
+
+    @property
+    def sensor_range_cells(self) -> float:
+        return self.sensor_range / self.cell_size
+
+    def with_cell_size(self, cell_size: float) -> "Protocol":
+        """The same protocol on a map with its own cell size (a ROS map's resolution)."""
+        return replace(self, cell_size=cell_size)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "Protocol":
+        return dataclass_from_dict(cls, values, "protocol parameter(s):")
+
+
+class ProtocolMismatchWarning(UserWarning):
+    """A trained model runs at other protocol values than it was trained at (it still runs)."""
+
+
+# What a learned model's inputs depend on: the lattice the node images and graphs are drawn on, how far
+# the sensor reveals cells and how far the utility counts frontier cells. (The cell size does not: a node
+# image holds one pixel per lattice node, whatever the cells, so a ROS map at its own resolution is fine.)
+MODEL_INPUT_FIELDS = ("node_resolution", "sensor_range", "utility_range", "region_size")
+
+
+def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) -> list[str]:
+    """The protocol values a model was trained at that `protocol` changes, as "name a -> b" strings.
+
+    `trained` is the protocol recorded with the model (`Protocol.to_dict()`); None (models exported
+    before it was recorded, the shipped ones included) stands for the defaults they were trained at.
+    """
+    known = {f.name for f in fields(Protocol)}
+    # Only the fields this version knows: an export from a later version may record more.
+    reference = Protocol.from_dict({k: v for k, v in (trained or {}).items() if k in known})
+    return [
+        f"{name} {getattr(reference, name):g} -> {getattr(protocol, name):g}"
+        for name in MODEL_INPUT_FIELDS
+        if not math.isclose(getattr(reference, name), getattr(protocol, name), rel_tol=1e-9)
+    ]
+
+
+PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=8.0)
+"""The paper's real-robot setting: 0.2 m cells, 1 m nodes, 10 m sensor."""

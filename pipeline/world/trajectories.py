@@ -1,0 +1,123 @@
+"""Trajectory and metrics files in docs/protocol.md's layout (what outside checks replay)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from pipeline.world.maps import _is_file  # the loaders' check, shared: a bad file name is not an OSError
+
+METRICS_COLUMNS = [
+    "map",
+    "planner",
+    "distance_m",
+    "steps",
+    "complete",
+    "explored_ratio",
+    "decision_ms_median",
+    "decision_ms_p95",
+    "seed",
+]
+MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
+
+
+def _format_metres(value: float) -> str:
+    text = f"{value:.6f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]) -> Path:
+    """Write waypoints as `x,y` rows in metres, first row the start (0, 0)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as handle:
+        handle.write("x,y\n")
+        for x, y in trajectory:
+            handle.write(f"{_format_metres(float(x))},{_format_metres(float(y))}\n")
+    os.replace(tmp, path)
+    return path
+
+
+def _is_dir(path: Path) -> bool:
+    """Path.is_dir that says False (not raises) for a name the OS rejects, as maps._is_file does."""
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def _quote(row: Sequence[str]) -> str:
+    """A CSV row as quoted text, cut short for a one-line error."""
+    text = ",".join(row)
+    return repr(text if len(text) <= 80 else text[:77] + "...")
+
+
+def read_trajectory_csv(path: str | Path) -> np.ndarray:
+    """Read a trajectory file; raises ValueError naming the file and the problem.
+
+    Refused: a missing file or a folder, text that is not UTF-8 (a leading byte-order mark,
+    as Excel writes, is fine), a header other than `x,y`, a row that is not two finite numbers
+    of at most MAX_COORDINATE_M metres, no waypoint rows, or a first row that is not the start 0,0.
+    """
+    from pipeline.world.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
+
+    path = Path(path)
+    if _is_dir(path):
+        raise ValueError(f"{path}: is a folder, not a trajectory file (pass one CSV file)")
+    if not _is_file(path):
+        raise ValueError(f"{path}: file not found")
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as handle:
+            reader = csv.reader(handle)
+            rows = [(reader.line_num, row) for row in reader]  # line_num: the row's (last) line
+    except UnicodeDecodeError as error:
+        raise ValueError(
+            f"{path}: not a UTF-8 text file (byte 0x{error.object[error.start]:02x} at offset {error.start}); "
+            "a trajectory file is a CSV with the header 'x,y'"
+        ) from None
+    except csv.Error as error:  # a NUL byte, a field over the csv module's size limit
+        raise ValueError(f"{path}: not a readable CSV file ({error})") from None
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read the file ({error.strerror or type(error).__name__})") from None
+    if not rows or [c.strip() for c in rows[0][1]] != ["x", "y"]:
+        raise ValueError(f"{path}: a trajectory file starts with the header 'x,y'")
+    points = []
+    for number, row in rows[1:]:
+        if not row:
+            continue
+        try:
+            x, y = (float(v) for v in row)
+        except ValueError:
+            raise ValueError(f"{path}: line {number} is not two numbers: {_quote(row)}") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise ValueError(f"{path}: line {number} is not two finite numbers: {_quote(row)}")
+        if abs(x) > MAX_COORDINATE_M or abs(y) > MAX_COORDINATE_M:
+            raise ValueError(
+                f"{path}: line {number} has a coordinate beyond ±{MAX_COORDINATE_M:,.0f} m: {_quote(row)}"
+            )
+        if not points and (abs(x) > LATTICE_TOLERANCE_M or abs(y) > LATTICE_TOLERANCE_M):
+            raise ValueError(f"{path}: line {number}: the first row must be the start 0,0, got {_quote(row)}")
+        points.append((x, y))
+    if not points:
+        raise ValueError(f"{path}: no waypoint rows (the first row must be the start 0,0)")
+    return np.array(points, dtype=np.float64)
+
+
+def write_metrics_csv(path: str | Path, rows: Iterable[dict]) -> Path:
+    """Write metrics.csv with docs/protocol.md's columns, in that order."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=METRICS_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow(row)
+    os.replace(tmp, path)
+    return path
