@@ -15,7 +15,7 @@ from pipeline.evaluation.benchmark import run_benchmark, summarise
 from pipeline.world.maps import list_maps, load_map
 from pipeline.common.params import load_params
 from pipeline.world.protocol import Protocol
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.reporting.tracking import log_benchmark
 
 TEST_MAZES = Path("data/mazes/test")
@@ -99,4 +99,4 @@ def main(params_path: str = "params.yaml") -> None:
 
 
 if __name__ == "__main__":
-    run_stage_main(main)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

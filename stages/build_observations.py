@@ -11,7 +11,6 @@ Its own stage, so retraining the planner never re-runs the predictor.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -22,7 +21,7 @@ from pipeline.prediction.global_graph import FEATURE_NAMES
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, params_section
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 EXPERT_DIR = Path("data/expert")
 OUT_DIR = Path("data/observations")
@@ -105,6 +104,4 @@ def main(params_path: str = "params.yaml") -> dict:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--params", default="params.yaml")
-    run_stage_main(main, parser.parse_args().params)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

@@ -7,7 +7,6 @@ reports/expert_episode.png (rebuilt from the shard, so it also checks the round 
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -18,7 +17,7 @@ from pipeline.world.maps import GroundTruthMap, list_maps
 from pipeline.common.params import load_params, params_section
 from pipeline.world.protocol import Protocol
 from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/expert")
@@ -86,6 +85,8 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--backend", choices=["process", "ray"], default=None)
-    run_stage_main(main, "params.yaml", parser.parse_args().backend)
+    parser = stage_arguments(__doc__)
+    parser.add_argument("--backend", choices=["process", "ray"], default=None,
+                        help="process (default) or ray (pip install '.[ray]')")
+    args = parser.parse_args()
+    run_stage_main(main, args.params, args.backend)

@@ -25,7 +25,7 @@ from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, section_with_defaults
 from pipeline.world.protocol import Protocol
 from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 TRAIN_MAZES = Path("data/mazes/train")
 TRAIN_OFFICES = Path("data/offices/train")
@@ -164,4 +164,4 @@ def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]
 
 
 if __name__ == "__main__":
-    run_stage_main(main)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

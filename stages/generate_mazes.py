@@ -20,7 +20,7 @@ import numpy as np
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OfficeConfig, generate_office_set
 from pipeline.common.params import load_params, params_section
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")
@@ -125,4 +125,4 @@ def main(params_path: str = "params.yaml") -> None:
 
 
 if __name__ == "__main__":
-    run_stage_main(main)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

@@ -44,7 +44,7 @@ from pipeline.reporting.report import (
     table4_markdown,
     trajectory_figure,
 )
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 TEST_MAZES = Path("data/mazes/test")
 BENCHMARK_DIR = Path("reports/benchmark")
@@ -175,4 +175,4 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    run_stage_main(main)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

@@ -29,7 +29,7 @@ from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, section_with_defaults
 from pipeline.world.protocol import Protocol
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 MODEL_PATH = Path("models/block_model/block_model.pt")
 METRICS_PATH = Path("reports/block_model.json")
@@ -173,4 +173,4 @@ def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protoco
 
 
 if __name__ == "__main__":
-    run_stage_main(main)
+    run_stage_main(main, stage_arguments(__doc__).parse_args().params)

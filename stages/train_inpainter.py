@@ -11,7 +11,6 @@ mazes by default (`split: maze`), so its precision measures inference in unseen 
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 import warnings
@@ -22,7 +21,7 @@ import numpy as np
 
 from pipeline.common.params import load_params, params_section
 from pipeline.world.protocol import Protocol
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 DATA_DIR = Path("data/pairs")
 OUT_DIR = Path("models/inpainter")
@@ -212,8 +211,7 @@ def main(
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--params", default="params.yaml")
+    parser = stage_arguments(__doc__)
     parser.add_argument("--accelerator", default=None, help="Lightning accelerator (cpu, gpu, auto) [params]")
     parser.add_argument("--devices", default=None, help="Lightning devices (1, 2, auto) [params]")
     parser.add_argument("--resume", action="store_true", help="continue from models/inpainter/last.ckpt")

@@ -8,12 +8,11 @@ reports/planner_<variant>_metrics.json and reports/planner_<variant>_curves.png.
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 from pipeline.common.params import load_params, params_section
-from pipeline.stage_errors import run_stage_main
+from pipeline.stage_runner import run_stage_main, stage_arguments
 
 VARIANTS = ("guide", "dare")
 OBSERVATIONS = Path("data/observations")
@@ -99,12 +98,11 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--params", default="params.yaml")
-    parser.add_argument("--variant", default="guide", choices=VARIANTS)
-    parser.add_argument("--accelerator")
-    parser.add_argument("--devices")
-    parser.add_argument("--resume", action="store_true")
-    parser.add_argument("--max-epochs", type=int)
+    parser = stage_arguments(__doc__)
+    parser.add_argument("--variant", default="guide", choices=VARIANTS, help="guide (global graph with predictions) or dare (observed graph only)")
+    parser.add_argument("--accelerator", help="Lightning accelerator (cpu, gpu, auto) [params]")
+    parser.add_argument("--devices", help="Lightning devices (1, 2, auto) [params]")
+    parser.add_argument("--resume", action="store_true", help="continue from models/planner_<variant>/last.ckpt")
+    parser.add_argument("--max-epochs", type=int, help="override train_planner.train.max_epochs")
     a = parser.parse_args()
     run_stage_main(main, a.params, a.variant, a.accelerator, a.devices, a.resume, a.max_epochs)

@@ -23,7 +23,8 @@ def test_planners_lists_every_name():
 
 
 def test_every_command_has_help():
-    for command in (["--help"], ["explore", "--help"], ["benchmark", "--help"], ["replay", "--help"], ["mazes", "--help"], ["stage", "--help"]):
+    for command in (["--help"], ["explore", "--help"], ["benchmark", "--help"], ["replay", "--help"], ["mazes", "--help"],
+                    ["resample-map", "--help"], ["eval-predictor", "--help"], ["planners", "--help"]):
         result = runner.invoke(app, command)
         assert result.exit_code == 0 and "Usage" in result.output
 
@@ -206,22 +207,7 @@ def test_replay_exits_1_when_the_trajectory_does_not_complete(small_maze_path, t
     assert result.exit_code == 1 and json.loads(result.output)["complete"] is False
 
 
-def test_stage_commands_without_their_inputs_print_one_line(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)  # a fresh folder: no params.yaml, no data
-    line = _one_error_line(runner.invoke(app, ["stage", "generate-mazes", "--params", "nope.yaml"]))
-    assert "nope.yaml" in line
-    (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier]}\n")
-    line = _one_error_line(runner.invoke(app, ["stage", "benchmark"]))
-    assert "data/mazes/test" in line and "dvc repro" in line
-    (tmp_path / "params.yaml").write_text((Path(__file__).resolve().parents[1] / "params.yaml").read_text())
-    for command in (["train-planner"], ["stage", "train-planner", "--variant", "dare"]):
-        line = _one_error_line(runner.invoke(app, command))
-        assert "no observations; run the build_observations stage first" in line
-
-
 def test_help_keeps_literal_brackets():
-    result = runner.invoke(app, ["stage", "collect-pairs", "--help"])
-    assert "'.[ray]'" in result.output
     assert "[default: all cores]" in runner.invoke(app, ["benchmark", "--help"]).output
 
 
@@ -330,7 +316,7 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
     """The shipped inpainter was trained on a 4 m lattice; a 2 m run goes on, with a one-line warning."""
     import warnings
 
-    from pipeline.cli import _warning_line
+    from pipeline.cli import warning_line as _warning_line
     from pipeline.world.protocol import ProtocolMismatchWarning
 
     with warnings.catch_warnings(record=True) as caught:
@@ -393,37 +379,6 @@ def test_replay_of_a_run_made_from_another_start_points_to_its_start(small_maze_
     assert f"says the run started at --start {start[0]} {start[1]}; replay it with the same --start" in result.output
     again = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory, "--start", str(start[0]), str(start[1])])
     assert again.exit_code == 0 and json.loads(again.output)["complete"]
-
-
-def test_stage_params_that_are_not_a_params_file_are_one_error_line(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "README.md").write_text("# guide\n\n*GUIDE: a paper*\n")  # not YAML: '*' starts an alias
-    for command in (["stage", "generate-mazes"], ["stage", "collect-expert"], ["train-planner"]):
-        line = _one_error_line(runner.invoke(app, command + ["--params", "README.md"]))
-        assert "README.md: not valid YAML" in line and "line 3, column 1" in line
-    (tmp_path / "bare.yaml").write_text("protocol: {}\n")
-    line = _one_error_line(runner.invoke(app, ["stage", "collect-expert", "--params", "bare.yaml"]))
-    assert line == "error: bare.yaml: missing the 'collect_expert' section"
-
-
-def test_stage_benchmark_settings_are_checked_before_any_episode(generated_maze_dir, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    shutil.copytree(generated_maze_dir, tmp_path / "data" / "mazes" / "test")
-    (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo]}\n")
-    line = _one_error_line(runner.invoke(app, ["stage", "benchmark", "--params", "p.yaml"]))
-    assert line.startswith("error: unknown planner 'foo'; choose from: ") and "nearest_frontier" in line
-    (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], workers: 0}\n")
-    line = _one_error_line(runner.invoke(app, ["stage", "benchmark", "--params", "w.yaml"]))
-    assert line == "error: workers must be a whole number >= 1 (or null: all cores), got 0"
-    assert not (tmp_path / "reports" / "benchmark").exists()
-
-
-def test_train_planner_refuses_zero_epochs_before_touching_its_checkpoints(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "params.yaml").write_text((Path(__file__).resolve().parents[1] / "params.yaml").read_text())
-    for epochs in ("0", "-1"):  # 0 would export an untrained policy over a trained one
-        line = _one_error_line(runner.invoke(app, ["train-planner", "--max-epochs", epochs]))
-        assert line == f"error: max_epochs must be a whole number >= 1, got {epochs}"
 
 
 def test_mazes_options_are_named_in_their_errors(tmp_path):

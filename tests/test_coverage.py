@@ -262,7 +262,7 @@ def diagonal_pocket_map():
 
 
 def test_unobservable_free_cells_are_those_no_reachable_scan_reveals():
-    from pipeline.evaluation.benchmark import unreachable_free_cells
+    from pipeline.evaluation.map_checks import unreachable_free_cells
 
     ground_truth = diagonal_pocket_map()
     protocol = Protocol(node_resolution=2.0, sensor_range=8.0, utility_range=4.0)

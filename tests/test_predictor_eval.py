@@ -17,9 +17,10 @@ from pipeline.evaluation.predictor_eval import (
     SWEEP_COLUMNS,
     oracle_inpaint_for,
     precision_by_threshold,
-    prediction_figure,
     table1_markdown,
 )
+from pipeline.reporting.predictor_figures import prediction_figure
+from pipeline.workflows import table1
 
 STEPS = (3, 6)
 
@@ -112,7 +113,7 @@ def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
 
 def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, mlflow_uri):
     import stages.eval_predictor as stage
-    import pipeline.evaluation.predictor_eval as predictor_eval
+    import pipeline.workflows.table1 as predictor_eval
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -156,7 +157,7 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
 def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp_path, monkeypatch, mlflow_uri):
     """compare_checkpoint: Table I again with that export; the table says which steps reach the paper's."""
     import stages.eval_predictor as stage
-    import pipeline.evaluation.predictor_eval as predictor_eval
+    import pipeline.workflows.table1 as predictor_eval
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -174,7 +175,7 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
     out = tmp_path / "reports" / "predictor"
     compared = pd.read_csv(out / "precision_compare.csv")
     expected = evaluate_predictor(list_maps(maze_dir), all_free_inpaint, [3, 6], NodePredictorConfig(threshold=0.5),
-                                  stage.table1_graph_config(0.5))
+                                  table1.table1_graph_config(0.5))
     assert tuple(compared.columns) == COLUMNS
     assert np.allclose(compared["precision"], expected["precision"])
     assert list(compared["predicted_nodes"]) == list(expected["predicted_nodes"])
@@ -185,38 +186,38 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
         stage.main("params.yaml")
 
 
-def test_cli_main_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
+def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
     import stages.eval_predictor as stage
-    import pipeline.evaluation.predictor_eval as predictor_eval
+    import pipeline.workflows.table1 as predictor_eval
 
     seen = []
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: seen.append(checkpoint) or all_free_inpaint)
-    stage.cli_main(maze_dir, tmp_path / "out", "some.pt")
+    table1.table1_for_folder(maze_dir, tmp_path / "out", "some.pt")
     assert seen == ["some.pt"]
     written = pd.read_csv(tmp_path / "out" / "precision.csv")
     assert tuple(written.columns) == COLUMNS
     assert not (tmp_path / "out" / "precision_by_threshold.csv").exists()  # the sweep only on request
     assert "tau = 0.8." in (tmp_path / "out" / "table1.md").read_text()  # the planners' tau unless told
-    stage.cli_main(maze_dir, tmp_path / "swept", None, sweep=True)
+    table1.table1_for_folder(maze_dir, tmp_path / "swept", None, sweep=True)
     assert len(pd.read_csv(tmp_path / "swept" / "precision_by_threshold.csv")) == 5 * len(STEPS)
     with pytest.raises(ValueError, match=r"must lie in \[0, 1\], got 1.5"):
-        stage.cli_main(maze_dir, tmp_path / "bad_tau", None, threshold=1.5)
+        table1.table1_for_folder(maze_dir, tmp_path / "bad_tau", None, threshold=1.5)
     with pytest.raises(ValueError, match="unknown eval_predictor"):
         (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
         stage.read_params(tmp_path / "bad.yaml")
 
 
-def test_cli_main_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, monkeypatch):
+def test_table1_for_folder_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, monkeypatch):
     """`guide eval-predictor --threshold 0.7` gives what the sweep reports at tau 0.7, and its table says so."""
     import stages.eval_predictor as stage
-    import pipeline.evaluation.predictor_eval as predictor_eval
+    import pipeline.workflows.table1 as predictor_eval
 
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: graded_inpaint)
-    at_07 = stage.cli_main(maze_dir, tmp_path / "t07", None, threshold=0.7)
+    at_07 = table1.table1_for_folder(maze_dir, tmp_path / "t07", None, threshold=0.7)
     written_07 = pd.read_csv(tmp_path / "t07" / "precision.csv")
-    stage.cli_main(maze_dir, tmp_path / "sweep", None, sweep=True)
+    table1.table1_for_folder(maze_dir, tmp_path / "sweep", None, sweep=True)
     sweep = pd.read_csv(tmp_path / "sweep" / "precision_by_threshold.csv")
     row_07 = sweep[np.isclose(sweep["threshold"], 0.7)].reset_index(drop=True)
     row_05 = sweep[np.isclose(sweep["threshold"], 0.5)].reset_index(drop=True)

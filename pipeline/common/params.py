@@ -3,7 +3,7 @@
 Every stage reads its section through `load_params` / `params_section`, so a missing file,
 a file that is not YAML (`--params README.md`), a file that is not a mapping of sections or
 a missing section is a `ValueError` / `FileNotFoundError` naming the file; the stage runner
-(`pipeline.stage_errors`) prints it as one `error:` line instead of a parser traceback.
+(`pipeline.stage_runner`) prints it as one `error:` line instead of a parser traceback.
 """
 
 from __future__ import annotations

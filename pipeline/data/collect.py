@@ -29,7 +29,7 @@ from pipeline.world.simulator import Episode, run_episode
 # The library code that determines each data set, as the folders (and files) of the pipeline
 # package that its collection runs: the shard fingerprints hash them, and they are the stages'
 # code dependencies in dvc.yaml (a test derives both from the import graph).
-COLLECTION_SOURCES = ("__init__.py", "common", "data", "lattice", "models", "planners", "prediction", "stage_errors.py", "world")
+COLLECTION_SOURCES = ("__init__.py", "common", "data", "lattice", "models", "planners", "prediction", "stage_runner.py", "world")
 PAIRS_SOURCES = COLLECTION_SOURCES
 EXPERT_SOURCES = COLLECTION_SOURCES
 

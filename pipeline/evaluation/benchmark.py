@@ -11,18 +11,19 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
-import cv2
 import numpy as np
 import pandas as pd
 import scipy.stats
 from tqdm import tqdm
 
+from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
+from pipeline.models.exports import require_file
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.planners import make_planner, planner_class
 from pipeline.world.planner import Planner
-from pipeline.world.protocol import Protocol, ProtocolMismatchWarning
+from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
 
@@ -186,6 +187,31 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
     return specs
 
 
+def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> list[str]:
+    """`specs` with checkpoint=PATH added to each diffusion planner's (the command line's --checkpoint);
+    ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too."""
+    if checkpoint is None:
+        return specs
+    require_file(checkpoint, "a planner checkpoint")
+    out, used = [], False
+    for spec in specs:
+        parsed = parse_planner_spec(spec)
+        if not planner_class(parsed.name).needs_policy:
+            out.append(spec)
+            continue
+        if "checkpoint" in parsed.options:
+            raise ValueError(f"planner {parsed.label!r} names its own checkpoint; drop it or --checkpoint")
+        used = True
+        options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "checkpoint": str(checkpoint)}.items())
+        out.append(f"{parsed.label}={parsed.name}:{options}")
+    if not used:
+        raise ValueError(
+            "--checkpoint is a diffusion policy for guide, guide_noregion or dare, and no planner given uses one "
+            "(guide_tsp and mapex take an inpainter as label=name:checkpoint=PATH)"
+        )
+    return out
+
+
 def build_planner(spec: PlannerSpec) -> Planner:
     """The planner a resolved spec names; a value its constructor refuses is a ValueError naming the label."""
     try:
@@ -220,42 +246,6 @@ class EpisodeTask:
     def __post_init__(self) -> None:
         if not self.label:
             object.__setattr__(self, "label", self.planner)
-
-
-def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: str | Path | None = None) -> Protocol:
-    """A ROS map carries its own cell size; every other protocol value stays.
-
-    MapError (naming `source`, the map's file, else its name) for a map with no more free cells
-    than `done_unknown_cells`: every episode on it would count as complete at 0 m (e.g. a PNG
-    whose free space is drawn in a colour read as wall).
-    """
-    where = source if source is not None else ground_truth.name
-    if ground_truth.free_cell_count <= protocol.done_unknown_cells:
-        raise MapError(
-            where,
-            f"only {ground_truth.free_cell_count} free cells, not more than done_unknown_cells="
-            f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves"
-            + (f" ({ground_truth.free_rule})" if ground_truth.free_rule else ""),
-        )
-    if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
-        protocol = protocol.with_cell_size(ground_truth.cell_size)
-    rows, cols = ground_truth.free.shape
-    diagonal_m = math.hypot(rows, cols) * protocol.cell_size
-    if protocol.sensor_range > 2 * diagonal_m:  # a ray table that long costs minutes and gigabytes, and sees nothing more
-        raise MapError(
-            where,
-            f"sensor range {protocol.sensor_range:g} m is more than twice the map's diagonal ({diagonal_m:.1f} m); "
-            "a longer lidar sees nothing more: use a shorter --sensor-range",
-        )
-    return protocol
-
-
-def unreachable_free_cells(ground_truth: GroundTruthMap) -> int:
-    """Free cells not 8-connected to the start: more than `done_unknown_cells` of them and no
-    planner can complete the map (stray free pixels outside a SLAM map's walls do this)."""
-    _, labels = cv2.connectedComponents(ground_truth.free.astype(np.uint8), connectivity=8)
-    col, row = ground_truth.start_cell
-    return int(ground_truth.free.sum() - (labels == labels[row, col]).sum())
 
 
 def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]) -> None:
@@ -293,6 +283,7 @@ def run_benchmark(
     progress: bool = True,
     baseline: str | None = DEFAULT_BASELINE,
     start: tuple[float, float] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Run every map with every planner; write trajectories, metrics.csv and summary.md.
 
@@ -303,16 +294,23 @@ def run_benchmark(
     any work starts. Failed episodes are kept in the metrics (complete = False), never dropped.
     summary.md compares every planner with `baseline` map by map when it ran too.
     `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
+    `warn` receives a line for each map no planner can complete (`map_checks`), before the
+    episodes, and after them the likely reason for each map an episode failed on.
     """
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
     specs = resolve_planner_specs(planners)
     built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
-    names, cell_sizes = [], set()
+    names, cell_sizes, loaded = [], set(), {}
     for path in map_paths:
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
-        cell_sizes.add(protocol_for_map(protocol, ground_truth, path).cell_size)  # a ROS map's own
+        map_protocol = protocol_for_map(protocol, ground_truth, path)
+        cell_sizes.add(map_protocol.cell_size)  # a ROS map's own
         names.append(ground_truth.name)
+        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
+        loaded[ground_truth.name] = (ground_truth, map_protocol, completable)
+        for problem in problems if warn is not None else ():
+            warn(problem)
     check_unique_map_names(map_paths, names)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -351,7 +349,29 @@ def run_benchmark(
             _write_tables(results, out_dir, protocol_record, baseline)
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     bar.close()
-    return _write_tables(results, out_dir, protocol_record, baseline)
+    frame = _write_tables(results, out_dir, protocol_record, baseline)
+    if warn is not None:
+        for hint in failure_hints(frame, loaded):
+            warn(hint)
+    return frame
+
+
+def failure_hints(frame: pd.DataFrame, loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]]) -> list[str]:
+    """Why episodes failed, per map: a step limit too small for its size, or cells no scan reveals
+    (worth a scan per failed map, but not one per map before the run). `loaded`: map name ->
+    (map, its protocol, whether the checks before the run found it completable)."""
+    failed = frame[~frame["complete"].astype(bool)]
+    hints = []
+    for name in sorted(set(failed["map"])):
+        ground_truth, protocol, _ = loaded[name]
+        if (failed.loc[failed["map"] == name, "steps"] >= protocol.max_steps).any():
+            hints.append(step_limit_hint(ground_truth, protocol))
+    for name in sorted(set(failed["map"])):
+        ground_truth, protocol, completable = loaded[name]
+        problem = unobservable_problem(ground_truth, protocol) if completable else None
+        if problem:
+            hints.append(problem)
+    return hints
 
 
 class BenchmarkInterrupted(KeyboardInterrupt):

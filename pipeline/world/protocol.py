@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import dataclass_from_dict
+from pipeline.world.maps import GroundTruthMap, MapError
 
 
 @dataclass(frozen=True)
@@ -77,3 +79,31 @@ def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) 
 
 PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=8.0)
 """The paper's real-robot setting: 0.2 m cells, 1 m nodes, 10 m sensor."""
+
+
+def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: str | Path | None = None) -> Protocol:
+    """A ROS map carries its own cell size; every other protocol value stays.
+
+    MapError (naming `source`, the map's file, else its name) for a map with no more free cells
+    than `done_unknown_cells`: every episode on it would count as complete at 0 m (e.g. a PNG
+    whose free space is drawn in a colour read as wall).
+    """
+    where = source if source is not None else ground_truth.name
+    if ground_truth.free_cell_count <= protocol.done_unknown_cells:
+        raise MapError(
+            where,
+            f"only {ground_truth.free_cell_count} free cells, not more than done_unknown_cells="
+            f"{protocol.done_unknown_cells}: an episode would be complete before the robot moves"
+            + (f" ({ground_truth.free_rule})" if ground_truth.free_rule else ""),
+        )
+    if abs(ground_truth.cell_size - protocol.cell_size) > 1e-12:
+        protocol = protocol.with_cell_size(ground_truth.cell_size)
+    rows, cols = ground_truth.free.shape
+    diagonal_m = math.hypot(rows, cols) * protocol.cell_size
+    if protocol.sensor_range > 2 * diagonal_m:  # a ray table that long costs minutes and gigabytes, and sees nothing more
+        raise MapError(
+            where,
+            f"sensor range {protocol.sensor_range:g} m is more than twice the map's diagonal ({diagonal_m:.1f} m); "
+            "a longer lidar sees nothing more: use a shorter --sensor-range",
+        )
+    return protocol

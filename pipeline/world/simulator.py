@@ -174,6 +174,14 @@ class Episode:
         self._sense()
 
 
+def final_belief(ground_truth: GroundTruthMap, trajectory: Sequence[Sequence[float]], protocol: Protocol) -> np.ndarray:
+    """The belief at the end of an episode, rebuilt by replaying its trajectory (first row the start)."""
+    episode = Episode(ground_truth, protocol)
+    for waypoint in trajectory[1:]:
+        episode.move(waypoint)
+    return episode.belief.grid
+
+
 def run_episode(
     ground_truth: GroundTruthMap,
     planner: Planner,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 from pathlib import Path
@@ -11,6 +12,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from pipeline.world.maps import _is_file  # the loaders' check, shared: a bad file name is not an OSError
+from pipeline.world.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
 
 METRICS_COLUMNS = [
     "map",
@@ -65,8 +67,6 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
     as Excel writes, is fine), a header other than `x,y`, a row that is not two finite numbers
     of at most MAX_COORDINATE_M metres, no waypoint rows, or a first row that is not the start 0,0.
     """
-    from pipeline.world.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
-
     path = Path(path)
     if _is_dir(path):
         raise ValueError(f"{path}: is a folder, not a trajectory file (pass one CSV file)")
@@ -121,3 +121,16 @@ def write_metrics_csv(path: str | Path, rows: Iterable[dict]) -> Path:
             writer.writerow(row)
     os.replace(tmp, path)
     return path
+
+
+def recorded_start(trajectory: Path) -> tuple[Path, list[float]] | None:
+    """(run.json, its start override) of the run that wrote `trajectory`: explore writes run.json
+    beside it, benchmark one folder up (OUT/label/map.csv); None when neither records a start."""
+    for record_path in (trajectory.parent / "run.json", trajectory.parent.parent / "run.json"):
+        try:
+            start = json.loads(record_path.read_text()).get("start")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(start, list) and len(start) == 2:
+            return record_path, start
+    return None

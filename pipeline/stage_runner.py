@@ -1,12 +1,14 @@
-"""One `error:` line instead of a traceback when a stage fails for a reason the user can fix.
+"""How every stage runs: `python -m stages.<name> [--params FILE]`, with one `error:` line instead
+of a traceback when it fails for a reason the user can fix.
 
-`dvc repro` runs each stage as `python -m stages.<name>`, and `guide stage <name>` calls the
-same `main`; both report a missing input, a bad setting or a stage's own refusal the same
-way: `error: <message>` on stderr, exit status 2. Anything else (a bug) keeps its traceback.
+`dvc repro` runs each stage so. A missing input, a bad setting or a stage's own refusal is
+reported the same way by every stage: `error: <message>` on stderr, exit status 2. Anything
+else (a bug) keeps its traceback.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from typing import Any, Callable
 
@@ -37,3 +39,10 @@ def run_stage_main(main: Callable[..., Any], *args: Any) -> Any:
             raise
         print(f"error: {message}", file=sys.stderr)
         raise SystemExit(2) from None
+
+
+def stage_arguments(doc: str | None) -> argparse.ArgumentParser:
+    """A stage's command-line parser: its docstring's first line as help, and --params."""
+    parser = argparse.ArgumentParser(description=(doc or "").strip().splitlines()[0] if doc else None)
+    parser.add_argument("--params", default="params.yaml", help="parameters file [default: params.yaml]")
+    return parser

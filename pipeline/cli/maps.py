@@ -1,0 +1,168 @@
+"""`guide mazes`, `guide resample-map`, `guide replay`: maps and trajectories, no model needed."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from pipeline.cli.options import CellSize, DoneCells, NodeRes, SensorRange, check_out_dir, fail, protocol, warn
+from pipeline.world.caves import CaveConfig, generate_cave_set
+from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
+from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
+from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.world.protocol import protocol_for_map
+from pipeline.world.resample import resample_map, write_ros_map
+from pipeline.world.simulator import replay as replay_trajectory
+from pipeline.world.trajectories import read_trajectory_csv, recorded_start
+
+app = typer.Typer(rich_markup_mode=None)
+
+
+@app.command()
+def mazes(
+    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_NNNN.png, cave_NNNN.png) into (created if missing)."),
+    count: int = typer.Option(..., min=1, help="How many mazes."),
+    seed: int = typer.Option(0, min=0, help="Maze i is drawn from seed sequence [seed, i]."),
+    side: float = typer.Option(100.0, help="Side length in metres (for mazes, a multiple of the block size)."),
+    kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
+                                          "wide rooms, clutter), a family the sliver gate is also fitted on; "
+                                          "cave: rough-walled caves, a family no model is fitted on."),
+    cell_size: float = CellSize,
+) -> None:
+    """Draw mazes like the benchmark's (the pipeline's generator and defaults), office floors or caves, into a folder.
+
+    More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
+    `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
+    """
+    if kind not in ("maze", "office", "cave"):
+        fail(f"--kind must be maze, office or cave, got {kind!r}")
+    if not (math.isfinite(side) and side > 0):
+        fail(f"--side must be a positive number of metres, got {side:g}")
+    if kind != "maze":
+        config_class, write_set, what = {"office": (OfficeConfig, generate_office_set, "office floor"),
+                                         "cave": (CaveConfig, generate_cave_set, "cave")}[kind]
+        try:
+            family = config_class(side_m=side, cell_size=cell_size)
+        except ValueError as error:  # named by this command's words, not the config's fields
+            message = str(error).replace(f"{config_class.__name__} needs", f"{what}s need")
+            fail(message.replace("CaveConfig.block_m", "the 4 m block"))
+        check_out_dir(out)
+        if out.is_dir() and any(out.glob(f"{kind}_*.png")):
+            fail(f"{out} already holds {kind} PNGs: pick an empty folder, so no old {what} mixes into a set")
+        paths = write_set(family, count, out, seed=seed)
+        typer.echo(f"wrote {len(paths)} {what}{'s' if len(paths) != 1 else ''} of {side:g} m to {out}")
+        return
+    try:
+        config = MazeConfig(side_m=(side, side), cell_size=cell_size)
+    except ValueError as error:  # named by this command's options, not the config's fields
+        if "MazeConfig.block_m" in str(error):
+            fail(f"--cell-size {cell_size:g} does not fit the mazes' {MazeConfig.block_m:g} m blocks: a block must be "
+                 f"a whole number (at least {MIN_BLOCK_PIXELS}) of half-cells ({cell_size / 2:g} m); 0.2, 0.4 or 0.5 m fit")
+        message = re.sub(r"MazeConfig\.side_m \([^)]*\)", f"--side {side:g}", str(error))
+        fail(message.replace("MazeConfig.side_m", "--side").replace("MazeConfig.cell_size", "--cell-size"))
+    check_out_dir(out)  # after the settings: a refused one leaves no folder behind
+    stale = sorted(out.glob("maze_*.png")) if out.is_dir() else []
+    if stale:
+        fail(f"{out} already holds {len(stale)} maze PNGs: pick an empty folder, so no old maze mixes into a set")
+    paths = generate_maze_set(config, count, out, seed=seed)
+    typer.echo(f"wrote {len(paths)} maze{'s' if len(paths) != 1 else ''} of {config.side_m[0]:g} m to {out}")
+
+
+@app.command("resample-map")
+def resample_map_command(
+    map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
+    out: Path = typer.Option(..., help="The ROS map YAML to write (its .pgm image beside it)."),
+    to_cell_size: float = typer.Option(0.4, help="Metres per cell of the new map: a whole multiple of the map's own "
+                                                 "(the benchmark's 0.4 m, which the shipped models were trained at)."),
+    wall_cells: int = typer.Option(
+        1, min=1, help="A new cell is an obstacle when it holds at least this many of the old map's obstacle cells "
+                       "(1: any, so no wall is ever erased; more keeps walls thin but opens holes in thin oblique ones)."),
+    speck_area: float = typer.Option(0.1, help="Obstacles of at most this many square metres (chair legs, scan noise) "
+                                               "are erased first, so they do not become whole cells; 0 keeps every one."),
+    start: Optional[tuple[float, float]] = typer.Option(
+        None, help="Start, as in `explore`: COL ROW cell for a .npy grid or a maze PNG, X Y metres for a ROS map "
+                   "(else its YAML 'start')."),
+    cell_size: float = CellSize,
+) -> None:
+    """Write a coarser copy of a map as a ROS map (YAML + PGM) with its start: a 0.05 m SLAM map on the 0.4 m grid.
+
+    A fine map explores badly under the protocol's 720-ray lidar (rays skip cells far out, clutter
+    leaves frontier everywhere) and its cell counts mean less area than the models were fitted to.
+    """
+    if out.suffix.lower() not in (".yaml", ".yml"):
+        fail(f"--out {out}: name the ROS map YAML to write (ending in .yaml)")
+    origin, reads = (0.0, 0.0), {map_path.resolve()}
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        if map_path.suffix.lower() in (".yaml", ".yml"):
+            origin, image = ros_map_origin_and_image(map_path)
+            reads.add(image.resolve())
+        coarse, moved = resample_map(ground_truth, to_cell_size, wall_cells, speck_area)
+    except MapError as error:
+        fail(str(error))
+    except ValueError as error:
+        fail(f"{map_path}: {error}")
+    if {out.resolve(), out.with_suffix(".pgm").resolve()} & reads:
+        fail(f"--out {out} would overwrite the map being read; write the coarser copy elsewhere")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    image = write_ros_map(coarse, out, origin)
+    if moved > 0:
+        warn(f"the start's {to_cell_size:g} m cell is not free (a wall or speck covers part of it): "
+             f"moved {moved:.2f} m to the nearest free cell")
+    rows, cols = coarse.free.shape
+    typer.echo(f"{map_path.name}: {ground_truth.free.shape[1]}x{ground_truth.free.shape[0]} cells of "
+               f"{ground_truth.cell_size:g} m -> {cols}x{rows} cells of {to_cell_size:g} m, "
+               f"{coarse.free_cell_count} free")
+    typer.echo(f"wrote {out} and {image}")
+
+
+@app.command()
+def replay(
+    map_path: Path = typer.Option(..., "--map", help="The map the trajectory was run on."),
+    trajectory: Path = typer.Option(..., help="Trajectory CSV (header x,y; first row 0,0)."),
+    start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
+    cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
+    done_unknown_cells: int = DoneCells,
+    oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
+) -> None:
+    """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON.
+
+    `steps` counts the waypoints after the start up to completion (metrics.csv's column);
+    `complete_after_waypoint` is the 1-based row of the file at which the map became complete
+    (the start row is 1). Rows after completion count for nothing.
+
+    Exits 1 when the trajectory breaks the motion rule or does not complete the map.
+    """
+    rules = protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9)
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        points = read_trajectory_csv(trajectory)
+        result = replay_trajectory(ground_truth, points, protocol_for_map(rules, ground_truth, map_path), oracle=oracle)
+    except (MapError, ValueError) as error:
+        fail(str(error))
+    typer.echo(
+        json.dumps(
+            {
+                "map": ground_truth.name,
+                "complete": result.complete,
+                "complete_after_waypoint": result.complete_after_waypoint,  # 1-based row, the start row is 1
+                "steps": result.steps,  # waypoints after the start up to completion, as metrics.csv counts them
+                "distance_m": round(result.distance_m, 3),
+                "motion_violations": result.motion_violations,
+                "explored_ratio": round(result.explored_ratio, 5),
+                "failure": result.failure,
+            }
+        )
+    )
+    if start is None and (not result.complete or result.motion_violations):
+        recorded = recorded_start(trajectory)
+        if recorded is not None:
+            typer.echo(f"note: {recorded[0]} says the run started at --start {recorded[1][0]:g} {recorded[1][1]:g}; "
+                       "replay it with the same --start", err=True)
+    if not result.complete or result.motion_violations:
+        raise typer.Exit(code=1)  # as `explore`: scripts can test the exit status

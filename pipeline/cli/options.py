@@ -1,0 +1,76 @@
+"""What the commands share: the protocol's options, one-line errors and warnings, output folders."""
+
+from __future__ import annotations
+
+import re
+import tempfile
+from pathlib import Path
+from typing import NoReturn, Optional
+
+import click
+import typer
+
+from pipeline.world.protocol import Protocol
+
+
+def fail(message: str) -> NoReturn:
+    """One `error:` line on stderr, exit status 2."""
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(code=2)
+
+
+def warn(message: str) -> None:
+    typer.echo(f"warning: {message}", err=True)
+
+
+def check_out_dir(out: Path) -> None:
+    """Fail before any work when --out names something other than a folder, or one that cannot be
+    made or written (a file on its path, a read-only disk); the folder exists afterwards."""
+    if out.exists() and not out.is_dir():
+        fail(f"{out}: exists and is not a folder; --out takes a folder (created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=out).close()
+    except OSError as error:
+        fail(f"{out}: cannot create or write the output folder ({error.strerror or error})")
+
+
+def given(ctx: Optional[typer.Context], name: str) -> bool:
+    """Whether the user set option `name` on the command line (not its default)."""
+    return ctx is not None and ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
+
+
+def protocol(
+    cell_size: float, node_resolution: float, sensor_range: float, utility_range: Optional[float],
+    region_size: float, done_unknown_cells: int, max_steps: int,
+) -> Protocol:
+    """The protocol the options name; a refused value is an error naming its option."""
+    try:
+        return Protocol(
+            cell_size=cell_size,
+            node_resolution=node_resolution,
+            sensor_range=sensor_range,
+            utility_range=utility_range if utility_range is not None else sensor_range / 2,
+            region_size=region_size,
+            done_unknown_cells=done_unknown_cells,
+            max_steps=max_steps,
+        )
+    except ValueError as error:  # named by the options: "protocol.sensor_range" -> "--sensor-range"
+        fail(re.sub(r"protocol\.(\w+)", lambda m: "--" + m.group(1).replace("_", "-"), str(error)))
+
+
+_DEFAULT = Protocol()
+CellSize = typer.Option(_DEFAULT.cell_size, help="Metres per cell for maze PNGs and .npy grids (a ROS map has its own).")
+NodeRes = typer.Option(_DEFAULT.node_resolution, help="Node lattice spacing d_n in metres.")
+SensorRange = typer.Option(_DEFAULT.sensor_range, help="Lidar range in metres.")
+UtilityRange = typer.Option(None, help="Frontier-utility range in metres [default: sensor range / 2].")
+RegionSize = typer.Option(_DEFAULT.region_size, help="Side of the fixed regions in metres.")
+DoneCells = typer.Option(_DEFAULT.done_unknown_cells, help="Done when ground-truth free minus belief free cells is at most this.")
+MaxSteps = typer.Option(_DEFAULT.max_steps, help="Waypoints before an episode ends as a failure.")
+Start = typer.Option(
+    None, help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "
+               "X Y metres for a ROS map (else its YAML 'start')."
+)
+Checkpoint = typer.Option(
+    None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
+               "[default: models/ under the current folder, else the shipped one].")
