@@ -11,12 +11,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipeline.evaluation.benchmark import run_benchmark, summarise
-from pipeline.world.maps import list_maps, load_map
 from pipeline.common.params import load_params
-from pipeline.world.protocol import Protocol
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.evaluation.benchmark import run_benchmark, summarise
+from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import log_benchmark
+from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.maps import list_maps, load_map
+from pipeline.world.protocol import Protocol
+from pipeline.world.trajectories import read_trajectory_csv
 
 TEST_MAZES = Path("data/mazes/test")
 OUT_DIR = Path("reports/benchmark")
@@ -56,9 +58,6 @@ def distance_chart(summary, path: Path) -> None:
 
 def trajectory_figure(map_path: Path, frame, out_dir: Path, path: Path, protocol: Protocol) -> None:
     """The first test maze with every planner's path side by side."""
-    from pipeline.reporting.render import render_comparison, save_png
-    from pipeline.world.trajectories import read_trajectory_csv
-
     ground_truth = load_map(map_path, cell_size=protocol.cell_size)
     rows = frame[frame["map"] == ground_truth.name]
     panels = [

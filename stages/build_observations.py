@@ -17,11 +17,25 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.prediction.global_graph import FEATURE_NAMES
-from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, params_section
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.observations import (
+    ObservationConfig,
+    concatenate,
+    episode_observations,
+    save_observations,
+)
+from pipeline.data.shards import MANIFEST, read_manifest
+from pipeline.models.defaults import cached_inpainter
+from pipeline.prediction.global_graph import FEATURE_NAMES
+from pipeline.prediction.node_predictor import (
+    DEFAULT_COUNT_THRESHOLD,
+    NodePredictor,
+    NodePredictorConfig,
+)
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.protocol import Protocol
 
 EXPERT_DIR = Path("data/expert")
 OUT_DIR = Path("data/observations")
@@ -35,11 +49,6 @@ def _shard_observations(task: tuple) -> dict:
     import torch
 
     torch.set_num_threads(1)
-    from pipeline.data.expert_episodes import load_expert_episodes
-    from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
-    from pipeline.data.observations import ObservationConfig, concatenate, episode_observations
-    from pipeline.models.defaults import cached_inpainter
-    from pipeline.world.protocol import Protocol
 
     protocol = Protocol.from_dict(protocol_dict)
     predictor_config = NodePredictorConfig(threshold, min_component, count_threshold=count_threshold)
@@ -53,10 +62,6 @@ def _shard_observations(task: tuple) -> dict:
 
 
 def main(params_path: str = "params.yaml") -> dict:
-    from pipeline.data.shards import MANIFEST, read_manifest
-    from pipeline.data.observations import concatenate, save_observations
-    from pipeline.world.protocol import Protocol
-
     params = load_params(params_path)
     section = params_section(params, "build_observations", params_path)
     protocol = Protocol.from_dict(params.get("protocol") or {})

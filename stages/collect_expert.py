@@ -11,13 +11,19 @@ import json
 import time
 from pathlib import Path
 
+from pipeline.common.params import load_params, params_section
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.world.maps import GroundTruthMap, list_maps
-from pipeline.common.params import load_params, params_section
-from pipeline.world.protocol import Protocol
-from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.data.shards import (
+    rate_per_minute,
+    run_shards,
+    shard_count_for,
+    shard_path,
+)
+from pipeline.reporting.render import render_frame, save_png
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.maps import GroundTruthMap, list_maps
+from pipeline.world.protocol import Protocol
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/expert")
@@ -27,8 +33,6 @@ PREVIEW = Path("reports/expert_episode.png")
 
 def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     """The first stored episode: its final rebuilt belief and the expert's path."""
-    from pipeline.reporting.render import render_frame, save_png
-
     episode = load_expert_episodes(shard_path(out_dir, 0))[0]
     belief = None
     for belief in episode.beliefs():

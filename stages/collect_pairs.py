@@ -13,13 +13,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from pipeline.common.params import load_params, params_section
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
-from pipeline.world.maps import list_maps
-from pipeline.common.params import load_params, params_section
-from pipeline.world.protocol import Protocol
-from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.data.shards import (
+    rate_per_minute,
+    run_shards,
+    shard_count_for,
+    shard_path,
+)
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.maps import list_maps
+from pipeline.world.protocol import Protocol
 
 TRAIN_MAZES = Path("data/mazes/train")
 OUT_DIR = Path("data/pairs")

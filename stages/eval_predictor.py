@@ -21,7 +21,13 @@ from typing import Any
 import pandas as pd
 
 from pipeline.common.params import load_params
-from pipeline.evaluation.predictor_eval import PAPER_STEPS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE, TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD
+from pipeline.evaluation.predictor_eval import (
+    PAPER_STEPS,
+    SWEEP_THRESHOLDS,
+    TABLE1_KEEP_SHARE,
+    TABLE1_MIN_COMPONENT,
+    TABLE1_THRESHOLD,
+)
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.table1 import compare_with, log_run, run, table1_graph_config

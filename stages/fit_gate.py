@@ -20,12 +20,20 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.world.maps import list_maps, load_map
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, section_with_defaults
-from pipeline.world.protocol import Protocol
-from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
+from pipeline.data.gate_samples import gate_samples
+from pipeline.planners.extensions.sliver_gate import (
+    FEATURES,
+    fit_sliver_gate,
+    gate_inputs,
+    roc_auc,
+    save_gate,
+)
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.maps import list_maps, load_map
+from pipeline.world.protocol import Protocol
 
 TRAIN_MAZES = Path("data/mazes/train")
 TRAIN_OFFICES = Path("data/offices/train")
@@ -55,8 +63,6 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
 
 
 def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
-    from pipeline.data.gate_samples import gate_samples
-
     path, protocol, wall_margin = task
     return gate_samples(load_map(path), Protocol.from_dict(protocol), wall_margin)
 
@@ -150,8 +156,6 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 
 def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
-    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)

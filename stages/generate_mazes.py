@@ -17,10 +17,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
-from pipeline.world.offices import OfficeConfig, generate_office_set
 from pipeline.common.params import load_params, params_section
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
+from pipeline.world.offices import OfficeConfig, generate_office_set
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")

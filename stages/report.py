@@ -22,10 +22,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
-from pipeline.world.maps import MapError, list_maps
 from pipeline.common.params import load_params
-from pipeline.world.protocol import Protocol
+from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
 from pipeline.reporting.report import (
     ABLATION_PLANNERS,
     K_PLANNERS,
@@ -45,6 +43,8 @@ from pipeline.reporting.report import (
     trajectory_figure,
 )
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.world.maps import MapError, list_maps
+from pipeline.world.protocol import Protocol
 
 TEST_MAZES = Path("data/mazes/test")
 BENCHMARK_DIR = Path("reports/benchmark")

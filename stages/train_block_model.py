@@ -24,12 +24,21 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.world.maps import load_map
-from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import load_params, section_with_defaults
-from pipeline.world.protocol import Protocol
+from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.modeling_block_model import save_block_model
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.training.block_model import (
+    BlockSamples,
+    block_error,
+    block_snapshots,
+    train_block_model,
+)
+from pipeline.world.maps import load_map
+from pipeline.world.mazes import MazeConfig, generate_maze_set
+from pipeline.world.protocol import Protocol
 
 MODEL_PATH = Path("models/block_model/block_model.pt")
 METRICS_PATH = Path("reports/block_model.json")
@@ -68,8 +77,6 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConf
 
 def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
     """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
-    from pipeline.world.mazes import MazeConfig
-
     side = section["side_m"]
     if isinstance(side, bool) or not isinstance(side, (int, float)):
         raise ValueError(f"must be a number of metres, got {side!r}")
@@ -77,8 +84,6 @@ def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Pro
 
 
 def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarray]:
-    from pipeline.training.block_model import block_snapshots
-
     path, protocol, block_m, every = task
     return block_snapshots(load_map(path), Protocol.from_dict(protocol), block_m, every)
 
@@ -112,10 +117,6 @@ def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarra
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
-    from pipeline.models.modeling_block_model import save_block_model
-    from pipeline.world.mazes import generate_maze_set
-    from pipeline.training.block_model import BlockSamples, block_error, train_block_model
-
     section, config, protocol = read_params(params_path)
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
@@ -156,8 +157,6 @@ def main(params_path: str = "params.yaml") -> dict[str, Any]:
 
 def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol, metrics: dict[str, Any],
             history: list[dict[str, float]]) -> None:
-    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)

@@ -20,8 +20,16 @@ from typing import Any, Optional
 import numpy as np
 
 from pipeline.common.params import load_params, params_section
-from pipeline.world.protocol import Protocol
+from pipeline.models import InpainterConfig, TracedInpainter
+from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.training.inpainter import (
+    TrainConfig,
+    evaluate_inpainter,
+    split_pairs,
+    train_inpainter,
+)
+from pipeline.world.protocol import Protocol
 
 DATA_DIR = Path("data/pairs")
 OUT_DIR = Path("models/inpainter")
@@ -139,10 +147,6 @@ def main(
     progress: bool = False,
     artifact_location: Optional[str] = None,
 ) -> dict[str, Any]:
-    from pipeline.models import InpainterConfig, TracedInpainter
-    from pipeline.training.inpainter import TrainConfig, evaluate_inpainter, split_pairs, train_inpainter
-    from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
-
     params = load_params(params_path)
     section = dict(params_section(params, "train_inpainter", params_path))
     run = {key: section.pop(key, None) for key in RUN_KEYS}

@@ -12,7 +12,9 @@ import json
 from pathlib import Path
 
 from pipeline.common.params import load_params, params_section
+from pipeline.models.modeling_diffusion import load_policy
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.training.policy import train_planner
 
 VARIANTS = ("guide", "dare")
 OBSERVATIONS = Path("data/observations")
@@ -51,9 +53,6 @@ def plot_curves(history: list[dict], path: Path, title: str) -> None:
 
 def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: str | None = None,
          devices: str | None = None, resume: bool = False, max_epochs: int | None = None) -> dict:
-    from pipeline.training.policy import train_planner
-    from pipeline.models.modeling_diffusion import load_policy
-
     if variant not in VARIANTS:
         raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")
     params = load_params(params_path)

@@ -18,15 +18,30 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.world.protocol import protocol_for_map
-from pipeline.prediction.global_graph import CENTROID, PREDICTED, GlobalGraph, GlobalGraphConfig
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
-from pipeline.world.maps import GroundTruthMap, load_map
-from pipeline.prediction.node_image import PIXEL_UNKNOWN, ground_truth_states, node_states_image
-from pipeline.prediction.node_predictor import DEFAULT_THRESHOLD, InpaintFn, NodePredictor, NodePredictorConfig, pad_to_multiple
 from pipeline.models.defaults import inpainter_path
 from pipeline.models.modeling_inpainter import TracedInpainter, load_inpainter
-from pipeline.world.protocol import Protocol
+from pipeline.planners import make_planner
+from pipeline.prediction.global_graph import (
+    CENTROID,
+    PREDICTED,
+    GlobalGraph,
+    GlobalGraphConfig,
+)
+from pipeline.prediction.node_image import (
+    PIXEL_UNKNOWN,
+    ground_truth_states,
+    node_states_image,
+)
+from pipeline.prediction.node_predictor import (
+    DEFAULT_THRESHOLD,
+    InpaintFn,
+    NodePredictor,
+    NodePredictorConfig,
+    pad_to_multiple,
+)
+from pipeline.world.maps import GroundTruthMap, load_map
+from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import Episode, MotionError
 
 COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")  # precision.csv, as the issue fixes it
@@ -96,8 +111,6 @@ def explore_checkpoints(
     checkpoint with the cells changed since the previous one. The episode stops after the
     last step, on completion, or when the explorer has nothing left (or breaks the motion rule).
     """
-    from pipeline.planners import make_planner
-
     wanted = sorted({int(s) for s in steps})
     if not wanted:
         return

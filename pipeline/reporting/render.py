@@ -9,18 +9,16 @@ World metres map to cells as the simulator does: cell = start_cell + round(xy / 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import Callable, Sequence
 
 import cv2
 import numpy as np
 
 from pipeline.lattice.frontier import frontier_mask
+from pipeline.lattice.graph import NODE_FREE, LatticeGraph
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
-
-if TYPE_CHECKING:
-    from pipeline.lattice.graph import LatticeGraph
-    from pipeline.world.simulator import Episode, EpisodeResult
+from pipeline.world.simulator import Episode, EpisodeResult
 
 Colour = tuple[int, int, int]
 Point = tuple[float, float]
@@ -186,9 +184,7 @@ def _base_cells(ground_truth: GroundTruthMap, belief: np.ndarray) -> np.ndarray:
     return img
 
 
-def _draw_graph(img: np.ndarray, graph: "LatticeGraph", scale: int) -> None:
-    from pipeline.lattice.graph import NODE_FREE
-
+def _draw_graph(img: np.ndarray, graph: LatticeGraph, scale: int) -> None:
     centres = _cell_centres_fixed(graph.node_cells, scale)
     edges = graph.edges
     if len(edges):
@@ -391,7 +387,7 @@ class EpisodeRecorder:
         self._last_step = -1
         self._final: tuple[int, np.ndarray] | None = None
 
-    def __call__(self, episode: "Episode") -> None:
+    def __call__(self, episode: Episode) -> None:
         if self._episode is not None and episode is not self._episode:
             self.reset()
         self._episode = episode
@@ -409,7 +405,7 @@ class EpisodeRecorder:
             self._steps = self._steps[::2]
             self._stride *= 2
 
-    def render(self, episode: "Episode") -> np.ndarray:
+    def render(self, episode: Episode) -> np.ndarray:
         """A frame of the episode as it is now."""
         graph = self.graph_provider() if self.graph_provider is not None else None
         belief = episode.belief.grid.copy()
@@ -450,7 +446,7 @@ class EpisodeRecorder:
 
 # ----------------------------------------------------------------------------- reports
 def render_final(
-    result: "EpisodeResult",
+    result: EpisodeResult,
     ground_truth: GroundTruthMap,
     belief: np.ndarray,
     graph: "LatticeGraph | None" = None,

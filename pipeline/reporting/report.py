@@ -17,8 +17,15 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from pipeline.evaluation.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE, paired_difference
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.evaluation.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE
+from pipeline.evaluation.benchmark import paired_difference
+from pipeline.evaluation.predictor_eval import comparison_markdown
+from pipeline.evaluation.predictor_eval import table1_markdown as predictor_table1
+from pipeline.reporting.render import PANEL_GAP_RGB, render_comparison, save_png
+from pipeline.world.maps import load_map
 from pipeline.world.protocol import Protocol
+from pipeline.world.trajectories import read_trajectory_csv
 
 DASH = "—"
 NOT_RUN = "not run"
@@ -364,7 +371,6 @@ def table1_markdown(precision: pd.DataFrame | None, compare: pd.DataFrame | None
             "## Table I: structural inference precision\n\n"
             f"{NOT_RUN}: reports/predictor/precision.csv is missing; run the eval_predictor stage.\n"
         )
-    from pipeline.evaluation.predictor_eval import comparison_markdown, table1_markdown as predictor_table1
 
     text = "#" + predictor_table1(precision, title="Table I: structural inference precision")
     if compare is not None and not compare.empty:
@@ -387,10 +393,6 @@ def trajectory_figure(
 
     Raises ValueError when no listed planner has a trajectory on any of the maps.
     """
-    from pipeline.world.maps import load_map
-    from pipeline.reporting.render import PANEL_GAP_RGB, render_comparison, save_png
-    from pipeline.world.trajectories import read_trajectory_csv
-
     protocol = protocol or Protocol()
     out_dir = Path(out_dir)
     frame = check_metrics(frame)
@@ -532,8 +534,6 @@ def log_tables_to_mlflow(
     `params`; metrics: the row's finite numeric columns; text columns become tags.
     Returns {experiment: [run ids]}.
     """
-    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-
     mlflow = import_mlflow()
 
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))

@@ -21,11 +21,13 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from pipeline.prediction.block_maps import block_index, block_shares, true_blocks
-from pipeline.world.maps import GroundTruthMap
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.modeling_block_model import BlockModel
+from pipeline.planners import make_planner
+from pipeline.prediction.block_maps import block_index, block_shares, true_blocks
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import run_episode
 
 UNKNOWN_BLOCK = 0.5  # a block is a training target when more than this share of it is unknown
 NEAR_REACH = 4  # blocks: the error is measured within 20 m of the known free space, where the lookahead draws
@@ -46,9 +48,6 @@ class BlockSamples:
 def block_snapshots(ground_truth: GroundTruthMap, protocol: Protocol, block_m: float, every: int,
                     seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(shares (n, 3, r, c), truth (r, c)) of a gated `greedy_utility` episode, every `every` steps."""
-    from pipeline.planners import make_planner
-    from pipeline.world.simulator import run_episode
-
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")
     blocks, grid = block_index(ground_truth.shape, ground_truth.cell_size, block_m)

@@ -21,6 +21,8 @@ from typing import Any, Iterator, Optional
 import lightning as L
 import torch
 
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+
 
 def check_max_minutes(value: Any) -> None:
     """`max_minutes` is null or a positive number of minutes."""
@@ -223,7 +225,6 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
     Lightning's own default is the ./mlruns file store, which MLflow 3 refuses."""
     from lightning.pytorch.loggers import MLFlowLogger
 
-    from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 
     import_mlflow()  # telemetry off before Lightning imports it
     return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,

@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from pipeline.lattice.graph import LatticeGraph
+from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.world.planner import Observation
 
 #: (a job's context, the job's index in its batch) -> the job's rollout cost
@@ -140,7 +141,6 @@ class RolloutWorker:
 
 
 def _serve(connection: Connection, run_job: RunJob, template: LatticeGraph, counter) -> None:  # pragma: no cover - child
-    from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 
     context: JobContext | None = None
     while True:
