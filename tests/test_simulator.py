@@ -5,7 +5,7 @@ import pytest
 
 from pipeline.world.geometry import walk_cells
 from pipeline.world.maps import GroundTruthMap, load_map
-from pipeline.planners import make_planner, planner_class, planner_names
+from pipeline.planners import make_planner, planner_config, planner_names
 from pipeline.world.planner import Planner, Waypoint
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
@@ -192,7 +192,7 @@ def test_real_robot_setting_explores_an_office_with_narrow_doors(tmp_path):
     assert result.explored_ratio > 0.99
 
 
-@pytest.mark.parametrize("planner", [p for p in planner_names() if not planner_class(p).uses_ground_truth and not planner_class(p).needs_policy])
+@pytest.mark.parametrize("planner", [p for p in planner_names() if not planner_config(p).uses_ground_truth and not planner_config(p).needs_policy])
 def test_every_planner_completes_generated_mazes(generated_maze_dir, planner):
     for path in sorted(generated_maze_dir.glob("*.png")):
         result = run_episode(load_map(path), make_planner(planner), Protocol())

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 import json
 import math
 import os
@@ -21,7 +20,8 @@ from tqdm import tqdm
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
 from pipeline.models.exports import require_file
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
-from pipeline.planners import make_planner, planner_class
+from pipeline.planners.config import SPEC_KINDS, OptionInfo
+from pipeline.planners.registry import accepted_options, make_planner, planner_config
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
@@ -108,43 +108,9 @@ def parse_planner_spec(text: str) -> PlannerSpec:
     return PlannerSpec(label, name, options)
 
 
-_SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
-
-
-def planner_options(cls: type, options: dict[str, Any] | None = None) -> dict[str, inspect.Parameter]:
-    """The keyword options a planner class accepts, following `**options` up to the base class
-    that receives them (the diffusion planners pass the tour's settings on that way), or to the
-    planner a wrapper builds from them (`options_target(options)`: the oracle bounds' `base=`)."""
-    accepted: dict[str, inspect.Parameter] = {}
-    for klass in cls.__mro__:
-        init = klass.__dict__.get("__init__")
-        if init is None:
-            continue
-        parameters = list(inspect.signature(init).parameters.values())[1:]  # drop self
-        for parameter in parameters:
-            if parameter.kind in (parameter.POSITIONAL_OR_KEYWORD, parameter.KEYWORD_ONLY):
-                accepted.setdefault(parameter.name, parameter)
-        if not any(p.kind == p.VAR_KEYWORD for p in parameters):
-            break
-        target = getattr(klass, "options_target", None)
-        if target is not None:
-            wrapped = target(options or {})
-            for name, parameter in ({} if wrapped is None else planner_options(wrapped, options)).items():
-                accepted.setdefault(name, parameter)
-            break
-    return accepted
-
-
-def option_kinds(parameter: inspect.Parameter) -> set[str] | None:
-    """The kinds ('bool', 'int', 'float', 'str') an option's annotation allows; None for an option
-    that takes Python objects (an injected policy, an inpaint function, a config), which no spec sets."""
-    names = set(re.findall(r"[A-Za-z_]\w*", str(parameter.annotation))) - {"None", "Optional"}
-    return names if names and names <= set(_SPEC_KINDS) else None
-
-
-def check_option_value(key: str, value: Any, parameter: inspect.Parameter) -> None:
+def check_option_value(key: str, value: Any, info: OptionInfo) -> None:
     """ValueError when a spec's value is not of a kind the option's annotation allows."""
-    kinds = option_kinds(parameter)
+    kinds = info.kinds
     if kinds is None:
         raise ValueError(f"option {key!r} takes a Python object; set it from Python, not a spec")
     kind = "bool" if isinstance(value, bool) else type(value).__name__
@@ -153,28 +119,27 @@ def check_option_value(key: str, value: Any, parameter: inspect.Parameter) -> No
     if kind in kinds or (kind == "int" and "float" in kinds):
         return
     wanted = {"bool": "true or false", "int": "an integer", "float": "a number", "str": "text"}
-    expected = " or ".join(wanted[k] for k in _SPEC_KINDS if k in kinds)
+    expected = " or ".join(wanted[k] for k in SPEC_KINDS if k in kinds)
     raise ValueError(f"option {key}={value!r} must be {expected}")
 
 
 def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
     """Parse every entry, check the names are registered (KeyError listing the known ones),
-    the options are accepted by the planner's constructor with values of the right kind, and
-    the labels are unique (ValueError). The values themselves are checked by the constructors:
-    `build_planner`."""
+    the options are the planner's config's with values of the right kind, and the labels are
+    unique (ValueError). The values themselves are checked by the configs: `build_planner`."""
     specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
     seen: set[str] = set()
     for spec in specs:
-        cls = planner_class(spec.name)  # unknown names fail here, with the list of known ones
+        planner_config(spec.name)  # unknown names fail here, with the list of known ones
         if spec.label in seen:
             raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
         seen.add(spec.label)
         if not spec.options:
             continue
-        accepted = planner_options(cls, spec.options)
+        accepted = accepted_options(spec.name, spec.options)
         unknown = sorted(set(spec.options) - set(accepted))
         if unknown:
-            settable = [name for name, p in accepted.items() if option_kinds(p) is not None]
+            settable = [name for name, info in accepted.items() if info.kinds is not None]
             raise ValueError(
                 f"planner {spec.label!r}: {spec.name} has no option {', '.join(unknown)}; "
                 f"it accepts: {', '.join(settable) or 'no options'}"
@@ -196,7 +161,7 @@ def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> l
     out, used = [], False
     for spec in specs:
         parsed = parse_planner_spec(spec)
-        if not planner_class(parsed.name).needs_policy:
+        if not planner_config(parsed.name).needs_policy:
             out.append(spec)
             continue
         if "checkpoint" in parsed.options:

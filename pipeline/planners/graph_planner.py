@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -9,40 +11,61 @@ from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.planners.extensions.sliver_gate import SliverGate, load_gate
+from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.options import check_int, require
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
 
+@dataclass(frozen=True)
+class LatticePlannerConfig(PlannerConfig):
+    """The options every lattice-graph planner has."""
+
+    min_utility: int = option(2, "a node is a target when it sees at least this many frontier cells (below 1, nodes "
+                                 "that see nothing would be targets too and the robot would tour every node)")
+
+    def check(self) -> None:
+        check_int("min_utility", self.min_utility, 1)
+
+
+@dataclass(frozen=True)
+class GatedPlannerConfig(LatticePlannerConfig):
+    """A lattice-graph planner that can leave slivers for later (`pipeline.planners.extensions.sliver_gate`)."""
+
+    sliver_gate: bool = option(False, "consider first only the targets the sliver gate calls big (their scan would "
+                                      "reveal much); the rest only when none is")
+    gate_file: str | None = option(None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, "
+                                         "else the shipped one]")
+
+    def check(self) -> None:
+        super().check()
+        require(isinstance(self.sliver_gate, bool), f"sliver_gate must be true or false, got {self.sliver_gate!r}")
+        if self.gate_file is not None and not self.sliver_gate:
+            raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
+
+
 class GraphPlanner(Planner):
     """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation.
 
-    With the sliver gate (`sliver_gate=True`; `sliver_gate_default` per planner), its useful
-    nodes are first only those the gate calls big (`pipeline.planners.extensions.sliver_gate`); the fitted gate in
+    With the sliver gate (a `GatedPlannerConfig` with `sliver_gate`), its useful nodes are first
+    only those the gate calls big (`pipeline.planners.extensions.sliver_gate`); the fitted gate in
     models/ when present, else the shipped one, unless `gate_file` names another.
     """
 
-    sliver_gate_default = False
-
-    def __init__(self, min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None):
-        # A node is a target when it sees at least min_utility frontier cells: below 1, nodes that
-        # see nothing would be targets too and the robot would tour every node.
-        check_int("min_utility", min_utility, 1)
-        require(sliver_gate is None or isinstance(sliver_gate, bool), f"sliver_gate must be true or false, got {sliver_gate!r}")
-        self.min_utility = min_utility
+    def __init__(self, config: LatticePlannerConfig):
+        self.config = config
+        self.min_utility = config.min_utility
         self.graph: LatticeGraph | None = None
         self.rng = np.random.default_rng(0)
         self.gate: SliverGate | None = None
         self.gate_source = "no sliver gate"
-        if self.sliver_gate_default if sliver_gate is None else sliver_gate:
-            path = resolve_gate_path(gate_file)
+        if getattr(config, "sliver_gate", False):
+            path = resolve_gate_path(config.gate_file)
             self.gate = load_gate(path)[0]
             self.gate_source = f"sliver gate {path if path != SHIPPED_GATE else '(shipped)'}"
             # Which gate a run used belongs in its run.json: gated routes move with the gate's fit.
             self.description = f"{self.description} [{self.gate_source}]"
-        elif gate_file is not None:
-            raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
         self._gated: tuple[np.ndarray, np.ndarray] | None = None  # (useful nodes, those the gate passes) this decision
         # The gate's verdict per node, kept until a belief change comes within its reach: a
         # verdict reads only the belief around its node, and most nodes are far from each scan.

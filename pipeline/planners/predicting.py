@@ -9,18 +9,43 @@ its frontier-only version (the instance's `description` says which predictor is 
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.models.defaults import inpainter_protocol, resolve_inpainter
-from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.config import option
+from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
-from pipeline.prediction.node_predictor import (DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, InpaintFn, NodePredictor,
+from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
+from pipeline.prediction.node_predictor import (DEFAULT_THRESHOLD, InpaintFn, NodePredictor,
                                                 NodePredictorConfig)
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
+
+
+@dataclass(frozen=True)
+class PredictorOptions(LatticePlannerConfig):
+    """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
+
+    objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
+
+    checkpoint: str | None = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, else the "
+                                          "shipped one]")
+    threshold: float = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
+    min_component: int = option(3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)")
+
+    def check(self) -> None:
+        super().check()
+        # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
+        check_number("threshold", self.threshold, 0.0, 1.0)
+        check_int("min_component", self.min_component, 0, note="0 or 1 = keep every prediction")
+
+    def inpainter(self) -> str | None:
+        """The inpainter export this config names (None: the default)."""
+        return self.checkpoint
 
 
 class PredictingPlanner(GraphPlanner):
@@ -28,25 +53,16 @@ class PredictingPlanner(GraphPlanner):
 
     base_description = ""
 
-    def __init__(
-        self,
-        min_utility: int = 2,
-        checkpoint: str | None = None,
-        inpaint: InpaintFn | None = None,
-        threshold: float = DEFAULT_THRESHOLD,
-        min_component: int = 3,
-        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
-        sliver_gate: bool | None = None,
-        gate_file: str | None = None,
-    ):
-        super().__init__(min_utility=min_utility, sliver_gate=sliver_gate, gate_file=gate_file)
-        # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
-        check_number("threshold", threshold, 0.0, 1.0)
-        check_number("count_threshold", count_threshold, 0.0, 1.0, none="threshold")
-        check_int("min_component", min_component, 0, note="0 or 1 = keep every prediction")
-        fn, source, path = resolve_inpainter(inpaint, checkpoint)
-        config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
-        self.predictor = None if fn is None else NodePredictor(fn, config)
+    def __init__(self, config: PredictorOptions, inpaint: InpaintFn | None = None):
+        super().__init__(config)
+        checkpoint, threshold, min_component = config.inpainter(), config.threshold, config.min_component
+        count_threshold = getattr(config, "count_threshold", None)  # the utility boost's tau, where there is one
+        if getattr(config, "predicts", True):
+            fn, source, path = resolve_inpainter(inpaint, checkpoint)
+        else:  # the observed graph only (dare): no inpainter is loaded
+            fn, source, path = None, "no prediction (observed graph only)", None
+        predictor_config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
+        self.predictor = None if fn is None else NodePredictor(fn, predictor_config)
         self.predictor_source = source
         # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
         self.trained_models: list[tuple[str, dict | None]] = [] if path is None else [(str(path), inpainter_protocol(path))]
@@ -89,3 +105,22 @@ class PredictingPlanner(GraphPlanner):
         robot = self.robot_node(observation)
         dist, pred = graph.shortest_paths(robot)
         return graph, robot, dist, pred, self.reachable_useful(robot, dist)
+
+
+class GlobalGraphPlanner(PredictingPlanner):
+    """A predicting planner that builds the global graph of Sec. IV-B at each decision: the known
+    nodes, the predicted nodes region evaluation keeps (r(g)), centroids, boosted utilities u(v)."""
+
+    def __init__(self, config: PredictorOptions, inpaint: InpaintFn | None = None):
+        super().__init__(config, inpaint)
+        self.global_config: GlobalGraphConfig = config.global_graph
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.global_graph = GlobalGraph(self.graph, self.global_config)
+
+    def update_global_graph(self, observation: Observation) -> np.ndarray:
+        """Predict V_p and rebuild the global graph from the updated lattice graph; the predicted nodes."""
+        predicted, counted = self.predict_with_counted()
+        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, counted)
+        return predicted

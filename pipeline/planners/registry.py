@@ -1,13 +1,29 @@
-"""The registry of planner names: `register_planner` makes a class available under a name."""
+"""The registry of planner names: each name is a config class and what builds a planner from it.
+
+`register_planner(name, Config)` decorates a planner class (built as `Planner(config, **objects)`)
+or a function that builds one (`guide` picks the tour vote or the plain policy by its `mode`).
+`make_planner(name, key=value, ...)` is how Python, the command line and `params.yaml` all build one.
+"""
 
 from __future__ import annotations
 
-from typing import Callable, TypeVar
+from dataclasses import dataclass
+from typing import Any, Callable, TypeVar
 
+from pipeline.planners.config import OptionInfo, PlannerConfig
 from pipeline.world.planner import Planner
 
-_REGISTRY: dict[str, type[Planner]] = {}
-P = TypeVar("P", bound=type[Planner])
+Build = TypeVar("Build", bound=Callable[..., Planner])
+
+
+@dataclass(frozen=True)
+class PlannerEntry:
+    name: str
+    config: type[PlannerConfig]
+    build: Callable[..., Planner]  # build(config, **objects) -> Planner
+
+
+_REGISTRY: dict[str, PlannerEntry] = {}
 
 
 class UnknownPlannerError(KeyError, ValueError):
@@ -19,17 +35,21 @@ class UnknownPlannerError(KeyError, ValueError):
         return str(self.args[0]) if self.args else "unknown planner"
 
 
-def register_planner(name: str) -> Callable[[P], P]:
-    """Class decorator: make a planner available under a lower-case `name`."""
+def register_planner(name: str, config: type[PlannerConfig]) -> Callable[[Build], Build]:
+    """Decorator: make a planner class (or a function that builds a planner) available under a
+    lower-case `name`, configured by `config`."""
     if not name.isidentifier() or name != name.lower():
         raise ValueError(f"planner names are lower-case identifiers, got {name!r}")
 
-    def decorate(cls: P) -> P:
-        if name in _REGISTRY and _REGISTRY[name] is not cls:
+    def decorate(build: Build) -> Build:
+        entry = PlannerEntry(name, config, build)
+        if name in _REGISTRY and _REGISTRY[name] != entry:
             raise ValueError(f"planner name {name!r} is already registered")
-        cls.name = name
-        _REGISTRY[name] = cls
-        return cls
+        if config.__dict__.get("name", name) != name:
+            raise ValueError(f"{config.__name__} is registered as {config.name!r} already; give {name!r} its own config")
+        config.name = name  # the name its planner is known by (error messages say it)
+        _REGISTRY[name] = entry
+        return build
 
     return decorate
 
@@ -39,13 +59,45 @@ def planner_names() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def planner_class(name: str) -> type[Planner]:
-    names = planner_names()
+def planner_entry(name: str) -> PlannerEntry:
     if name not in _REGISTRY:
-        raise UnknownPlannerError(f"unknown planner {name!r}; choose from: {', '.join(names)}")
+        raise UnknownPlannerError(f"unknown planner {name!r}; choose from: {', '.join(planner_names())}")
     return _REGISTRY[name]
 
 
-def make_planner(name: str, **options) -> Planner:
-    """A fresh planner instance by its registered name."""
-    return planner_class(name)(**options)
+def planner_config(name: str) -> type[PlannerConfig]:
+    """The config class of a registered planner: its options, description and what it needs."""
+    return planner_entry(name).config
+
+
+def accepted_options(name: str, options: dict[str, Any] | None = None) -> dict[str, OptionInfo]:
+    """The options a planner takes (for a wrapper, its base's too, by the `base` in `options`)."""
+    config = planner_config(name)
+    accepted = {info.name: info for info in config.options()}
+    accepted.update({obj: OptionInfo(obj, None, None, "a Python object, set from Python")
+                     for obj in config.objects if obj != "base_options"})
+    base = getattr(config, "base_planner", None)
+    if base is not None:
+        base_name = base(options or {})
+        if base_name in _REGISTRY:
+            accepted = {**accepted, **{n: i for n, i in accepted_options(base_name).items() if n not in accepted}}
+    return accepted
+
+
+def make_config(name: str, **options: Any) -> tuple[PlannerConfig, dict[str, Any]]:
+    """(the planner's config from `options`, the Python objects among them); ValueError for an
+    option it does not take or a value its config refuses."""
+    config = planner_config(name)
+    fields, objects, unknown = config.split(options)
+    if unknown:
+        settable = [n for n, info in accepted_options(name, options).items() if info.kinds is not None]
+        raise ValueError(f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}")
+    return config(**fields), objects
+
+
+def make_planner(name: str, **options: Any) -> Planner:
+    """A fresh planner by its registered name, with options as the command line and params.yaml give them."""
+    config, objects = make_config(name, **options)
+    planner = planner_entry(name).build(config, **objects)
+    planner.name = name
+    return planner

@@ -9,7 +9,7 @@ from pipeline.planners.references import coverage as cov
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.planners import make_planner, planner_class, planner_names
+from pipeline.planners import make_planner, planner_config, planner_names
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay, run_episode
 
@@ -32,8 +32,8 @@ def maze(request, small_maze, generated_maze):
 
 def test_registered_as_oracles():
     assert {"optimal", "expert"} <= set(planner_names())
-    assert planner_class("optimal").uses_ground_truth and planner_class("optimal").ignores_motion_rule
-    assert planner_class("expert").uses_ground_truth and not planner_class("expert").ignores_motion_rule
+    assert planner_config("optimal").uses_ground_truth and planner_config("optimal").ignores_motion_rule
+    assert planner_config("expert").uses_ground_truth and not planner_config("expert").ignores_motion_rule
 
 
 def test_optimal_completes_under_the_oracle_rule(maze):

@@ -281,4 +281,4 @@ def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_poli
     config = planner.global_graph.config
     assert config.centroid_links == 1
     assert config.use_region_evaluation is region_evaluation
-    assert config.max_nodes == planner.policy.config.max_nodes
+    assert config.max_nodes == planner.diffusion.config.max_nodes

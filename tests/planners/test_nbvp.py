@@ -9,7 +9,7 @@ from pipeline.world.geometry import ray_end_offsets, walk_offsets
 from pipeline.lattice.graph import NODE_FREE
 from pipeline.world.maps import GroundTruthMap
 from pipeline.planners import make_planner, planner_names
-from pipeline.planners.baselines.nbvp import NBVPPlanner, view_gains
+from pipeline.planners.baselines.nbvp import NBVPConfig, NBVPPlanner, view_gains
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN, Belief, scan
 from pipeline.world.simulator import Episode, replay, run_episode
@@ -149,7 +149,7 @@ def test_tree_uses_valid_edges_and_first_edge_of_best_branch(maze):
 
 
 def test_branch_values_follow_bircher():
-    planner = NBVPPlanner(lam=0.5)
+    planner = NBVPPlanner(NBVPConfig(lam=0.5))
     gains = np.array([0, 10, 4, 6])
     parent = np.array([-1, 0, 1, 0])
     cost = np.array([0.0, 4.0, 8.0, 4.0])
@@ -167,8 +167,8 @@ def test_fallback_is_nearest_frontier(maze):
 
 def test_rejects_bad_parameters():
     with pytest.raises(ValueError):
-        NBVPPlanner(tree_size=1)
+        NBVPPlanner(NBVPConfig(tree_size=1))
     with pytest.raises(ValueError):
-        NBVPPlanner(lam=-1.0)
+        NBVPPlanner(NBVPConfig(lam=-1.0))
     with pytest.raises(ValueError):
-        NBVPPlanner(ray_stride=0)
+        NBVPPlanner(NBVPConfig(ray_stride=0))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipeline.planners.extensions.sliver_gate import TrueGain
-from pipeline.planners import make_planner, planner_class
+from pipeline.planners import make_planner, planner_config
 from pipeline.planners.references.oracle_bounds import TrueGainGate
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
@@ -43,7 +43,7 @@ def test_true_gain_gate_passes_by_gain_and_vetoes_only_what_the_learned_gate_pas
 
 def test_oracle_gate_replaces_the_base_planners_gate_and_explores(small_maze):
     planner = make_planner("oracle_gate", base="greedy_utility", min_gain=20)
-    assert planner_class("oracle_gate").uses_ground_truth
+    assert planner_config("oracle_gate").uses_ground_truth
     result = run_episode(small_maze, planner, Protocol(), 0)
     assert isinstance(planner.base.gate, TrueGainGate) and planner.base.gate.learned is None
     assert result.complete and result.motion_violations == 0
@@ -68,7 +68,7 @@ def test_oracle_tail_hands_over_to_the_expert_at_the_threshold(small_maze):
 
 def test_oracle_lookahead_with_one_candidate_is_gated_greedy_and_with_three_is_shorter(small_maze):
     protocol = Protocol()
-    assert planner_class("oracle_lookahead").uses_ground_truth
+    assert planner_config("oracle_lookahead").uses_ground_truth
     gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
     one = run_episode(small_maze, make_planner("oracle_lookahead", k=1), protocol, 0)
     assert one.trajectory == gated.trajectory

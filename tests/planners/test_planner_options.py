@@ -171,8 +171,8 @@ def test_every_planner_builds_with_its_defaults(name):
 def test_diffusion_defaults_come_from_the_policy():
     for name in LEARNED:
         planner = make_planner(name)
-        config = planner.policy.config
-        assert planner.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
+        config = planner.diffusion.config
+        assert planner.diffusion.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
         assert planner.action_steps == config.action_steps
 
 

@@ -11,7 +11,7 @@ from pipeline.prediction.block_maps import block_index, true_blocks
 from pipeline.world.maps import GroundTruthMap
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.modeling_block_model import BlockModel, save_block_model
-from pipeline.planners import make_planner, planner_class
+from pipeline.planners import make_planner, planner_config
 from pipeline.models.defaults import SHIPPED_BLOCK_MODEL, resolve_block_model
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
@@ -54,7 +54,7 @@ def test_explores_without_reading_the_ground_truth(small_maze):
         while not episode.complete and episode.steps < 60:
             episode.move(planner.plan(episode.observe())[0])
         runs.append(episode.trajectory)
-    assert runs[0] == runs[1] and not planner_class("sampled_lookahead").uses_ground_truth
+    assert runs[0] == runs[1] and not planner_config("sampled_lookahead").uses_ground_truth
     assert episode.complete
 
 
@@ -82,7 +82,7 @@ def test_model_file_resolution(tmp_path):
 def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, monkeypatch):
     """Scripted rollouts: the last target costs 10 m a map, any other 9 m. Without a margin the robot
     switches; with a 2 m margin it keeps its target; a 0.5 m margin is beaten."""
-    from pipeline.planners.extensions.sampled_lookahead import BlockLookahead
+    from pipeline.planners.extensions.lookahead import BlockLookahead
 
     protocol = Protocol()
     model = KnownBlocks(_truth(small_maze))
@@ -110,7 +110,7 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
 def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, monkeypatch):
     """Scripted rollouts of equal length: the first-ranked target's ends 20 cells from the cut, the
     second's beside it. Without the exit term the tie goes to the first; with it, to the second."""
-    import pipeline.planners.extensions.sampled_lookahead as module
+    import pipeline.planners.extensions.lookahead as module
 
     protocol = Protocol()
     model = KnownBlocks(_truth(small_maze))
@@ -146,7 +146,7 @@ def _guide(**options):
 def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze, monkeypatch, targets):
     """Scripted rollouts: equal costs keep guide's own choice (the first candidate: its best-scored
     option); making the last candidate's rollouts shorter makes it the target."""
-    from pipeline.planners.extensions.sampled_lookahead import BlockLookahead
+    from pipeline.planners.extensions.lookahead import BlockLookahead
 
     protocol = Protocol()
     seen: list[int] = []
@@ -210,7 +210,7 @@ def test_guide_lookahead_options_are_checked():
 def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small_maze, monkeypatch):
     """With lookahead_commit (the default) the rollouts run only when the last target is reached or
     is no longer a target; in between each decision keeps it. Without, every sampled decision rolls out."""
-    from pipeline.planners.extensions.sampled_lookahead import BlockLookahead
+    from pipeline.planners.extensions.lookahead import BlockLookahead
 
     protocol = Protocol()
     calls: list[int] = []
@@ -274,7 +274,7 @@ def test_per_target_rollouts_choose_only_on_arrival(small_maze):
 @pytest.mark.parametrize("rollout", [None, "fast", "full"])
 def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
     """Full rollouts (the default): gated greedy choosing at every node; fast: ungated greedy walking whole paths."""
-    from pipeline.planners.extensions.sampled_lookahead import BlockLookahead
+    from pipeline.planners.extensions.lookahead import BlockLookahead
 
     seen = []
     monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(
@@ -298,7 +298,7 @@ def test_guide_lookahead_rollout_option_is_checked():
 
 def _lookahead_decision(small_maze, workers: int, steps: int = 6):
     """A gated greedy planner a few steps into the small maze, and a lookahead with `workers` processes on it."""
-    from pipeline.planners.extensions.sampled_lookahead import BlockLookahead, gated_greedy_like
+    from pipeline.planners.extensions.lookahead import BlockLookahead, gated_greedy_like
 
     protocol = Protocol()
     planner = make_planner("greedy_utility", sliver_gate=True)

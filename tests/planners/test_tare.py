@@ -11,7 +11,7 @@ from pipeline.lattice.graph import visible_counts
 from pipeline.world.maps import GroundTruthMap, load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_names
-from pipeline.planners.baselines.tare import TarePlanner, greedy_set_cover, visible_frontier_cells
+from pipeline.planners.baselines.tare import TareConfig, TarePlanner, greedy_set_cover, visible_frontier_cells
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.world.simulator import Episode, replay, run_episode
@@ -196,8 +196,8 @@ def test_nothing_left_to_explore_returns_empty():
 
 def test_rejects_bad_options():
     with pytest.raises(ValueError):
-        TarePlanner(horizon_radius=-1)
+        TarePlanner(TareConfig(horizon_radius=-1))
     with pytest.raises(ValueError):
-        TarePlanner(min_cover=0)
+        TarePlanner(TareConfig(min_cover=0))
     with pytest.raises(ValueError):
-        TarePlanner(cover_range=-1.0)
+        TarePlanner(TareConfig(cover_range=-1.0))

@@ -182,7 +182,8 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
     robot = planner.robot_node(observation)
     dist, pred = graph.shortest_paths(robot)
     useful = planner.reachable_useful(robot, dist)
-    planner.observe_step(observation)
+    planner.update_global_graph(observation)
+    planner.diffusion.observe(planner.global_graph, observation.position)
     options = planner.first_target_scores(robot, dist, useful)
     target = int(options["targets"][options["firsts"][0]])
     straight = graph.path_from_predecessors(pred, target)[:4]
@@ -220,7 +221,7 @@ def test_diffusion_planner_options_are_checked(trained):
     with pytest.raises(ValueError, match="prior_weight"):
         make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, prior_weight=-1.0)
     ddim = make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, sampler="ddim")
-    assert type(ddim.policy.inference_scheduler).__name__ == "DDIMScheduler"
+    assert type(ddim.diffusion.policy.inference_scheduler).__name__ == "DDIMScheduler"
 
 
 def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_path):
@@ -228,7 +229,7 @@ def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_
 
     monkeypatch.setattr(guide_module, "PIPELINE_POLICY", {k: tmp_path / f"{k}.pt" for k in ("guide", "dare")})
     planner = make_planner("dare")
-    assert planner.policy_source.endswith("planner_dare.pt") and "assets" in planner.policy_source
+    assert planner.diffusion.source.endswith("planner_dare.pt") and "assets" in planner.diffusion.source
     monkeypatch.setattr(guide_module, "SHIPPED_POLICY", {k: tmp_path / f"shipped_{k}.pt" for k in ("guide", "dare")})
     with pytest.raises(FileNotFoundError, match="train_planner"):
         make_planner("guide")

@@ -4,29 +4,46 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.planners.graph_planner import GraphPlanner
+from dataclasses import dataclass
+
+from pipeline.planners.graph_planner import GatedPlannerConfig, GraphPlanner
 from pipeline.planners.registry import register_planner
-from pipeline.world.planner import Waypoint
+from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.simulator import Episode
-from pipeline.world.planner import Observation
 
 
-@register_planner("nearest_frontier")
+@dataclass(frozen=True)
+class NearestFrontierConfig(GatedPlannerConfig):
+    description = "Yamauchi: shortest path to the nearest node that sees frontier cells"
+
+
+@dataclass(frozen=True)
+class GreedyUtilityConfig(GatedPlannerConfig):
+    description = "greedy: frontier utility divided by shortest-path cost"
+
+
+@register_planner("nearest_frontier", NearestFrontierConfig)
 class NearestFrontierPlanner(GraphPlanner):
     """Yamauchi's frontier exploration: go to the nearest node that sees frontier cells."""
 
-    description = "Yamauchi: shortest path to the nearest node that sees frontier cells"
+    description = NearestFrontierConfig.description
+
+    def __init__(self, config: NearestFrontierConfig = NearestFrontierConfig()):
+        super().__init__(config)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         self.update_graph(observation)
         return self.nearest_useful_step(self.robot_node(observation))
 
 
-@register_planner("greedy_utility")
+@register_planner("greedy_utility", GreedyUtilityConfig)
 class GreedyUtilityPlanner(GraphPlanner):
     """Greedy information gain: the node with the most frontier utility per metre of path."""
 
-    description = "greedy: frontier utility divided by shortest-path cost"
+    description = GreedyUtilityConfig.description
+
+    def __init__(self, config: GatedPlannerConfig = GreedyUtilityConfig()):
+        super().__init__(config)
 
     def ranked_targets(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
         """(known-graph predecessors from the robot, its reachable targets by utility per metre, best first)."""

@@ -15,39 +15,47 @@ the gain is unweighted.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
 from pipeline.lattice.graph import visible_counts
 from pipeline.planners.options import check_int
-from pipeline.planners.predicting import PredictingPlanner
+from pipeline.planners.config import option
+from pipeline.planners.predicting import PredictingPlanner, PredictorOptions
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 
-@register_planner("mapex")
+@dataclass(frozen=True)
+class MapExConfig(PredictorOptions):
+    description = ("MapEx (Ho 2024): frontier viewpoints scored by gain on the predicted map (predicted-free "
+                   "unknown cells in the ray fan, unweighted: no ensemble variance) over path cost")
+
+    # Its predicted map is a count of likely-free space, not graph nodes: the utility count's tau.
+    threshold: float = option(DEFAULT_COUNT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau "
+                                                       "(the broad tau of the utility count, not the graph's)")
+    wall_margin: int = option(2, "cells: predicted-free unknown this close to a known obstacle is the inside of a "
+                                 "seen wall, not counted (0 = off)")
+
+    def check(self) -> None:
+        super().check()
+        check_int("wall_margin", self.wall_margin, 0, note="0 = off")
+
+
+@register_planner("mapex", MapExConfig)
 class MapExPlanner(PredictingPlanner):
     """MapEx-style: information gain on the predicted map per metre of path, best viewpoint first."""
 
-    base_description = (
-        "MapEx (Ho 2024): frontier viewpoints scored by gain on the predicted map (predicted-free "
-        "unknown cells in the ray fan, unweighted: no ensemble variance) over path cost"
-    )
+    base_description = MapExConfig.description
     description = base_description
 
-    def __init__(
-        self,
-        min_utility: int = 2,
-        checkpoint: str | None = None,
-        inpaint: InpaintFn | None = None,
-        wall_margin: int = 2,
-        threshold: float = DEFAULT_COUNT_THRESHOLD,  # its predicted map is a count of likely-free space, not graph nodes
-        min_component: int = 3,
-    ):
-        check_int("wall_margin", wall_margin, 0, note="0 = off")
-        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold=None)
+    def __init__(self, config: MapExConfig = MapExConfig(), inpaint: InpaintFn | None = None):
+        super().__init__(config, inpaint)
+        wall_margin = config.wall_margin
         self.wall_margin = int(wall_margin)
 
     def predicted_free_cells(self, belief: np.ndarray, predicted: np.ndarray) -> np.ndarray:

@@ -39,12 +39,15 @@ Adaptation to the lattice and the protocol:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pipeline.world.geometry import RayTable, ray_table
 from pipeline.lattice.graph import NODE_FREE, WINDOW_RADIUS
 from pipeline.world.maps import GroundTruthMap
-from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.config import option
+from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.planner import Waypoint
@@ -117,35 +120,45 @@ def view_gains(belief: np.ndarray, cells: np.ndarray, range_cells: float, ray_st
     return gain.gains(cells)
 
 
-@register_planner("nbvp")
+@dataclass(frozen=True)
+class NBVPConfig(LatticePlannerConfig):
+    description = ("Bircher 2016 receding-horizon NBVP: lattice RRT in known free space, first edge of the "
+                   "best-gain branch; nearest-frontier fallback when the local tree sees nothing")
+
+    tree_size: int = option(40, "tree vertices N per decision, the robot's node included")
+    lam: float | None = option(None, f"lambda (1/m) discounting a view by its path length [default: {LAM_TIMES_RANGE:g} / "
+                                     "sensor range, so a view one range away counts exp(-2.5) under any protocol]")
+    gain_threshold: float = option(20.0, "cells: a best branch worth less falls back to the nearest frontier "
+                                         "(inf = always)")
+    sample_radius_factor: float = option(2.0, "samples are drawn within this many sensor ranges of the robot")
+    ray_stride: int = option(4, "gains from every n-th of the lidar's 720 rays")
+    max_attempts_factor: int = option(15, "at most this many x tree_size samples per decision (a small known area "
+                                          "holds fewer nodes)")
+    reuse_best_branch: bool = option(True, "the rest of the executed branch seeds the next tree, as Bircher does")
+
+    def check(self) -> None:
+        super().check()
+        check_int("tree_size", self.tree_size, 2, note="the robot's node and at least one more")
+        check_number("lam", self.lam, 0.0, none=f"{LAM_TIMES_RANGE:g} / sensor range")
+        # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
+        check_number("gain_threshold", self.gain_threshold, 0.0, allow_inf=True, note="inf = always the frontier fallback")
+        check_number("sample_radius_factor", self.sample_radius_factor, 0.0, low_open=True)
+        check_int("ray_stride", self.ray_stride, 1)
+        check_int("max_attempts_factor", self.max_attempts_factor, 1)
+
+
+@register_planner("nbvp", NBVPConfig)
 class NBVPPlanner(GraphPlanner):
     """Bircher's receding-horizon next-best-view planner: RRT in known free space, first edge
     of the branch with the most discounted unknown-volume gain; nearest frontier fallback."""
 
-    description = (
-        "Bircher 2016 receding-horizon NBVP: lattice RRT in known free space, first edge of the "
-        "best-gain branch; nearest-frontier fallback when the local tree sees nothing"
-    )
+    description = NBVPConfig.description
 
-    def __init__(
-        self,
-        tree_size: int = 40,
-        lam: float | None = None,
-        gain_threshold: float = 20.0,
-        sample_radius_factor: float = 2.0,
-        ray_stride: int = 4,
-        max_attempts_factor: int = 15,
-        reuse_best_branch: bool = True,
-        min_utility: int = 2,
-    ):
-        super().__init__(min_utility=min_utility)
-        check_int("tree_size", tree_size, 2, note="the robot's node and at least one more")
-        check_number("lam", lam, 0.0, none=f"{LAM_TIMES_RANGE:g} / sensor range")
-        # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
-        check_number("gain_threshold", gain_threshold, 0.0, allow_inf=True, note="inf = always the frontier fallback")
-        check_number("sample_radius_factor", sample_radius_factor, 0.0, low_open=True)
-        check_int("ray_stride", ray_stride, 1)
-        check_int("max_attempts_factor", max_attempts_factor, 1)
+    def __init__(self, config: NBVPConfig = NBVPConfig()):
+        super().__init__(config)
+        tree_size, lam, gain_threshold = config.tree_size, config.lam, config.gain_threshold
+        sample_radius_factor, ray_stride = config.sample_radius_factor, config.ray_stride
+        max_attempts_factor, reuse_best_branch = config.max_attempts_factor, config.reuse_best_branch
         self.tree_size = int(tree_size)
         self.lam_option = lam  # 1/m; None: LAM_TIMES_RANGE / the protocol's sensor range, set in reset()
         self.lam = 0.0 if lam is None else float(lam)

@@ -51,12 +51,14 @@ Adaptation to the lattice graph and the protocol:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.graph import utility_fan
 from pipeline.world.maps import GroundTruthMap
-from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.config import option
+from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.planner import Waypoint
@@ -131,32 +133,39 @@ def greedy_set_cover(cover: list[np.ndarray], tie_cost: np.ndarray, min_cover: i
     return chosen
 
 
-@register_planner("tare")
+@dataclass(frozen=True)
+class TareConfig(LatticePlannerConfig):
+    description = ("Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
+                   "the 3x3-region local horizon ordered by a TSP path that joins the global tour")
+
+    horizon_radius: int = option(1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)")
+    min_cover: int = option(2, "frontier cells a viewpoint (or an exploring region) must add to count")
+    cover_range: float | None = option(None, "metres: frontier seen from this close to where the robot was counts as "
+                                             "covered (0 = off) [default: the utility range]")
+    exact_max: int = option(10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
+    max_moves: int = option(200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)")
+    loop_guard: bool = option(True, "back at a node with nothing new seen, keep the target chosen there")
+
+    def check(self) -> None:
+        super().check()
+        check_int("horizon_radius", self.horizon_radius, 0, note="0 = the robot's region only")
+        check_int("min_cover", self.min_cover, 1)
+        check_number("cover_range", self.cover_range, 0.0, note="0 = off", none="the utility range")
+        check_int("exact_max", self.exact_max, 1, 14)
+        check_int("max_moves", self.max_moves, 0, note="0 = no 2-opt / Or-opt moves")
+
+
+@register_planner("tare", TareConfig)
 class TarePlanner(GraphPlanner):
     """TARE's hierarchy on the lattice: a global TSP tour over exploring regions and a local
     set cover of viewpoints in a 3 x 3-region horizon, ordered by a TSP path joined to it."""
 
-    description = (
-        "Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
-        "the 3x3-region local horizon ordered by a TSP path that joins the global tour"
-    )
+    description = TareConfig.description
 
-    def __init__(
-        self,
-        min_utility: int = 2,
-        horizon_radius: int = 1,
-        min_cover: int = 2,
-        cover_range: float | None = None,
-        exact_max: int = 10,
-        max_moves: int = 200,
-        loop_guard: bool = True,
-    ):
-        super().__init__(min_utility=min_utility)
-        check_int("horizon_radius", horizon_radius, 0, note="0 = the robot's region only")
-        check_int("min_cover", min_cover, 1)
-        check_number("cover_range", cover_range, 0.0, note="0 = off", none="the utility range")
-        check_int("exact_max", exact_max, 1, 14)
-        check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
+    def __init__(self, config: TareConfig = TareConfig()):
+        super().__init__(config)
+        horizon_radius, min_cover, cover_range = config.horizon_radius, config.min_cover, config.cover_range
+        exact_max, max_moves, loop_guard = config.exact_max, config.max_moves, config.loop_guard
         self.horizon_radius = int(horizon_radius)
         self.min_cover = int(min_cover)
         self.cover_range = None if cover_range is None else float(cover_range)

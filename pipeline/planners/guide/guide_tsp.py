@@ -12,15 +12,19 @@ every step. Predicted edges only change which target is chosen, never the path d
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.tsp import path_length, tsp_path
 from pipeline.planners.options import check_int, check_number
-from pipeline.planners.predicting import PredictingPlanner
+from pipeline.planners.config import option
+from pipeline.planners.graph_planner import GatedPlannerConfig
+from pipeline.planners.predicting import GlobalGraphPlanner, PredictorOptions
 from pipeline.planners.registry import register_planner
-from pipeline.prediction.global_graph import KNOWN, GlobalGraph, GlobalGraphConfig
-from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, InpaintFn
+from pipeline.prediction.global_graph import KNOWN, GlobalGraphConfig
+from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
@@ -31,8 +35,48 @@ SPREAD_NODES = 2.5
 HYSTERESIS_NODES = 2.0
 
 
-@register_planner("guide_tsp")
-class GuideTspPlanner(PredictingPlanner):
+@dataclass(frozen=True)
+class TourOptions(PredictorOptions, GatedPlannerConfig):
+    """The options of guide_tsp's frontier tour over the global graph (also the tour the `guide`
+    planners' policy votes on)."""
+
+    count_threshold: float | None = option(DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost "
+                                                                    "counts [None: threshold]")
+    sliver_gate: bool = option(True, GatedPlannerConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
+    top_k: int = option(0, "keep only the heaviest clusters (0 = every cluster)")
+    spread: float | None = option(None, f"metres: a useful node this close to a cluster's seed joins it "
+                                        f"[default: {SPREAD_NODES:g} node spacings]")
+    min_weight: float = option(30.0, "clusters of less summed boosted utility are dropped (the robot clears such "
+                                     "slivers on the way; 0 = keep every cluster)")
+    beta: float = option(1.5, "weight of the tour regret in a first target's score")
+    first_k: int = option(5, "first-target options: the best by weight per metre, and the TSP's own first")
+    hysteresis: float | None = option(None, f"metres of tour length the previous first target is forgiven "
+                                            f"[default: {HYSTERESIS_NODES:g} node spacings; 0 = none]")
+    exact_max: int = option(9, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
+    max_moves: int = option(200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)")
+    global_graph: GlobalGraphConfig = option(GlobalGraphConfig(), "the global graph's settings (a Python object)")
+
+    def check(self) -> None:
+        super().check()
+        check_number("count_threshold", self.count_threshold, 0.0, 1.0, none="threshold")
+        check_int("top_k", self.top_k, 0, note="0 = every cluster")
+        check_number("spread", self.spread, 0.0, low_open=True, none=f"{SPREAD_NODES:g} node spacings")
+        check_number("min_weight", self.min_weight, 0.0, note="0 = keep every cluster")
+        check_number("beta", self.beta, 0.0)
+        check_int("first_k", self.first_k, 1)
+        check_number("hysteresis", self.hysteresis, 0.0, note="0 = none", none=f"{HYSTERESIS_NODES:g} node spacings")
+        check_int("exact_max", self.exact_max, 1, 14)
+        check_int("max_moves", self.max_moves, 0, note="0 = no 2-opt / Or-opt moves")
+
+
+@dataclass(frozen=True)
+class GuideTspConfig(TourOptions):
+    description = ("GUIDE w/o diffusion: boosted-utility frontier clusters of the global graph (predicted nodes), "
+                   "open TSP over global-graph distances, tour-regret-aware first target, one known-graph step to it")
+
+
+@register_planner("guide_tsp", GuideTspConfig)
+class GuideTspPlanner(GlobalGraphPlanner):
     """GUIDE without the diffusion policy: frontier clusters of the global graph ordered by an open TSP path.
 
     Every decision: update the lattice graph, predict V_p, build the region-evaluated
@@ -77,44 +121,13 @@ class GuideTspPlanner(PredictingPlanner):
     robot on long errands, which is why predictions here only boost utilities.
     """
 
-    base_description = (
-        "GUIDE w/o diffusion: boosted-utility frontier clusters of the global graph (predicted nodes), "
-        "open TSP over global-graph distances, tour-regret-aware first target, one known-graph step to it"
-    )
+    base_description = GuideTspConfig.description
     description = base_description
-    sliver_gate_default = True
 
-    def __init__(
-        self,
-        min_utility: int = 2,
-        checkpoint: str | None = None,
-        inpaint: InpaintFn | None = None,
-        top_k: int = 0,
-        spread: float | None = None,
-        min_weight: float = 30.0,
-        beta: float = 1.5,
-        first_k: int = 5,
-        hysteresis: float | None = None,
-        exact_max: int = 9,
-        max_moves: int = 200,
-        global_graph: GlobalGraphConfig = GlobalGraphConfig(),
-        threshold: float = DEFAULT_THRESHOLD,
-        min_component: int = 3,
-        count_threshold: float | None = DEFAULT_COUNT_THRESHOLD,
-        sliver_gate: bool | None = None,
-        gate_file: str | None = None,
-    ):
-        # Checked before the predictor is loaded (in super().__init__).
-        check_int("top_k", top_k, 0, note="0 = every cluster")
-        check_number("spread", spread, 0.0, low_open=True, none=f"{SPREAD_NODES:g} node spacings")
-        check_number("min_weight", min_weight, 0.0, note="0 = keep every cluster")
-        check_number("beta", beta, 0.0)
-        check_int("first_k", first_k, 1)
-        check_number("hysteresis", hysteresis, 0.0, note="0 = none", none=f"{HYSTERESIS_NODES:g} node spacings")
-        check_int("exact_max", exact_max, 1, 14)
-        check_int("max_moves", max_moves, 0, note="0 = no 2-opt / Or-opt moves")
-        super().__init__(min_utility, checkpoint, inpaint, threshold, min_component, count_threshold,
-                         sliver_gate=sliver_gate, gate_file=gate_file)
+    def __init__(self, config: TourOptions = GuideTspConfig(), inpaint: InpaintFn | None = None):
+        super().__init__(config, inpaint)
+        top_k, spread, min_weight, beta = config.top_k, config.spread, config.min_weight, config.beta
+        first_k, hysteresis, exact_max, max_moves = config.first_k, config.hysteresis, config.exact_max, config.max_moves
         self.top_k = int(top_k)
         self.spread_option, self.hysteresis_option = spread, hysteresis  # metres; None: scaled to d_n in reset()
         self.min_weight = float(min_weight)
@@ -122,7 +135,6 @@ class GuideTspPlanner(PredictingPlanner):
         self.first_k = max(1, int(first_k))
         self.exact_max = int(exact_max)
         self.max_moves = int(max_moves)
-        self.global_config = global_graph
         self.previous: int | None = None
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
@@ -131,7 +143,6 @@ class GuideTspPlanner(PredictingPlanner):
         d_n = protocol.node_resolution
         self.spread = SPREAD_NODES * d_n if self.spread_option is None else float(self.spread_option)
         self.hysteresis = HYSTERESIS_NODES * d_n if self.hysteresis_option is None else float(self.hysteresis_option)
-        self.global_graph = GlobalGraph(self.graph, self.global_config)
         self.previous = None
         self.committed: int | None = None  # a first target kept through a cycle (see the class docstring)
         self.quiet_choices: list[tuple[int, int]] = []  # (robot, first target) since the belief last changed
@@ -247,8 +258,7 @@ class GuideTspPlanner(PredictingPlanner):
         graph, robot, dist, pred, candidates = self.locate(observation)
         if candidates.size == 0:
             return []
-        predicted, counted = self.predict_with_counted()
-        self.global_graph.update(observation.belief, observation.position, predicted, self.visited, counted)
+        predicted = self.update_global_graph(observation)
         options = self.first_target_scores(robot, dist, candidates)
         best = int(np.argmax(options["scores"]))  # the first option wins a tie (lowest target index)
         tour = options["tours"][best]

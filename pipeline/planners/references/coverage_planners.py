@@ -16,6 +16,8 @@ Both are oracles (`uses_ground_truth = True`) built on `pipeline.planners.refere
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pipeline.planners.references.coverage import (
@@ -29,7 +31,8 @@ from pipeline.planners.references.coverage import (
 )
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
-from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.planner import Planner, Waypoint
@@ -38,24 +41,39 @@ from pipeline.world.sensor import FREE
 from pipeline.world.planner import Observation
 
 
-@register_planner("optimal")
-class OptimalPlanner(Planner):
-    """The ground-truth coverage tour, executed in one go (oracle motion rule)."""
+_RESTARTS_HELP = "randomised cover constructions of the first plan (the best wins)"
+_LNS_HELP = "ruin-and-recreate rounds that polish the first plan (0 = none)"
+_TIME_HELP = "seconds the first plan may take (None: no limit)"
 
+
+@dataclass(frozen=True)
+class OptimalConfig(PlannerConfig):
     description = "oracle: ground-truth coverage tour (viewpoints + open TSP), the protocol's reference"
     uses_ground_truth = True
     ignores_motion_rule = True
+    lattice_planner = False
 
-    def __init__(
-        self,
-        restarts: int = DEFAULT_RESTARTS,
-        lns_iterations: int = DEFAULT_LNS_ITERATIONS,
-        time_limit_s: float | None = 60.0,
-    ):
+    restarts: int = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: int = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    time_limit_s: float | None = option(60.0, _TIME_HELP)
+
+    def check(self) -> None:
         # With no warm start, 0 restarts would construct no plan at all: the episode would end at once.
-        check_int("restarts", restarts, 1)
-        check_int("lns_iterations", lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_number("time_limit_s", time_limit_s, 0.0, low_open=True, none="no limit")
+        check_int("restarts", self.restarts, 1)
+        check_int("lns_iterations", self.lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_number("time_limit_s", self.time_limit_s, 0.0, low_open=True, none="no limit")
+
+
+@register_planner("optimal", OptimalConfig)
+class OptimalPlanner(Planner):
+    """The ground-truth coverage tour, executed in one go (oracle motion rule)."""
+
+    description = OptimalConfig.description
+    uses_ground_truth = True
+    ignores_motion_rule = True
+
+    def __init__(self, config: OptimalConfig = OptimalConfig()):
+        restarts, lns_iterations, time_limit_s = config.restarts, config.lns_iterations, config.time_limit_s
         self.restarts = restarts
         self.lns_iterations = lns_iterations
         self.time_limit_s = time_limit_s
@@ -80,7 +98,33 @@ class OptimalPlanner(Planner):
         return list(self.tour[1:])
 
 
-@register_planner("expert")
+@dataclass(frozen=True)
+class ExpertConfig(LatticePlannerConfig):
+    description = "oracle expert (DARE): ground-truth coverage TSP replanned on change, moves through known space"
+    uses_ground_truth = True
+
+    restarts: int = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: int = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    replan_restarts: int = option(2, "fresh constructions that compete with the refined previous tour at a replan "
+                                     "(0 = only refine it)")
+    replan_lns_iterations: int = option(0, "ruin-and-recreate rounds at a replan (0 = none)")
+    time_limit_s: float | None = option(60.0, _TIME_HELP)
+    replan_time_limit_s: float | None = option(5.0, "seconds a replan may take (None: no limit)")
+    replan_on_change: bool = option(True, "replan whenever the belief changed (false: only the first plan)")
+
+    def check(self) -> None:
+        super().check()
+        # The first plan has no warm start, so it needs a fresh construction; replans refine the
+        # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
+        check_int("restarts", self.restarts, 1)
+        check_int("lns_iterations", self.lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_int("replan_restarts", self.replan_restarts, 0, note="0 = only refine the previous tour")
+        check_int("replan_lns_iterations", self.replan_lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
+        check_number("time_limit_s", self.time_limit_s, 0.0, low_open=True, none="no limit")
+        check_number("replan_time_limit_s", self.replan_time_limit_s, 0.0, low_open=True, none="no limit")
+
+
+@register_planner("expert", ExpertConfig)
 class ExpertPlanner(GraphPlanner):
     """DARE's expert: ground-truth coverage tour, replanned on every change, known-free moves.
 
@@ -100,29 +144,15 @@ class ExpertPlanner(GraphPlanner):
     waypoint per decision.
     """
 
-    description = "oracle expert (DARE): ground-truth coverage TSP replanned on change, moves through known space"
+    description = ExpertConfig.description
     uses_ground_truth = True
 
-    def __init__(
-        self,
-        restarts: int = DEFAULT_RESTARTS,
-        lns_iterations: int = DEFAULT_LNS_ITERATIONS,
-        replan_restarts: int = 2,
-        replan_lns_iterations: int = 0,
-        time_limit_s: float | None = 60.0,
-        replan_time_limit_s: float | None = 5.0,
-        replan_on_change: bool = True,
-        min_utility: int = 2,
-    ):
-        super().__init__(min_utility=min_utility)
-        # The first plan has no warm start, so it needs a fresh construction; replans refine the
-        # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
-        check_int("restarts", restarts, 1)
-        check_int("lns_iterations", lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_int("replan_restarts", replan_restarts, 0, note="0 = only refine the previous tour")
-        check_int("replan_lns_iterations", replan_lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_number("time_limit_s", time_limit_s, 0.0, low_open=True, none="no limit")
-        check_number("replan_time_limit_s", replan_time_limit_s, 0.0, low_open=True, none="no limit")
+    def __init__(self, config: ExpertConfig = ExpertConfig()):
+        super().__init__(config)
+        restarts, lns_iterations = config.restarts, config.lns_iterations
+        replan_restarts, replan_lns_iterations = config.replan_restarts, config.replan_lns_iterations
+        time_limit_s, replan_time_limit_s = config.time_limit_s, config.replan_time_limit_s
+        replan_on_change = config.replan_on_change
         self.restarts = restarts
         self.lns_iterations = lns_iterations
         self.replan_restarts = replan_restarts

@@ -26,35 +26,55 @@ from __future__ import annotations
 
 import copy
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.world.maps import GroundTruthMap
-from pipeline.planners.graph_planner import GraphPlanner
+from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
+from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.extensions.sliver_gate import TrueGain
 from pipeline.planners.options import check_int, require
-from pipeline.planners.registry import make_planner, planner_class, register_planner
-from pipeline.world.planner import Planner, Waypoint
 from pipeline.planners.references.coverage_planners import ExpertPlanner
-from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
+from pipeline.planners.registry import make_planner, planner_config, register_planner
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
 from pipeline.world.simulator import Episode
-from pipeline.world.planner import Observation
-from pipeline.planners.extensions.sliver_gate import TrueGain
 
 DEFAULT_BASE = "greedy_utility"
 
 
-def _base_planner(base: str, options: dict) -> GraphPlanner:
-    """The wrapped planner; a ValueError when it is not an ordinary lattice planner."""
-    require(isinstance(base, str), f"base must be a planner name, got {base!r}")
-    try:
-        cls = planner_class(base)
-    except KeyError as error:  # an unknown name: the one-line option error, as for any other option
-        raise ValueError(f"base: {error}") from None
-    require(issubclass(cls, GraphPlanner) and not cls.uses_ground_truth,
-            f"base must be a lattice planner that does not see the ground truth (e.g. greedy_utility, guide), got {base!r}")
-    return make_planner(base, **options)
+@dataclass(frozen=True)
+class OracleWrapperConfig(PlannerConfig):
+    """A bound that wraps a base planner: its own options, and the base's (passed on to it)."""
+
+    uses_ground_truth = True
+    lattice_planner = False
+    objects = ("base_options",)  # the base planner's options, as given beside this config's
+
+    base: str = option(DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)")
+
+    def check(self) -> None:
+        require(isinstance(self.base, str), f"base must be a planner name, got {self.base!r}")
+        try:
+            base = planner_config(self.base)
+        except KeyError as error:  # an unknown name: the one-line option error, as for any other option
+            raise ValueError(f"base: {error}") from None
+        require(base.lattice_planner and not base.uses_ground_truth,
+                f"base must be a lattice planner that does not see the ground truth (e.g. greedy_utility, guide), got {self.base!r}")
+
+    @classmethod
+    def base_planner(cls, options: dict) -> str:
+        """The name of the base planner `options` ask for."""
+        return options.get("base", DEFAULT_BASE)
+
+    @classmethod
+    def split(cls, options: dict) -> tuple[dict, dict, list[str]]:
+        """Options this config does not take go to the base planner (checked when it is built)."""
+        fields, objects, rest = super().split(options)
+        objects = {**objects, "base_options": {**objects.get("base_options", {}), **{k: options[k] for k in rest}}}
+        return fields, objects, []
 
 
 class _OracleWrapper(Planner):
@@ -62,18 +82,10 @@ class _OracleWrapper(Planner):
 
     uses_ground_truth = True
 
-    def __init__(self, base: str, options: dict):
-        self.base = _base_planner(base, options)
+    def __init__(self, config: OracleWrapperConfig, base_options: dict | None = None):
+        self.config = config
+        self.base = make_planner(config.base, **(base_options or {}))
         self.trained_models = getattr(self.base, "trained_models", [])
-
-    @classmethod
-    def options_target(cls, options: dict) -> type[Planner] | None:
-        """The planner class the options this wrapper does not take go to (its base; None: unknown
-        name, which the constructor reports)."""
-        try:
-            return planner_class(options.get("base", DEFAULT_BASE))
-        except KeyError:
-            return None
 
     def check_protocol(self, protocol: Protocol) -> None:
         self.base.check_protocol(protocol)
@@ -100,19 +112,33 @@ class TrueGainGate:
         return big
 
 
-@register_planner("oracle_gate")
+@dataclass(frozen=True)
+class OracleGateConfig(OracleWrapperConfig):
+    description = ("oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; "
+                   "veto=true: vetoes the learned gate's slivers)")
+
+    min_gain: int = option(50, "cells: a target passes when its scan on the ground truth would reveal this many the "
+                               "belief lacks (the label the learned gate is fitted to)")
+    veto: bool = option(False, "the learned gate still decides, and the truth only vetoes the slivers it passes")
+
+    def check(self) -> None:
+        check_int("min_gain", self.min_gain, 1)
+        require(isinstance(self.veto, bool), f"veto must be true or false, got {self.veto!r}")
+        super().check()
+
+
+@register_planner("oracle_gate", OracleGateConfig)
 class OracleGatePlanner(_OracleWrapper):
     """Oracle bound: `base` (default greedy_utility) with the ground truth as its sliver gate."""
 
-    description = "oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; veto=true: vetoes the learned gate's slivers)"
+    description = OracleGateConfig.description
 
-    def __init__(self, base: str = DEFAULT_BASE, min_gain: int = 50, veto: bool = False, **options):
-        check_int("min_gain", min_gain, 1)
-        require(isinstance(veto, bool), f"veto must be true or false, got {veto!r}")
+    def __init__(self, config: OracleGateConfig = OracleGateConfig(), base_options: dict | None = None):
+        options, base, min_gain, veto = dict(base_options or {}), config.base, config.min_gain, config.veto
         if veto:
             require(options.get("sliver_gate", True) is True, "veto=true vetoes the learned gate's slivers: drop sliver_gate=false")
             options = {**options, "sliver_gate": True}
-        super().__init__(base, options)
+        super().__init__(config, options)
         self.min_gain, self.veto = int(min_gain), veto
         self.learned = self.base.gate if veto else None  # the learned gate the truth vetoes
         self.description = f"{self.description} [base {base}: {self.base.description}]"
@@ -125,15 +151,27 @@ class OracleGatePlanner(_OracleWrapper):
         return self.base.plan(observation)
 
 
-@register_planner("oracle_tail")
+@dataclass(frozen=True)
+class OracleTailConfig(OracleWrapperConfig):
+    description = ("oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, "
+                   "then the ground-truth expert")
+
+    handover_cells: int = option(8000, "ground-truth free cells still unknown when the expert takes over")
+
+    def check(self) -> None:
+        check_int("handover_cells", self.handover_cells, 0)
+        super().check()
+
+
+@register_planner("oracle_tail", OracleTailConfig)
 class OracleTailPlanner(_OracleWrapper):
     """Oracle bound: `base` (default greedy_utility) until `handover_cells` unknown free cells, then `expert`."""
 
-    description = "oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, then the ground-truth expert"
+    description = OracleTailConfig.description
 
-    def __init__(self, base: str = DEFAULT_BASE, handover_cells: int = 8000, **options):
-        check_int("handover_cells", handover_cells, 0)
-        super().__init__(base, options)
+    def __init__(self, config: OracleTailConfig = OracleTailConfig(), base_options: dict | None = None):
+        super().__init__(config, base_options)
+        base, handover_cells = config.base, config.handover_cells
         self.handover_cells = int(handover_cells)
         self.expert = ExpertPlanner()
         self.description = f"{self.description} [base {base}: {self.base.description}]"
@@ -154,7 +192,21 @@ class OracleTailPlanner(_OracleWrapper):
         return self.base.plan(observation)
 
 
-@register_planner("oracle_lookahead")
+@dataclass(frozen=True)
+class OracleLookaheadConfig(GreedyUtilityConfig):
+    description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
+                   "episode on the ground truth; one step toward the one that completes soonest")
+    uses_ground_truth = True
+
+    sliver_gate: bool = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
+    k: int = option(3, "gated greedy's best targets tried on the ground truth; 1 = gated greedy itself")
+
+    def check(self) -> None:
+        check_int("k", self.k, 1)
+        super().check()
+
+
+@register_planner("oracle_lookahead", OracleLookaheadConfig)
 class OracleLookaheadPlanner(GreedyUtilityPlanner):
     """Oracle bound: gated greedy with a one-step lookahead on the ground truth.
 
@@ -165,13 +217,11 @@ class OracleLookaheadPlanner(GreedyUtilityPlanner):
     """
 
     uses_ground_truth = True
-    sliver_gate_default = True
-    description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
-                   "episode on the ground truth; one step toward the one that completes soonest")
+    description = OracleLookaheadConfig.description
 
-    def __init__(self, k: int = 3, min_utility: int = 2, sliver_gate: bool | None = None, gate_file: str | None = None):
-        check_int("k", k, 1)
-        super().__init__(min_utility, sliver_gate, gate_file)
+    def __init__(self, config: OracleLookaheadConfig = OracleLookaheadConfig()):
+        super().__init__(config)
+        k = config.k
         self.k = int(k)
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:

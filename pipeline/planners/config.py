@@ -1,0 +1,76 @@
+"""Planner configs: every option of a planner, with its default, its check and one line of why.
+
+Each registered planner has a frozen dataclass of options beside it (as lerobot's
+`configuration_x.py` sits beside `modeling_x.py`). The same keys are the command line's
+`label=name:key=value`, `params.yaml`'s planner specs and Python's `make_planner(name, key=value)`;
+`guide planners --options NAME` prints them. Values are checked when the config is made, before
+any model is loaded. Python objects that are not options (an injected inpainter or policy, a
+block model) go beside the config, as keyword arguments of the planner (`objects`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
+
+
+def option(default: Any, help: str) -> Any:
+    """A config field: its default and one line saying what it is and why."""
+    return dataclasses.field(default=default, metadata={"help": help})
+
+
+@dataclass(frozen=True)
+class OptionInfo:
+    name: str
+    default: Any
+    kinds: frozenset[str] | None  # the spec kinds it takes; None: a Python object, set from Python only
+    help: str
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The options of one registered planner; subclasses add fields and `check` them."""
+
+    name: ClassVar[str] = ""  # the registered name (set by `register_planner`)
+    description: ClassVar[str] = ""
+    uses_ground_truth: ClassVar[bool] = False  # an oracle: sees the ground truth (a reference or a bound)
+    ignores_motion_rule: ClassVar[bool] = False  # moves through unobserved free space (the `optimal` reference only)
+    needs_policy: ClassVar[bool] = False  # runs a trained diffusion policy (models/ or the shipped default)
+    lattice_planner: ClassVar[bool] = True  # keeps the lattice graph (what the oracle bounds wrap)
+    objects: ClassVar[tuple[str, ...]] = ()  # Python objects the planner takes beside its config
+
+    def __post_init__(self) -> None:
+        self.check()
+
+    def check(self) -> None:
+        """ValueError naming the option, the value and the valid range for a value that makes no sense."""
+
+    @classmethod
+    def options(cls) -> list[OptionInfo]:
+        """Every option: name, default, the spec kinds it takes, help (those of the configs it
+        extends first)."""
+        return [OptionInfo(f.name, f.default, option_kinds(f.type), f.metadata.get("help", ""))
+                for f in dataclasses.fields(cls)]
+
+    @classmethod
+    def split(cls, options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], list[str]]:
+        """(config fields, Python objects, unknown names) of keyword options."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        fields = {k: v for k, v in options.items() if k in names}
+        objects = {k: v for k, v in options.items() if k in cls.objects}
+        unknown = sorted(set(options) - names - set(cls.objects))
+        return fields, objects, unknown
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+def option_kinds(annotation: Any) -> frozenset[str] | None:
+    """The kinds ('bool', 'int', 'float', 'str') an option's annotation allows; None for an option
+    that takes Python objects (a config object), which no spec sets."""
+    names = set(re.findall(r"[A-Za-z_]\w*", str(annotation))) - {"None", "Optional"}
+    return frozenset(names) if names and names <= set(SPEC_KINDS) else None

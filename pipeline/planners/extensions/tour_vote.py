@@ -1,0 +1,189 @@
+"""The tour vote (ours, not the paper's): the global graph proposes, the diffusion policy votes.
+
+`guide` in its default `mode=tour`. The first-target options are `guide_tsp`'s: clusters of the
+global graph's boosted utilities, each scored by weight per metre of distance plus tour regret.
+Each option's score is multiplied by 1 + `prior_weight` x how much the policy's sampled plans
+head for it (`target_votes`): the learned prior says which way the expert would go, the global
+graph says what is worth going for. The executed chunk is the first T_a steps of the sample
+that makes the most progress toward the chosen target, cut where it leaves a shortest known
+path to it, or that path itself when no sample heads there (`fallback_share`).
+
+With `lookahead=K` the chosen target is checked by simulation (`BlockLookahead`): guide's own
+choice and gated greedy's best targets (`lookahead_targets=greedy`), or guide's K best-scored
+tour options (`tour`), are each rolled out by gated greedy on maps drawn from the block model,
+and the plans are driven toward the one whose rollouts are shortest. With `lookahead_commit`
+(on unless set false) that target is kept, without new rollouts, until it is reached or no
+longer a target, as the rollouts assumed. Gated greedy's candidates start rolling out (in a
+second process with `lookahead_workers=2`) before the prediction and the denoising.
+
+The robot moves only along known-free lattice edges.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from pipeline.models.defaults import block_model_for
+from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
+from pipeline.planners.extensions.lookahead import BlockLookahead, gated_greedy_like
+from pipeline.planners.guide.configuration_guide import GuideConfig
+from pipeline.planners.guide.diffusion import PolicyOnGraph, drive
+from pipeline.planners.guide.guide_tsp import GuideTspPlanner
+from pipeline.prediction.global_graph import KNOWN
+from pipeline.prediction.node_predictor import InpaintFn
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation, Waypoint
+from pipeline.world.protocol import Protocol
+
+
+class TourVotePlanner(GuideTspPlanner):
+    """guide_tsp's frontier tour, its first target voted on by the diffusion policy's samples."""
+
+    def __init__(self, config: GuideConfig = GuideConfig(), inpaint: InpaintFn | None = None, policy=None,
+                 name: str = "guide"):
+        super().__init__(config, inpaint)
+        self.diffusion = PolicyOnGraph(config, name, policy)
+        if self.diffusion.path is not None:
+            self.trained_models.append((str(self.diffusion.path), self.diffusion.trained_on.get("protocol")))
+        self.action_steps = self.diffusion.action_steps
+        self.prior_weight = float(config.prior_weight)
+        self.lookahead: BlockLookahead | None = None
+        self.lookahead_k, self.lookahead_targets = int(config.lookahead), config.lookahead_targets
+        self.lookahead_commit = config.lookahead_commit is not False
+        self.lookahead_rollout = config.lookahead_rollout or "full"
+        lookahead_source = ""
+        if config.lookahead:
+            model, lookahead_source = block_model_for(config.block_model)
+            self.lookahead = BlockLookahead(model, config.lookahead_samples, per_target=self.lookahead_rollout == "fast",
+                                            workers=config.lookahead_workers or 1)
+            processes = f" in {self.lookahead.workers} processes" if self.lookahead.workers > 1 else ""
+            lookahead_source = (f"; lookahead {config.lookahead} x {config.lookahead_samples} maps, "
+                                f"{self.lookahead_rollout} rollouts{processes}, {lookahead_source}")
+        # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
+        # every other field of a `global_graph=` option is kept.
+        self.global_config = replace(self.global_config, max_nodes=self.diffusion.config.max_nodes,
+                                     use_region_evaluation=config.region_evaluation)
+        self.description = (f"{config.description} [mode tour; policy {self.diffusion.source}; {self.predictor_source}; "
+                            f"{self.gate_source}; K={self.diffusion.num_inference_steps}{lookahead_source}]")
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        super().reset(ground_truth, protocol, seed)
+        self.diffusion.reset(seed)
+        self.queue: list[int] = []  # the rest of the executed chunk, while it still heads for the target
+        self.decisions = 0
+        self.fallbacks = 0
+        if self.lookahead is not None:
+            self.lookahead.reset(ground_truth)
+            self.lookahead_rng = np.random.default_rng(seed)  # its own draws: the rest of the planner's are unchanged
+        self.lookahead_choice: int | None = None
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        graph, robot, dist, pred, useful = self.locate(observation)
+        if useful.size == 0:
+            return []  # nothing reachable is left to explore
+        target = self.previous
+        queued = None  # the next step of the last chunk, when it is still on the way to a target
+        if self.queue and target is not None and target in set(useful.tolist()):
+            nxt = int(self.queue[0])
+            if nxt in set(graph.neighbours(robot).tolist()) and dist[nxt] < np.inf:
+                queued = nxt
+        kept = self.lookahead_choice
+        committed = self.lookahead_commit and kept is not None and kept != robot and kept in set(useful.tolist())
+        rollouts, greedy = None, []
+        if queued is None and self.lookahead is not None and not committed and self.lookahead_targets == "greedy":
+            ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
+            greedy = [int(t) for t in ranked[: self.lookahead_k]]
+            if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the prediction and denoising
+                rollouts = self.lookahead.start(self._rollout_planner(), observation, greedy, pred, self.lookahead_rng)
+        self.update_global_graph(observation)
+        self.diffusion.observe(self.global_graph, observation.position)
+        self.decisions += 1
+        if queued is not None:
+            self.queue.pop(0)
+            self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
+            return [tuple(map(float, graph.node_world[queued]))]
+        self.queue = []
+        options = self.first_target_scores(robot, dist, useful)
+        deltas, expected = self.diffusion.sample()
+        paths = drive(graph, robot, deltas, expected)
+        votes = self.target_votes(robot, paths, options)
+        scores = options["scores"] * (1.0 + self.prior_weight * votes)
+        best = int(np.argmax(scores))
+        tour = options["tours"][best]
+        target = tour[0]
+        costs = None
+        if committed:
+            target = kept  # committed: the rollouts assumed the robot heads there until reached or no longer a target
+            tour = [target] + [t for t in tour if t != target]
+        elif self.lookahead is not None:
+            # Candidate targets, each rolled out on maps drawn from the block model; the shortest wins.
+            if self.lookahead_targets == "tour":
+                candidates = [options["tours"][j][0] for j in np.argsort(-scores, kind="stable")[: self.lookahead_k]]
+            else:  # guide's own choice, then gated greedy's best by utility per metre
+                candidates = list(dict.fromkeys([target] + greedy))
+            if len(candidates) > 1:
+                if rollouts is None:
+                    rollouts = self.lookahead.start(self._rollout_planner(), observation, candidates, pred, self.lookahead_rng)
+                costs = self.lookahead.finish(rollouts, candidates)
+                target = candidates[int(np.argmin(costs))]
+                tour = [target] + [t for t in tour if t != target]
+            self.lookahead_choice = target
+        self.previous = target
+        # The chunk: a sample's steps while each one shortens the known-graph distance to the target by its length.
+        to_target, _ = graph.shortest_paths(target)
+        chunk: list[int] = []
+        for path in sorted(paths, key=lambda q: to_target[q[min(len(q) - 1, self.action_steps)]]):
+            run = []
+            for node, nxt in zip(path[: self.action_steps], path[1 : self.action_steps + 1]):
+                step = float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
+                if not to_target[nxt] < to_target[node] - step + 1e-6:
+                    break
+                run.append(nxt)
+            if run:
+                chunk = run
+                break
+        aligned = bool(chunk)
+        if not chunk:
+            self.fallbacks += 1
+            chunk = graph.path_from_predecessors(pred, target)[1 : 1 + self.action_steps]
+        self.queue = chunk[1:]
+        self.last_decision = {
+            "target": target,
+            "tour": tour,
+            "votes": votes,
+            "lookahead_costs": costs,
+            "sampled": True,
+            "fallback": not aligned,
+            "fallback_share": self.fallbacks / self.decisions,
+        }
+        return [tuple(map(float, graph.node_world[chunk[0]]))]
+
+    def target_votes(self, robot: int, paths: list[list[int]], options: dict) -> np.ndarray:
+        """How much the sampled plans head for each first-target option, in [0, 1].
+
+        A plan's progress toward a target is how much shorter its global-graph distance is at
+        the plan's last node than at the robot, per metre driven (1 = straight at it). The
+        vote of an option is the plans' mean progress toward it.
+        """
+        graph = self.graph
+        assert graph is not None
+        gg = self.global_graph
+        known_ids = gg.lattice_ids[gg.types == KNOWN]
+        distance = options["target_distance"][options["firsts"]]  # (options, global-graph rows)
+        start = distance[:, np.searchsorted(known_ids, robot)]
+        votes = np.zeros(len(options["firsts"]))
+        for path in paths:
+            if len(path) < 2:
+                continue
+            length = float(np.hypot(*np.diff(graph.node_world[path], axis=0).T).sum())
+            end = distance[:, np.searchsorted(known_ids, path[-1])]
+            with np.errstate(invalid="ignore"):  # an unreachable option (inf - inf) gets no vote
+                progress = np.where(np.isfinite(start) & np.isfinite(end), start - end, 0.0)
+            votes += np.clip(progress / length, 0.0, 1.0)
+        return votes / max(len(paths), 1)
+
+    def _rollout_planner(self) -> GreedyUtilityPlanner:
+        """What the lookahead rolls out: gated greedy in this planner's graph state (ungated for fast rollouts)."""
+        return gated_greedy_like(self, gated=self.lookahead_rollout == "full")
