@@ -52,12 +52,8 @@ PAPER_PREDICTION_MS = (5.4, 6.3)
 EXPLORER = "nearest_frontier"
 # Table I's operating point is the planners' tau for graph nodes (node_predictor.DEFAULT_THRESHOLD
 # says why 0.8): Table I measures V_u, the predicted nodes the planners' global graph holds.
-# With the earlier inpainter (300 pairs from 8 mazes) a higher tau raised precision on its own
-# training mazes only (84-88 % at tau 0.8 / keep 0.25; 33-57 % on 8 unseen dev mazes): a threshold does not help a predictor that has not generalised. Data did help, in
-# quantity: on 100 unseen mazes, at tau 0.5, Table I went from 53.4/53.3/52.0/50.1 % (300 pairs,
-# 8 mazes) to 57-59 % (10,000 pairs, 400 mazes) and 60-64 % (20,000 pairs, 800 mazes; 3,000
-# pairs from 40 mazes did not), and with that inpainter a higher tau holds on unseen mazes too
-# (precision_by_threshold).
+# A higher tau helps only a predictor that generalises; what made ours generalise was more
+# training mazes (docs/findings.md, "The node predictor (Table I)").
 TABLE1_THRESHOLD = DEFAULT_THRESHOLD
 TABLE1_MIN_COMPONENT = 3
 TABLE1_KEEP_SHARE = 0.5

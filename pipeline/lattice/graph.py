@@ -494,7 +494,7 @@ def visible_counts(
 
     A ray walks from the origin and stops at the first cell that is not free; the cells
     before that are visible. Each visible cell counts once per origin however many rays
-    reach it. Compiled with numba: this ray walk was 60 % of the simulator's time in NumPy.
+    reach it. Compiled with numba: in NumPy this ray walk was most of the simulator's time.
     The walk is `nested_visible_counts`' with one count and no inner fan, in a kernel of its
     own: the utility update counts it at every rollout step.
     """

@@ -23,8 +23,8 @@ def load_once(kind: str, path: str | Path, loader: Callable[[Path], Model]) -> M
     """`loader(path)`, called on the first request for (`kind`, `path`) in this process only.
 
     Loading sets torch to one CPU thread for the whole process: a second OpenMP thread made a
-    32 px prediction 40x slower when two benchmark workers shared the cores (13 ms -> 490 ms),
-    and gains nothing for these small models when the cores are free.
+    small prediction many times slower when two benchmark workers shared the cores, and gains
+    nothing for these small models when the cores are free.
     """
     key = (kind, str(Path(path).resolve()))
     with _LOCK:

@@ -49,7 +49,7 @@ class DiffusionPolicyConfig:
     # Noise schedule (diffusers scheduler arguments)
     num_train_timesteps: int = 100
     beta_schedule: str = "squaredcos_cap_v2"
-    prediction_type: str = "sample"  # x0: measured to make the net use the observation (see params.yaml)
+    prediction_type: str = "sample"  # x0: makes the net use the observation (docs/findings.md, "The learned policy")
     clip_sample: bool = True
     # Sampling
     num_inference_steps: int = 30  # K

@@ -411,10 +411,9 @@ def read_checkpoint(path) -> dict:
 class TracedInpainter:
     """Fast inference: frozen TorchScript traces of an eval-mode model, one per input shape.
 
-    Single 48 x 48 predictions run about 1.5-2x faster than eager mode (less Python per
-    layer), and the traces hold a channels-last copy of the weights, which the CPU
-    convolutions run 15-35 % faster again (48 x 48, one thread, the shipped model: 3.32
-    against 3.86 ms median over 2,000 interleaved calls; the same probabilities within 1e-6). `traced(node_image)` takes the same
+    Single predictions run faster than in eager mode (less Python per layer), and the traces
+    hold a channels-last copy of the weights, which the CPU convolutions run faster again, with
+    the same probabilities to rounding. `traced(node_image)` takes the same
     (B, 1, H, W) batch as the model and returns probabilities; `predict` takes uint8 numpy
     images like `InpainterModel.predict`.
     """

@@ -110,9 +110,8 @@ def region_representatives(
     """World (x, y) of one centroid node per marked region: its predicted node nearest the region's centre.
 
     The paper adds the region centroid v_g itself; the centre of a 20 m maze region is more
-    often than not outside free space (about 60 % of the centroid nodes on the 12 test
-    mazes), which makes the node false (Table I counts it) and leaves the policy a node it
-    cannot reach. The predicted node nearest the centre stands for the region as compactly
+    often than not outside free space, which makes the node false (Table I counts it) and
+    leaves the policy a node it cannot reach. The predicted node nearest the centre stands for the region as compactly
     and is free as often as any kept prediction. Rows follow the regions' row-major order.
     """
     if not regions.any() or predicted.size == 0:
@@ -136,7 +135,7 @@ class GlobalGraphConfig:
     utility_scale: float = 100.0  # utility feature = min(u / utility_scale, 1)
     max_nodes: int = 512  # features() pads or trims to this many nodes
     guidepost_min_utility: float = 2.0  # the guidepost leads to the nearest unvisited node with this utility, as
-    # the planners' useful_nodes (min_utility 2): with "utility > 0" the robot's own node won 71 % of steps
+    # the planners' useful_nodes (min_utility 2): with "utility > 0" the robot's own node won most steps
     use_region_evaluation: bool = True  # False: keep every prediction (the paper's ablation)
 
 

@@ -19,9 +19,8 @@ from pipeline.world.sensor import OCCUPIED
 PIXEL_FREE, PIXEL_OBSTACLE, PIXEL_UNKNOWN = 255, 0, 128
 PIXEL_PADDING = PIXEL_OBSTACLE
 """Pixels outside the map. The authors' release pads with unknown, but then the network cannot
-tell where the map ends, and nothing beyond it is free: with unknown padding, 461 of the 7,805
-predictions on the test mazes (steps 15-60) lay within 4 m of the map's edge, inside the
-outer wall, and none was right. Padded as obstacle, Table I rose by 1.6-4.0 points."""
+tell where the map ends, and nothing beyond it is free: it predicted free nodes inside the
+outer wall (docs/findings.md, "The node predictor (Table I)")."""
 PAD_SIZES = (32, 40, 48)
 
 
@@ -82,9 +81,8 @@ WALL_RADIUS_NODES = 0.6
 drawn as obstacles in the node image.
 
 A node inside a 5 m wall is never observed (the lidar reveals wall surfaces only), so left
-unknown it teaches the inpainter that "unknown next to free" means wall. Measured on the
-test mazes at steps 15-60 (nearest_frontier): 98.7 % of the unknown nodes this rule marks
-are walls in the ground truth.
+unknown it teaches the inpainter that "unknown next to free" means wall. Almost every node
+this rule marks is a wall in the ground truth.
 """
 
 

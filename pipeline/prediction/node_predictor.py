@@ -26,14 +26,8 @@ InpaintFn = Callable[[np.ndarray], np.ndarray]
 # Two operating points of one prediction. tau (DEFAULT_THRESHOLD) picks the predicted nodes that
 # enter the global graph, V_p and after region evaluation V_u, which Table I measures; the count
 # tau (DEFAULT_COUNT_THRESHOLD) picks the predicted nodes the utility boost N_u counts.
-# One tau for both forced a trade: on the 100 test mazes (shipped inpainter) V_u is 65-72 %
-# precise at 0.5 with 47-122 nodes per map and step, 80-84 % at 0.7, 87-88 % at 0.8 with 8-10,
-# yet the boost needs the broad count: with one tau of 0.8, guide_tsp made +3.5 % +- 2.8 longer
-# routes than at 0.5 (guide, retrained, +4.4 % +- 4.0). Counting at 0.5 while the graph takes
-# 0.8 costs nothing: guide_tsp +0.4 % +- 1.4 (shipped inpainter) and -0.0 % +- 1.0 (default
-# one), guide with its policy retrained on such observations +0.3 % +- 0.8, all against
-# everything at 0.5 on 50 fresh mazes (seed 4242, paired, Student-t 95 %). The authors'
-# release thresholds at about 0.7.
+# One tau for both forced a trade: the graph wants few, precise nodes, the boost a broad count of
+# likely-free space; two taus give each its own (docs/findings.md, "Two taus").
 DEFAULT_THRESHOLD = 0.8
 DEFAULT_COUNT_THRESHOLD = 0.5
 

@@ -7,10 +7,9 @@ joined only through one-block doors. Chains of narrow rooms read as meandering c
 and the space the rooms leave unused stays solid wall. The rooms grow as a tree from a
 start room near the middle (each new room one wall block beside an earlier one, with a
 door between them), mostly flush with the side of the room they grow from so that walls
-line up; then a few extra doors close long loops. The eight samples have 17-21 rooms,
-37-48 % free blocks, no dead-end corridor block and one loop per 100 m x 100 m; with the
-defaults, generated 100 m mazes match them in those and in the distance the
-`nearest_frontier` planner needs to explore them (both about 520 m on average).
+line up; then a few extra doors close long loops. The defaults match DARE's eight sample
+mazes in their rooms, free share, corridors and loops, and in the distance `nearest_frontier`
+needs to explore them.
 
 The image is drawn at twice the grid resolution (one pixel = cell_size / 2) with 127 for
 wall, 195 for free and 208 for the free start block, which is what

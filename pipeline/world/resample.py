@@ -5,18 +5,14 @@ cells and a 20 m range neighbouring rays never skip a cell; with 0.05 m cells th
 cells apart at full range, so every scan leaves holes that read as frontier, and each clutter
 speck of a SLAM map casts a shadow that does too. The cell counts the planners and models were
 fitted with (`done_unknown_cells`, `min_utility`, the sliver gate's counts) also mean 64 times
-less area at 0.05 m. On one 60 m office floor `greedy_utility` drives 354 m at 0.4 m; on the
-same floor drawn at 0.05 m, 472 m with the done rule scaled to the same area, and 766 m once
-clutter specks and ragged walls are added (README, "Your own maps").
+less area at 0.05 m (docs/cli.md, "Your own maps").
 
 Obstacles smaller than `speck_area` (0.1 m^2: chair legs, scan noise) are erased first;
 then a coarse cell is an obstacle when it holds at least `wall_cells` fine obstacle cells.
 The default, 1, never erases a wall: two neighbouring coarse free cells hold no obstacle cell,
 so no wall can run between them. Walls thicken instead, by up to one coarse cell, and more
 where their edges are ragged. A larger `wall_cells` keeps walls thin, but a thin wall that
-crosses the blocks obliquely or along their edges leaves fewer cells in each and gets holes:
-on 300 random one-cell lines resampled from 0.05 to 0.4 m with `wall_cells` 8, 291 were
-broken.
+crosses the blocks obliquely or along their edges leaves fewer cells in each and gets holes.
 """
 
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """`sampled_lookahead`: gated greedy that looks one choice ahead on maps it imagines.
 
 `oracle_lookahead` tries each of gated greedy's best targets in a copy of the episode on the
-ground truth and is 16-18 % shorter than `greedy_utility`; this planner does the same without
-the ground truth. At each decision the block model (`pipeline.models.modeling_block_model`)
+ground truth; this planner does the same without the ground truth. At each decision the block model (`pipeline.models.modeling_block_model`)
 gives P(free) of every 5 m maze block from what has been seen; `samples` block maps are drawn
 from those probabilities, each cut to `horizon_m` beyond the known free space (a model sees
 no further with any use: docs/findings.md). On each drawn map, each of the `k` best targets
@@ -21,16 +20,14 @@ drawn free space goes on: the cut map is explored when a rollout ends, the real 
 a rollout that ends far from what is left has a walk back the cut map does not charge.
 
 With `workers=2` a second, forked process (`pipeline.planners.extensions.rollout_worker`) takes rollouts
-from the same job counter as this one: the same costs and routes, in about 0.6 times the time on
-a machine with two free cores.
+from the same job counter as this one: the same costs and routes, in less time on a machine
+with two free cores.
 
 With `temperature` T the maps are drawn from sigmoid(logit / T): the shipped model is
-overconfident (its log-loss is lowest at T = 2), yet softer draws made routes no shorter, since
-every target is rolled out on the same maps (docs/findings.md). Both options stay off.
-
-Figures (docs/findings.md, "A lookahead on sampled maps"): about 0.14 s a decision at k 3,
-4 samples, in one process (0.08 s with `workers=2`); with the block model fitted on 2560 mazes, 7.6-8.7 % shorter than `greedy_utility` on
-100 fresh mazes. `BlockLookahead` is the simulator on its own, which `guide:lookahead=K` uses too.
+overconfident, yet softer draws made routes no shorter, since every target is rolled out on
+the same maps. Both options stay off (docs/findings.md, "A lookahead on sampled maps").
+`BlockLookahead` (`pipeline.planners.extensions.lookahead`) is the simulator on its own, which
+`guide:lookahead=K` uses too.
 """
 
 from __future__ import annotations

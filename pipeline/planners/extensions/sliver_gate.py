@@ -20,11 +20,10 @@ Slivers are mostly wall: the unknown they would see lies next to walls already s
 inside of a wall whose face is known is never observed). So the share of open unknown
 carries most of the signal, the visible frontier the rest. Fitted by `stages.fit_gate` on
 greedy episodes in the training mazes and office floors (`pipeline.world.offices`), labelled with
-the scan the ground truth would give; an oracle gate with those labels makes greedy 7.4 %
-shorter on 50 fresh mazes (docs/findings.md, "Small frontiers last"). A logistic gate fitted
-on mazes alone rejected real targets on office floors and made routes there 15 % longer;
-fitted on both, a logistic model gives up half its gain on mazes, the perceptron little
-(docs/findings.md, "Off the maze generator").
+the scan the ground truth would give (docs/findings.md, "Small frontiers last"). A logistic
+gate fitted on mazes alone rejected real targets on office floors; fitted on both families a
+logistic model must trade one for the other, the perceptron need not (docs/findings.md, "Off
+the maze generator").
 """
 
 from __future__ import annotations

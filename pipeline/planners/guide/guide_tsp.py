@@ -101,24 +101,9 @@ class GuideTspPlanner(GlobalGraphPlanner):
     `spread` and `hysteresis` default to 2.5 and 2 node spacings (10 m and 8 m on the 4 m
     benchmark lattice), so the planner behaves the same on a map drawn at any scale.
 
-    Defaults measured on 18 dev mazes of 100 m (seeds [99, 0..17], trained inpainter, never
-    the test mazes): 472 m mean vs greedy_utility 499 m, nearest_frontier 545 m. That lead
-    is tuning: on 100 fresh mazes (`guide mazes --count 50 --seed 2027` and `--seed 4242`)
-    it is level with greedy_utility (+0.1 % +- 2.8, paired), and re-tuning beta, min_weight
-    or hysteresis there gains nothing (see the README's Results).
-    Alternatives, 18 maps: beta 1 / 2: 478 / 477 m, min_weight 45: 479 m, spread 8: 498 m;
-    12 maps (greedy 492 m): beta 0 (cluster greedy) 519 m, pure TSP first target 515 m,
-    cluster seeds as targets 512 m, min_weight 0: 471 m, hysteresis 0 / 20: 467 / 475 m.
-    The previous version (top-12 utility targets, TSP's first) made 594 m on the first 6 (544 m greedy).
-    Later, 18 maps (guide_tsp 471.7 m): min_utility 4 / 8: 470.2 / 470.7 m; a tour cost for what
-    lies behind each target (so wide openings come last; per unknown node within 20 m, 1 / 2 / 4 m:
-    469.2 / 487.7 / 499.4 m, per unit of weight 0.02 / 0.05 / 0.1 m: 469.4 / 471.8 / 490.1 m).
-    The predictions are not what limits it: with the ground-truth node image as the "inpainter"
-    it makes 485.1 m. Planning a coverage tour on the map the predictions imply (known free plus
-    predicted nodes' squares, as the expert plans on the true map) exploits a perfect predictor
-    (458.9 m on the first 9 maps, against 482 m) but collapses with ours (630 m) and even with a
-    simulated predictor of 80 % precision and 60 % recall (746 m): false free space sends the
-    robot on long errands, which is why predictions here only boost utilities.
+    The defaults were tuned on dev mazes, never the test mazes. Predictions only boost
+    utilities and shape the tour's distances; a coverage tour planned on the map the predictions
+    imply sends the robot on long errands through false free space (docs/findings.md, "guide_tsp").
     """
 
     base_description = GuideTspConfig.description
