@@ -10,8 +10,8 @@ import pytest
 import yaml
 
 from pipeline.evaluation.benchmark import parse_planner_spec
+from import_graph import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def git(cwd: Path, *args: str) -> None:

@@ -1,14 +1,13 @@
 """The paper profile is a complete params file: the same keys as the default, valid model configs."""
 
-from pathlib import Path
 
 import yaml
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.training.policy import PlannerTrainConfig
+from import_graph import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def key_paths(tree, prefix=()):

@@ -127,7 +127,7 @@ BAD = [
 GOOD = [
     ("nearest_frontier", {"min_utility": 1}),
     ("nbvp", {"lam": 0.0, "gain_threshold": 0.0}),
-    ("nbvp", {"gain_threshold": INF}),  # always the nearest-frontier fallback (tests/planners/test_nbvp.py)
+    ("nbvp", {"gain_threshold": INF}),  # always the nearest-frontier fallback (tests/planners/baselines/test_nbvp.py)
     ("nbvp", {"tree_size": 2, "ray_stride": 1, "max_attempts_factor": 1}),
     ("tare", {"horizon_radius": 0, "min_cover": 1, "cover_range": 0.0, "exact_max": 14, "max_moves": 0}),
     ("optimal", {"restarts": 1, "lns_iterations": 0, "time_limit_s": None}),

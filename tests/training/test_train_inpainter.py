@@ -17,6 +17,7 @@ from pipeline.data.shards import write_shard
 from pipeline.training.inpainter import NodeImagePairDataset, SizeGroupedBatchSampler, TrainConfig, dihedral, evaluate_inpainter, hide_box, hole_counts, inpainting_loss, maze_count, maze_ids, pair_count, precision_recall_f1, read_init_checkpoint, split_pairs, train_inpainter
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
+from import_graph import ROOT
 
 TINY = {"ngf": 4, "n_blocks": 1}
 FAST = {"batch_size": 8, "val_fraction": 0.25, "lr": 0.005, "split": "rollout"}  # fixed batch counts
@@ -341,7 +342,7 @@ def test_init_checkpoint_reading(tmp_path):
 
     with pytest.raises(FileNotFoundError, match=r"init checkpoint .*nothing\.ckpt not found"):
         read_init_checkpoint(tmp_path / "nothing.ckpt")
-    policy = Path(__file__).resolve().parents[2] / "pipeline" / "assets" / "planner_guide.pt"
+    policy = ROOT / "pipeline" / "assets" / "planner_guide.pt"
     with pytest.raises(ValueError, match="planner_guide.pt: a planner policy export, not an inpainter export"):
         read_init_checkpoint(policy)  # named for what it is, not taken for Big-LaMa weights
     noise = tmp_path / "noise.ckpt"

@@ -210,7 +210,6 @@ def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch)
 
 def test_table1_for_folder_threshold_is_the_sweeps_row_at_that_tau(maze_dir, tmp_path, monkeypatch):
     """`guide eval-predictor --threshold 0.7` gives what the sweep reports at tau 0.7, and its table says so."""
-    import stages.eval_predictor as stage
     import pipeline.workflows.table1 as predictor_eval
 
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)

@@ -19,8 +19,9 @@ from pipeline.data.observations import load_observations
 from pipeline.world.protocol import Protocol
 from pipeline.data.shards import MANIFEST, run_shards, shard_path
 from stages import build_observations
+from import_graph import ROOT
 
-SHIPPED_INPAINTER = Path(__file__).resolve().parents[1] / "pipeline/assets/inpainter.pt"
+SHIPPED_INPAINTER = ROOT / "pipeline/assets/inpainter.pt"
 SECTION = dict(max_nodes=64, max_neighbors=16, threshold=0.5, count_threshold=0.5, min_component=3,
                inpainter=str(SHIPPED_INPAINTER), workers=1)
 PREDICTED = FEATURE_NAMES.index("is_predicted")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import cv2
 import pytest
@@ -13,6 +12,7 @@ import yaml
 
 from pipeline.world.maps import load_maze_png
 from stages.generate_mazes import main
+from import_graph import ROOT
 
 PARAMS = {
     "protocol": {"cell_size": 0.4},
@@ -83,7 +83,7 @@ def test_stage_runs_as_a_module(tmp_path):
     """`python -m stages.generate_mazes`, as dvc.yaml runs it, in a directory holding params.yaml."""
     small = {**PARAMS, "mazes": {**PARAMS["mazes"], "train": {"count": 1, "side_m": [40, 40]}}}
     _write_params(tmp_path / "params.yaml", small)
-    repo = str(Path(__file__).resolve().parents[1])  # importable even where the package is not installed
+    repo = str(ROOT)  # importable even where the package is not installed
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [repo, os.environ.get("PYTHONPATH")]))}
     command = [sys.executable, "-m", "stages.generate_mazes"]
     subprocess.run(command, cwd=tmp_path, env=env, check=True, capture_output=True)

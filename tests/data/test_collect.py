@@ -15,6 +15,7 @@ from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.data.shards import read_manifest, run_shards, shard_path
 from pipeline.world.simulator import Episode
+from import_graph import ROOT
 
 
 def pairs_config(maze_dir, **overrides):
@@ -97,14 +98,13 @@ def test_ray_backend_writes_the_same_shards(generated_maze_dir, tmp_path):
 
 
 def test_collection_sources_exist_and_are_the_stages_dvc_deps():
-    from pathlib import Path
 
     import yaml
 
     from pipeline.data.collect import EXPERT_SOURCES, PAIRS_SOURCES
     from pipeline.data.shards import source_digest
 
-    root = Path(__file__).resolve().parent.parent
+    root = ROOT
     stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]
     for stage, sources in (("collect_pairs", PAIRS_SOURCES), ("collect_expert", EXPERT_SOURCES)):
         assert {f"pipeline/{s}" for s in sources} <= set(stages[stage]["deps"]), stage

@@ -5,15 +5,14 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from pipeline.world.maps import MapError
 from pipeline.planners.registry import UnknownPlannerError
 from pipeline.stage_runner import UPSTREAM_HINT, run_stage_main, user_error_message
+from import_graph import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize(

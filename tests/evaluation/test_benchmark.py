@@ -150,7 +150,7 @@ def test_a_ros_map_is_recorded_and_summarised_at_its_own_cell_size(tmp_path):
 
     from pipeline.world.protocol import PAPER_REAL_ROBOT
     from tests.conftest import write_ros_map
-    from tests.test_simulator import office_grid
+    from tests.world.test_simulator import office_grid
 
     maps = tmp_path / "ros"
     maps.mkdir()

@@ -1,7 +1,5 @@
 import json
-import shutil
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -11,6 +9,7 @@ from typer.testing import CliRunner
 from pipeline.cli import app
 from pipeline.world.mazes import write_maze_png
 from tests.conftest import maze_from_blocks
+from import_graph import ROOT
 
 runner = CliRunner()
 
@@ -177,7 +176,7 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     assert "file not found" in line
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path)]))
     assert "a folder, not a file" in line
-    assets = Path(__file__).resolve().parents[1] / "pipeline" / "assets"
+    assets = ROOT / "pipeline" / "assets"
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(assets / "inpainter.pt")]))
     assert "an inpainter export, not a planner policy" in line  # named for what it is, not by its config keys
     line = _one_error_line(runner.invoke(app, explore + ["--planner", f"t=guide_tsp:checkpoint={assets / 'planner_guide.pt'}"]))
