@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipeline.common.params import load_params
+from pipeline.common.params import complete_section, load_params
 from pipeline.evaluation.benchmark import run_benchmark, summarise
 from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import log_benchmark
@@ -29,8 +29,8 @@ FIGURE_PATH = Path("reports/benchmark_trajectories.png")
 
 def read_params(params_path: str | Path) -> tuple[dict, Protocol]:
     params = load_params(params_path)
-    section = params.get("benchmark")
-    if not isinstance(section, dict) or not section.get("planners"):
+    section = complete_section(params, "benchmark", params_path, ("planners", "seed", "workers"))
+    if not isinstance(section["planners"], list) or not section["planners"]:
         raise ValueError(f"{params_path}: the 'benchmark' section needs a 'planners' list")
     return section, Protocol.from_dict(params.get("protocol") or {})
 
@@ -73,7 +73,7 @@ def main(params_path: str = "params.yaml") -> None:
     if not maps:
         raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
     frame = run_benchmark(
-        maps, section["planners"], protocol, OUT_DIR, workers=section.get("workers"), seed=int(section.get("seed", 0))
+        maps, section["planners"], protocol, OUT_DIR, workers=section["workers"], seed=int(section["seed"])
     )
     summary = summarise(frame)
     METRICS_PATH.write_text(

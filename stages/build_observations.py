@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.params import load_params, params_section
+from pipeline.common.params import complete_section, load_params
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.observations import (
     ObservationConfig,
@@ -27,10 +27,9 @@ from pipeline.data.observations import (
     save_observations,
 )
 from pipeline.data.shards import MANIFEST, read_manifest
-from pipeline.models.defaults import cached_inpainter
+from pipeline.models.defaults import PIPELINE_INPAINTER, cached_inpainter
 from pipeline.prediction.global_graph import FEATURE_NAMES
 from pipeline.prediction.node_predictor import (
-    DEFAULT_COUNT_THRESHOLD,
     NodePredictor,
     NodePredictorConfig,
 )
@@ -40,7 +39,6 @@ from pipeline.world.protocol import Protocol
 EXPERT_DIR = Path("data/expert")
 OUT_DIR = Path("data/observations")
 SUMMARY = Path("reports/observations_summary.json")
-DEFAULT_INPAINTER = Path("models/inpainter/inpainter.pt")
 
 
 def _shard_observations(task: tuple) -> dict:
@@ -61,11 +59,14 @@ def _shard_observations(task: tuple) -> dict:
     return {variant: concatenate(p[variant] for p in parts) for variant in ("guide", "dare")}
 
 
+KEYS = ("max_nodes", "max_neighbors", "threshold", "count_threshold", "min_component", "inpainter", "workers")
+
+
 def main(params_path: str = "params.yaml") -> dict:
     params = load_params(params_path)
-    section = params_section(params, "build_observations", params_path)
+    section = complete_section(params, "build_observations", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})
-    inpainter = Path(section.get("inpainter") or DEFAULT_INPAINTER)
+    inpainter = Path(section["inpainter"] or PIPELINE_INPAINTER)
     if not inpainter.is_file():
         raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
     # The manifest, not a folder listing: it is written last, so a collection that never
@@ -79,14 +80,14 @@ def main(params_path: str = "params.yaml") -> dict:
         raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
     counts = [int(entry["episodes"]) for entry in entries]
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-    count_threshold = float(section.get("count_threshold", DEFAULT_COUNT_THRESHOLD))
+    count_threshold = float(section["count_threshold"])
     tasks = [
         (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), count_threshold,
          int(section["min_component"]), int(section["max_nodes"]), int(section["max_neighbors"]))
         for s, f in zip(shards, firsts)
     ]
     started = time.perf_counter()
-    workers = max(1, int(section.get("workers", 1)))
+    workers = max(1, int(section["workers"]))
     results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard")
     seconds = time.perf_counter() - started
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}

@@ -11,7 +11,7 @@ import json
 import time
 from pathlib import Path
 
-from pipeline.common.params import load_params, params_section
+from pipeline.common.params import complete_section, load_params
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.shards import (
@@ -43,9 +43,12 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     save_png(image, path)
 
 
+KEYS = ("seed", "episodes", "episodes_per_shard", "planner", "horizon", "random_starts", "workers", "backend")
+
+
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     params = load_params(params_path)
-    section = params_section(params, "collect_expert", params_path)
+    section = complete_section(params, "collect_expert", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})
     maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
     if not maps:
@@ -55,16 +58,16 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     config = ExpertConfig(
         maps=maps,
         episodes_per_shard=per_shard,
-        planner=str(section.get("planner", "expert")),
-        horizon=int(section.get("horizon", 8)),
+        planner=str(section["planner"]),
+        horizon=int(section["horizon"]),
         seed=int(section["seed"]),
         protocol=protocol,
-        random_starts=bool(section.get("random_starts", False)),
+        random_starts=bool(section["random_starts"]),
     )
     started = time.perf_counter()
     manifest = run_shards(
-        collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
-        backend=backend or section.get("backend", "process"), description="expert shards", sources=EXPERT_SOURCES,
+        collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
+        backend=backend or section["backend"], description="expert shards", sources=EXPERT_SOURCES,
     )
     seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)

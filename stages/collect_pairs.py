@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.common.params import load_params, params_section
+from pipeline.common.params import complete_section, load_params
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
 from pipeline.data.shards import (
@@ -56,9 +56,12 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
     cv2.imwrite(str(path), np.concatenate(rows, axis=0))
 
 
+KEYS = ("seed", "pairs", "pairs_per_shard", "planners", "snapshot_every", "stop_steps", "workers", "backend")
+
+
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     params = load_params(params_path)
-    section = params_section(params, "collect_pairs", params_path)
+    section = complete_section(params, "collect_pairs", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})
     maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
     if not maps:
@@ -69,15 +72,15 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
         maps=maps,
         pairs_per_shard=per_shard,
         planners=tuple(section["planners"]),
-        snapshot_every=int(section.get("snapshot_every", 4)),
-        stop_steps=tuple(section.get("stop_steps", (5, 200))),
+        snapshot_every=int(section["snapshot_every"]),
+        stop_steps=tuple(section["stop_steps"]),
         seed=int(section["seed"]),
         protocol=protocol,
     )
     started = time.perf_counter()
     manifest = run_shards(
-        collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section.get("workers", 1)),
-        backend=backend or section.get("backend", "process"), description="pair shards", sources=PAIRS_SOURCES,
+        collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
+        backend=backend or section["backend"], description="pair shards", sources=PAIRS_SOURCES,
     )
     seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)

@@ -20,14 +20,7 @@ from typing import Any
 
 import pandas as pd
 
-from pipeline.common.params import load_params
-from pipeline.evaluation.predictor_eval import (
-    PAPER_STEPS,
-    SWEEP_THRESHOLDS,
-    TABLE1_KEEP_SHARE,
-    TABLE1_MIN_COMPONENT,
-    TABLE1_THRESHOLD,
-)
+from pipeline.common.params import complete_section, load_params
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.table1 import compare_with, log_run, run, table1_graph_config
@@ -40,17 +33,7 @@ SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thre
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     params = load_params(params_path)
-    section = dict(params.get("eval_predictor") or {})
-    unknown = set(section) - SECTION_KEYS
-    if unknown:
-        raise ValueError(f"{params_path}: unknown eval_predictor parameter(s): {sorted(unknown)}")
-    section.setdefault("steps", list(PAPER_STEPS))
-    section.setdefault("threshold", TABLE1_THRESHOLD)
-    section.setdefault("min_component", TABLE1_MIN_COMPONENT)
-    section.setdefault("keep_share", TABLE1_KEEP_SHARE)
-    section.setdefault("checkpoint", None)
-    section.setdefault("compare_checkpoint", None)
-    section.setdefault("sweep_thresholds", list(SWEEP_THRESHOLDS))
+    section = complete_section(params, "eval_predictor", params_path, SECTION_KEYS)
     sweep = section["sweep_thresholds"]
     if sweep is None:
         section["sweep_thresholds"] = []

@@ -22,7 +22,7 @@ import numpy as np
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.params import load_params, section_with_defaults
+from pipeline.common.params import complete_section, load_params
 from pipeline.data.gate_samples import gate_samples
 from pipeline.planners.extensions.sliver_gate import (
     FEATURES,
@@ -41,13 +41,12 @@ GATE_PATH = Path("models/sliver_gate/sliver_gate.json")
 METRICS_PATH = Path("reports/sliver_gate.json")
 FIGURE_PATH = Path("reports/sliver_gate.png")
 EXPERIMENT = "sliver_gate"
-DEFAULTS: dict[str, Any] = {"maps": 48, "holdout_maps": 12, "offices": 0, "office_holdout": 0, "hidden": [],
-                            "min_gain": 50, "wall_margin": 2, "threshold": 0.5, "workers": 2}
+KEYS = ("maps", "holdout_maps", "offices", "office_holdout", "hidden", "min_gain", "wall_margin", "threshold", "workers")
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
     params = load_params(params_path)
-    section = section_with_defaults(params, "fit_gate", params_path, DEFAULTS)
+    section = complete_section(params, "fit_gate", params_path, KEYS)
     for key in ("maps", "holdout_maps", "offices", "office_holdout", "min_gain", "wall_margin", "workers"):
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key in ("maps", "workers") else 0):

@@ -21,6 +21,7 @@ from pipeline.common.params import load_params, params_section
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.world.protocol import Protocol
 
 MAZE_ROOT = Path("data/mazes")
 PREVIEW_PATH = Path("reports/mazes_preview.png")
@@ -32,7 +33,6 @@ PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
 PREVIEW_GAP = 10
-DEFAULT_CELL_SIZE = 0.4
 
 
 def _load_params(params_path: str | Path) -> tuple[dict, float]:
@@ -40,7 +40,7 @@ def _load_params(params_path: str | Path) -> tuple[dict, float]:
     params = load_params(params_path)
     mazes = params_section(params, "mazes", params_path)
     protocol = params.get("protocol") if isinstance(params.get("protocol"), dict) else {}
-    cell_size = float(protocol.get("cell_size", DEFAULT_CELL_SIZE))
+    cell_size = float(Protocol.from_dict(protocol).cell_size)
     return mazes, cell_size
 
 

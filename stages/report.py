@@ -22,11 +22,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.params import load_params
+from pipeline.common.params import complete_section, load_params
 from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
 from pipeline.reporting.report import (
-    ABLATION_PLANNERS,
-    K_PLANNERS,
     log_tables_to_mlflow,
     metrics_json,
     read_metrics,
@@ -58,28 +56,13 @@ REPORT_MD = Path("reports/report.md")
 REPORT_JSON = Path("reports/report.json")
 FIGURE_PATH = Path("reports/trajectories.png")
 
-DEFAULTS: dict[str, Any] = {
-    "k_values": [10, 30, 50, 100],
-    "k_planners": list(K_PLANNERS),
-    "k_option": "num_inference_steps",
-    "k_maps": 2,
-    "ablation_planners": list(ABLATION_PLANNERS),
-    "figure_planners": ["optimal", "guide", "dare", "greedy_utility"],
-    "workers": 2,
-    "seed": 0,
-}
+KEYS = ("k_values", "k_planners", "k_option", "k_maps", "ablation_planners", "figure_planners", "workers", "seed")
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
-    """The `report` section (defaults filled in, unknown keys refused) and the protocol."""
+    """The `report` section (every key named, unknown keys refused) and the protocol."""
     params = load_params(params_path)
-    raw = params.get("report") or {}
-    if not isinstance(raw, dict):
-        raise ValueError(f"{params_path}: the 'report' section must be a mapping")
-    unknown = set(raw) - set(DEFAULTS)
-    if unknown:
-        raise ValueError(f"{params_path}: unknown report parameter(s) {sorted(unknown)}; known: {sorted(DEFAULTS)}")
-    section = {**DEFAULTS, **raw}
+    section = complete_section(params, "report", params_path, KEYS)
     for key in ("k_values", "k_planners", "ablation_planners", "figure_planners"):
         if not isinstance(section[key], list):
             raise ValueError(f"{params_path}: report.{key} must be a list")

@@ -26,7 +26,7 @@ import numpy as np
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.params import load_params, section_with_defaults
+from pipeline.common.params import complete_section, load_params
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.modeling_block_model import save_block_model
 from pipeline.stage_runner import run_stage_main, stage_arguments
@@ -44,13 +44,13 @@ MODEL_PATH = Path("models/block_model/block_model.pt")
 METRICS_PATH = Path("reports/block_model.json")
 FIGURE_PATH = Path("reports/block_model.png")
 EXPERIMENT = "block_model"
-DEFAULTS: dict[str, Any] = {"mazes": 160, "holdout_mazes": 16, "side_m": 100.0, "maze_seed": 555, "snapshot_every": 3, "epochs": 4, "batch_size": 128,
-                            "lr": 3e-3, "reveal_share": 0.7, "model": {}, "workers": 2, "seed": 0}
+KEYS = ("mazes", "holdout_mazes", "side_m", "maze_seed", "snapshot_every", "epochs", "batch_size", "lr", "reveal_share",
+        "model", "workers", "seed")
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
     params = load_params(params_path)
-    section = section_with_defaults(params, "train_block_model", params_path, DEFAULTS)
+    section = complete_section(params, "train_block_model", params_path, KEYS)
     for key in ("mazes", "holdout_mazes", "maze_seed", "snapshot_every", "epochs", "batch_size", "workers", "seed"):
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < (0 if key in ("holdout_mazes", "maze_seed", "seed") else 1):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import fields
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Iterable, TypeVar
 
 import yaml
 
@@ -57,14 +57,22 @@ def params_section(params: dict[str, Any], name: str, path: str | Path) -> dict[
     return section
 
 
-def section_with_defaults(params: dict[str, Any], name: str, path: str | Path, defaults: dict[str, Any]) -> dict[str, Any]:
-    """The `name` section over `defaults`; a key that `defaults` lacks is refused, by name, as a
-    likely typo (a silently ignored setting is worse than an error)."""
+def complete_section(params: dict[str, Any], name: str, path: str | Path, keys: Iterable[str]) -> dict[str, Any]:
+    """The `name` section, which must name every one of `keys` and nothing else.
+
+    A stage's settings live in the params file and nowhere else, so a missing key is an error
+    naming it (not a default that could drift from the file's), and a key the stage does not
+    know is refused by name as a likely typo (a silently ignored setting is worse than an error).
+    """
     section = params_section(params, name, path)
-    unknown = sorted(set(section) - set(defaults))
+    keys = sorted(keys)
+    unknown = sorted(set(section) - set(keys))
     if unknown:
-        raise ValueError(f"{path}: unknown {name} parameter(s) {unknown}; known: {sorted(defaults)}")
-    return {**defaults, **section}
+        raise ValueError(f"{path}: unknown {name} parameter(s) {unknown}; known: {keys}")
+    missing = sorted(set(keys) - set(section))
+    if missing:
+        raise ValueError(f"{path}: the '{name}' section misses {missing} (params.yaml names every setting)")
+    return dict(section)
 
 
 def dataclass_from_dict(cls: type[T], values: dict[str, Any] | None, what: str) -> T:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
-from pipeline.common.params import dataclass_from_dict, load_params, params_section, section_with_defaults
+from pipeline.common.params import dataclass_from_dict, load_params, params_section, complete_section
 from pipeline.world.protocol import Protocol
 from pipeline.training.policy import PlannerTrainConfig
 
@@ -54,10 +54,12 @@ def test_dataclass_from_dict_builds_the_config_and_refuses_a_typo():
         DiffusionPolicyConfig.from_dict({"heeds": 2})
 
 
-def test_section_with_defaults_fills_in_and_refuses_a_typo():
-    defaults = {"epochs": 4, "lr": 0.003}
-    assert section_with_defaults({"s": {"epochs": 2}}, "s", "p.yaml", defaults) == {"epochs": 2, "lr": 0.003}
+def test_complete_section_needs_every_key_and_refuses_a_typo():
+    keys = ("epochs", "lr")
+    assert complete_section({"s": {"epochs": 2, "lr": 0.1}}, "s", "p.yaml", keys) == {"epochs": 2, "lr": 0.1}
     with pytest.raises(ValueError, match=r"p.yaml: unknown s parameter\(s\) \['epoch'\]; known: \['epochs', 'lr'\]"):
-        section_with_defaults({"s": {"epoch": 2}}, "s", "p.yaml", defaults)
+        complete_section({"s": {"epoch": 2, "lr": 0.1}}, "s", "p.yaml", keys)
+    with pytest.raises(ValueError, match=r"p.yaml: the 's' section misses \['lr'\]"):
+        complete_section({"s": {"epochs": 2}}, "s", "p.yaml", keys)
     with pytest.raises(ValueError, match="missing the 's' section"):
-        section_with_defaults({}, "s", "p.yaml", defaults)
+        complete_section({}, "s", "p.yaml", keys)

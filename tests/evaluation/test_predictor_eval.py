@@ -23,6 +23,9 @@ from pipeline.reporting.predictor_figures import prediction_figure
 from pipeline.workflows import table1
 
 STEPS = (3, 6)
+# The stage's settings these tests run with, each test writing its changes over them.
+STAGE = {"steps": [15, 30, 45, 60], "threshold": 0.8, "min_component": 3, "keep_share": 0.5,
+         "sweep_thresholds": [0.5, 0.6, 0.7, 0.8, 0.9], "checkpoint": None, "compare_checkpoint": None}
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +124,7 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
         yaml.safe_dump(
             {
                 "protocol": {"cell_size": 0.4},
-                "eval_predictor": {"steps": [3, 6], "threshold": 0.5, "min_component": 3, "checkpoint": None},
+                "eval_predictor": {**STAGE, "steps": [3, 6], "threshold": 0.5, "min_component": 3, "checkpoint": None},
             }
         )
     )
@@ -162,7 +165,7 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
     (tmp_path / "other.pt").write_bytes(b"stand-in")
-    section = {"steps": [3, 6], "threshold": 0.5, "sweep_thresholds": [], "compare_checkpoint": "other.pt"}
+    section = {**STAGE, "steps": [3, 6], "threshold": 0.5, "sweep_thresholds": [], "compare_checkpoint": "other.pt"}
     (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {}, "eval_predictor": section}))
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
@@ -204,7 +207,7 @@ def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch)
     with pytest.raises(ValueError, match=r"must lie in \[0, 1\], got 1.5"):
         table1.table1_for_folder(maze_dir, tmp_path / "bad_tau", None, threshold=1.5)
     with pytest.raises(ValueError, match="unknown eval_predictor"):
-        (tmp_path / "bad.yaml").write_text("eval_predictor: {stepz: [1]}\n")
+        (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "stepz": [1]}}))
         stage.read_params(tmp_path / "bad.yaml")
 
 
@@ -265,10 +268,10 @@ def test_precision_by_threshold_refuses_bad_thresholds(maze_paths):
 def test_stage_refuses_a_bad_sweep(tmp_path):
     import stages.eval_predictor as stage
 
-    (tmp_path / "p.yaml").write_text("eval_predictor: {sweep_thresholds: [0.5, 2]}\n")
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "sweep_thresholds": [0.5, 2]}}))
     with pytest.raises(ValueError, match="sweep_thresholds must be a list of numbers in"):
         stage.read_params(tmp_path / "p.yaml")
-    (tmp_path / "q.yaml").write_text("eval_predictor: {sweep_thresholds: null}\n")
+    (tmp_path / "q.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "sweep_thresholds": None}}))
     assert stage.read_params(tmp_path / "q.yaml")[0]["sweep_thresholds"] == []
 
 

@@ -13,10 +13,18 @@ from pipeline.planners.extensions.sliver_gate import load_gate
 from stages import fit_gate
 
 
+# These tests' own settings, over which each test writes its changes: a logistic gate on mazes alone.
+BASE = {"maps": 48, "holdout_maps": 12, "offices": 0, "office_holdout": 0, "hidden": [], "min_gain": 50,
+        "wall_margin": 2, "threshold": 0.5, "workers": 2}
+
+
 def _project(tmp_path, generated_maze_dir, section, offices=0):
     shutil.copytree(generated_maze_dir, tmp_path / "data/mazes/train")
     generate_office_set(OfficeConfig(side_m=40.0), offices, tmp_path / "data/offices/train", seed=[5], progress=False)
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "fit_gate": section}))
+    settings = {**BASE, **section}
+    for key in [key for key, value in section.items() if value is None]:
+        del settings[key]  # a test of a missing key
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "fit_gate": settings}))
 
 
 def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
@@ -45,6 +53,7 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     ({"offices": 2, "office_holdout": 2}, "office_holdout must be below fit_gate.offices"),
     ({"maps": 3, "holdout_maps": 1, "offices": 5, "office_holdout": 2}, "2 maps, need more than fit_gate.office_holdout = 2"),
     ({"hidden": 16}, "fit_gate.hidden must be a list of layer widths"),
+    ({"threshold": None}, r"the 'fit_gate' section misses \['threshold'\]"),
 ])
 def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, section, message):
     monkeypatch.chdir(tmp_path)

@@ -11,12 +11,15 @@ import yaml
 from pipeline.models.modeling_block_model import load_block_model
 from stages import train_block_model
 
-SMALL = {"mazes": 3, "holdout_mazes": 1, "side_m": 50.0, "snapshot_every": 2, "epochs": 2, "batch_size": 32, "workers": 1,
-         "model": {"width": 8, "dilations": [1, 2], "groups": 4}}
+SMALL = {"mazes": 3, "holdout_mazes": 1, "side_m": 50.0, "maze_seed": 555, "snapshot_every": 2, "epochs": 2, "batch_size": 32,
+         "lr": 3e-3, "reveal_share": 0.7, "workers": 1, "seed": 0, "model": {"width": 8, "dilations": [1, 2], "groups": 4}}
 
 
 def _project(tmp_path, section):
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "train_block_model": section}))
+    settings = {**SMALL, **section}
+    for key in [key for key, value in section.items() if value is None]:
+        del settings[key]  # a test of a missing key
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"protocol": {"cell_size": 0.4}, "train_block_model": settings}))
 
 
 def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, mlflow_uri):
@@ -44,6 +47,7 @@ def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, m
     ({"side_m": 52.0}, r"train_block_model.side_m: MazeConfig.side_m \(52.0, 52.0\) holds no whole number"),
     ({"side_m": "big"}, "train_block_model.side_m: must be a number of metres"),
     ({"model": {"width": 10, "groups": 4}}, "train_block_model.model: BlockModelConfig.groups must divide width 10"),
+    ({"lr": None}, r"the 'train_block_model' section misses \['lr'\]"),
 ])
 def test_stage_refuses_bad_settings(tmp_path, monkeypatch, section, message):
     monkeypatch.chdir(tmp_path)
