@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import run_benchmark, summarise
 from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import log_benchmark
@@ -20,11 +21,11 @@ from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.trajectories import read_trajectory_csv
 
-TEST_MAZES = Path("data/mazes/test")
-OUT_DIR = Path("reports/benchmark")
-METRICS_PATH = Path("reports/benchmark.json")
-CHART_PATH = Path("reports/benchmark_distance.png")
-FIGURE_PATH = Path("reports/benchmark_trajectories.png")
+TEST_MAZES = DATA.mazes_test
+OUT_DIR = REPORTS.benchmark
+METRICS_PATH = REPORTS.benchmark_metrics
+CHART_PATH = REPORTS.benchmark_chart
+FIGURE_PATH = REPORTS.benchmark_figure
 
 
 def read_params(params_path: str | Path) -> tuple[dict, Protocol]:

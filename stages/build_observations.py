@@ -19,6 +19,7 @@ import numpy as np
 
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, POLICIES, REPORTS
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.observations import (
     ObservationConfig,
@@ -36,9 +37,8 @@ from pipeline.prediction.node_predictor import (
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.protocol import Protocol
 
-EXPERT_DIR = Path("data/expert")
-OUT_DIR = Path("data/observations")
-SUMMARY = Path("reports/observations_summary.json")
+EXPERT_DIR = DATA.expert
+SUMMARY = REPORTS.observations
 
 
 def _shard_observations(task: tuple) -> dict:
@@ -95,7 +95,7 @@ def main(params_path: str = "params.yaml") -> dict:
         arrays = concatenate(r[variant] for r in results)
         meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
                 "count_threshold": count_threshold, "protocol": protocol.to_dict()}
-        save_observations(OUT_DIR / f"{variant}.npz", arrays, meta)
+        save_observations(POLICIES[variant].observations, arrays, meta)
         mask = arrays["node_mask"]
         summary[variant] = {
             "samples": int(len(arrays["episode"])),
@@ -105,7 +105,7 @@ def main(params_path: str = "params.yaml") -> dict:
         }
     SUMMARY.parent.mkdir(parents=True, exist_ok=True)
     SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {OUT_DIR}/")
+    print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {DATA.observations}/")
     return summary
 
 

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.shards import (
@@ -25,10 +26,10 @@ from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.maps import GroundTruthMap, list_maps
 from pipeline.world.protocol import Protocol
 
-TRAIN_MAZES = Path("data/mazes/train")
-OUT_DIR = Path("data/expert")
-SUMMARY = Path("reports/expert_summary.json")
-PREVIEW = Path("reports/expert_episode.png")
+TRAIN_MAZES = DATA.mazes_train
+OUT_DIR = DATA.expert
+SUMMARY = REPORTS.expert
+PREVIEW = REPORTS.expert_preview
 
 
 def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
 from pipeline.data.shards import (
@@ -26,10 +27,10 @@ from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
 
-TRAIN_MAZES = Path("data/mazes/train")
-OUT_DIR = Path("data/pairs")
-SUMMARY = Path("reports/pairs_summary.json")
-PREVIEW = Path("reports/pairs_preview.png")
+TRAIN_MAZES = DATA.mazes_train
+OUT_DIR = DATA.pairs
+SUMMARY = REPORTS.pairs
+PREVIEW = REPORTS.pairs_preview
 
 
 def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, scale: int = 6) -> None:

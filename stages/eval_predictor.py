@@ -21,13 +21,14 @@ from typing import Any
 import pandas as pd
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.table1 import compare_with, log_run, run, table1_graph_config
 from pipeline.world.protocol import Protocol
 
-TEST_MAZES = Path("data/mazes/test")
-OUT_DIR = Path("reports/predictor")
+TEST_MAZES = DATA.mazes_test
+OUT_DIR = REPORTS.predictor
 SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thresholds", "checkpoint", "compare_checkpoint"}
 
 

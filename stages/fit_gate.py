@@ -23,7 +23,9 @@ import numpy as np
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
+from pipeline.models.defaults import PIPELINE_GATE
 from pipeline.planners.extensions.sliver_gate import (
     FEATURES,
     fit_sliver_gate,
@@ -35,11 +37,11 @@ from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 
-TRAIN_MAZES = Path("data/mazes/train")
-TRAIN_OFFICES = Path("data/offices/train")
-GATE_PATH = Path("models/sliver_gate/sliver_gate.json")
-METRICS_PATH = Path("reports/sliver_gate.json")
-FIGURE_PATH = Path("reports/sliver_gate.png")
+TRAIN_MAZES = DATA.mazes_train
+TRAIN_OFFICES = DATA.offices_train
+GATE_PATH = PIPELINE_GATE
+METRICS_PATH = REPORTS.sliver_gate
+FIGURE_PATH = REPORTS.sliver_gate_figure
 EXPERIMENT = "sliver_gate"
 KEYS = ("maps", "holdout_maps", "offices", "office_holdout", "hidden", "min_gain", "wall_margin", "threshold", "workers")
 

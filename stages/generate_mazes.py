@@ -18,16 +18,17 @@ import cv2
 import numpy as np
 
 from pipeline.common.params import load_params, params_section
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OfficeConfig, generate_office_set
 from pipeline.world.protocol import Protocol
 
-MAZE_ROOT = Path("data/mazes")
-PREVIEW_PATH = Path("reports/mazes_preview.png")
-OFFICE_PREVIEW_PATH = Path("reports/offices_preview.png")
+PREVIEW_PATH = REPORTS.mazes_preview
+OFFICE_PREVIEW_PATH = REPORTS.offices_preview
 SPLITS = {"train": 0, "test": 1}  # split name -> second word of the seed sequence
-OFFICE_DIR = Path("data/offices/train")
+SPLIT_DIRS = {"train": DATA.mazes_train, "test": DATA.mazes_test}
+OFFICE_DIR = DATA.offices_train
 OFFICE_SEED_WORD = 2
 PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
@@ -111,7 +112,7 @@ def main(params_path: str = "params.yaml") -> None:
     office_config = OfficeConfig(cell_size=cell_size)
     written: dict[str, list[Path]] = {}
     for split, (config, count) in splits.items():
-        out_dir = MAZE_ROOT / split
+        out_dir = SPLIT_DIRS[split]
         _clear_pngs(out_dir)
         written[split] = generate_maze_set(config, count, out_dir, seed=(seed, SPLITS[split]))
     _clear_pngs(OFFICE_DIR)
@@ -119,7 +120,7 @@ def main(params_path: str = "params.yaml") -> None:
     write_maze_png(preview_image(written["test"]), PREVIEW_PATH)
     write_maze_png(preview_image(office_paths), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
     for split, paths in written.items():
-        print(f"{split}: {len(paths)} mazes in {MAZE_ROOT / split}")
+        print(f"{split}: {len(paths)} mazes in {SPLIT_DIRS[split]}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
     print(f"previews: {PREVIEW_PATH}, {OFFICE_PREVIEW_PATH}")
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
 from pipeline.reporting.report import (
     log_tables_to_mlflow,
@@ -41,20 +42,21 @@ from pipeline.reporting.report import (
     trajectory_figure,
 )
 from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.workflows import table1
 from pipeline.world.maps import MapError, list_maps
 from pipeline.world.protocol import Protocol
 
-TEST_MAZES = Path("data/mazes/test")
-BENCHMARK_DIR = Path("reports/benchmark")
+TEST_MAZES = DATA.mazes_test
+BENCHMARK_DIR = REPORTS.benchmark
 METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
-PRECISION_CSV = Path("reports/predictor/precision.csv")
-PRECISION_COMPARE_CSV = Path("reports/predictor/precision_compare.csv")  # another inpainter, when eval_predictor ran one
-PRECISION_DETAIL_CSV = Path("reports/predictor/precision_detail.csv")  # the same rows with V_u split up
-SWEEP_DIR = Path("reports/denoising_steps")
-TABLES_DIR = Path("reports/tables")
-REPORT_MD = Path("reports/report.md")
-REPORT_JSON = Path("reports/report.json")
-FIGURE_PATH = Path("reports/trajectories.png")
+PRECISION_CSV = REPORTS.predictor / table1.PRECISION_CSV
+PRECISION_COMPARE_CSV = REPORTS.predictor / table1.COMPARE_CSV  # another inpainter, when eval_predictor ran one
+PRECISION_DETAIL_CSV = REPORTS.predictor / table1.DETAIL_CSV  # the same rows with V_u split up
+SWEEP_DIR = REPORTS.denoising_steps
+TABLES_DIR = REPORTS.tables
+REPORT_MD = REPORTS.report
+REPORT_JSON = REPORTS.report_metrics
+FIGURE_PATH = REPORTS.report_figure
 
 KEYS = ("k_values", "k_planners", "k_option", "k_maps", "ablation_planners", "figure_planners", "workers", "seed")
 

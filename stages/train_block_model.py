@@ -27,7 +27,9 @@ import numpy as np
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.defaults import PIPELINE_BLOCK_MODEL
 from pipeline.models.modeling_block_model import save_block_model
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.training.block_model import (
@@ -40,9 +42,9 @@ from pipeline.world.maps import load_map
 from pipeline.world.mazes import MazeConfig, generate_maze_set
 from pipeline.world.protocol import Protocol
 
-MODEL_PATH = Path("models/block_model/block_model.pt")
-METRICS_PATH = Path("reports/block_model.json")
-FIGURE_PATH = Path("reports/block_model.png")
+MODEL_PATH = PIPELINE_BLOCK_MODEL
+METRICS_PATH = REPORTS.block_model
+FIGURE_PATH = REPORTS.block_model_figure
 EXPERIMENT = "block_model"
 KEYS = ("mazes", "holdout_mazes", "side_m", "maze_seed", "snapshot_every", "epochs", "batch_size", "lr", "reveal_share",
         "model", "workers", "seed")

@@ -20,6 +20,7 @@ from typing import Any, Optional
 import numpy as np
 
 from pipeline.common.params import load_params, params_section
+from pipeline.common.paths import DATA, MODELS, REPORTS
 from pipeline.models import InpainterConfig, TracedInpainter
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 from pipeline.stage_runner import run_stage_main, stage_arguments
@@ -31,11 +32,11 @@ from pipeline.training.inpainter import (
 )
 from pipeline.world.protocol import Protocol
 
-DATA_DIR = Path("data/pairs")
-OUT_DIR = Path("models/inpainter")
-METRICS = Path("reports/inpainter_metrics.json")
-CURVES = Path("reports/inpainter_curves.png")
-SAMPLES = Path("reports/inpainter_samples.png")
+DATA_DIR = DATA.pairs
+OUT_DIR = MODELS.inpainter
+METRICS = REPORTS.inpainter
+CURVES = REPORTS.inpainter_curves
+SAMPLES = REPORTS.inpainter_samples
 REPORT_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 RUN_KEYS = ("model", "accelerator", "devices", "init_checkpoint", "experiment", "threads")
 

@@ -1,9 +1,8 @@
 """DVC stage: Stage II training of the diffusion planner (one run per variant: guide, dare).
 
-Reads only the `train_planner` section of params.yaml. Trains on
-data/observations/<variant>.npz and writes models/planner_<variant>/ (policy.pt, the EMA
-weights for inference; last.ckpt and best.ckpt for resuming),
-reports/planner_<variant>_metrics.json and reports/planner_<variant>_curves.png.
+Reads only the `train_planner` section of params.yaml. Trains on the variant's observations and
+writes its model folder (policy.pt, the EMA weights for inference; last.ckpt and best.ckpt for
+resuming), metrics and curves: the paths of `policies` in pipeline/paths.yaml.
 """
 
 from __future__ import annotations
@@ -11,17 +10,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from pipeline.common.params import load_params, params_section
+from pipeline.common.params import complete_section, load_params
+from pipeline.common.paths import POLICIES
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.training.policy import train_planner
 
-VARIANTS = ("guide", "dare")
-OBSERVATIONS = Path("data/observations")
-
-
-def out_dir(variant: str) -> Path:
-    return Path(f"models/planner_{variant}")
+VARIANTS = tuple(POLICIES)  # guide, dare
+KEYS = ("model", "train", "accelerator", "devices", "threads", "experiment")
 
 
 def plot_curves(history: list[dict], path: Path, title: str) -> None:
@@ -56,21 +52,22 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
     if variant not in VARIANTS:
         raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")
     params = load_params(params_path)
-    section = params_section(params, "train_planner", params_path)
-    train = dict(section.get("train") or {})
+    section = complete_section(params, "train_planner", params_path, KEYS)
+    paths = POLICIES[variant]
+    train = dict(section["train"] or {})
     if max_epochs is not None:
         train["max_epochs"] = int(max_epochs)
     export = train_planner(
-        OBSERVATIONS / f"{variant}.npz",
-        out_dir(variant),
-        dict(section.get("model") or {}),
+        paths.observations,
+        paths.model,
+        dict(section["model"] or {}),
         train,
-        accelerator=accelerator or section.get("accelerator", "cpu"),
-        devices=devices or section.get("devices", 1),
+        accelerator=accelerator or section["accelerator"],
+        devices=devices or section["devices"],
         resume=resume,
-        experiment_name=str(section.get("experiment", "planner")),
+        experiment_name=str(section["experiment"]),
         run_name=variant,
-        num_threads=section.get("threads"),
+        num_threads=section["threads"],
     )
     if export is None:  # another process of a multi-device run: rank zero exports and reports
         return {}
@@ -87,10 +84,10 @@ def main(params_path: str = "params.yaml", variant: str = "guide", accelerator: 
         "val_first_step_accuracy": last.get("val_first_step_accuracy"),
         "trained_on": meta.get("trained_on"),  # torch build, CPU kernels, threads: weights differ across hosts
     }
-    Path("reports").mkdir(exist_ok=True)
-    Path(f"reports/planner_{variant}_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    paths.metrics.parent.mkdir(parents=True, exist_ok=True)
+    paths.metrics.write_text(json.dumps(metrics, indent=2) + "\n")
     if history:
-        plot_curves(history, Path(f"reports/planner_{variant}_curves.png"), f"{variant} diffusion planner")
+        plot_curves(history, paths.curves, f"{variant} diffusion planner")
     print(f"{variant} planner: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "
           f"{metrics['train_seconds']} s; val loss {metrics['val_loss']}, first-step accuracy {metrics['val_first_step_accuracy']} -> {export}")
     return metrics

@@ -27,3 +27,19 @@ def test_every_stage_depends_on_exactly_the_code_it_imports():
         declared = code_deps(name)
         assert not imported - declared, f"{name}: dvc.yaml misses {sorted(imported - declared)}"
         assert not declared - imported, f"{name}: dvc.yaml lists code it never imports: {sorted(declared - imported)}"
+
+
+def test_every_data_model_and_report_path_is_written_down_once():
+    """dvc.yaml names its paths through pipeline/paths.yaml's vars, and no module spells one out."""
+    import re
+
+    text = (ROOT / "dvc.yaml").read_text()
+    assert "pipeline/paths.yaml" in yaml.safe_load(text)["vars"]
+    literal = re.findall(r"^\s*- (?:data|models|reports)/\S*", text, flags=re.M)
+    assert not literal, f"dvc.yaml spells out paths that pipeline/paths.yaml holds: {literal}"
+    spelled = []
+    for path in list((ROOT / "pipeline").rglob("*.py")) + list((ROOT / "stages").glob("*.py")):
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            if re.search(r"""Path\(\s*f?["'](?:data|models|reports)/""", line):
+                spelled.append(f"{path.relative_to(ROOT)}:{number}")
+    assert not spelled, f"paths written outside pipeline/paths.yaml: {spelled}"

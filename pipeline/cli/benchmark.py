@@ -7,8 +7,20 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli.options import (CellSize, Checkpoint, DoneCells, MaxSteps, NodeRes, RegionSize, SensorRange,
-                                  UtilityRange, check_out_dir, fail, protocol, warn)
+from pipeline.cli.options import (
+    CellSize,
+    Checkpoint,
+    DoneCells,
+    MaxSteps,
+    NodeRes,
+    RegionSize,
+    SensorRange,
+    UtilityRange,
+    check_out_dir,
+    fail,
+    protocol,
+    warn,
+)
 from pipeline.evaluation.benchmark import BenchmarkInterrupted
 from pipeline.workflows.benchmark import benchmark_folder
 from pipeline.world.maps import MapError

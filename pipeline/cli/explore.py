@@ -7,8 +7,22 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli.options import (CellSize, Checkpoint, DoneCells, MaxSteps, NodeRes, RegionSize, SensorRange, Start,
-                                  UtilityRange, check_out_dir, fail, given, protocol, warn)
+from pipeline.cli.options import (
+    CellSize,
+    Checkpoint,
+    DoneCells,
+    MaxSteps,
+    NodeRes,
+    RegionSize,
+    SensorRange,
+    Start,
+    UtilityRange,
+    check_out_dir,
+    fail,
+    given,
+    protocol,
+    warn,
+)
 from pipeline.workflows import explore as exploration
 from pipeline.world.maps import MapError
 

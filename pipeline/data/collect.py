@@ -17,14 +17,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
-from pipeline.world.maps import GroundTruthMap, load_map
-from pipeline.prediction.node_image import PAD_SIZES, node_image_pair
-from pipeline.planners import make_planner
-from pipeline.world.protocol import Protocol
 from pipeline.data.shards import ShardJob, shard_path, write_shard
+from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.planners import make_planner
+from pipeline.prediction.node_image import PAD_SIZES, node_image_pair
+from pipeline.world.maps import GroundTruthMap, load_map
+from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
-
 
 # The library code that determines each data set, as the folders (and files) of the pipeline
 # package that its collection runs: the shard fingerprints hash them, and they are the stages'

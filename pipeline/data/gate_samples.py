@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.world.maps import GroundTruthMap
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
+from pipeline.planners.extensions.sliver_gate import TrueGain, gate_features
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
-from pipeline.world.planner import Observation
-from pipeline.planners.extensions.sliver_gate import TrueGain, gate_features
 
 
 class _LabellingGreedy(GreedyUtilityPlanner):

@@ -17,11 +17,11 @@ from typing import Iterable
 import numpy as np
 
 from pipeline.data.expert_episodes import ExpertEpisode
-from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.prediction.graph_observation import expert_action_deltas, observe, rotate_steps
-from pipeline.world.maps import GroundTruthMap
 from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 
 VARIANTS = ("guide", "dare")

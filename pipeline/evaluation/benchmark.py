@@ -19,14 +19,13 @@ from tqdm import tqdm
 
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
 from pipeline.models.exports import require_file
-from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.planners.config import SPEC_KINDS, OptionInfo
 from pipeline.planners.registry import accepted_options, make_planner, planner_config
+from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
-
 
 REFERENCE_PLANNER = "optimal"
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran

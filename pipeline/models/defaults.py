@@ -1,14 +1,15 @@
 """Where each trained model is found, and its loader: one place for every default model path.
 
 A planner that needs a model takes the file it is given; else the one the pipeline trained
-(`models/...`, relative to the folder it runs in, where `dvc repro` writes them); else the one
-shipped in `pipeline/assets/`. A file is read once per process (`pipeline.models.cache`).
+(`models/...` of pipeline/paths.yaml, relative to the folder it runs in, where `dvc repro`
+writes them); else the one shipped in `pipeline/assets/`. A file is read once per process (`pipeline.models.cache`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from pipeline.common.paths import MODELS, POLICIES
 from pipeline.models.cache import load_once
 from pipeline.models.exports import require_file
 from pipeline.models.modeling_block_model import BlockModel, load_block_model
@@ -18,13 +19,13 @@ from pipeline.prediction.node_predictor import InpaintFn
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 
-PIPELINE_INPAINTER = Path("models/inpainter/inpainter.pt")
+PIPELINE_INPAINTER = MODELS.inpainter / "inpainter.pt"
 SHIPPED_INPAINTER = ASSETS / "inpainter.pt"
-PIPELINE_POLICY = {"guide": Path("models/planner_guide/policy.pt"), "dare": Path("models/planner_dare/policy.pt")}
+PIPELINE_POLICY = {variant: paths.model / "policy.pt" for variant, paths in POLICIES.items()}
 SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
-PIPELINE_BLOCK_MODEL = Path("models/block_model/block_model.pt")
+PIPELINE_BLOCK_MODEL = MODELS.block_model / "block_model.pt"
 SHIPPED_BLOCK_MODEL = ASSETS / "block_model.pt"
-PIPELINE_GATE = Path("models/sliver_gate/sliver_gate.json")
+PIPELINE_GATE = MODELS.sliver_gate / "sliver_gate.json"
 SHIPPED_GATE = ASSETS / "sliver_gate.json"
 
 

@@ -14,9 +14,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from pipeline.prediction.block_maps import block_shares, border_ring
 from pipeline.models.configuration_block_model import INPUT_CHANNELS, BlockModelConfig
 from pipeline.models.exports import read_weights_file, write_weights_file
+from pipeline.prediction.block_maps import block_shares, border_ring
 
 BLOCK_MODEL_FORMAT = "guide-block-model/1"
 

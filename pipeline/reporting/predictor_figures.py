@@ -9,8 +9,16 @@ import cv2
 import numpy as np
 import pandas as pd
 
-from pipeline.evaluation.predictor_eval import (PAPER_PRECISION, Checkpoint, InpaintFactory, Prediction, _resolve_inpaint,
-                                                explore_checkpoints, free_in_truth, predict_at)
+from pipeline.evaluation.predictor_eval import (
+    PAPER_PRECISION,
+    Checkpoint,
+    InpaintFactory,
+    Prediction,
+    _resolve_inpaint,
+    explore_checkpoints,
+    free_in_truth,
+    predict_at,
+)
 from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED
 from pipeline.prediction.global_graph import CENTROID, KNOWN, GlobalGraphConfig
 from pipeline.prediction.node_predictor import InpaintFn, NodePredictor, NodePredictorConfig

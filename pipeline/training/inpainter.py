@@ -42,8 +42,11 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
+from pipeline.common.params import dataclass_from_dict
 from pipeline.data.pairs import load_pairs
+from pipeline.data.shards import read_manifest
 from pipeline.models.configuration_inpainter import InpainterConfig
+from pipeline.models.exports import export_kind
 from pipeline.models.modeling_inpainter import (
     PIXEL_FREE_MIN,
     PIXEL_OBSTACLE_MAX,
@@ -52,9 +55,6 @@ from pipeline.models.modeling_inpainter import (
     is_inpainter_export,
     load_big_lama_generator,
 )
-from pipeline.common.params import dataclass_from_dict
-from pipeline.data.shards import read_manifest
-from pipeline.models.exports import export_kind
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,

@@ -21,10 +21,10 @@ import torch
 from lightning.pytorch.callbacks import ModelCheckpoint
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
-from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
-from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy
 from pipeline.common.params import dataclass_from_dict
 from pipeline.data.observations import PlannerDataset, crop_observations, load_observations
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy
 from pipeline.training.run_setup import (
     check_accelerator,
     check_max_minutes,

@@ -17,10 +17,20 @@ from typing import Any, Optional
 import pandas as pd
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.evaluation.predictor_eval import (COLUMNS, PAPER_STEPS, SWEEP_THRESHOLDS, TABLE1_KEEP_SHARE,
-                                                TABLE1_MIN_COMPONENT, TABLE1_THRESHOLD, comparison_markdown,
-                                                evaluate_predictor, evaluate_with_sweep, load_inpaint_fn,
-                                                sweep_markdown, table1_markdown)
+from pipeline.evaluation.predictor_eval import (
+    COLUMNS,
+    PAPER_STEPS,
+    SWEEP_THRESHOLDS,
+    TABLE1_KEEP_SHARE,
+    TABLE1_MIN_COMPONENT,
+    TABLE1_THRESHOLD,
+    comparison_markdown,
+    evaluate_predictor,
+    evaluate_with_sweep,
+    load_inpaint_fn,
+    sweep_markdown,
+    table1_markdown,
+)
 from pipeline.prediction.global_graph import GlobalGraphConfig, RegionEvaluationConfig
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.reporting.predictor_figures import plot_threshold_sweep, prediction_figure
@@ -28,7 +38,9 @@ from pipeline.world.maps import MapError, list_maps, load_map
 from pipeline.world.protocol import Protocol
 
 EXPERIMENT = "table1"
-COMPARE_CSV = "precision_compare.csv"
+PRECISION_CSV = "precision.csv"  # the columns
+DETAIL_CSV = "precision_detail.csv"  # the same rows with V_u split into predictions and centroids
+COMPARE_CSV = "precision_compare.csv"  # another inpainter on the same explorations
 
 
 def run(
@@ -66,8 +78,8 @@ def run(
         warnings.warn(f"no exploration reached step {', '.join(map(str, unreached))}: every episode completed "
                       f"earlier, so there is nothing to count there (precision n/a); larger maps reach later steps",
                       stacklevel=2)
-    frame.to_csv(out_dir / "precision.csv", columns=list(COLUMNS), index=False)
-    frame.to_csv(out_dir / "precision_detail.csv", index=False)
+    frame.to_csv(out_dir / PRECISION_CSV, columns=list(COLUMNS), index=False)
+    frame.to_csv(out_dir / DETAIL_CSV, index=False)
     table = table1_markdown(frame, threshold=predictor_config.threshold)
     if sweep is not None:
         sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
@@ -110,7 +122,7 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
                 if row.precision == row.precision:
                     metrics[f"compare_precision_step{row.step}"] = float(row.precision)
         mlflow.log_metrics(metrics)
-        for name in ("precision.csv", "precision_detail.csv", "table1.md", "fig3.png", "precision_by_threshold.csv",
+        for name in (PRECISION_CSV, DETAIL_CSV, "table1.md", "fig3.png", "precision_by_threshold.csv",
                      "threshold_sweep.png", COMPARE_CSV):
             if (out_dir / name).is_file():
                 mlflow.log_artifact(str(out_dir / name))

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass
+
+import numpy as np
 
 from pipeline.planners.graph_planner import GatedPlannerConfig, GraphPlanner
 from pipeline.planners.registry import register_planner

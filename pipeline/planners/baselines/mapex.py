@@ -21,8 +21,8 @@ import cv2
 import numpy as np
 
 from pipeline.lattice.graph import visible_counts
-from pipeline.planners.options import check_int
 from pipeline.planners.config import option
+from pipeline.planners.options import check_int
 from pipeline.planners.predicting import PredictingPlanner, PredictorOptions
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn

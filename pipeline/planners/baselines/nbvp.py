@@ -43,17 +43,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.world.geometry import RayTable, ray_table
 from pipeline.lattice.graph import NODE_FREE, WINDOW_RADIUS
-from pipeline.world.maps import GroundTruthMap
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
-from pipeline.world.planner import Waypoint
+from pipeline.world.geometry import RayTable, ray_table
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN
-from pipeline.world.planner import Observation
 
 WINDOW = 2 * WINDOW_RADIUS + 1
 LAM_TIMES_RANGE = 2.5  # Bircher's lambda x sensor range: a view one range away counts exp(-2.5)

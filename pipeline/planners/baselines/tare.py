@@ -52,20 +52,20 @@ Adaptation to the lattice graph and the protocol:
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.graph import utility_fan
-from pipeline.world.maps import GroundTruthMap
+from pipeline.lattice.tsp import tsp_path
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
-from pipeline.world.planner import Waypoint
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
-from pipeline.world.planner import Observation
-from pipeline.lattice.tsp import tsp_path
 
 
 # --------------------------------------------------------------------------- visibility

@@ -37,10 +37,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from pipeline.common.params import dataclass_from_dict
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import nested_visible_counts
 from pipeline.world.maps import GroundTruthMap
-from pipeline.common.params import dataclass_from_dict
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Lidar
 

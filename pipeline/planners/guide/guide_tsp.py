@@ -18,9 +18,9 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.tsp import path_length, tsp_path
-from pipeline.planners.options import check_int, check_number
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GatedPlannerConfig
+from pipeline.planners.options import check_int, check_number
 from pipeline.planners.predicting import GlobalGraphPlanner, PredictorOptions
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.global_graph import KNOWN, GlobalGraphConfig

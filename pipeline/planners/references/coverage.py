@@ -41,10 +41,10 @@ from scipy.sparse.csgraph import dijkstra
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.lattice.tsp import EXACT_TSP_MAX_NODES, open_tsp_order
 from pipeline.world.maps import GroundTruthMap
+from pipeline.world.planner import Observation, Planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, scan
 from pipeline.world.simulator import Episode, EpisodeResult, replay, run_episode
-from pipeline.world.planner import Observation, Planner
 
 HOP_BONUS_M = 1e-6  # shortest-path tie-break towards more lattice nodes (more scans)
 PATH_JITTER_M = 1e-9  # below the hop bonus even summed over a path of hundreds of edges

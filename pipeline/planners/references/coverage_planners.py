@@ -20,6 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
+from pipeline.planners.options import check_int, check_number
 from pipeline.planners.references.coverage import (
     DEFAULT_LNS_ITERATIONS,
     DEFAULT_RESTARTS,
@@ -29,17 +32,12 @@ from pipeline.planners.references.coverage import (
     coverage_plan,
     plan_coverage,
 )
+from pipeline.planners.registry import register_planner
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
-from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
-from pipeline.planners.options import check_int, check_number
-from pipeline.planners.registry import register_planner
-from pipeline.world.planner import Planner, Waypoint
+from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
-from pipeline.world.planner import Observation
-
 
 _RESTARTS_HELP = "randomised cover constructions of the first plan (the best wins)"
 _LNS_HELP = "ruin-and-recreate rounds that polish the first plan (0 = none)"
