@@ -21,15 +21,13 @@ The robot moves only along known-free lattice edges.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from pipeline.models.defaults import block_model_for
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.planners.extensions.lookahead import BlockLookahead, gated_greedy_like
 from pipeline.planners.guide.configuration_guide import GuideConfig
-from pipeline.planners.guide.diffusion import PolicyOnGraph, drive
+from pipeline.planners.guide.diffusion import attach_policy, drive
 from pipeline.planners.guide.guide_tsp import GuideTspPlanner
 from pipeline.prediction.global_graph import KNOWN
 from pipeline.prediction.node_predictor import InpaintFn
@@ -44,9 +42,7 @@ class TourVotePlanner(GuideTspPlanner):
     def __init__(self, config: GuideConfig = GuideConfig(), inpaint: InpaintFn | None = None, policy=None,
                  name: str = "guide"):
         super().__init__(config, inpaint)
-        self.diffusion = PolicyOnGraph(config, name, policy)
-        if self.diffusion.path is not None:
-            self.trained_models.append((str(self.diffusion.path), self.diffusion.trained_on.get("protocol")))
+        self.diffusion = attach_policy(self, config, name, policy)
         self.action_steps = self.diffusion.action_steps
         self.prior_weight = float(config.prior_weight)
         self.lookahead: BlockLookahead | None = None
@@ -61,10 +57,6 @@ class TourVotePlanner(GuideTspPlanner):
             processes = f" in {self.lookahead.workers} processes" if self.lookahead.workers > 1 else ""
             lookahead_source = (f"; lookahead {config.lookahead} x {config.lookahead_samples} maps, "
                                 f"{self.lookahead_rollout} rollouts{processes}, {lookahead_source}")
-        # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
-        # every other field of a `global_graph=` option is kept.
-        self.global_config = replace(self.global_config, max_nodes=self.diffusion.config.max_nodes,
-                                     use_region_evaluation=config.region_evaluation)
         self.description = (f"{config.description} [mode tour; policy {self.diffusion.source}; {self.predictor_source}; "
                             f"{self.gate_source}; K={self.diffusion.num_inference_steps}{lookahead_source}]")
 

@@ -127,6 +127,19 @@ class PolicyOnGraph:
         return out["deltas"].numpy(), out["expected"].numpy()
 
 
+def attach_policy(planner, config: GuideConfig, name: str, policy=None) -> PolicyOnGraph:
+    """The policy a `guide` planner (a `GlobalGraphPlanner`) runs, and what it fixes of that planner:
+    its trained model is listed for the protocol check, and the global graph is built as the policy
+    was trained on it (its max_nodes; the variant's region evaluation; every other field of a
+    `global_graph=` option is kept)."""
+    diffusion = PolicyOnGraph(config, name, policy)
+    if diffusion.path is not None:
+        planner.trained_models.append((str(diffusion.path), diffusion.trained_on.get("protocol")))
+    planner.global_config = replace(planner.global_config, max_nodes=diffusion.config.max_nodes,
+                                    use_region_evaluation=config.region_evaluation)
+    return diffusion
+
+
 def feasible_move(graph: LatticeGraph, node: int, step: np.ndarray, direction: np.ndarray) -> int | None:
     """The lattice node reached by `step` from `node` if that edge is known free, else the best-matching neighbour."""
     neighbours = graph.neighbours(node)

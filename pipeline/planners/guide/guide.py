@@ -27,13 +27,11 @@ graph's frontier tour instead of driving its plans.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.planners.guide.configuration_guide import GuideConfig
-from pipeline.planners.guide.diffusion import PolicyOnGraph, drive, feasible_move
+from pipeline.planners.guide.diffusion import attach_policy, drive, feasible_move
 from pipeline.planners.predicting import GlobalGraphPlanner
 from pipeline.prediction.global_graph import KNOWN
 from pipeline.prediction.node_predictor import InpaintFn
@@ -51,14 +49,8 @@ class GuidePlanner(GlobalGraphPlanner):
     def __init__(self, config: GuideConfig = GuideConfig(), inpaint: InpaintFn | None = None, policy=None,
                  name: str = "guide"):
         super().__init__(config, inpaint)
-        self.diffusion = PolicyOnGraph(config, name, policy)
-        if self.diffusion.path is not None:
-            self.trained_models.append((str(self.diffusion.path), self.diffusion.trained_on.get("protocol")))
+        self.diffusion = attach_policy(self, config, name, policy)
         self.action_steps, self.stall_steps = self.diffusion.action_steps, int(config.stall_steps)
-        # The policy was trained on graphs of its own max_nodes, and the variant fixes region evaluation;
-        # every other field of a `global_graph=` option is kept.
-        self.global_config = replace(self.global_config, max_nodes=self.diffusion.config.max_nodes,
-                                     use_region_evaluation=config.region_evaluation)
         self.description = (f"{config.description} [mode policy; policy {self.diffusion.source}; "
                             f"{self.predictor_source}; {self.gate_source}; K={self.diffusion.num_inference_steps}]")
 
