@@ -7,42 +7,10 @@ reports/expert_episode.png (rebuilt from the shard, so it also checks the round 
 
 from __future__ import annotations
 
-import json
-import time
-from pathlib import Path
-
 from pipeline.common.params import complete_section, load_params
-from pipeline.common.paths import DATA, REPORTS
-from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
-from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.data.shards import (
-    rate_per_minute,
-    run_shards,
-    shard_count_for,
-    shard_path,
-)
-from pipeline.reporting.render import render_frame, save_png
 from pipeline.stage_runner import run_stage_main, stage_arguments
-from pipeline.world.maps import GroundTruthMap, list_maps
+from pipeline.workflows.collect_expert import collect_expert
 from pipeline.world.protocol import Protocol
-
-TRAIN_MAZES = DATA.mazes_train
-OUT_DIR = DATA.expert
-SUMMARY = REPORTS.expert
-PREVIEW = REPORTS.expert_preview
-
-
-def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
-    """The first stored episode: its final rebuilt belief and the expert's path."""
-    episode = load_expert_episodes(shard_path(out_dir, 0))[0]
-    belief = None
-    for belief in episode.beliefs():
-        pass
-    ground_truth = GroundTruthMap(free=episode.ground_truth, start_cell=episode.start_cell, cell_size=cell_size, name=episode.map_name)
-    trajectory = [tuple(map(float, p)) for p in episode.positions]
-    image = render_frame(ground_truth, belief.copy(), trajectory, title=f"expert episode on {episode.map_name}: {len(trajectory) - 1} steps")
-    save_png(image, path)
-
 
 KEYS = ("seed", "episodes", "episodes_per_shard", "planner", "horizon", "random_starts", "workers", "backend")
 
@@ -51,45 +19,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     params = load_params(params_path)
     section = complete_section(params, "collect_expert", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})
-    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
-    if not maps:
-        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
-    per_shard = int(section["episodes_per_shard"])
-    shard_count = shard_count_for(int(section["episodes"]), per_shard, "episodes")
-    config = ExpertConfig(
-        maps=maps,
-        episodes_per_shard=per_shard,
-        planner=str(section["planner"]),
-        horizon=int(section["horizon"]),
-        seed=int(section["seed"]),
-        protocol=protocol,
-        random_starts=bool(section["random_starts"]),
-    )
-    started = time.perf_counter()
-    manifest = run_shards(
-        collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="expert shards", sources=EXPERT_SOURCES,
-    )
-    seconds = time.perf_counter() - started
-    episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)
-    totals = manifest["totals"]
-    summary = {
-        "episodes": totals["episodes"],
-        "complete": totals["complete"],
-        "steps": totals["steps"],
-        "bytes": totals["bytes"],
-        "bytes_per_step": round(totals["bytes"] / max(1, totals["steps"]), 1),
-        "seconds": round(seconds, 1),
-        # Rate over the shards made by this run (a resumed run reuses finished shards).
-        "episodes_per_minute": rate_per_minute(manifest, "episodes", seconds),
-        "code_version": manifest["code_version"],  # provenance here, not in the data folder
-    }
-    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
-    print(
-        f"{totals['episodes']} expert episodes ({totals['complete']} complete), {totals['steps']} steps, "
-        f"{totals['bytes'] / max(1, totals['steps']):.0f} bytes per stored step -> {OUT_DIR}"
-    )
-    return manifest
+    return collect_expert(section, protocol, backend)
 
 
 if __name__ == "__main__":

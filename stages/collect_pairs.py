@@ -6,56 +6,10 @@ manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.pn
 
 from __future__ import annotations
 
-import json
-import time
-from pathlib import Path
-
-import cv2
-import numpy as np
-
 from pipeline.common.params import complete_section, load_params
-from pipeline.common.paths import DATA, REPORTS
-from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
-from pipeline.data.pairs import load_pairs
-from pipeline.data.shards import (
-    rate_per_minute,
-    run_shards,
-    shard_count_for,
-    shard_path,
-)
 from pipeline.stage_runner import run_stage_main, stage_arguments
-from pipeline.world.maps import list_maps
+from pipeline.workflows.collect_pairs import collect_pairs
 from pipeline.world.protocol import Protocol
-
-TRAIN_MAZES = DATA.mazes_train
-OUT_DIR = DATA.pairs
-SUMMARY = REPORTS.pairs
-PREVIEW = REPORTS.pairs_preview
-
-
-def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, scale: int = 6) -> None:
-    """Rows of (observed, ground truth) node images, unknown pixels tinted, for a quick look."""
-    grouped = load_pairs([shard_path(out_dir, k) for k in range(min(shard_count, 2))])
-    samples = [
-        (size, observed, target, valid)
-        for size, group in sorted(grouped.items())
-        for observed, target, valid in zip(group["observed"], group["target"], group["valid"])
-    ]
-    tiles = []
-    for index in np.linspace(0, len(samples) - 1, min(count, len(samples))).astype(int):
-        size, observed, target, valid = samples[index]
-        obs = cv2.cvtColor(observed, cv2.COLOR_GRAY2BGR)
-        obs[(observed == 128) & valid] = (200, 150, 90)
-        tgt = cv2.cvtColor(target, cv2.COLOR_GRAY2BGR)
-        tgt[~valid] = (60, 60, 60)
-        pair = np.concatenate([obs, np.full((size, 2, 3), 255, np.uint8), tgt], axis=1)
-        pair = cv2.resize(pair, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
-        tiles.append(cv2.copyMakeBorder(pair, 4, 4, 4, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255)))
-    width = max(t.shape[1] for t in tiles)
-    rows = [cv2.copyMakeBorder(t, 0, 0, 0, width - t.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255)) for t in tiles]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), np.concatenate(rows, axis=0))
-
 
 KEYS = ("seed", "pairs", "pairs_per_shard", "planners", "snapshot_every", "stop_steps", "workers", "backend")
 
@@ -64,42 +18,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
     params = load_params(params_path)
     section = complete_section(params, "collect_pairs", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})
-    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
-    if not maps:
-        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
-    per_shard = int(section["pairs_per_shard"])
-    shard_count = shard_count_for(int(section["pairs"]), per_shard, "pairs")
-    config = PairsConfig(
-        maps=maps,
-        pairs_per_shard=per_shard,
-        planners=tuple(section["planners"]),
-        snapshot_every=int(section["snapshot_every"]),
-        stop_steps=tuple(section["stop_steps"]),
-        seed=int(section["seed"]),
-        protocol=protocol,
-    )
-    started = time.perf_counter()
-    manifest = run_shards(
-        collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="pair shards", sources=PAIRS_SOURCES,
-    )
-    seconds = time.perf_counter() - started
-    pairs_preview(OUT_DIR, shard_count, PREVIEW)
-    totals = manifest["totals"]
-    summary = {
-        "pairs": totals["pairs"],
-        "rollouts": totals["episodes"],
-        "shards": shard_count,
-        "bytes": totals["bytes"],
-        "bytes_per_pair": round(totals["bytes"] / max(1, totals["pairs"]), 1),
-        "seconds": round(seconds, 1),
-        # Rate over the shards made by this run (a resumed run reuses finished shards).
-        "pairs_per_minute": rate_per_minute(manifest, "pairs", seconds),
-        "code_version": manifest["code_version"],  # provenance here, not in the data folder
-    }
-    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}")
-    return manifest
+    return collect_pairs(section, protocol, backend)
 
 
 if __name__ == "__main__":

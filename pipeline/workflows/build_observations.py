@@ -1,0 +1,96 @@
+"""The policy's training inputs (the `build_observations` stage): every expert step replayed with the frozen
+inpainter into two graph observations, `guide` (the region-evaluated global graph) and `dare` (the observed
+graph only).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.paths import DATA, POLICIES, REPORTS
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.observations import (
+    ObservationConfig,
+    concatenate,
+    episode_observations,
+    save_observations,
+)
+from pipeline.data.shards import MANIFEST, read_manifest
+from pipeline.models.defaults import PIPELINE_INPAINTER, cached_inpainter
+from pipeline.prediction.global_graph import FEATURE_NAMES
+from pipeline.prediction.node_predictor import (
+    NodePredictor,
+    NodePredictorConfig,
+)
+from pipeline.world.protocol import Protocol
+
+EXPERT_DIR = DATA.expert
+SUMMARY = REPORTS.observations
+
+
+def _shard_observations(task: tuple) -> dict:
+    """Observations for every episode of one expert shard (runs in a worker process)."""
+    shard, first_episode_id, protocol_dict, inpainter, threshold, count_threshold, min_component, max_nodes, max_neighbors = task
+    import torch
+
+    torch.set_num_threads(1)
+
+    protocol = Protocol.from_dict(protocol_dict)
+    predictor_config = NodePredictorConfig(threshold, min_component, count_threshold=count_threshold)
+    predictor = NodePredictor(cached_inpainter(inpainter), predictor_config)
+    config = ObservationConfig(max_nodes, max_neighbors)
+    parts = [
+        episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k)
+        for k, episode in enumerate(load_expert_episodes(shard))
+    ]
+    return {variant: concatenate(p[variant] for p in parts) for variant in ("guide", "dare")}
+
+
+def build_observations(section: dict, protocol: Protocol):
+    """Both variants' graph observations from the `build_observations` settings; the summary."""
+    inpainter = Path(section["inpainter"] or PIPELINE_INPAINTER)
+    if not inpainter.is_file():
+        raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
+    # The manifest, not a folder listing: it is written last, so a collection that never
+    # finished (shards but no manifest) is refused instead of silently used in part.
+    if not (EXPERT_DIR / MANIFEST).is_file():
+        raise SystemExit(f"error: {EXPERT_DIR}: no finished expert data set (no {MANIFEST}); "
+                         "run the collect_expert stage first")
+    entries = read_manifest(EXPERT_DIR)["shards"]
+    shards = [EXPERT_DIR / entry["file"] for entry in entries]
+    if not shards:
+        raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
+    counts = [int(entry["episodes"]) for entry in entries]
+    firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    count_threshold = float(section["count_threshold"])
+    tasks = [
+        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), count_threshold,
+         int(section["min_component"]), int(section["max_nodes"]), int(section["max_neighbors"]))
+        for s, f in zip(shards, firsts)
+    ]
+    started = time.perf_counter()
+    workers = max(1, int(section["workers"]))
+    results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard")
+    seconds = time.perf_counter() - started
+    summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
+    for variant in ("guide", "dare"):
+        arrays = concatenate(r[variant] for r in results)
+        meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
+                "count_threshold": count_threshold, "protocol": protocol.to_dict()}
+        save_observations(POLICIES[variant].observations, arrays, meta)
+        mask = arrays["node_mask"]
+        summary[variant] = {
+            "samples": int(len(arrays["episode"])),
+            "nodes_median": float(np.median(mask.sum(axis=1))),
+            "predicted_nodes_median": float(np.median(arrays["features"][..., FEATURE_NAMES.index("is_predicted")].astype(np.float32).sum(axis=1))),
+            "truncated_share": float(mask.all(axis=1).mean()),  # steps whose graph filled every padded row
+        }
+    SUMMARY.parent.mkdir(parents=True, exist_ok=True)
+    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {DATA.observations}/")
+    return summary

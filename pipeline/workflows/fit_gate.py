@@ -1,0 +1,132 @@
+"""The sliver gate from greedy episodes (the `fit_gate` stage): run `greedy_utility` on training
+mazes and office floors, label every reachable target at every decision by the cells its scan
+would truly reveal, fit the gate on most maps and measure it on the rest, per family. Writes the
+gate, its metrics and held-out ROC curves, and logs one MLflow run in experiment "sliver_gate".
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.paths import DATA, REPORTS
+from pipeline.data.gate_samples import gate_samples
+from pipeline.models.defaults import PIPELINE_GATE
+from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
+from pipeline.world.maps import list_maps, load_map
+from pipeline.world.protocol import Protocol
+
+TRAIN_MAZES = DATA.mazes_train
+TRAIN_OFFICES = DATA.offices_train
+GATE_PATH = PIPELINE_GATE
+METRICS_PATH = REPORTS.sliver_gate
+FIGURE_PATH = REPORTS.sliver_gate_figure
+EXPERIMENT = "sliver_gate"
+def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
+    path, protocol, wall_margin = task
+    return gate_samples(load_map(path), Protocol.from_dict(protocol), wall_margin)
+
+
+def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(counts, gains) per map, in map order."""
+    tasks = [(str(m), protocol.to_dict(), wall_margin) for m in maps]
+    return map_with_progress(_samples, tasks, workers, "gate samples", "maze")
+
+
+def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5, 4.5))
+    for name, (fpr, tpr, auc) in curves.items():
+        ax.plot(fpr, tpr, label=f"{name} (AUC {auc:.3f})", lw=2 if name.startswith("gate") else 1)
+    ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, ls="--")
+    ax.set(xlabel="slivers passed (false positive rate)", ylabel="big targets passed (true positive rate)",
+           title="Sliver gate on held-out training maps")
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path]:
+    maps = list_maps(folder)[:count] if count else []
+    if count and len(maps) <= holdout:
+        raise ValueError(f"{folder}: {len(maps)} maps, need more than fit_gate.{what} = {holdout}")
+    return maps
+
+
+def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
+    """Fit, measure and write the gate from the `fit_gate` settings; the metrics written to
+    reports/sliver_gate.json."""
+    from sklearn.metrics import roc_curve
+
+    office_holdout = section["office_holdout"] if section["offices"] else 0
+    families = {  # family -> (maps, how many of the last are held out)
+        "mazes": (_family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"), section["holdout_maps"]),
+        "offices": (_family_maps(TRAIN_OFFICES, section["offices"], office_holdout, "office_holdout"), office_holdout),
+    }
+    started = time.perf_counter()
+    samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"])
+    fit, held = [], {}  # (counts, gains) per fitted map; per family, those of its held-out maps
+    for family, (maps, holdout) in families.items():
+        ours, samples = samples[: len(maps)], samples[len(maps):]
+        fit += ours[: len(maps) - holdout]
+        if holdout:
+            held[family] = ours[len(maps) - holdout:]
+    fit_gains = np.concatenate([g for _, g in fit])
+    gate = fit_sliver_gate(np.concatenate([c for c, _ in fit]), fit_gains, section["min_gain"], section["wall_margin"],
+                           protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]))
+    metrics: dict[str, Any] = {
+        "maps_fit": len(families["mazes"][0]) - section["holdout_maps"], "maps_holdout": section["holdout_maps"],
+        "offices_fit": len(families["offices"][0]) - office_holdout, "offices_holdout": office_holdout,
+        "hidden": list(section["hidden"]), "samples_fit": int(len(fit_gains)),
+        "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
+    }
+    curves = {}
+    for family, maps_held in held.items():
+        counts = np.concatenate([c for c, _ in maps_held])
+        labels = np.concatenate([g for _, g in maps_held]) >= gate.min_gain
+        probability = gate.probability(counts)
+        suffix = "holdout" if family == "mazes" else f"holdout_{family}"
+        metrics.update({f"samples_{suffix}": int(len(labels)), f"big_share_{suffix}": round(float(labels.mean()), 4),
+                        f"auc_{suffix}": round(roc_auc(probability, labels), 4),
+                        f"accuracy_{suffix}": round(float(((probability >= gate.threshold) == labels).mean()), 4),
+                        f"slivers_passed_{suffix}": round(float((probability[~labels] >= gate.threshold).mean()), 4),
+                        f"big_passed_{suffix}": round(float((probability[labels] >= gate.threshold).mean()), 4)})
+        curves[f"gate, {family}"] = (*roc_curve(labels, probability)[:2], metrics[f"auc_{suffix}"])
+        if family == "mazes":
+            for k, name in enumerate(FEATURES):
+                auc = round(roc_auc(gate_inputs(counts)[:, k], labels), 4)
+                metrics[f"auc_holdout_{name}"] = auc
+                curves[f"{name} alone, mazes"] = (*roc_curve(labels, counts[:, k])[:2], auc)
+    fitted_maps = [m.name for maps, holdout in families.values() for m in maps[: len(maps) - holdout]]
+    save_gate(gate, GATE_PATH, protocol.to_dict(), fitted_on={"maps": fitted_maps, **metrics})
+    metrics["seconds"] = round(time.perf_counter() - started, 1)  # in the report only: the gate file is a pure function of its inputs
+    METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
+    METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")
+    if curves:
+        roc_figure(curves, FIGURE_PATH)
+    log_run(section, protocol, metrics)
+    return metrics
+
+
+def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
+    mlflow = import_mlflow()
+    mlflow.set_tracking_uri(resolve_tracking_uri(None))
+    mlflow.set_experiment(EXPERIMENT)
+    with mlflow.start_run(run_name="fit_gate"):
+        mlflow.log_params({**protocol.to_dict(), **{f"fit_gate.{k}": v for k, v in section.items()}})
+        mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float))})
+        for path in (GATE_PATH, METRICS_PATH, FIGURE_PATH):
+            if path.is_file():
+                mlflow.log_artifact(str(path))

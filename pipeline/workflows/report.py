@@ -1,0 +1,124 @@
+"""The paper's Tables I-IV beside ours (the `report` stage): the denoising-steps sweep for Table IV, the tables,
+reports/report.md, its metrics, a trajectory figure, and one MLflow experiment per table.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from pipeline.common.paths import DATA, REPORTS
+from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
+from pipeline.reporting.report import (
+    log_tables_to_mlflow,
+    metrics_json,
+    read_metrics,
+    read_precision,
+    report_markdown,
+    sweep_label,
+    table1_markdown,
+    table2,
+    table2_markdown,
+    table3,
+    table3_markdown,
+    table4,
+    table4_markdown,
+    trajectory_figure,
+)
+from pipeline.workflows import table1
+from pipeline.world.maps import MapError, list_maps
+from pipeline.world.protocol import Protocol
+
+TEST_MAZES = DATA.mazes_test
+BENCHMARK_DIR = REPORTS.benchmark
+METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
+PRECISION_CSV = REPORTS.predictor / table1.PRECISION_CSV
+PRECISION_COMPARE_CSV = REPORTS.predictor / table1.COMPARE_CSV  # another inpainter, when eval_predictor ran one
+PRECISION_DETAIL_CSV = REPORTS.predictor / table1.DETAIL_CSV  # the same rows with V_u split up
+SWEEP_DIR = REPORTS.denoising_steps
+TABLES_DIR = REPORTS.tables
+REPORT_MD = REPORTS.report
+REPORT_JSON = REPORTS.report_metrics
+FIGURE_PATH = REPORTS.report_figure
+
+def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
+    """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
+    return [PlannerSpec(sweep_label(name, k), name, {option: int(k)}) for name in planners for k in k_values]
+
+
+def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
+    """The denoising-steps sweep into reports/denoising_steps/ (None when no K or no planner)."""
+    specs = sweep_specs(section["k_planners"], section["k_values"], section["k_option"])
+    if not specs:
+        return None
+    try:
+        return run_benchmark(
+            maps, specs, protocol, SWEEP_DIR, workers=section["workers"], seed=int(section["seed"])
+        )
+    except KeyError as error:  # an unregistered planner name
+        raise SystemExit(f"error: report.k_planners: {error.args[0]}") from None
+    except ValueError as error:  # an option the planner does not take
+        raise SystemExit(f"error: report.k_option: {error}") from None
+
+
+def write_report(section: dict, protocol: Protocol):
+    """The denoising-steps sweep, Tables I-IV, reports/report.md and its metrics from the `report` settings."""
+    if not METRICS_CSV.is_file():
+        raise SystemExit(
+            f"error: {METRICS_CSV} not found; run the benchmark stage first "
+            "(`dvc repro benchmark` or `python -m stages.benchmark`)"
+        )
+    try:
+        maps = list_maps(TEST_MAZES)
+    except MapError as error:
+        raise SystemExit(f"error: {error}; run the generate_mazes stage first") from None
+    if not maps:
+        raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
+
+    frame = read_metrics(METRICS_CSV)
+    sweep_maps = maps[: section["k_maps"]]
+    sweep = run_sweep(sweep_maps, section, protocol)
+    precision = read_precision(PRECISION_DETAIL_CSV)
+    if precision is None:
+        precision = read_precision(PRECISION_CSV)
+
+    tables = {
+        "table1": precision,
+        "table2": table2(frame),
+        "table3": table3(frame, section["ablation_planners"]),
+        "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
+    }
+    TABLES_DIR.mkdir(parents=True, exist_ok=True)
+    precision_compare = read_precision(PRECISION_COMPARE_CSV)
+    (TABLES_DIR / "table1.md").write_text(table1_markdown(precision, precision_compare))
+    (TABLES_DIR / "table2.md").write_text(table2_markdown(tables["table2"]))
+    (TABLES_DIR / "table3.md").write_text(table3_markdown(tables["table3"]))
+    (TABLES_DIR / "table4.md").write_text(
+        table4_markdown(tables["table4"]) if tables["table4"] is not None
+        else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n"
+    )
+
+    benchmark_maps = sorted(str(m) for m in frame["map"].unique())
+    map_order = {Path(p).stem: p for p in maps}
+    figure_maps = [map_order[name] for name in benchmark_maps if name in map_order]
+    try:
+        trajectory_figure(figure_maps, frame, BENCHMARK_DIR, section["figure_planners"], FIGURE_PATH, protocol)
+        figure = FIGURE_PATH.name
+    except ValueError as error:
+        raise SystemExit(f"error: report.figure_planners: {error}") from None
+
+    REPORT_MD.write_text(
+        report_markdown(
+            tables["table2"], tables["table3"], tables["table4"], precision,
+            maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
+            protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
+        )
+    )
+    metrics = metrics_json(tables)
+    REPORT_JSON.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    log_tables_to_mlflow(
+        tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)}
+    )
+    print(REPORT_MD.read_text())
+    return metrics

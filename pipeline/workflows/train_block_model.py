@@ -1,0 +1,134 @@
+"""The block model the lookahead draws its imagined maps from (the `train_block_model` stage).
+
+Draws its own mazes (maze i from seed [maze_seed, i], as `guide mazes` draws them): the block
+model is a prior of one maze family and size. Runs gated `greedy_utility` on each, takes the
+belief's block shares every `snapshot_every` steps with the maze's true blocks, trains the block
+model on all but the last `holdout_mazes` and measures its error on those (the unknown blocks
+near the known free space, where the lookahead draws its maps). Writes the model, its metrics and
+a figure, and logs one MLflow run in experiment "block_model".
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.paths import REPORTS
+from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.defaults import PIPELINE_BLOCK_MODEL
+from pipeline.models.modeling_block_model import save_block_model
+from pipeline.training.block_model import (
+    BlockSamples,
+    block_error,
+    block_snapshots,
+    train_block_model,
+)
+from pipeline.world.maps import load_map
+from pipeline.world.mazes import MazeConfig, generate_maze_set
+from pipeline.world.protocol import Protocol
+
+MODEL_PATH = PIPELINE_BLOCK_MODEL
+METRICS_PATH = REPORTS.block_model
+FIGURE_PATH = REPORTS.block_model_figure
+EXPERIMENT = "block_model"
+
+def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
+    """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
+    side = section["side_m"]
+    if isinstance(side, bool) or not isinstance(side, (int, float)):
+        raise ValueError(f"must be a number of metres, got {side!r}")
+    return MazeConfig(side_m=(float(side), float(side)), block_m=config.block_m, cell_size=protocol.cell_size)
+
+
+def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarray]:
+    path, protocol, block_m, every = task
+    return block_snapshots(load_map(path), Protocol.from_dict(protocol), block_m, every)
+
+
+def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarray, np.ndarray] | None, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.4))
+    epochs = [row["epoch"] for row in history]
+    axes[0].plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
+    axes[0].plot(epochs, [row["held_out_error"] for row in history], "s-", label="held-out block error")
+    axes[0].set(xlabel="epoch", title="Block model")
+    axes[0].legend(fontsize=8)
+    if example is not None:
+        shares, probability, truth = example
+        seen = np.where(shares[2] > 0.5, 0.5, shares[0] > 0.5)
+        for ax, image, title in zip(axes[1:], (seen, probability, truth), ("seen (grey: unknown)", "P(free)", "true blocks")):
+            ax.imshow(image, cmap="gray", vmin=0, vmax=1)
+            ax.set(title=title, xticks=[], yticks=[])
+    else:
+        for ax in axes[1:]:
+            ax.axis("off")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol) -> dict[str, Any]:
+    """Collect, train, measure and write the block model from the `train_block_model` settings;
+    the metrics written."""
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as folder:
+        maps = generate_maze_set(maze_config(section, config, protocol), section["mazes"], folder, seed=section["maze_seed"])
+        tasks = [(str(m), protocol.to_dict(), config.block_m, section["snapshot_every"]) for m in maps]
+        collected = map_with_progress(_snapshots, tasks, section["workers"], "block snapshots", "maze")
+    fit_count = len(maps) - section["holdout_mazes"]
+    train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])
+    held_out = BlockSamples([s for s, _ in collected[fit_count:]], [t for _, t in collected[fit_count:]])
+    collect_seconds = time.perf_counter() - started
+    model, history = train_block_model(train, held_out, config, section["epochs"], section["batch_size"], section["lr"],
+                                       section["reveal_share"], section["seed"],
+                                       log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True))
+    error, all_wall_error = block_error(model, held_out) if len(held_out) else (float("nan"), float("nan"))
+    metrics: dict[str, Any] = {
+        "mazes_fit": fit_count, "mazes_holdout": section["holdout_mazes"],
+        "snapshots_fit": len(train), "snapshots_holdout": len(held_out),
+        "held_out_error": round(error, 4) if len(held_out) else None,  # unknown blocks within 20 m of the known free space
+        "held_out_error_all_wall": round(all_wall_error, 4) if len(held_out) else None,  # guessing "wall" there
+        "history": [{k: round(v, 4) for k, v in row.items()} for row in history],
+        "parameters": sum(p.numel() for p in model.parameters()),
+    }
+    save_block_model(model, MODEL_PATH, {"mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed")}, "protocol": protocol.to_dict(),
+                                         **{k: v for k, v in metrics.items() if k != "history"}})
+    metrics["collect_seconds"] = round(collect_seconds, 1)
+    metrics["train_seconds"] = round(sum(row["seconds"] for row in history), 1)
+    METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
+    METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")
+    example = None
+    if len(held_out):
+        shares = held_out.shares[0][len(held_out.shares[0]) // 3]
+        example = (shares, model.free_probability(shares), held_out.truth[0])
+    figure(history, example, FIGURE_PATH)
+    log_run(section, config, protocol, metrics, history)
+    return metrics
+
+
+def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol, metrics: dict[str, Any],
+            history: list[dict[str, float]]) -> None:
+    mlflow = import_mlflow()
+    mlflow.set_tracking_uri(resolve_tracking_uri(None))
+    mlflow.set_experiment(EXPERIMENT)
+    with mlflow.start_run(run_name="train_block_model"):
+        mlflow.log_params({**protocol.to_dict(), **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
+                           **{f"model.{k}": v for k, v in config.to_dict().items()}})
+        mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
+        for row in history:
+            mlflow.log_metrics({"epoch_loss": row["loss"], "epoch_held_out_error": row["held_out_error"]}, step=int(row["epoch"]))
+        for path in (MODEL_PATH, METRICS_PATH, FIGURE_PATH):
+            if path.is_file():
+                mlflow.log_artifact(str(path))
