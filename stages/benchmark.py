@@ -1,9 +1,9 @@
 """DVC stage: benchmark the configured planners on the test mazes.
 
-Reads the `benchmark` section (planners, seed, workers) and the shared `protocol`
+Reads the `benchmark` section (planners, seed, workers, speed_mps) and the shared `protocol`
 section of params.yaml. Writes docs/protocol.md's outputs under reports/benchmark/, the
-DVC metrics file reports/benchmark.json, a PNG bar chart and a side-by-side trajectory
-figure, and one MLflow run per planner.
+DVC metrics file reports/benchmark.json, a PNG bar chart, the coverage curves and a side-by-side
+trajectory figure, and one MLflow run per planner.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pipeline.world.protocol import Protocol
 
 def read_params(params_path: str | Path) -> tuple[dict, Protocol]:
     params = load_params(params_path)
-    section = complete_section(params, "benchmark", params_path, ("planners", "seed", "workers"))
+    section = complete_section(params, "benchmark", params_path, ("planners", "seed", "workers", "speed_mps"))
     if not isinstance(section["planners"], list) or not section["planners"]:
         raise ValueError(f"{params_path}: the 'benchmark' section needs a 'planners' list")
     return section, Protocol.from_dict(params.get("protocol") or {})

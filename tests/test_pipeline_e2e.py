@@ -62,6 +62,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     metrics = json.loads((project / "reports/benchmark.json").read_text())
     assert set(metrics) == {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
     assert all(m["completion_rate"] == 1.0 for m in metrics.values())
+    assert all(0 < m["coverage_auc"] <= 1 and m["efficiency_m2_per_m"] > 0 for m in metrics.values())
     assert json.loads((project / "reports/pairs_summary.json").read_text())["pairs"] == 12
     assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
     assert (project / "models/inpainter/inpainter.pt").is_file()
@@ -72,11 +73,11 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
         assert (project / f"models/planner_{variant}/policy.pt").is_file()
         assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 1
     report = (project / "reports/report.md").read_text()
-    assert "Table II" in report and "Table IV" in report
+    assert "Table II" in report and "Table IV" in report and "## Table V" in report and "coverage.png" in report
     assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
                "reports/pairs_preview.png", "reports/expert_episode.png", "reports/trajectories.png",
-               "reports/planner_guide_curves.png")
+               "reports/planner_guide_curves.png", "reports/coverage.png", "reports/benchmark/coverage.png")
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()

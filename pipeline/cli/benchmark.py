@@ -22,6 +22,7 @@ from pipeline.cli.options import (
     warn,
 )
 from pipeline.evaluation.benchmark import BenchmarkInterrupted
+from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
 from pipeline.workflows.benchmark import benchmark_folder
 from pipeline.world.maps import MapError
 
@@ -49,17 +50,28 @@ def benchmark(
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+    speed_mps: float = typer.Option(PAPER_SPEED_MPS, help="The robot's speed for exploration time and the "
+                                                          "per-second efficiency (m/s) [default: the paper's maximum]."),
 ) -> None:
     """Run every map in a folder with each planner, in parallel, and summarise.
 
+    Writes per planner OUT/<label>/<map>.csv (the trajectory) and <map>.steps.csv (the per-step
+    record), and OUT/metrics.csv, summary.md, exploration.csv (distance to 50 / 90 / 99 % of the
+    free area, coverage AUC, Table V efficiency), coverage.png and run.json.
+
     Exits 1 when an episode did not complete (the files are written either way).
     """
+    try:
+        speed = SpeedModel(speed_mps)
+    except ValueError as error:
+        fail(f"--speed-mps: {error}")
     check_out_dir(out)
     rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
     try:
         frame = benchmark_folder(maps, list(planner), rules, out, workers=workers, seed=seed, baseline=baseline,
                                  start=start, checkpoint=checkpoint, tracking_uri=tracking_uri,
-                                 experiment=experiment, mlflow=mlflow_log, warn=warn)
+                                 experiment=experiment, mlflow=mlflow_log, warn=warn,
+                                 speed=speed)
     except BenchmarkInterrupted as stop:
         kept = f"; {out}/metrics.csv and summary.md hold them" if stop.done else ""
         typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}", err=True)
@@ -67,8 +79,8 @@ def benchmark(
     except (MapError, ValueError, FileNotFoundError) as error:  # a malformed spec, an unknown option or name, no model
         fail(str(error))
     typer.echo((out / "summary.md").read_text(), nl=False)
-    typer.echo(f"wrote {out}/metrics.csv, {out}/summary.md, {out}/run.json and {len(frame)} "
-               f"trajector{'ies' if len(frame) != 1 else 'y'}")
+    typer.echo(f"wrote {out}/metrics.csv, summary.md, exploration.csv, coverage.png, run.json and {len(frame)} "
+               f"trajector{'ies' if len(frame) != 1 else 'y'} with their per-step files")
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)

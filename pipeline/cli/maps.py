@@ -18,7 +18,7 @@ from pipeline.world.offices import OfficeConfig, generate_office_set
 from pipeline.world.protocol import protocol_for_map
 from pipeline.world.resample import resample_map, write_ros_map
 from pipeline.world.simulator import replay as replay_trajectory
-from pipeline.world.trajectories import read_trajectory_csv, recorded_start
+from pipeline.world.trajectories import read_trajectory_csv, recorded_start, write_steps_csv
 
 app = typer.Typer(rich_markup_mode=None)
 
@@ -129,6 +129,9 @@ def replay(
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     done_unknown_cells: int = DoneCells,
     oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
+    steps_csv: Optional[Path] = typer.Option(None, help="Also write the per-step record (step, distance, explored "
+                                                    "area and share) recomputed from the trajectory alone, as "
+                                                    "benchmark's OUT/<label>/<map>.steps.csv without decision times."),
 ) -> None:
     """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON.
 
@@ -145,6 +148,10 @@ def replay(
         result = replay_trajectory(ground_truth, points, protocol_for_map(rules, ground_truth, map_path), oracle=oracle)
     except (MapError, ValueError) as error:
         fail(str(error))
+    if steps_csv is not None:
+        if steps_csv.resolve() == trajectory.resolve():
+            fail(f"--steps-csv {steps_csv} would overwrite the trajectory being replayed; write it elsewhere")
+        write_steps_csv(steps_csv, result.step_rows())
     typer.echo(
         json.dumps(
             {

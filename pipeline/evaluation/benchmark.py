@@ -17,6 +17,14 @@ import pandas as pd
 import scipy.stats
 from tqdm import tqdm
 
+from pipeline.evaluation.exploration_curves import (
+    EXPLORATION_CSV,
+    SpeedModel,
+    episode_table,
+    exploration_markdown,
+    planner_table,
+    records_from_results,
+)
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
 from pipeline.models.exports import require_file
 from pipeline.planners.config import SPEC_KINDS, OptionInfo
@@ -25,11 +33,18 @@ from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
-from pipeline.world.trajectories import METRICS_COLUMNS, write_metrics_csv, write_trajectory_csv
+from pipeline.world.trajectories import (
+    METRICS_COLUMNS,
+    steps_path,
+    write_metrics_csv,
+    write_steps_csv,
+    write_trajectory_csv,
+)
 
 REFERENCE_PLANNER = "optimal"
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
-OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD)  # a label names a folder beside these
+COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
+OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
 _LABEL = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")  # a label names a folder and an MLflow run
 
@@ -248,8 +263,9 @@ def run_benchmark(
     baseline: str | None = DEFAULT_BASELINE,
     start: tuple[float, float] | None = None,
     warn: Callable[[str], None] | None = None,
+    speed: SpeedModel = SpeedModel(),
 ) -> pd.DataFrame:
-    """Run every map with every planner; write trajectories, metrics.csv and summary.md.
+    """Run every map with every planner; write trajectories, their per-step files, metrics.csv and summary.md.
 
     A planner entry is a registered name or a labelled variant "label=name:key=value,..."
     (see `parse_planner_spec`), or a PlannerSpec; the label is the `planner` column of
@@ -260,6 +276,8 @@ def run_benchmark(
     `start` overrides every map's start (see `load_map`); a .npy grid has no start of its own.
     `warn` receives a line for each map no planner can complete (`map_checks`), before the
     episodes, and after them the likely reason for each map an episode failed on.
+    `speed` turns distances and decision times into exploration time (exploration.csv's per-second
+    efficiency; `exploration_curves.SpeedModel`).
     """
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
@@ -285,7 +303,7 @@ def run_benchmark(
                       "its metrics.csv and summary.md list only this run's", stacklevel=2)
     protocol_record = recorded_protocol(protocol, sorted(cell_sizes))
     write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start,
-                     protocol_record, [str(path) for path in map_paths])
+                     protocol_record, [str(path) for path in map_paths], speed)
     for planner in built:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)
     tasks = [
@@ -310,10 +328,10 @@ def run_benchmark(
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         bar.close()
         if results:
-            _write_tables(results, out_dir, protocol_record, baseline)
+            _write_tables(results, out_dir, protocol_record, baseline, speed)
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     bar.close()
-    frame = _write_tables(results, out_dir, protocol_record, baseline)
+    frame = _write_tables(results, out_dir, protocol_record, baseline, speed)
     if warn is not None:
         for hint in failure_hints(frame, loaded):
             warn(hint)
@@ -347,10 +365,13 @@ class BenchmarkInterrupted(KeyboardInterrupt):
 
 
 def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_record: dict[str, Any],
-                  baseline: str | None) -> pd.DataFrame:
+                  baseline: str | None, speed: SpeedModel) -> pd.DataFrame:
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
-    (out_dir / "summary.md").write_text(summary_markdown(frame, protocol_record, baseline))
+    exploration = planner_table(episode_table(records_from_results(results), speed), speed)
+    exploration.to_csv(out_dir / EXPLORATION_CSV, index=False, float_format="%.6g")
+    (out_dir / "summary.md").write_text(summary_markdown(frame, protocol_record, baseline)
+                                        + "\n" + exploration_markdown(exploration))
     return frame
 
 
@@ -364,16 +385,17 @@ def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[s
 
 def write_run_record(
     path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None,
-    protocol: dict[str, Any], maps: Sequence[str],
+    protocol: dict[str, Any], maps: Sequence[str], speed: SpeedModel = SpeedModel(),
 ) -> dict[str, Any]:
     """What ran: per label the planner, its options and its description (which names the policy
     and predictor files a learned planner loaded), with the seed, any start override, the
-    protocol (`recorded_protocol`) and the maps."""
+    protocol (`recorded_protocol`), the maps and the speed model's speed."""
     record = {
         "seed": seed,
         "start": list(start) if start is not None else None,
         "protocol": protocol,
         "maps": list(maps),
+        "speed_mps": speed.speed_mps,
         "planners": {
             spec.label: {"name": spec.name, "options": dict(spec.options), "description": description}
             for spec, description in zip(specs, descriptions)
@@ -386,7 +408,8 @@ def write_run_record(
 def _write_result(result: EpisodeResult, task: EpisodeTask, out_dir: Path) -> EpisodeResult:
     result.map_name = Path(task.map_path).stem
     result.planner = task.label
-    write_trajectory_csv(out_dir / task.label / f"{result.map_name}.csv", result.trajectory)
+    trajectory = write_trajectory_csv(out_dir / task.label / f"{result.map_name}.csv", result.trajectory)
+    write_steps_csv(steps_path(trajectory), result.step_rows())
     return result
 
 

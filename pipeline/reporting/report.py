@@ -56,6 +56,13 @@ PAPER_TABLE4: dict[str, dict[int, tuple[float, float]]] = {
     "GUIDE": {10: (0.177, 579.0), 30: (0.227, 533.0), 50: (0.663, 532.0), 100: (1.283, 530.0)},
     "DARE": {10: (0.163, 762.0), 30: (0.211, 747.0), 50: (0.647, 724.0), 100: (1.271, 708.0)},
 }
+# Table V: two Gazebo scenes (3-D, 5 runs each): scene -> method -> (distance m, time s, m^3/m, m^3/s).
+PAPER_TABLE5: dict[str, dict[str, tuple[float, float, float, float]]] = {
+    "Scene 1 (64 x 85 m)": {"TARE": (1064.72, 585.53, 5.11, 9.29), "DRL": (741.15, 536.77, 7.34, 10.13),
+                            "DARE": (681.41, 482.82, 7.98, 11.27), "GUIDE": (537.18, 432.11, 10.13, 12.59)},
+    "Scene 2 (92 x 74 m)": {"TARE": (1033.72, 615.37, 6.58, 11.06), "DRL": (759.88, 635.36, 8.96, 10.72),
+                            "DARE": (797.38, 623.27, 8.54, 10.93), "GUIDE": (531.37, 513.09, 12.81, 13.27)},
+}
 # Our registered planner names -> the paper's row names (planners without a row show DASH).
 PAPER_ROWS: dict[str, str] = {
     "nbvp": "NBVP",
@@ -72,7 +79,10 @@ TABLE_EXPERIMENTS: dict[str, str] = {
     "table2": "table2_benchmark",
     "table3": "table3_ablation",
     "table4": "table4_denoising_steps",
+    "table5": "table5_efficiency",
 }
+TABLE5_COLUMNS = ("planner", "maps", "explored_m2", "distance_m", "time_s", "efficiency_m2_per_m",
+                  "efficiency_m2_per_s", "distance_to_90_m", "distance_to_99_m", "coverage_auc")
 REQUIRED_COLUMNS = ("map", "planner", "distance_m", "complete", "decision_ms_median", "decision_ms_p95")
 
 
@@ -354,6 +364,48 @@ def table4_markdown(table: pd.DataFrame, title: str = "Table IV: denoising steps
 
 
 # --------------------------------------------------------------------------- Table I
+def table5(exploration: pd.DataFrame) -> pd.DataFrame:
+    """Table V on our maps from a benchmark's exploration.csv (`exploration_curves.planner_table`):
+    per planner the explored area, distance, time, and the two efficiencies, best per metre first."""
+    missing = [c for c in TABLE5_COLUMNS if c not in exploration.columns]
+    if missing:
+        raise ValueError(f"exploration table lacks {', '.join(missing)}; rerun the benchmark stage")
+    table = exploration.loc[:, list(TABLE5_COLUMNS)].sort_values("efficiency_m2_per_m", ascending=False)
+    return table.reset_index(drop=True)
+
+
+def table5_markdown(table: pd.DataFrame | None, speed_mps: float | None = None,
+                    title: str = "Table V: exploration efficiency") -> str:
+    """Ours (2-D mazes, m^2) beside the paper's (3-D Gazebo scenes, m^3): compare orderings, not values."""
+    lines = [f"## {title}", ""]
+    if table is None or table.empty:
+        return "\n".join(lines + [f"{NOT_RUN}: the benchmark wrote no exploration.csv.", ""])
+    speed = f"{speed_mps:g} m/s" if speed_mps else "the benchmark's speed"
+    lines += [
+        f"Ours, on the test mazes: explored free area per metre and per second of a robot at {speed} that waits "
+        "while its planner decides (means of per-map ratios; distances to 90 and 99 % of the free area, and "
+        "the coverage AUC, the mean explored share over each maze's longest episode).",
+        "",
+        "| planner | maps | explored (m^2) | distance (m) | time (s) | m^2 / m | m^2 / s | to 90 % (m) | to 99 % (m) "
+        "| coverage AUC | paper row |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for row in table.itertuples(index=False):
+        lines.append(
+            f"| {row.planner} | {int(row.maps)} | {_num(row.explored_m2, '{:.0f}')} | {_num(row.distance_m)} | "
+            f"{_num(row.time_s)} | {_num(row.efficiency_m2_per_m, '{:.2f}')} | {_num(row.efficiency_m2_per_s, '{:.2f}')} | "
+            f"{_num(row.distance_to_90_m)} | {_num(row.distance_to_99_m)} | {_num(row.coverage_auc, '{:.3f}')} | "
+            f"{paper_row(str(row.planner))} |"
+        )
+    lines += ["", "The paper's, in two 3-D Gazebo scenes (volume, m^3; 5 runs each): not comparable in value, "
+              "only in ordering.", "",
+              "| scene | method | distance (m) | time (s) | m^3 / m | m^3 / s |", "|---|---|---:|---:|---:|---:|"]
+    for scene, methods in PAPER_TABLE5.items():
+        for method, (distance, seconds, per_m, per_s) in methods.items():
+            lines.append(f"| {scene} | {method} | {distance:.1f} | {seconds:.1f} | {per_m:.2f} | {per_s:.2f} |")
+    return "\n".join(lines) + "\n"
+
+
 def read_precision(path: str | Path) -> pd.DataFrame | None:
     """The eval_predictor stage's precision.csv, or None when it does not exist."""
     path = Path(path)
@@ -448,8 +500,11 @@ def report_markdown(
     params: Mapping[str, Any] | None = None,
     figure: str | None = None,
     precision_compare: pd.DataFrame | None = None,
+    table5_frame: pd.DataFrame | None = None,
+    speed_mps: float | None = None,
+    coverage_figure: str | None = None,
 ) -> str:
-    """reports/report.md: a header naming the maps and parameters, then Tables I-IV."""
+    """reports/report.md: a header naming the maps and parameters, then Tables I-V and the figures."""
     lines = ["# GUIDE reimplementation: results beside the paper's", ""]
     if maps:
         lines.append(f"- Benchmark maps ({len(maps)}): {', '.join(maps)}")
@@ -460,7 +515,7 @@ def report_markdown(
     if params:
         lines.append("- Report parameters: " + ", ".join(f"{k}={_param_text(v)}" for k, v in params.items()))
     lines.append(
-        "- Paper numbers: Tables I-III on 100 test mazes, Table IV in Gazebo scenes; our profile is smaller, "
+        "- Paper numbers: Tables I-III on 100 test mazes, Tables IV-V in Gazebo scenes; our profile is smaller, "
         "so compare orderings and gaps rather than absolute metres."
     )
     lines.append("")
@@ -470,8 +525,11 @@ def report_markdown(
         table3_markdown(table3_frame),
         table4_markdown(table4_frame) if table4_frame is not None
         else f"## Table IV: denoising steps K\n\n{NOT_RUN}: no sweep was configured.\n",
+        table5_markdown(table5_frame, speed_mps),
     ]
     text = "\n".join(lines) + "\n" + "\n".join(sections)
+    if coverage_figure:
+        text += f"\n## Coverage curves\n\n![coverage curves]({coverage_figure})\n"
     if figure:
         text += f"\n## Trajectories\n\n![trajectories]({figure})\n"
     return text

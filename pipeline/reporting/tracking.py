@@ -8,7 +8,8 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.evaluation.benchmark import RUN_RECORD, summarise
+from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, summarise
+from pipeline.evaluation.exploration_curves import EXPLORATION_CSV
 from pipeline.world.protocol import Protocol
 
 
@@ -21,7 +22,9 @@ def log_benchmark(
     experiment: str = "benchmark",
 ) -> list[str]:
     """One MLflow run per planner: protocol params, the planner's name, options and description
-    (from the benchmark's run.json), summary metrics, summary and metrics.csv.
+    (from the benchmark's run.json), summary metrics, the exploration metrics (exploration.csv:
+    distance to 50 / 90 / 99 %, coverage AUC, Table V efficiency), and as artifacts summary.md,
+    metrics.csv, exploration.csv and the coverage figure.
 
     Returns the run ids.
     """
@@ -32,6 +35,9 @@ def log_benchmark(
     summary = summarise(frame)
     record_path = out_dir / RUN_RECORD
     record = json.loads(record_path.read_text()) if record_path.is_file() else {}
+    exploration_path = out_dir / EXPLORATION_CSV
+    exploration = (pd.read_csv(exploration_path).set_index("planner") if exploration_path.is_file()
+                   else pd.DataFrame())
     run_ids = []
     for planner, row in summary.iterrows():
         with mlflow.start_run(run_name=str(planner)) as run:
@@ -53,10 +59,23 @@ def log_benchmark(
                     "completion_rate": float(row.completion_rate),
                     "decision_ms_median": float(row.decision_ms_median),
                     "decision_ms_p95": float(row.decision_ms_p95),
+                    **exploration_metrics(exploration, str(planner)),
                 }
             )
-            for name in ("summary.md", "metrics.csv"):
+            for name in ("summary.md", "metrics.csv", EXPLORATION_CSV, COVERAGE_FIGURE):
                 if (out_dir / name).is_file():
                     mlflow.log_artifact(str(out_dir / name))
             run_ids.append(run.info.run_id)
     return run_ids
+
+
+EXPLORATION_METRICS = ("distance_to_50_m", "distance_to_90_m", "distance_to_99_m", "coverage_auc",
+                       "efficiency_m2_per_m", "efficiency_m2_per_s", "time_s")
+
+
+def exploration_metrics(exploration: pd.DataFrame, planner: str) -> dict[str, float]:
+    """A planner's finite exploration.csv figures as MLflow metrics (a level no map reached is left out)."""
+    if planner not in exploration.index:
+        return {}
+    row = exploration.loc[planner]
+    return {name: float(row[name]) for name in EXPLORATION_METRICS if name in row and pd.notna(row[name])}

@@ -13,14 +13,17 @@ import pandas as pd
 from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import (
+    COVERAGE_FIGURE,
     DEFAULT_BASELINE,
     parse_planner_spec,
     run_benchmark,
     summarise,
     with_policy_checkpoint,
 )
+from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.render import render_comparison, save_png
-from pipeline.reporting.tracking import log_benchmark
+from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.world.maps import MapError, list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.trajectories import read_trajectory_csv
@@ -41,9 +44,11 @@ def benchmark_folder(
     experiment: str = "benchmark",
     mlflow: bool = True,
     warn: Callable[[str], None] | None = None,
+    speed: SpeedModel = SpeedModel(),
 ) -> pd.DataFrame:
-    """Every map in `maps` with each planner spec; writes OUT's trajectories, metrics.csv, summary.md
-    and run.json, and logs one MLflow run per planner when `mlflow`.
+    """Every map in `maps` with each planner spec; writes OUT's trajectories and their per-step files,
+    metrics.csv, summary.md, exploration.csv, the coverage figure and run.json, and logs one MLflow
+    run per planner when `mlflow`.
 
     `baseline`: the label summary.md compares every planner with (None: greedy_utility when it
     runs; "": none). `checkpoint`: a policy for every diffusion planner. The MLflow store is
@@ -61,10 +66,21 @@ def benchmark_folder(
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
     frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
-                          start=start, warn=warn)
+                          start=start, warn=warn, speed=speed)
+    draw_coverage(frame, out, speed)
     if mlflow:
         log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
     return frame
+
+
+def draw_coverage(frame: pd.DataFrame, out: Path, speed: SpeedModel) -> Path:
+    """OUT/coverage.png from the benchmark's per-step files."""
+    return coverage_figure(read_step_records(out, frame), Path(out) / COVERAGE_FIGURE, speed,
+                           title=f"Coverage curves on {maps_text(frame['map'].nunique())}: mean, band one standard deviation")
+
+
+def maps_text(count: int) -> str:
+    return f"{count} map{'s' if count != 1 else ''}"
 
 
 TEST_MAZES = DATA.mazes_test
@@ -111,10 +127,13 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
     maps = list_maps(TEST_MAZES)
     if not maps:
         raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
+    speed = SpeedModel(section["speed_mps"])
     frame = run_benchmark(
-        maps, section["planners"], protocol, OUT_DIR, workers=section["workers"], seed=int(section["seed"])
+        maps, section["planners"], protocol, OUT_DIR, workers=section["workers"], seed=int(section["seed"]), speed=speed
     )
+    draw_coverage(frame, OUT_DIR, speed)
     summary = summarise(frame)
+    exploration = pd.read_csv(OUT_DIR / EXPLORATION_CSV).set_index("planner")
     METRICS_PATH.write_text(
         json.dumps(
             {
@@ -123,6 +142,7 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
                     "distance_std_m": round(float(row.distance_std_m), 2),
                     "completion_rate": round(float(row.completion_rate), 4),
                     "decision_ms_median": round(float(row.decision_ms_median), 3),
+                    **{name: round(value, 4) for name, value in exploration_metrics(exploration, str(planner)).items()},
                 }
                 for planner, row in summary.iterrows()
             },

@@ -1,5 +1,5 @@
 """Explore one map with one planner and write what `guide explore` shows: trajectory CSV,
-metrics, the final picture (and an animation), and run.json saying what ran."""
+its per-step record, metrics, the final picture (and an animation), and run.json saying what ran."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from pipeline.reporting.render import EpisodeRecorder, render_final
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, final_belief, run_episode
-from pipeline.world.trajectories import write_metrics_csv, write_trajectory_csv
+from pipeline.world.trajectories import steps_path, write_metrics_csv, write_steps_csv, write_trajectory_csv
 
 DEFAULT_OUT = Path("runs/explore")
 
@@ -72,6 +72,7 @@ def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bo
         result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=on_step)
     result.planner = exploration.label
     written = [write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)]
+    written.append(write_steps_csv(steps_path(written[0]), result.step_rows()))
     write_metrics_csv(out / "metrics.csv", [result.metrics_row()])
     written.append(out / "metrics.csv")
     render_final(result, ground_truth, final_belief(ground_truth, result.trajectory, protocol),

@@ -1,5 +1,5 @@
-"""The paper's Tables I-IV beside ours (the `report` stage): the denoising-steps sweep for Table IV, the tables,
-reports/report.md, its metrics, a trajectory figure, and one MLflow experiment per table.
+"""The paper's Tables I-V beside ours (the `report` stage): the denoising-steps sweep for Table IV, the tables,
+reports/report.md, its metrics, a trajectory figure, the coverage curves, and one MLflow experiment per table.
 """
 
 from __future__ import annotations
@@ -9,7 +9,11 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.paths import DATA, REPORTS
+import pandas as pd
+
 from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
+from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.report import (
     log_tables_to_mlflow,
     metrics_json,
@@ -24,6 +28,8 @@ from pipeline.reporting.report import (
     table3_markdown,
     table4,
     table4_markdown,
+    table5,
+    table5_markdown,
     trajectory_figure,
 )
 from pipeline.workflows import table1
@@ -33,6 +39,7 @@ from pipeline.world.protocol import Protocol
 TEST_MAZES = DATA.mazes_test
 BENCHMARK_DIR = REPORTS.benchmark
 METRICS_CSV = BENCHMARK_DIR / "metrics.csv"
+EXPLORATION_PATH = BENCHMARK_DIR / EXPLORATION_CSV
 PRECISION_CSV = REPORTS.predictor / table1.PRECISION_CSV
 PRECISION_COMPARE_CSV = REPORTS.predictor / table1.COMPARE_CSV  # another inpainter, when eval_predictor ran one
 PRECISION_DETAIL_CSV = REPORTS.predictor / table1.DETAIL_CSV  # the same rows with V_u split up
@@ -41,6 +48,7 @@ TABLES_DIR = REPORTS.tables
 REPORT_MD = REPORTS.report
 REPORT_JSON = REPORTS.report_metrics
 FIGURE_PATH = REPORTS.report_figure
+COVERAGE_PATH = REPORTS.coverage_figure
 
 def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
     """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
@@ -63,7 +71,7 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
 
 
 def write_report(section: dict, protocol: Protocol):
-    """The denoising-steps sweep, Tables I-IV, reports/report.md and its metrics from the `report` settings."""
+    """The denoising-steps sweep, Tables I-V, the figures, reports/report.md and its metrics from the `report` settings."""
     if not METRICS_CSV.is_file():
         raise SystemExit(
             f"error: {METRICS_CSV} not found; run the benchmark stage first "
@@ -83,17 +91,23 @@ def write_report(section: dict, protocol: Protocol):
     if precision is None:
         precision = read_precision(PRECISION_CSV)
 
+    exploration = read_exploration(EXPLORATION_PATH)
+    speed = SpeedModel(float(exploration["speed_mps"].iloc[0]))
     tables = {
         "table1": precision,
         "table2": table2(frame),
         "table3": table3(frame, section["ablation_planners"]),
         "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
+        "table5": table5(exploration),
     }
     TABLES_DIR.mkdir(parents=True, exist_ok=True)
     precision_compare = read_precision(PRECISION_COMPARE_CSV)
     (TABLES_DIR / "table1.md").write_text(table1_markdown(precision, precision_compare))
     (TABLES_DIR / "table2.md").write_text(table2_markdown(tables["table2"]))
     (TABLES_DIR / "table3.md").write_text(table3_markdown(tables["table3"]))
+    (TABLES_DIR / "table5.md").write_text(table5_markdown(tables["table5"], speed.speed_mps))
+    coverage_figure(read_step_records(BENCHMARK_DIR, frame), COVERAGE_PATH, speed,
+                    title=f"Coverage curves on the {frame['map'].nunique()} test mazes: mean, band one standard deviation")
     (TABLES_DIR / "table4.md").write_text(
         table4_markdown(tables["table4"]) if tables["table4"] is not None
         else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n"
@@ -113,6 +127,7 @@ def write_report(section: dict, protocol: Protocol):
             tables["table2"], tables["table3"], tables["table4"], precision,
             maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
             protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
+            table5_frame=tables["table5"], speed_mps=speed.speed_mps, coverage_figure=COVERAGE_PATH.name,
         )
     )
     metrics = metrics_json(tables)
@@ -122,3 +137,14 @@ def write_report(section: dict, protocol: Protocol):
     )
     print(REPORT_MD.read_text())
     return metrics
+
+
+def read_exploration(path: Path) -> pd.DataFrame:
+    """The benchmark stage's exploration.csv (SystemExit naming the stage to rerun when it is missing)."""
+    if not path.is_file():
+        raise SystemExit(f"error: {path} not found; rerun the benchmark stage (`dvc repro benchmark`), "
+                         "which writes it beside metrics.csv")
+    exploration = pd.read_csv(path)
+    if exploration.empty or "speed_mps" not in exploration.columns:
+        raise SystemExit(f"error: {path}: no planner rows or no speed_mps column; rerun the benchmark stage")
+    return exploration

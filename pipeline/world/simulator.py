@@ -40,6 +40,29 @@ class EpisodeResult:
     failure: str = ""
     motion_violations: int = 0
     complete_after_waypoint: int | None = None  # 1-based row of the trajectory, start = 1
+    # Per trajectory row (the start first): distance so far, belief free cells after sensing there,
+    # and the decision time charged to the row (a plan's time to its first waypoint, 0 to the rest).
+    distances: list[float] = field(default_factory=list)
+    explored_cells: list[int] = field(default_factory=list)
+    waypoint_decision_ms: list[float] = field(default_factory=list)
+    free_cell_count: int = 0  # ground-truth free cells: the explored share's denominator
+    cell_size: float = 0.0  # metres: a cell's area is cell_size ** 2
+
+    def step_rows(self) -> list[dict]:
+        """The per-step record (docs/protocol.md, "Per-step files"): one row per trajectory row up to
+        completion; `decision_ms` is None where the run measured none (a replay)."""
+        area = self.cell_size**2
+        timed = len(self.waypoint_decision_ms) == len(self.trajectory)
+        return [
+            {
+                "step": step,
+                "distance_m": self.distances[step],
+                "explored_m2": self.explored_cells[step] * area,
+                "explored_share": self.explored_cells[step] / max(1, self.free_cell_count),
+                "decision_ms": self.waypoint_decision_ms[step] if timed else None,
+            }
+            for step in range(len(self.trajectory))
+        ]
 
     def metrics_row(self) -> dict:
         """One row of docs/protocol.md's metrics.csv."""
@@ -69,6 +92,8 @@ class Episode:
         self.position = (0.0, 0.0)
         self.trajectory: list[tuple[float, float]] = [(0.0, 0.0)]
         self.distance = 0.0
+        self.distances: list[float] = [0.0]  # per trajectory row
+        self.explored_cells: list[int] = []  # belief free cells after sensing at each trajectory row
         self.completion_distance: float | None = None
         self.complete_after_waypoint: int | None = None
         self._pending_changes: list[np.ndarray] = []
@@ -91,6 +116,8 @@ class Episode:
         episode.cell, episode.position = (int(cell[0]), int(cell[1])), (float(position[0]), float(position[1]))
         episode.trajectory = [episode.position]
         episode.distance = 0.0
+        episode.distances = [0.0]
+        episode.explored_cells = [episode.belief.free_count]
         episode.completion_distance = episode.complete_after_waypoint = None
         if episode.unknown_free_cells <= protocol.done_unknown_cells:
             episode.completion_distance, episode.complete_after_waypoint = 0.0, 1
@@ -119,6 +146,7 @@ class Episode:
         changed = self.belief.apply(result)
         if changed.size:
             self._pending_changes.append(changed)
+        self.explored_cells.append(self.belief.free_count)
         if self.completion_distance is None and self.unknown_free_cells <= self.protocol.done_unknown_cells:
             self.completion_distance = self.distance
             self.complete_after_waypoint = len(self.trajectory)
@@ -171,6 +199,7 @@ class Episode:
         self.position = target
         self.cell = cell
         self.trajectory.append(target)
+        self.distances.append(self.distance)
         self._sense()
 
 
@@ -193,6 +222,7 @@ def run_episode(
     episode = Episode(ground_truth, protocol)
     planner.reset(ground_truth, protocol, seed)
     decision_ms: list[float] = []
+    waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
     failure = ""
     violations = 0
     oracle = bool(getattr(planner, "ignores_motion_rule", False))
@@ -207,8 +237,9 @@ def run_episode(
             failure = "no reachable target left"
             break
         try:
-            for waypoint in waypoints:
+            for k, waypoint in enumerate(waypoints):
                 episode.move(waypoint, oracle=oracle)
+                waypoint_ms.append(decision_ms[-1] if k == 0 else 0.0)
                 if on_step is not None:
                     on_step(episode)
                 if episode.complete or episode.steps >= protocol.max_steps:
@@ -219,7 +250,9 @@ def run_episode(
             break
     if not episode.complete and not failure:
         failure = f"step limit ({protocol.max_steps}) reached"
-    return _result(episode, getattr(planner, "name", type(planner).__name__), seed, decision_ms, failure, violations)
+    result = _result(episode, getattr(planner, "name", type(planner).__name__), seed, decision_ms, failure, violations)
+    result.waypoint_decision_ms = waypoint_ms[: len(result.trajectory)]
+    return result
 
 
 def replay(
@@ -274,4 +307,8 @@ def _result(
         failure="" if complete else failure,
         motion_violations=violations,
         complete_after_waypoint=episode.complete_after_waypoint,
+        distances=list(episode.distances),
+        explored_cells=list(episode.explored_cells),
+        free_cell_count=episode.map.free_cell_count,
+        cell_size=episode.map.cell_size,
     )

@@ -25,6 +25,10 @@ METRICS_COLUMNS = [
     "decision_ms_p95",
     "seed",
 ]
+# The per-step record beside a trajectory (OUT/<label>/<map>.steps.csv): one row per trajectory
+# row up to completion, the start first (docs/protocol.md, "Per-step files").
+STEP_COLUMNS = ["step", "distance_m", "explored_m2", "explored_share", "decision_ms"]
+STEPS_SUFFIX = ".steps.csv"
 MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
 
@@ -121,6 +125,64 @@ def write_metrics_csv(path: str | Path, rows: Iterable[dict]) -> Path:
             writer.writerow(row)
     os.replace(tmp, path)
     return path
+
+
+def steps_path(trajectory: str | Path) -> Path:
+    """The per-step file beside a trajectory file: OUT/label/map.csv -> OUT/label/map.steps.csv."""
+    trajectory = Path(trajectory)
+    return trajectory.with_name(trajectory.name.removesuffix(".csv") + STEPS_SUFFIX)
+
+
+def is_trajectory_file(path: Path) -> bool:
+    """A trajectory CSV, not the per-step file beside it."""
+    return path.suffix == ".csv" and not path.name.endswith(STEPS_SUFFIX)
+
+
+def _format_number(value: float | None, decimals: int) -> str:
+    if value is None or not math.isfinite(value):
+        return ""  # a replay measures no decision time
+    text = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
+    """Write the per-step record (`EpisodeResult.step_rows`) with STEP_COLUMNS; an empty
+    decision_ms is one the run did not measure (a replay)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as handle:
+        handle.write(",".join(STEP_COLUMNS) + "\n")
+        for row in rows:
+            handle.write(
+                f"{int(row['step'])},{_format_number(row['distance_m'], 6)},{_format_number(row['explored_m2'], 4)},"
+                f"{_format_number(row['explored_share'], 6)},{_format_number(row['decision_ms'], 3)}\n"
+            )
+    os.replace(tmp, path)
+    return path
+
+
+def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a per-step file into one array per column (decision_ms NaN where empty); ValueError
+    naming the file when it is missing or its header is not STEP_COLUMNS."""
+    path = Path(path)
+    if not _is_file(path):
+        raise ValueError(f"{path}: file not found (guide benchmark writes one per trajectory; "
+                         "guide replay --steps makes one from a trajectory)")
+    with path.open(newline="", encoding="utf-8-sig") as handle:
+        rows = list(csv.reader(handle))
+    if not rows or [c.strip() for c in rows[0]] != STEP_COLUMNS:
+        raise ValueError(f"{path}: a per-step file starts with the header {','.join(STEP_COLUMNS)}")
+    try:
+        values = np.array([[float(v) if v.strip() else np.nan for v in row] for row in rows[1:] if row],
+                          dtype=np.float64).reshape(-1, len(STEP_COLUMNS))
+    except ValueError:
+        raise ValueError(f"{path}: every row must be {len(STEP_COLUMNS)} numbers ({','.join(STEP_COLUMNS)})") from None
+    if not len(values):
+        raise ValueError(f"{path}: no rows (the first is the start, step 0)")
+    columns = {name: values[:, k] for k, name in enumerate(STEP_COLUMNS)}
+    columns["step"] = columns["step"].astype(np.int64)
+    return columns
 
 
 def recorded_start(trajectory: Path) -> tuple[Path, list[float]] | None:

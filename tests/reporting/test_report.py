@@ -14,7 +14,17 @@ import yaml
 from pipeline.reporting import report as reports
 from pipeline.evaluation.benchmark import PlannerSpec, parse_planner_spec, run_benchmark
 from pipeline.world.protocol import Protocol
-from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv, write_metrics_csv, write_trajectory_csv
+from pipeline.evaluation.exploration_curves import SpeedModel, episode_table, planner_table, step_record
+from pipeline.world.maps import load_maze_png
+from pipeline.world.simulator import replay
+from pipeline.world.trajectories import (
+    METRICS_COLUMNS,
+    read_trajectory_csv,
+    steps_path,
+    write_metrics_csv,
+    write_steps_csv,
+    write_trajectory_csv,
+)
 
 
 # --------------------------------------------------------------------------- planner specs
@@ -343,8 +353,14 @@ def report_workspace(small_maze_path, tmp_path, monkeypatch, mlflow_uri):
     for row in rows:
         row["map"] = "small"
     write_metrics_csv(tmp_path / "reports/benchmark/metrics.csv", rows)
-    write_trajectory_csv(tmp_path / "reports/benchmark/nearest_frontier/small.csv", [(0, 0), (4, 0), (8, 0)])
-    write_trajectory_csv(tmp_path / "reports/benchmark/optimal/small.csv", [(0, 0), (0, 4)])
+    ground_truth, records = load_maze_png(small_maze_path), {}
+    for planner, points in (("nearest_frontier", [(0, 0), (4, 0), (8, 0)]), ("optimal", [(0, 0), (0, 4)])):
+        path = write_trajectory_csv(tmp_path / f"reports/benchmark/{planner}/small.csv", points)
+        rows = replay(ground_truth, points, Protocol(max_steps=500), oracle=True).step_rows()
+        write_steps_csv(steps_path(path), rows)
+        records[(planner, "small")] = step_record(rows)
+    planner_table(episode_table(records, SpeedModel(2.0)), SpeedModel(2.0)).to_csv(
+        tmp_path / "reports/benchmark/exploration.csv", index=False)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
     return tmp_path
@@ -355,14 +371,16 @@ def test_report_stage_main(report_workspace):
 
     metrics = stage.main("params.yaml")
     root = report_workspace
-    for name in ("table1", "table2", "table3", "table4"):
+    for name in ("table1", "table2", "table3", "table4", "table5"):
         assert (root / f"reports/tables/{name}.md").is_file()
     sweep = pd.read_csv(root / "reports/denoising_steps/metrics.csv")
     assert sorted(sweep["planner"]) == ["nearest_frontier_k1", "nearest_frontier_k2"]
     assert (root / "reports/denoising_steps/nearest_frontier_k2/small.csv").is_file()
     report = (root / "reports/report.md").read_text()
-    for heading in ("## Table I", "## Table II", "## Table III", "## Table IV"):
+    for heading in ("## Table I", "## Table II", "## Table III", "## Table IV", "## Table V", "## Coverage curves"):
         assert heading in report
+    assert "| nearest_frontier | 1 | " in report.split("## Table V")[1] and "| Scene 1 (64 x 85 m) | GUIDE |" in report
+    assert (root / "reports/coverage.png").stat().st_size > 1000
     assert "| guide | GUIDE | not run |" in report
     assert "not run: reports/predictor/precision.csv is missing" in report
     assert "| nearest_frontier | 1 | 1 |" in report and "| nearest_frontier | 2 | 1 |" in report
@@ -371,6 +389,8 @@ def test_report_stage_main(report_workspace):
     assert saved == metrics
     assert saved["table2"]["nearest_frontier"]["gap_to_optimal"] == pytest.approx(0.25)
     assert set(saved["table4"]) == {"nearest_frontier_k1", "nearest_frontier_k2"}
+    assert set(saved["table5"]) == {"nearest_frontier", "optimal"}
+    assert saved["table5"]["nearest_frontier"]["distance_m"] == pytest.approx(8.0)
     assert saved["table4"]["nearest_frontier_k1"]["completion_rate"] == 1.0
 
 

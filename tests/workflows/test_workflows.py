@@ -18,7 +18,7 @@ def test_explore_prepares_checks_and_writes_every_file(small_maze_path, tmp_path
     run = explore.prepare(small_maze_path, "nf=nearest_frontier:min_utility=3", Protocol(), tmp_path / "out")
     assert (run.label, run.name, run.options, run.problems) == ("nf", "nearest_frontier", {"min_utility": 3}, [])
     result, written = explore.run(run, progress=False)
-    assert result.complete and {path.name for path in written} == {"small.csv", "metrics.csv", "small.png", "run.json"}
+    assert result.complete and {path.name for path in written} == {"small.csv", "small.steps.csv", "metrics.csv", "small.png", "run.json"}
     record = json.loads((tmp_path / "out" / "run.json").read_text())
     assert record["planner"] == {"label": "nf", "name": "nearest_frontier", "options": {"min_utility": 3},
                                  "description": run.planner.description}
