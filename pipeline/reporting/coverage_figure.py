@@ -35,16 +35,19 @@ def coverage_figure(records: Mapping[tuple[str, str], StepRecord], path: str | P
               for planner, group in by_planner.items()}
     middle = GRID_POINTS // 2
     order = sorted(curves, key=lambda planner: -curves[planner][0][0][middle])
-    colors = plt.get_cmap("tab20" if len(order) > 10 else "tab10")
+    colors = plt.get_cmap("tab10")
+    styles = ("-", "--", "-.")  # past ten planners the colours repeat with another dash
+    band_alpha = 0.14 if len(order) <= 4 else 0.05  # many overlapping bands would hide the lines
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), dpi=120, sharey=True)
     for k, planner in enumerate(order):
-        color = colors(k % colors.N)
+        color, style = colors(k % colors.N), styles[(k // colors.N) % len(styles)]
         maps = len(by_planner[planner])
         for ax, grid, (mean, std) in ((axes[0], distance_grid, curves[planner][0]), (axes[1], time_grid, curves[planner][1])):
-            ax.plot(grid, 100 * mean, color=color, lw=1.4, label=f"{planner} ({maps})" if ax is axes[0] else None)
+            ax.plot(grid, 100 * mean, color=color, ls=style, lw=1.4,
+                    label=f"{planner} ({maps})" if ax is axes[0] else None)
             ax.fill_between(grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color,
-                            alpha=0.12, lw=0)
+                            alpha=band_alpha, lw=0)
     axes[0].set_xlabel("distance travelled (m)")
     axes[1].set_xlabel(f"time (s) at {speed.speed_mps:g} m/s, waiting while deciding")
     axes[0].set_ylabel("explored share of the free area (%)")

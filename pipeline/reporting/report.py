@@ -82,7 +82,7 @@ TABLE_EXPERIMENTS: dict[str, str] = {
     "table5": "table5_efficiency",
 }
 TABLE5_COLUMNS = ("planner", "maps", "explored_m2", "distance_m", "time_s", "efficiency_m2_per_m",
-                  "efficiency_m2_per_s", "distance_to_90_m", "distance_to_99_m", "coverage_auc")
+                  "efficiency_m2_per_s", "distance_to_90_m", "distance_to_99_m", "coverage_auc", "reached_90", "reached_99")
 REQUIRED_COLUMNS = ("map", "planner", "distance_m", "complete", "decision_ms_median", "decision_ms_p95")
 
 
@@ -374,6 +374,11 @@ def table5(exploration: pd.DataFrame) -> pd.DataFrame:
     return table.reset_index(drop=True)
 
 
+def _reached(distance: float, reached: int, maps: int) -> str:
+    """A mean distance to a share, with how many maps reached it when not all did (the done rule may stop short)."""
+    return _num(distance) + ("" if int(reached) == int(maps) else f" ({int(reached)}/{int(maps)} maps)")
+
+
 def table5_markdown(table: pd.DataFrame | None, speed_mps: float | None = None,
                     title: str = "Table V: exploration efficiency") -> str:
     """Ours (2-D mazes, m^2) beside the paper's (3-D Gazebo scenes, m^3): compare orderings, not values."""
@@ -394,7 +399,8 @@ def table5_markdown(table: pd.DataFrame | None, speed_mps: float | None = None,
         lines.append(
             f"| {row.planner} | {int(row.maps)} | {_num(row.explored_m2, '{:.0f}')} | {_num(row.distance_m)} | "
             f"{_num(row.time_s)} | {_num(row.efficiency_m2_per_m, '{:.2f}')} | {_num(row.efficiency_m2_per_s, '{:.2f}')} | "
-            f"{_num(row.distance_to_90_m)} | {_num(row.distance_to_99_m)} | {_num(row.coverage_auc, '{:.3f}')} | "
+            f"{_reached(row.distance_to_90_m, row.reached_90, row.maps)} | "
+            f"{_reached(row.distance_to_99_m, row.reached_99, row.maps)} | {_num(row.coverage_auc, '{:.3f}')} | "
             f"{paper_row(str(row.planner))} |"
         )
     lines += ["", "The paper's, in two 3-D Gazebo scenes (volume, m^3; 5 runs each): not comparable in value, "
