@@ -73,7 +73,7 @@ def test_stages_without_their_inputs_print_one_line(tmp_path, monkeypatch, capsy
 
     monkeypatch.chdir(tmp_path)  # a fresh folder: no params.yaml, no data
     assert "nope.yaml" in stage_error(capsys, generate_mazes, "nope.yaml")
-    (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1}\n")
+    (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2.0}\n")
     line = stage_error(capsys, benchmark, "params.yaml")
     assert "data/mazes/test" in line and "dvc repro" in line
     (tmp_path / "params.yaml").write_text((ROOT / "params.yaml").read_text())
@@ -99,11 +99,13 @@ def test_benchmark_stage_settings_are_checked_before_any_episode(generated_maze_
 
     monkeypatch.chdir(tmp_path)
     shutil.copytree(generated_maze_dir, tmp_path / "data" / "mazes" / "test")
-    (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo], seed: 0, workers: 1}\n")
+    (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo], seed: 0, workers: 1, speed_mps: 2.0}\n")
     line = stage_error(capsys, benchmark, "p.yaml")
     assert line.startswith("error: unknown planner 'foo'; choose from: ") and "nearest_frontier" in line
-    (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0}\n")
+    (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0, speed_mps: 2}\n")
     assert stage_error(capsys, benchmark, "w.yaml") == "error: workers must be a whole number >= 1 (or null: all cores), got 0"
+    (tmp_path / "s.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: -2}\n")
+    assert stage_error(capsys, benchmark, "s.yaml").startswith("error: speed_mps must be a positive number")
     assert not (tmp_path / "reports" / "benchmark").exists()
 
 
