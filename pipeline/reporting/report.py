@@ -589,13 +589,15 @@ def log_tables_to_mlflow(
     tables: Mapping[str, pd.DataFrame | None],
     tracking_uri: str | None = None,
     params: Mapping[str, Any] | None = None,
+    artifacts: Mapping[str, Sequence[str | Path]] | None = None,
 ) -> dict[str, list[str]]:
     """One MLflow experiment per table, one run per row, so variants compare side by side.
 
     Keys are "table1".."table4" (logged to table1_inference, table2_benchmark,
     table3_ablation, table4_denoising_steps) or experiment names. Run name: the planner,
     planner_kK for Table IV, stepN for Table I. Params: planner (and K / step) plus
-    `params`; metrics: the row's finite numeric columns; text columns become tags.
+    `params`; metrics: the row's finite numeric columns; text columns become tags; `artifacts`:
+    per table key, files logged with each of its runs (Table V's coverage figure).
     Returns {experiment: [run ids]}.
     """
     mlflow = import_mlflow()
@@ -627,5 +629,7 @@ def log_tables_to_mlflow(
                 mlflow.set_tags(tags)
                 if metrics:
                     mlflow.log_metrics(metrics)
+                for path in (artifacts or {}).get(key, ()):
+                    mlflow.log_artifact(str(path))
                 ids.append(run.info.run_id)
     return run_ids

@@ -133,7 +133,8 @@ def write_report(section: dict, protocol: Protocol):
     metrics = metrics_json(tables)
     REPORT_JSON.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
     log_tables_to_mlflow(
-        tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)}
+        tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)},
+        artifacts={"table5": [COVERAGE_PATH]},
     )
     print(REPORT_MD.read_text())
     return metrics

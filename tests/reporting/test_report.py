@@ -391,6 +391,11 @@ def test_report_stage_main(report_workspace):
     assert set(saved["table4"]) == {"nearest_frontier_k1", "nearest_frontier_k2"}
     assert set(saved["table5"]) == {"nearest_frontier", "optimal"}
     assert saved["table5"]["nearest_frontier"]["distance_m"] == pytest.approx(8.0)
+    import mlflow
+
+    runs = mlflow.search_runs(experiment_names=["table5_efficiency"])
+    assert set(runs["tags.mlflow.runName"]) == {"nearest_frontier", "optimal"}
+    assert "coverage.png" in {a.path for a in mlflow.artifacts.list_artifacts(run_id=runs["run_id"].iloc[0])}
     assert saved["table4"]["nearest_frontier_k1"]["completion_rate"] == 1.0
 
 
