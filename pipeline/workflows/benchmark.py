@@ -24,6 +24,7 @@ from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, 
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
+from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.maps import MapError, list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.trajectories import read_trajectory_csv
@@ -124,9 +125,7 @@ def trajectory_figure(map_path: Path, frame, out_dir: Path, path: Path, protocol
 
 def benchmark_test_mazes(section: dict, protocol: Protocol):
     """Every planner of the `benchmark` settings on the test mazes: run, tabulated, charted, logged."""
-    maps = list_maps(TEST_MAZES)
-    if not maps:
-        raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
+    maps = generated_maps(TEST_MAZES, "test mazes")
     speed = SpeedModel(section["speed_mps"])
     frame = run_benchmark(
         maps, section["planners"], protocol, OUT_DIR, workers=section["workers"], seed=int(section["seed"]), speed=speed

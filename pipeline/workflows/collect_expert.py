@@ -18,7 +18,8 @@ from pipeline.data.shards import (
     shard_path,
 )
 from pipeline.reporting.render import render_frame, save_png
-from pipeline.world.maps import GroundTruthMap, list_maps
+from pipeline.workflows.stage_inputs import generated_maps
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 
 TRAIN_MAZES = DATA.mazes_train
@@ -41,9 +42,7 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
 
 def collect_expert(section: dict, protocol: Protocol, backend: str | None = None):
     """The expert episode shards from the `collect_expert` settings, a summary and a preview; the summary."""
-    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
-    if not maps:
-        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
+    maps = tuple(str(p) for p in generated_maps(TRAIN_MAZES, "training mazes"))
     per_shard = int(section["episodes_per_shard"])
     shard_count = shard_count_for(int(section["episodes"]), per_shard, "episodes")
     config = ExpertConfig(

@@ -20,7 +20,7 @@ from pipeline.data.shards import (
     shard_count_for,
     shard_path,
 )
-from pipeline.world.maps import list_maps
+from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.protocol import Protocol
 
 TRAIN_MAZES = DATA.mazes_train
@@ -55,9 +55,7 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
 
 def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None):
     """The Stage I pair shards from the `collect_pairs` settings, a summary and a preview; the summary."""
-    maps = tuple(str(p) for p in list_maps(TRAIN_MAZES))
-    if not maps:
-        raise SystemExit(f"error: {TRAIN_MAZES}: no training mazes; run the generate_mazes stage first")
+    maps = tuple(str(p) for p in generated_maps(TRAIN_MAZES, "training mazes"))
     per_shard = int(section["pairs_per_shard"])
     shard_count = shard_count_for(int(section["pairs"]), per_shard, "pairs")
     config = PairsConfig(

@@ -8,9 +8,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.paths import DATA, REPORTS
 import pandas as pd
 
+from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
 from pipeline.reporting.coverage_figure import coverage_figure
@@ -33,7 +33,8 @@ from pipeline.reporting.report import (
     trajectory_figure,
 )
 from pipeline.workflows import table1
-from pipeline.world.maps import MapError, list_maps
+from pipeline.workflows.stage_inputs import generated_maps
+from pipeline.world.maps import MapError
 from pipeline.world.protocol import Protocol
 
 TEST_MAZES = DATA.mazes_test
@@ -78,11 +79,9 @@ def write_report(section: dict, protocol: Protocol):
             "(`dvc repro benchmark` or `python -m stages.benchmark`)"
         )
     try:
-        maps = list_maps(TEST_MAZES)
+        maps = generated_maps(TEST_MAZES, "test mazes")
     except MapError as error:
         raise SystemExit(f"error: {error}; run the generate_mazes stage first") from None
-    if not maps:
-        raise SystemExit(f"error: {TEST_MAZES}: no test mazes; run the generate_mazes stage first")
 
     frame = read_metrics(METRICS_CSV)
     sweep_maps = maps[: section["k_maps"]]

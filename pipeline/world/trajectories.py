@@ -32,8 +32,14 @@ STEPS_SUFFIX = ".steps.csv"
 MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
 
-def _format_metres(value: float) -> str:
-    text = f"{value:.6f}".rstrip("0").rstrip(".")
+
+
+def _format_number(value: float | None, decimals: int = 6) -> str:
+    """A number with at most `decimals` decimals and no trailing zeros; empty for None or NaN (a
+    per-step file's decision time a replay does not measure)."""
+    if value is None or not math.isfinite(value):
+        return ""
+    text = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
     return "0" if text in ("-0", "") else text
 
 
@@ -45,7 +51,7 @@ def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]
     with tmp.open("w", newline="") as handle:
         handle.write("x,y\n")
         for x, y in trajectory:
-            handle.write(f"{_format_metres(float(x))},{_format_metres(float(y))}\n")
+            handle.write(f"{_format_number(float(x))},{_format_number(float(y))}\n")
     os.replace(tmp, path)
     return path
 
@@ -138,11 +144,6 @@ def is_trajectory_file(path: Path) -> bool:
     return path.suffix == ".csv" and not path.name.endswith(STEPS_SUFFIX)
 
 
-def _format_number(value: float | None, decimals: int) -> str:
-    if value is None or not math.isfinite(value):
-        return ""  # a replay measures no decision time
-    text = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
-    return "0" if text in ("-0", "") else text
 
 
 def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
