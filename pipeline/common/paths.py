@@ -20,4 +20,5 @@ _PATHS = yaml.safe_load(PATHS_FILE.read_text(encoding="utf-8"))
 DATA = _group(_PATHS["data"])
 MODELS = _group(_PATHS["models"])
 REPORTS = _group(_PATHS["reports"])
+CHECKPOINTS = _group(_PATHS["checkpoints"])  # outside every stage output: DVC deletes those before a rerun
 POLICIES = {variant: _group(paths) for variant, paths in _PATHS["policies"].items()}  # "guide", "dare"

@@ -2,7 +2,7 @@
 
 The agent chooses the robot's next lattice node; the simulator (`Episode.move`) moves it there
 and senses, and stays the referee of the protocol's motion and done rules. The observation is
-the observed graph as the learned planners see it (`observed_graph.py`), with the action mask
+the observed graph as the learned planners see it (`pipeline/prediction/observed_graph.py`), with the action mask
 as one of its keys; the reward is ARiADNE's kind: newly observed free area, minus distance,
 plus a bonus on completion.
 
@@ -23,7 +23,7 @@ from gymnasium import spaces
 
 from pipeline.envs.configuration_explore import ExploreEnvConfig
 from pipeline.envs.map_sources import DrawnMap, map_source
-from pipeline.envs.observed_graph import (
+from pipeline.prediction.observed_graph import (
     SLOT_OFFSETS,
     SLOTS,
     STAY_SLOT,
@@ -31,6 +31,7 @@ from pipeline.envs.observed_graph import (
     WindowTable,
     observe_lattice,
     slot_of_offset,
+    window_moves,
 )
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.prediction.global_graph import FEATURE_NAMES, GlobalGraphConfig
@@ -108,6 +109,13 @@ class ExploreEnv(gymnasium.Env):
         if self._episode is None:
             raise RuntimeError("reset() the environment first")
         return self._episode
+
+    @property
+    def ground_truth(self):
+        """The map of the current episode (what a baseline would be run on to compare)."""
+        if self._episode is None:
+            raise RuntimeError("reset() the environment first")
+        return self._drawn.ground_truth
 
     @property
     def lattice(self) -> LatticeGraph:
@@ -233,8 +241,7 @@ class ExploreEnv(gymnasium.Env):
         self._view = view
         mask = np.zeros(self.action_count, dtype=np.int8)
         if self.config.action == "neighbour":
-            edges = self._table.edge[view.robot_node]
-            mask[:] = (edges >= 0) & self._lattice.edge_valid[edges]
+            mask[:] = window_moves(self._lattice, self._table, view.robot_node)
             self._stay = STAY_SLOT
         else:
             filled = len(view.row_nodes)

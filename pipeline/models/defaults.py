@@ -14,6 +14,7 @@ from pipeline.models.cache import load_once
 from pipeline.models.exports import require_file
 from pipeline.models.modeling_block_model import BlockModel, load_block_model
 from pipeline.models.modeling_diffusion import load_policy
+from pipeline.models.modeling_drl import DRLPolicy, load_drl_policy
 from pipeline.models.modeling_inpainter import TracedInpainter, inpainter_from_payload, read_inpainter_export
 from pipeline.prediction.node_predictor import InpaintFn
 
@@ -25,6 +26,8 @@ PIPELINE_POLICY = {variant: paths.model / "policy.pt" for variant, paths in POLI
 SHIPPED_POLICY = {"guide": ASSETS / "planner_guide.pt", "dare": ASSETS / "planner_dare.pt"}
 PIPELINE_BLOCK_MODEL = MODELS.block_model / "block_model.pt"
 SHIPPED_BLOCK_MODEL = ASSETS / "block_model.pt"
+PIPELINE_DRL = MODELS.drl / "policy.pt"
+SHIPPED_DRL = ASSETS / "planner_drl.pt"
 PIPELINE_GATE = MODELS.sliver_gate / "sliver_gate.json"
 SHIPPED_GATE = ASSETS / "sliver_gate.json"
 
@@ -126,6 +129,23 @@ def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> 
     except FileNotFoundError as error:  # an option error, reported in one line like the others
         raise ValueError(str(error)) from None
     return load_once("block_model", path, load_block_model), f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
+
+
+# ----------------------------------------------------------------------------- drl policy
+def resolve_drl_path(checkpoint: str | Path | None) -> Path:
+    """`checkpoint`, else the pipeline's drl policy in models/, else the shipped one."""
+    if checkpoint is not None:
+        return require_file(checkpoint, "a drl policy export")
+    for path in (PIPELINE_DRL, SHIPPED_DRL):
+        if path.is_file():
+            return path
+    raise FileNotFoundError(f"no drl policy: neither {PIPELINE_DRL} (`dvc repro train_drl`) nor the shipped "
+                            f"{SHIPPED_DRL} exists; pass checkpoint=PATH")
+
+
+def cached_drl_policy(path: str | Path) -> tuple[DRLPolicy, dict]:
+    """(the drl policy at `path`, what it was trained on), loaded once per process."""
+    return load_once("drl", path, load_drl_policy)
 
 
 # ----------------------------------------------------------------------------- sliver gate

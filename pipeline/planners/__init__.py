@@ -1,12 +1,12 @@
 """Planners, each registered under a lower-case name with its config (`guide planners` lists them).
 
-- `baselines/`: nearest frontier, greedy utility, NBVP, TARE, MapEx;
+- `baselines/`: nearest frontier, greedy utility, NBVP, TARE, MapEx, DRL;
 - `guide/`: the paper's planner (`guide`, `guide_noregion`, `dare`) and its "w/o diffusion" ablation `guide_tsp`;
 - `references/`: the ground-truth `optimal` and `expert`, and the oracle bounds;
 - `extensions/`: what we added beyond the paper (sliver gate, tour vote, block-model lookahead).
 """
 
-from pipeline.planners.baselines import frontier, mapex, nbvp, tare  # noqa: F401  (register their planners)
+from pipeline.planners.baselines import drl, frontier, mapex, nbvp, tare  # noqa: F401  (register their planners)
 from pipeline.planners.extensions import sampled_lookahead  # noqa: F401
 from pipeline.planners.guide import guide_tsp, variants  # noqa: F401
 from pipeline.planners.references import coverage_planners, oracle_bounds  # noqa: F401

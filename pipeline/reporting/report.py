@@ -66,6 +66,7 @@ PAPER_TABLE5: dict[str, dict[str, tuple[float, float, float, float]]] = {
 # Our registered planner names -> the paper's row names (planners without a row show DASH).
 PAPER_ROWS: dict[str, str] = {
     "nbvp": "NBVP",
+    "drl": "DRL",
     "mapex": "MapEx",
     "dare": "DARE",
     "tare": "TARE",

@@ -18,7 +18,7 @@ from conftest import write_ros_map
 from import_graph import ROOT
 from pipeline.envs import ENV_ID, ExploreEnv, ExploreEnvConfig
 from pipeline.envs.map_sources import maze_from_image
-from pipeline.envs.observed_graph import SLOT_OFFSETS, STAY_SLOT, slot_of_offset
+from pipeline.prediction.observed_graph import SLOT_OFFSETS, STAY_SLOT, slot_of_offset
 from pipeline.planners import make_planner
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig

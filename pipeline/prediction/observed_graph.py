@@ -1,4 +1,5 @@
-"""The observed graph as the `dare` planner's policy sees it, built straight from the lattice graph.
+"""The observed graph as the `dare` planner's policy sees it, built straight from the lattice graph:
+what the Gymnasium environment observes and the `drl` planner decides on.
 
 `pipeline.prediction.graph_observation.observe` on a `GlobalGraph` updated without predictions
 (`use_region_evaluation=False`) gives the learned planners' observation of the known graph:
@@ -57,6 +58,12 @@ class WindowTable:
         id_order = np.argsort(SLOT_OFFSETS[:, 1] * columns + SLOT_OFFSETS[:, 0], kind="stable")
         self.neighbour_by_id = np.ascontiguousarray(self.neighbour[:, id_order])
         self.edge_by_id = np.ascontiguousarray(self.edge[:, id_order])
+
+
+def window_moves(graph: LatticeGraph, table: WindowTable, node: int) -> np.ndarray:
+    """Per action slot of `node`'s 5 x 5 window, whether a known-free edge leads there (bool, SLOTS)."""
+    edges = table.edge[node]
+    return (edges >= 0) & graph.edge_valid[np.maximum(edges, 0)]
 
 
 @dataclass
