@@ -18,10 +18,11 @@ from pipeline.common.params import complete_section, load_params
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.training.drl import PPOSettings, TrainingEnvironment
+from pipeline.training.drl_imitation import ImitationSettings
 from pipeline.workflows.train_drl import train_the_drl_policy
 from pipeline.world.protocol import Protocol
 
-KEYS = ("model", "env", "ppo", "timesteps", "checkpoint_every", "eval_mazes", "eval_side_m", "eval_seed", "seed",
+KEYS = ("model", "env", "ppo", "imitation", "init_checkpoint", "timesteps", "checkpoint_every", "eval_mazes", "eval_side_m", "eval_seed", "seed",
         "threads", "device", "experiment")
 
 
@@ -35,7 +36,8 @@ def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[
         value = section[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
             raise ValueError(f"{params_path}: train_drl.{key} must be a whole number >= {low}, got {value!r}")
-    for group, cls in (("model", DRLPolicyConfig), ("env", TrainingEnvironment), ("ppo", PPOSettings)):
+    for group, cls in (("model", DRLPolicyConfig), ("env", TrainingEnvironment), ("ppo", PPOSettings),
+                       ("imitation", ImitationSettings)):
         if not isinstance(section[group], dict):
             raise ValueError(f"{params_path}: train_drl.{group} must be a mapping of {cls.__name__} fields")
         try:
@@ -47,12 +49,18 @@ def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[
     if not isinstance(section["experiment"], str) or not section["experiment"]:
         raise ValueError(f"{params_path}: train_drl.experiment must be an MLflow experiment name")
     protocol = Protocol.from_dict(params.get("protocol") or {})
-    side = section["eval_side_m"]
+    init = section["init_checkpoint"]
+    if init is not None and (not isinstance(init, str) or not Path(init).is_file()):
+        raise ValueError(f"{params_path}: train_drl.init_checkpoint must be null or a drl export file, got {init!r}")
     env = TrainingEnvironment.from_dict(section["env"])
-    for what, value in (("eval_side_m", side), *(("env.maze_sides_m", s) for s in env.maze_sides_m)):
+    model = DRLPolicyConfig.from_dict(section["model"])
+    checks = [("env", {**env.to_dict(), "maze_sides_m": [side]}) for side in env.maze_sides_m]
+    checks += [("eval_side_m", {**env.to_dict(), "maze_sides_m": [section["eval_side_m"]]})]
+    for what, values in checks:
         try:
-            TrainingEnvironment(maze_sides_m=(value,)).make(0, protocol, DRLPolicyConfig.from_dict(section["model"])).close()
+            TrainingEnvironment.from_dict(values).make(0, protocol, model).close()
         except (TypeError, ValueError) as error:
+            what = "env.maze_sides_m" if what == "env" and str(error).startswith("maze_side_m") else what
             raise ValueError(f"{params_path}: train_drl.{what}: {error}") from None
     return section, protocol
 

@@ -89,9 +89,10 @@ def no_pipeline_models(monkeypatch, tmp_path):
     monkeypatch.setattr(defaults, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
     monkeypatch.setattr(defaults, "PIPELINE_GATE", absent / "sliver_gate.json")
     monkeypatch.setattr(defaults, "PIPELINE_BLOCK_MODEL", absent / "block_model.pt")
+    monkeypatch.setattr(defaults, "PIPELINE_DRL", absent / "drl.pt")
 
 
-TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model")  # "inpainter-test" sets its own location
+TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model", "drl")  # "inpainter-test" sets its own location
 
 
 @pytest.fixture(scope="session")

@@ -50,6 +50,13 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     params["train_planner"]["train"].update(max_epochs=1, batch_size=16, warmup_steps=2)
     params["report"].update(k_values=[2, 4], k_maps=1)
     params["train_block_model"].update(mazes=3, holdout_mazes=1, side_m=50.0, epochs=1, model={"width": 8, "groups": 4})
+    params["train_drl"].update(model={"max_nodes": 32, "d_model": 16, "heads": 2, "encoder_layers": 1}, timesteps=64,
+                               checkpoint_every=32, eval_mazes=1, eval_side_m=50)
+    params["train_drl"]["env"].update(maze_sides_m=[50], max_steps=30)
+    params["train_drl"]["ppo"].update(n_envs=2, n_steps=32, batch_size=32, n_epochs=1)
+    params["train_drl"]["imitation"].update(episodes=2, epochs=1, dagger_rounds=1, dagger_episodes=1, dagger_epochs=1)
+    # The shipped drl policy was trained at the default protocol: its row is the benchmark's, not this copy's.
+    params["benchmark"]["planners"] = [p for p in params["benchmark"]["planners"] if not p.startswith("drl_shipped=")]
     (project / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
     git(project, "init", "-q")
     git(project, "add", "-A")
@@ -61,7 +68,9 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
     metrics = json.loads((project / "reports/benchmark.json").read_text())
     assert set(metrics) == {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
-    assert all(m["completion_rate"] == 1.0 for m in metrics.values())
+    # 64 PPO steps train no explorer: drl must run, not finish (tests/planners/baselines/test_drl.py checks the shipped one)
+    assert all(m["completion_rate"] == 1.0 for label, m in metrics.items() if label != "drl")
+    assert metrics["drl"]["distance_mean_m"] > 0
     assert all(0 < m["coverage_auc"] <= 1 and m["efficiency_m2_per_m"] > 0 for m in metrics.values())
     assert json.loads((project / "reports/pairs_summary.json").read_text())["pairs"] == 12
     assert json.loads((project / "reports/expert_summary.json").read_text())["episodes"] == 2
@@ -69,6 +78,8 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert "val_precision" in (project / "reports/inpainter_metrics.json").read_text()
     precision = (project / "reports/predictor/precision.csv").read_text().splitlines()
     assert precision[0] == "step,precision,predicted_nodes,maps,prediction_ms_median"
+    drl = json.loads((project / "reports/drl_metrics.json").read_text())
+    assert drl["timesteps"] == 64 and drl["evaluation"]["mazes"] == 1 and (project / "models/drl/policy.pt").is_file()
     for variant in ("guide", "dare"):
         assert (project / f"models/planner_{variant}/policy.pt").is_file()
         assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 1
@@ -77,7 +88,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
                "reports/pairs_preview.png", "reports/expert_episode.png", "reports/trajectories.png",
-               "reports/planner_guide_curves.png", "reports/coverage.png", "reports/benchmark/coverage.png")
+               "reports/planner_guide_curves.png", "reports/drl_curves.png", "reports/coverage.png", "reports/benchmark/coverage.png")
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()

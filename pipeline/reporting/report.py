@@ -67,6 +67,7 @@ PAPER_TABLE5: dict[str, dict[str, tuple[float, float, float, float]]] = {
 PAPER_ROWS: dict[str, str] = {
     "nbvp": "NBVP",
     "drl": "DRL",
+    "drl_shipped": "DRL",  # params.yaml's label for the shipped drl policy (trained longer than the default profile's)
     "mapex": "MapEx",
     "dare": "DARE",
     "tare": "TARE",

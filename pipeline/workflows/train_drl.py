@@ -31,19 +31,19 @@ from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.defaults import PIPELINE_DRL
-from pipeline.models.modeling_drl import save_drl_policy
+from pipeline.models.modeling_drl import load_drl_policy, save_drl_policy
 from pipeline.planners import make_planner
 from pipeline.training.drl import (
     EpisodeLog,
     PPOSettings,
     TrainingEnvironment,
-    evaluate,
     load_agent,
     new_agent,
     policy_of,
     vector_env,
     write_json,
 )
+from pipeline.training.drl_imitation import ImitationSettings, warm_start
 from pipeline.training.run_setup import torch_threads, training_host
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
@@ -54,7 +54,7 @@ METRICS_PATH = REPORTS.drl
 FIGURE_PATH = REPORTS.drl_curves
 # What a checkpoint must share to be continued: not `timesteps`, so a run can be trained on for
 # longer (the learning rate is constant, so a continued run is a longer one).
-TRAINING_KEYS = ("model", "env", "ppo", "seed")
+TRAINING_KEYS = ("model", "env", "ppo", "imitation", "init_checkpoint", "seed")
 
 
 def settings_fingerprint(section: dict[str, Any], protocol: Protocol) -> str:
@@ -65,17 +65,22 @@ def settings_fingerprint(section: dict[str, Any], protocol: Protocol) -> str:
 
 
 class Checkpointer(BaseCallback):
-    """Saves the agent and its curve every `every` steps (and at the end), atomically."""
+    """Saves the agent and its curve every `every` steps (and at the end), atomically: at the start
+    of a rollout, so that a checkpoint holds the weights PPO trained on every step it counts."""
 
-    def __init__(self, every: int, fingerprint: str, log: EpisodeLog, folder: Path = CHECKPOINT_DIR):
+    def __init__(self, every: int, fingerprint: str, log: EpisodeLog, folder: Path = CHECKPOINT_DIR,
+                 extra: dict[str, Any] | None = None):
         super().__init__()
         self.every, self.fingerprint, self.log, self.folder = every, fingerprint, log, folder
+        self.extra = extra or {}
         self._last = 0
 
     def _on_step(self) -> bool:
+        return True
+
+    def _on_rollout_start(self) -> None:
         if self.num_timesteps - self._last >= self.every:
             self.save()
-        return True
 
     def save(self) -> None:
         self._last = self.num_timesteps
@@ -85,7 +90,7 @@ class Checkpointer(BaseCallback):
         os.replace(zip_tmp, self.folder / "last.zip")
         json_tmp = self.folder / f".last.{os.getpid()}.json"
         json_tmp.write_text(json.dumps({"fingerprint": self.fingerprint, "timesteps": self.num_timesteps,
-                                        "history": self.log.rows}) + "\n")
+                                        "history": self.log.rows, **self.extra}) + "\n")
         os.replace(json_tmp, self.folder / "last.json")
 
 
@@ -142,9 +147,11 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
             agent = load_agent(CHECKPOINT_DIR / "last.zip", envs, section["device"])
         else:
             agent = new_agent(envs, policy_config, settings, seed, section["device"])
+            warm = start_policy(policy_of(agent), section, environment, policy_config, protocol, settings.gamma, seed)
         log = EpisodeLog(lambda row: _print_row(row))
         log.rows = list(record["history"]) if record else []
-        checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log)
+        checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log,
+                                    extra={"warm_start": record.get("warm_start") if record else warm})
         if total > done:
             agent.learn(total - done, callback=CallbackList([log, checkpointer, ProgressBar(total, done)]),
                         reset_num_timesteps=not record)
@@ -161,6 +168,7 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
     metrics = {
         "timesteps": int(agent.num_timesteps),
         "resumed_from": done,
+        "warm_start": (record or {}).get("warm_start") if record else warm,
         "train_seconds": round(train_seconds, 1),
         "parameters": sum(p.numel() for p in policy.parameters()),
         "evaluation": evaluation,
@@ -173,6 +181,29 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
     return metrics
 
 
+def start_policy(policy, section: dict[str, Any], environment: TrainingEnvironment, policy_config: DRLPolicyConfig,
+                 protocol: Protocol, gamma: float, seed: int) -> dict[str, Any] | None:
+    """Set the fresh agent's policy before PPO: the weights of `init_checkpoint`, else the imitation
+    warm start when it has episodes, else nothing (PPO from the initial weights). What it did."""
+    if section["init_checkpoint"]:
+        initial, trained_on = load_drl_policy(section["init_checkpoint"])
+        if initial.config != policy_config:
+            raise ValueError(f"train_drl.init_checkpoint {section['init_checkpoint']}: its model {initial.config.to_dict()} "
+                             f"differs from train_drl.model {policy_config.to_dict()}")
+        policy.load_state_dict(initial.state_dict())
+        return {"init_checkpoint": str(section["init_checkpoint"]), "its_training": trained_on.get("warm_start")}
+    imitation = ImitationSettings.from_dict(section["imitation"])
+    if imitation.episodes == 0:
+        return None
+    result = warm_start(policy, lambda i: environment.make(i, protocol, policy_config), imitation, gamma, seed + 10_000)
+    policy.train()
+    for phase in result["phases"]:
+        last = phase["epochs"][-1]
+        tqdm.write(f"train_drl: {phase['phase']}: {phase['distance_m']:.0f} m, completed {phase['completed']:.0%}, "
+                   f"agreement with {imitation.planner} {last['agreement']:.1%}")
+    return result
+
+
 def _print_row(row: dict[str, float]) -> None:
     keys = ("timesteps", "episodes", "episode_return", "episode_distance_m", "explored_share", "completed_share")
     tqdm.write(json.dumps({k: round(row[k], 3) for k in keys if k in row}))
@@ -180,19 +211,23 @@ def _print_row(row: dict[str, float]) -> None:
 
 def evaluate_on_fresh_mazes(policy, environment: TrainingEnvironment, policy_config: DRLPolicyConfig,
                             protocol: Protocol, count: int, side_m: float, seed: int) -> dict[str, Any]:
-    """Greedy `drl` episodes (the planner's decisions) on `count` fresh mazes of `side_m` metres,
-    drawn by the environment from seeds seed, seed + 1, ..., beside `nearest_frontier` on the same
-    mazes; the paired difference is drl's distance over the baseline's, minus one."""
+    """The `drl` planner with this policy (its default stall hand-over included) on `count` fresh
+    mazes of `side_m` metres, drawn by the environment from seeds seed, seed + 1, ..., beside
+    `nearest_frontier` on the same mazes; the paired difference is drl's distance over the
+    baseline's, minus one."""
     if count == 0:
         return {}
     sides = TrainingEnvironment(maze_sides_m=(side_m,), max_steps=protocol.max_steps)
     env = sides.make(0, protocol, policy_config)
     rows = []
     for i in tqdm(range(count), desc="train_drl evaluation", unit="maze", mininterval=2.0):
-        result = evaluate(policy, [env], [seed + i])[0]
+        env.reset(seed=seed + i)
+        planner = make_planner("drl", policy=policy)
+        result = run_episode(env.ground_truth, planner, protocol)
         baseline = run_episode(env.ground_truth, make_planner("nearest_frontier"), protocol)
-        rows.append({**result, "nearest_frontier_distance": baseline.distance_m,
-                     "nearest_frontier_complete": baseline.complete})
+        rows.append({"map": env.ground_truth.name, "distance": result.distance_m, "complete": result.complete,
+                     "steps": result.steps, "handovers": planner.handovers,
+                     "nearest_frontier_distance": baseline.distance_m, "nearest_frontier_complete": baseline.complete})
     env.close()
     drl, nf = np.array([r["distance"] for r in rows]), np.array([r["nearest_frontier_distance"] for r in rows])
     return {"mazes": count, "side_m": side_m, "seed": seed,
