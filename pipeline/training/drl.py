@@ -16,7 +16,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-import gymnasium
 import numpy as np
 import torch
 from gymnasium import spaces
