@@ -104,6 +104,8 @@ BAD = [
     ("guide_noregion", {"prior_weight": NAN}, "prior_weight must be a finite number >= 0"),
     ("dare", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
     ("dare", {"candidates": 0}, "candidates must be >= 1"),
+    ("drl", {"stall_steps": -1}, "stall_steps must be"),
+    ("drl", {"checkpoint": "no/such/policy.pt"}, "no/such/policy.pt"),
     ("dare", {"threshold": 1.5}, "threshold must be a number in [0, 1]"),
     # the oracle bounds check their own options and pass the rest to their base planner
     ("oracle_gate", {"min_gain": 0}, "min_gain must be >= 1"),
@@ -140,6 +142,7 @@ GOOD = [
     ("guide", {"num_inference_steps": 1, "action_steps": 1, "candidates": 1, "stall_steps": 1, "sampler": "ddim"}),
     ("guide_noregion", {"num_inference_steps": 100}),
     ("dare", {"num_inference_steps": 100, "mode": "policy"}),
+    ("drl", {"stall_steps": 0}),
     ("oracle_gate", {"base": "guide_tsp", "min_gain": 1, "veto": True}),
     ("oracle_tail", {"base": "nearest_frontier", "handover_cells": 0}),
     ("oracle_lookahead", {"k": 2, "sliver_gate": False}),
