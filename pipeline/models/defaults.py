@@ -109,15 +109,22 @@ def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
 
 
 # ----------------------------------------------------------------------------- block model
-def resolve_block_model(checkpoint: str | None) -> Path:
-    """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
+def pipeline_or_shipped(checkpoint: str | Path | None, pipeline: Path, shipped: Path, what: str, stage: str) -> Path:
+    """`checkpoint` (a `what` file), else the pipeline's model at `pipeline`, else the `shipped` one;
+    FileNotFoundError naming the `stage` that makes it when none is there."""
     if checkpoint is not None:
-        return require_file(checkpoint, "a block model file")
-    for path in (PIPELINE_BLOCK_MODEL, SHIPPED_BLOCK_MODEL):
+        return require_file(checkpoint, what)
+    for path in (pipeline, shipped):
         if path.is_file():
             return path
-    raise FileNotFoundError(f"no block model: neither {PIPELINE_BLOCK_MODEL} (`dvc repro train_block_model`) "
-                            f"nor the shipped {SHIPPED_BLOCK_MODEL} exists; pass checkpoint=PATH")
+    raise FileNotFoundError(f"no {what.removeprefix('a ')}: neither {pipeline} (`dvc repro {stage}`) nor the shipped "
+                            f"{shipped} exists; pass checkpoint=PATH")
+
+
+def resolve_block_model(checkpoint: str | None) -> Path:
+    """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
+    return pipeline_or_shipped(checkpoint, PIPELINE_BLOCK_MODEL, SHIPPED_BLOCK_MODEL, "a block model file",
+                               "train_block_model")
 
 
 def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> tuple[BlockModel, str]:
@@ -134,13 +141,7 @@ def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> 
 # ----------------------------------------------------------------------------- drl policy
 def resolve_drl_path(checkpoint: str | Path | None) -> Path:
     """`checkpoint`, else the pipeline's drl policy in models/, else the shipped one."""
-    if checkpoint is not None:
-        return require_file(checkpoint, "a drl policy export")
-    for path in (PIPELINE_DRL, SHIPPED_DRL):
-        if path.is_file():
-            return path
-    raise FileNotFoundError(f"no drl policy: neither {PIPELINE_DRL} (`dvc repro train_drl`) nor the shipped "
-                            f"{SHIPPED_DRL} exists; pass checkpoint=PATH")
+    return pipeline_or_shipped(checkpoint, PIPELINE_DRL, SHIPPED_DRL, "a drl policy export", "train_drl")
 
 
 def cached_drl_policy(path: str | Path) -> tuple[DRLPolicy, dict]:

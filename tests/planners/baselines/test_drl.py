@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 import torch
-from conftest import maze_from_blocks
+from conftest import SMALL_MAZE, maze_from_blocks
 
 from pipeline.envs.explore_env import ExploreEnv
 from pipeline.models import defaults
@@ -146,20 +146,8 @@ def test_a_policy_trained_at_another_protocol_warns_at_reset(tmp_path, small_maz
         make_planner("drl", checkpoint=str(bare)).reset(small_maze, Protocol(node_resolution=2.0), 0)
 
 
-ISLANDS = [  # the small maze with two closed rooms no sensor reaches: it can never be complete
-    "##########",
-    "#S...#...#",
-    "#.##.#.#.#",
-    "#.#..#.#.#",
-    "#.#.##.#.#",
-    "#...#..#.#",
-    "###.#.##.#",
-    "#.......##",
-    "#..#...#.#",
-    "######.###",
-    "#.#...##.#",
-    "##########",
-]
+# The small maze with two closed rooms no sensor reaches: it can never be complete.
+ISLANDS = SMALL_MAZE[:8] + ["#..#...#.#", "######.###", "#.#...##.#", "##########"]
 
 
 def test_it_stops_where_nothing_is_left_to_see_and_the_environment_wanders_on(tmp_path):
