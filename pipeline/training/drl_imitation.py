@@ -76,7 +76,9 @@ def teacher_decisions(make_env: Callable[[int], Any], teacher_name: str, episode
     distances, completed = [], []
     who = "student drives" if student is not None else "teacher drives"
     for i in tqdm(range(episodes), desc=f"imitation: {who}", unit="episode", mininterval=2.0):
-        env = envs.setdefault(i % 4, make_env(i % 4))
+        if i % 4 not in envs:
+            envs[i % 4] = make_env(i % 4)
+        env = envs[i % 4]
         observation, info = env.reset(seed=seed + i)
         teacher = make_planner(teacher_name)
         teacher.reset(env.ground_truth, env.episode.protocol, seed + i)

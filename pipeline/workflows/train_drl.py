@@ -144,13 +144,13 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
         if record:
             print(f"train_drl: continuing from the checkpoint at {done} of {total} steps", flush=True)
             agent = load_agent(CHECKPOINT_DIR / "last.zip", envs, section["device"])
+            warm = record.get("warm_start")  # what the killed run started from
         else:
             agent = new_agent(envs, policy_config, settings, seed, section["device"])
             warm = start_policy(policy_of(agent), section, environment, policy_config, protocol, settings.gamma, seed)
-        log = EpisodeLog(lambda row: _print_row(row))
+        log = EpisodeLog(_print_row)
         log.rows = list(record["history"]) if record else []
-        checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log,
-                                    extra={"warm_start": record.get("warm_start") if record else warm})
+        checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log, extra={"warm_start": warm})
         if total > done:
             agent.learn(total - done, callback=CallbackList([log, checkpointer, ProgressBar(total, done)]),
                         reset_num_timesteps=not record)
@@ -167,7 +167,7 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
     metrics = {
         "timesteps": int(agent.num_timesteps),
         "resumed_from": done,
-        "warm_start": (record or {}).get("warm_start") if record else warm,
+        "warm_start": warm,
         "train_seconds": round(train_seconds, 1),
         "parameters": sum(p.numel() for p in policy.parameters()),
         "evaluation": evaluation,
