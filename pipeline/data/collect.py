@@ -26,7 +26,7 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
 
 # The library code that determines each data set, as the folders (and files) of the pipeline
-# package that its collection runs: the shard fingerprints hash them, and they are the stages'
+# package that its collection runs: the resume fingerprints hash them (never the data), and they are the stages'
 # code dependencies in dvc.yaml (a test derives both from the import graph).
 COLLECTION_SOURCES = ("__init__.py", "common", "data", "lattice", "models", "planners", "prediction", "stage_runner.py", "world")
 PAIRS_SOURCES = COLLECTION_SOURCES
@@ -75,7 +75,7 @@ def collect_pairs_shard(job: ShardJob) -> dict[str, Any]:
         for pair in captured:
             sizes[pair.observed.shape[0]].append(pair)
         count += len(captured)
-    arrays: dict[str, np.ndarray] = {"fingerprint": np.array(job.fingerprint)}
+    arrays: dict[str, np.ndarray] = {}
     for size, pairs in sizes.items():
         if pairs:
             arrays[f"observed_{size}"] = np.stack([p.observed for p in pairs])
@@ -179,7 +179,6 @@ def collect_expert_shard(job: ShardJob) -> dict[str, Any]:
         distance.append(record["result"].distance_m)
     grid_lengths = [len(g) for g in grids]
     arrays = {
-        "fingerprint": np.array(job.fingerprint),
         "map_names": np.array(maps),
         "map_shapes": np.array(shapes, dtype=np.int32),
         "start_cells": np.array(starts, dtype=np.int32),

@@ -1,18 +1,23 @@
 """Crash-safe sharded data sets: deterministic shards, a manifest, and parallel backends.
 
-A data set is a folder of shards `shard_00000.npz, shard_00001.npz, ...` plus `manifest.json`. Shard k is a
-pure function of (params, seed, k) and the code, so an interrupted collection resumes by
-skipping the shards already on disk whose recorded fingerprint (params + source) matches, and a shard file only ever
-appears complete (written to a temp name, then renamed). The manifest is written last:
-later stages read the manifest, never a folder listing.
+A data set is a folder of shards `shard_00000.npz, shard_00001.npz, ...` plus `manifest.json`.
+Shard k is a pure function of (params, seed, k) and the code. Shards are made in a work folder
+under `checkpoints/`, outside the DVC output (DVC deletes an output before it reruns its
+stage), each with a record of the fingerprint (params + code) that made it; an interrupted
+collection resumes by keeping the finished shards whose record matches. Once every shard is
+there, the data set folder is published as a whole (`pipeline.common.atomic.atomic_folder`),
+its shards hard links to the work folder's (copies where links are impossible), the manifest
+written last. The data set holds only what the data are: no fingerprint, no commit, no
+time, so the same params give the same bytes on any machine and with any commit of code
+that makes the same data.
 """
 
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import json
 import os
+import shutil
 import subprocess
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -22,12 +27,15 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from tqdm import tqdm
 
+from pipeline.common.atomic import atomic_folder, atomic_write_json
+from pipeline.common.fingerprints import settings_digest, source_digest
+
 MANIFEST = "manifest.json"
 
 
 @dataclass(frozen=True)
 class ShardJob:
-    """Everything a worker needs to write shard `index` of a data set."""
+    """Everything a worker needs to write shard `index` of a data set (into `out_dir`, the work folder)."""
 
     index: int
     out_dir: str
@@ -35,28 +43,9 @@ class ShardJob:
     params: dict[str, Any]
 
 
-def source_digest(sources: Sequence[str] | None = None) -> str:
-    """A hash of the library's source: data made by other code is never resumed from.
-
-    `sources` are the package-relative folders and files that determine the data (the whole
-    package when None), so that editing an unrelated part does not throw a data set away.
-    """
-    digest = hashlib.sha256()
-    root = Path(__file__).resolve().parents[1]  # the pipeline package
-    paths: set[Path] = set()
-    for source in [""] if sources is None else sources:
-        path = root / source
-        paths.update(path.rglob("*.py") if path.is_dir() else [path])
-    for path in sorted(paths):
-        digest.update(path.relative_to(root).as_posix().encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
-
-
 def fingerprint(params: dict[str, Any], sources: Sequence[str] | None = None) -> str:
     """A short stable hash of what determines a data set's content: parameters and code."""
-    payload = json.dumps(params, sort_keys=True, default=str) + source_digest(sources)
-    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+    return settings_digest({"params": params, "source": source_digest(sources)})
 
 
 def shard_path(out_dir: str | Path, index: int) -> Path:
@@ -77,13 +66,21 @@ def read_shard(path: str | Path) -> dict[str, np.ndarray]:
         return {key: data[key] for key in data.files}
 
 
+def _record_path(path: Path) -> Path:
+    return path.with_suffix(".json")
+
+
 def shard_is_current(path: Path, expected_fingerprint: str) -> bool:
-    """An existing shard is reused only if it is readable and was made with the same params."""
-    if not path.is_file():
+    """A finished shard in the work folder is kept only if its record names the same fingerprint and it is readable."""
+    record = _record_path(path)
+    if not path.is_file() or not record.is_file():
         return False
     try:
+        if json.loads(record.read_text()).get("fingerprint") != expected_fingerprint:
+            return False
         with np.load(path, allow_pickle=False) as data:
-            return "fingerprint" in data.files and str(data["fingerprint"]) == expected_fingerprint
+            data.files  # noqa: B018 - a readable zip directory
+        return True
     except Exception:  # a corrupt file from an older crash: redo it
         return False
 
@@ -112,59 +109,80 @@ def run_shards(
     description: str = "shards",
     progress: bool = True,
     sources: Sequence[str] | None = None,
+    work_dir: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Make every missing shard (in parallel), then write the manifest; returns it with this run's provenance.
+    """Make every missing shard (in parallel) in `work_dir`, then publish the data set at `out_dir`;
+    returns its manifest with this run's provenance.
 
-    `make_shard(job)` writes `shard_path(job.out_dir, job.index)` (with a `fingerprint`
-    array and its counts as `summary_*` arrays). Shards from other params and stray
-    temp files are removed first, so the folder ends up holding exactly this data set.
+    `make_shard(job)` writes `shard_path(job.out_dir, job.index)` (its counts as `summary_*`
+    arrays); `job.out_dir` is the work folder (default: `out_dir` with `.work` appended, beside
+    it). Shards from other params or code and stray temporaries are removed from it first.
     `sources` names the library files whose code the shards depend on (see `fingerprint`).
 
-    The manifest on disk holds only what the data are (params, fingerprint, shards, totals),
-    so the folder's bytes, and DVC's hash of it, do not change with the git commit or with
-    a resume. The returned dict adds `code_version` and `made_this_run` (the shard indices
-    this run made) for the caller's run summary.
+    The manifest holds only what the data are (params, shards, totals), so the data set's
+    bytes, and DVC's hash of them, do not change with the code's commit or with a resume. The
+    returned dict adds `code_version` and `made_this_run` (the shard indices this run made)
+    for the caller's run summary.
     """
     if backend not in ("process", "ray"):  # checked before any shard on disk is touched
         raise ValueError(f"unknown backend {backend!r}: use 'process' or 'ray'")
     if backend == "ray" and importlib.util.find_spec("ray") is None:
         raise ValueError("backend 'ray' needs Ray, which is not installed: pip install '.[ray]' (or use backend: process)")
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    work = Path(work_dir) if work_dir is not None else out_dir.with_name(out_dir.name + ".work")
+    work.mkdir(parents=True, exist_ok=True)
     fp = fingerprint(params, sources)
-    manifest_path = out_dir / MANIFEST
-    if manifest_path.exists():
-        manifest_path.unlink()  # stale until this run finishes
-    for stray in out_dir.glob(".*.tmp"):
-        stray.unlink()
-    for old in out_dir.glob("shard_*.npz"):
+    for stray in work.glob(".*"):
+        shutil.rmtree(stray) if stray.is_dir() else stray.unlink()
+    for old in work.glob("shard_*.npz"):
         index = int(old.stem.split("_")[1])
         if index >= shard_count or not shard_is_current(old, fp):
             old.unlink()
-    jobs = [ShardJob(k, str(out_dir), fp, params) for k in range(shard_count)]
-    todo = [job for job in jobs if not shard_path(out_dir, job.index).is_file()]
+            _record_path(old).unlink(missing_ok=True)
+    for record in work.glob("shard_*.json"):
+        if not record.with_suffix(".npz").is_file():
+            record.unlink()
+    jobs = [ShardJob(k, str(work), fp, params) for k in range(shard_count)]
+    todo = [job for job in jobs if not shard_path(work, job.index).is_file()]
+    if len(todo) < shard_count:
+        print(f"{description}: {shard_count - len(todo)} of {shard_count} kept from an earlier run ({work})")
+
+    def finished(index: int) -> None:  # the record last: a shard without one is redone
+        atomic_write_json(_record_path(shard_path(work, index)), {"fingerprint": fp})
+        bar.update()
+
     bar = tqdm(total=shard_count, initial=shard_count - len(todo), desc=description, unit="shard", disable=not progress)
     if backend == "ray":
-        for _ in _run_ray(make_shard, todo, workers):
-            bar.update()
+        for index, _ in _run_ray(make_shard, todo, workers):
+            finished(index)
     else:
         if workers <= 1 or len(todo) <= 1:
             for job in todo:
                 make_shard(job)
-                bar.update()
+                finished(job.index)
         else:
             with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
-                for future in as_completed([pool.submit(make_shard, job) for job in todo]):
+                futures = {pool.submit(make_shard, job): job.index for job in todo}
+                for future in as_completed(futures):
                     future.result()  # re-raises a worker's error
-                    bar.update()
+                    finished(futures[future])
     bar.close()
     # Counts read back from every shard file, made now or earlier, so a resume writes the same manifest.
-    shards = [{"file": shard_path(out_dir, k).name, **summarise_shard(shard_path(out_dir, k))} for k in range(shard_count)]
-    manifest = {"params": params, "fingerprint": fp, "shards": shards, "totals": _totals(shards)}
-    tmp = manifest_path.with_name(MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=2, default=str) + "\n")
-    os.replace(tmp, manifest_path)
+    shards = [{"file": shard_path(work, k).name, **summarise_shard(shard_path(work, k))} for k in range(shard_count)]
+    manifest = {"params": params, "shards": shards, "totals": _totals(shards)}
+    with atomic_folder(out_dir) as folder:
+        for k in range(shard_count):
+            _link_or_copy(shard_path(work, k), shard_path(folder, k))
+        (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, default=str) + "\n")
     return {**manifest, "code_version": code_version(), "made_this_run": [job.index for job in todo]}
+
+
+def _link_or_copy(source: Path, target: Path) -> None:
+    """`target` as a hard link to `source` (no second copy on disk), or a copy across file systems."""
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copyfile(source, target)
 
 
 def summarise_shard(path: Path) -> dict[str, Any]:

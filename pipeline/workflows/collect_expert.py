@@ -8,7 +8,8 @@ import json
 import time
 from pathlib import Path
 
-from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.atomic import atomic_write_json
+from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.shards import (
@@ -57,7 +58,7 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
     started = time.perf_counter()
     manifest = run_shards(
         collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="expert shards", sources=EXPERT_SOURCES,
+        backend=backend or section["backend"], description="expert shards", sources=EXPERT_SOURCES, work_dir=CHECKPOINTS.expert,
     )
     seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)
@@ -73,7 +74,7 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
         "episodes_per_minute": rate_per_minute(manifest, "episodes", seconds),
         "code_version": manifest["code_version"],  # provenance here, not in the data folder
     }
-    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_json(SUMMARY, summary)
     print(
         f"{totals['episodes']} expert episodes ({totals['complete']} complete), {totals['steps']} steps, "
         f"{totals['bytes'] / max(1, totals['steps']):.0f} bytes per stored step -> {OUT_DIR}"

@@ -11,7 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
 from pipeline.data.shards import (
@@ -50,7 +51,8 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
     width = max(t.shape[1] for t in tiles)
     rows = [cv2.copyMakeBorder(t, 0, 0, 0, width - t.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255)) for t in tiles]
     path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), np.concatenate(rows, axis=0))
+    with atomic_file(path) as tmp:
+        cv2.imwrite(str(tmp), np.concatenate(rows, axis=0))
 
 
 def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None):
@@ -70,7 +72,7 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
     started = time.perf_counter()
     manifest = run_shards(
         collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="pair shards", sources=PAIRS_SOURCES,
+        backend=backend or section["backend"], description="pair shards", sources=PAIRS_SOURCES, work_dir=CHECKPOINTS.pairs,
     )
     seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)
@@ -86,6 +88,6 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
         "pairs_per_minute": rate_per_minute(manifest, "pairs", seconds),
         "code_version": manifest["code_version"],  # provenance here, not in the data folder
     }
-    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_json(SUMMARY, summary)
     print(f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}")
     return manifest

@@ -102,7 +102,7 @@ def test_collection_sources_exist_and_are_the_stages_dvc_deps():
     import yaml
 
     from pipeline.data.collect import EXPERT_SOURCES, PAIRS_SOURCES
-    from pipeline.data.shards import source_digest
+    from pipeline.common.fingerprints import source_digest
 
     root = ROOT
     stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]
