@@ -25,6 +25,7 @@ from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.modeling_block_model import BlockModel
 from pipeline.planners import make_planner
 from pipeline.prediction.block_maps import block_index, block_shares, true_blocks
+from pipeline.training.checkpoints import TrainingCheckpoint
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
@@ -110,9 +111,13 @@ def _batches(samples: BlockSamples, batch_size: int, rng: np.random.Generator) -
 
 def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config: BlockModelConfig, epochs: int,
                       batch_size: int = 128, lr: float = 3e-3, reveal_share: float = 0.7, seed: int = 0,
-                      log=None) -> tuple[BlockModel, list[dict[str, float]]]:
+                      log=None, checkpoint: TrainingCheckpoint | None = None) -> tuple[BlockModel, list[dict[str, float]]]:
     """A model fitted with AdamW and a one-cycle schedule; per epoch {epoch, loss, held_out_error
-    (`block_error` within 20 m of the known free space), seconds}."""
+    (`block_error` within 20 m of the known free space), seconds}.
+
+    With `checkpoint`, the whole state is saved after every epoch and a run killed part-way
+    continues from its last finished epoch, the same model as an uninterrupted run's.
+    """
     if not len(train):
         raise ValueError("no training snapshots: the block model needs at least one episode")
     torch.manual_seed(seed)
@@ -121,8 +126,17 @@ def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config
     optimizer = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
     steps = epochs * len(_batches(train, batch_size, np.random.default_rng(seed)))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, max_lr=lr, total_steps=max(steps, 1))
-    history = []
-    for epoch in range(epochs):
+    history: list[dict[str, float]] = []
+    first_epoch = 0
+    state = checkpoint.load() if checkpoint is not None else None
+    if state is not None:
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        schedule.load_state_dict(state["schedule"])
+        torch.set_rng_state(state["torch_rng"])
+        rng.bit_generator.state = state["numpy_rng"]
+        history, first_epoch = list(state["history"]), int(state["epoch"])
+    for epoch in range(first_epoch, epochs):
         started, losses = time.perf_counter(), []
         model.train()
         for batch in tqdm(_batches(train, batch_size, rng), desc=f"block model epoch {epoch + 1}/{epochs}", unit="batch", leave=False):
@@ -147,4 +161,8 @@ def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config
         history.append(row)
         if log is not None:
             log(row)
+        if checkpoint is not None:
+            checkpoint.save({"epoch": epoch + 1, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
+                             "schedule": schedule.state_dict(), "torch_rng": torch.get_rng_state(),
+                             "numpy_rng": rng.bit_generator.state, "history": history})
     return model.eval(), history

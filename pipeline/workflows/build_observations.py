@@ -5,14 +5,16 @@ graph only).
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_write_json
+from pipeline.common.fingerprints import files_digest, source_digest
+from pipeline.common.kept_results import KeptResults
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.paths import DATA, POLICIES, REPORTS
+from pipeline.common.paths import CHECKPOINTS, DATA, POLICIES, REPORTS
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.observations import (
     ObservationConfig,
@@ -75,7 +77,10 @@ def build_observations(section: dict, protocol: Protocol):
     ]
     started = time.perf_counter()
     workers = max(1, int(section["workers"]))
-    results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard")
+    identity = {"tasks": tasks, "expert": files_digest([EXPERT_DIR]), "inpainter": files_digest([inpainter]),
+                "source": source_digest()}
+    results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard",
+                                keep=KeptResults(CHECKPOINTS.observations, identity))
     seconds = time.perf_counter() - started
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
     for variant in ("guide", "dare"):
@@ -90,7 +95,6 @@ def build_observations(section: dict, protocol: Protocol):
             "predicted_nodes_median": float(np.median(arrays["features"][..., FEATURE_NAMES.index("is_predicted")].astype(np.float32).sum(axis=1))),
             "truncated_share": float(mask.all(axis=1).mean()),  # steps whose graph filled every padded row
         }
-    SUMMARY.parent.mkdir(parents=True, exist_ok=True)
-    SUMMARY.write_text(json.dumps(summary, indent=2) + "\n")
+    atomic_write_json(SUMMARY, summary)
     print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {DATA.observations}/")
     return summary

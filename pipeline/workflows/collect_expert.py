@@ -4,7 +4,6 @@ state; written as shards, with a summary and a picture of one episode.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 

@@ -4,7 +4,6 @@ planners, with random early stopping, in the training mazes; written as shards, 
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 

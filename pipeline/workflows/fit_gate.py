@@ -6,16 +6,18 @@ gate, its metrics and held-out ROC curves, and logs one MLflow run in experiment
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.fingerprints import files_digest, source_digest
+from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
 from pipeline.models.defaults import PIPELINE_GATE
 from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
@@ -28,15 +30,24 @@ GATE_PATH = PIPELINE_GATE
 METRICS_PATH = REPORTS.sliver_gate
 FIGURE_PATH = REPORTS.sliver_gate_figure
 EXPERIMENT = "sliver_gate"
+KEPT_SAMPLES = CHECKPOINTS.gate_samples
+
+
 def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
     path, protocol, wall_margin = task
     return gate_samples(load_map(path), Protocol.from_dict(protocol), wall_margin)
 
 
-def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(counts, gains) per map, in map order."""
+def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int,
+            keep_in: Path | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(counts, gains) per map, in map order; with `keep_in`, each map's kept there as it is done,
+    so that a killed run takes them up again."""
     tasks = [(str(m), protocol.to_dict(), wall_margin) for m in maps]
-    return map_with_progress(_samples, tasks, workers, "gate samples", "maze")
+    keep = None
+    if keep_in is not None:
+        identity = {"tasks": tasks, "maps": files_digest(maps), "source": source_digest()}
+        keep = KeptResults(keep_in, identity)
+    return map_with_progress(_samples, tasks, workers, "gate samples", "maze", keep=keep)
 
 
 def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path) -> None:
@@ -54,7 +65,8 @@ def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Pa
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
 
 
@@ -76,7 +88,8 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
         "offices": (_family_maps(TRAIN_OFFICES, section["offices"], office_holdout, "office_holdout"), office_holdout),
     }
     started = time.perf_counter()
-    samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"])
+    samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"],
+                      keep_in=KEPT_SAMPLES)
     fit, held = [], {}  # (counts, gains) per fitted map; per family, those of its held-out maps
     for family, (maps, holdout) in families.items():
         ours, samples = samples[: len(maps)], samples[len(maps):]
@@ -112,8 +125,7 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
     fitted_maps = [m.name for maps, holdout in families.values() for m in maps[: len(maps) - holdout]]
     save_gate(gate, GATE_PATH, protocol.to_dict(), fitted_on={"maps": fitted_maps, **metrics})
     metrics["seconds"] = round(time.perf_counter() - started, 1)  # in the report only: the gate file is a pure function of its inputs
-    METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
-    METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")
+    atomic_write_json(METRICS_PATH, metrics)
     if curves:
         roc_figure(curves, FIGURE_PATH)
     log_run(section, protocol, metrics)

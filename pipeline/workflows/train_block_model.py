@@ -18,14 +18,18 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.fingerprints import settings_digest, source_digest
+from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.common.parallel import map_with_progress
-from pipeline.common.paths import REPORTS
+from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.defaults import PIPELINE_BLOCK_MODEL
 from pipeline.models.modeling_block_model import save_block_model
 from pipeline.training.block_model import (
     BlockSamples,
+    TrainingCheckpoint,
     block_error,
     block_snapshots,
     train_block_model,
@@ -38,6 +42,8 @@ MODEL_PATH = PIPELINE_BLOCK_MODEL
 METRICS_PATH = REPORTS.block_model
 FIGURE_PATH = REPORTS.block_model_figure
 EXPERIMENT = "block_model"
+KEPT_SNAPSHOTS = CHECKPOINTS.block_snapshots
+CHECKPOINT_DIR = CHECKPOINTS.block_model
 
 def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
     """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
@@ -75,7 +81,8 @@ def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarra
             ax.axis("off")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 
@@ -86,13 +93,20 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
     with tempfile.TemporaryDirectory() as folder:
         maps = generate_maze_set(maze_config(section, config, protocol), section["mazes"], folder, seed=section["maze_seed"])
         tasks = [(str(m), protocol.to_dict(), config.block_m, section["snapshot_every"]) for m in maps]
-        collected = map_with_progress(_snapshots, tasks, section["workers"], "block snapshots", "maze")
+        # The mazes are drawn from these settings alone (their folder is a fresh temporary one each run).
+        identity = {"mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed", "snapshot_every")},
+                    "block_m": config.block_m, "protocol": protocol.to_dict(), "source": source_digest()}
+        collected = map_with_progress(_snapshots, tasks, section["workers"], "block snapshots", "maze",
+                                      keep=KeptResults(KEPT_SNAPSHOTS, identity))
     fit_count = len(maps) - section["holdout_mazes"]
     train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])
     held_out = BlockSamples([s for s, _ in collected[fit_count:]], [t for _, t in collected[fit_count:]])
     collect_seconds = time.perf_counter() - started
+    fit_identity = {**identity, "fit": {k: section[k] for k in ("holdout_mazes", "epochs", "batch_size", "lr", "reveal_share", "seed")},
+                    "model": config.to_dict()}
     model, history = train_block_model(train, held_out, config, section["epochs"], section["batch_size"], section["lr"],
                                        section["reveal_share"], section["seed"],
+                                       checkpoint=TrainingCheckpoint(CHECKPOINT_DIR, settings_digest(fit_identity)),
                                        log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True))
     error, all_wall_error = block_error(model, held_out) if len(held_out) else (float("nan"), float("nan"))
     metrics: dict[str, Any] = {
@@ -107,8 +121,7 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
                                          **{k: v for k, v in metrics.items() if k != "history"}})
     metrics["collect_seconds"] = round(collect_seconds, 1)
     metrics["train_seconds"] = round(sum(row["seconds"] for row in history), 1)
-    METRICS_PATH.parent.mkdir(parents=True, exist_ok=True)
-    METRICS_PATH.write_text(json.dumps(metrics, indent=2) + "\n")
+    atomic_write_json(METRICS_PATH, metrics)
     example = None
     if len(held_out):
         shares = held_out.shares[0][len(held_out.shares[0]) // 3]

@@ -52,3 +52,40 @@ def test_near_unknown_keeps_the_unknown_blocks_within_reach_of_known_free_ones()
     shares[0, :, 4, 4] = (1.0, 0.0, 0.0)  # one known free block in the middle
     near = near_unknown(shares, 2)[0]
     assert near.sum() == 24 and near[2, 2] and near[6, 6] and not near[1, 4] and not near[4, 4]
+
+
+def test_a_killed_training_resumes_from_its_last_epoch_to_the_same_model(generated_maze_dir, tmp_path):
+    import pytest
+    import torch
+
+    from pipeline.training.checkpoints import TrainingCheckpoint
+
+    protocol = Protocol()
+    config = BlockModelConfig(width=8, groups=4)
+    maps = [load_map(p) for p in list_maps(generated_maze_dir)[:2]]
+    collected = [block_snapshots(m, protocol, config.block_m, 6) for m in maps]
+    samples = BlockSamples([s for s, _ in collected], [t for _, t in collected])
+    whole, whole_history = train_block_model(samples, None, config, epochs=3, batch_size=16)
+
+    class Killed(Exception):
+        pass
+
+    def kill_in_epoch_2(row):
+        if row["epoch"] == 2:
+            raise Killed  # before epoch 2 is saved: the checkpoint holds epoch 1
+
+    checkpoint = TrainingCheckpoint(tmp_path, "settings-a")
+    with pytest.raises(Killed):
+        train_block_model(samples, None, config, epochs=3, batch_size=16, log=kill_in_epoch_2, checkpoint=checkpoint)
+    epochs_run = []
+    resumed, history = train_block_model(samples, None, config, epochs=3, batch_size=16,
+                                         log=lambda row: epochs_run.append(row["epoch"]), checkpoint=checkpoint)
+    assert epochs_run == [2, 3] and [row["epoch"] for row in history] == [1, 2, 3]
+    for a, b in zip(whole.state_dict().values(), resumed.state_dict().values()):
+        assert torch.equal(a, b)
+    assert [row["loss"] for row in history] == [row["loss"] for row in whole_history]
+    # Other settings never resume from it.
+    epochs_run.clear()
+    train_block_model(samples, None, config, epochs=3, batch_size=16, log=lambda row: epochs_run.append(row["epoch"]),
+                      checkpoint=TrainingCheckpoint(tmp_path, "settings-b"))
+    assert epochs_run == [1, 2, 3]
