@@ -56,6 +56,7 @@ from pipeline.models.modeling_inpainter import (
     load_big_lama_generator,
 )
 from pipeline.training.run_setup import (
+    atomic_checkpoint_io,
     check_accelerator,
     check_max_minutes,
     check_positive_int,
@@ -65,6 +66,7 @@ from pipeline.training.run_setup import (
     max_time,
     mlflow_logger,
     one_line,
+    quiet_checkpoint_folder,
     torch_threads,
     training_host,
 )
@@ -605,13 +607,15 @@ def train_inpainter(
     num_threads: Optional[int] = None,
     artifact_location: Optional[str] = None,
     protocol: Optional[dict[str, Any]] = None,
+    checkpoint_dir: Optional[str | Path] = None,
 ) -> Path | None:
     """Train the inpainter on a Stage I data set; returns the path of the exported `inpainter.pt`
     (None in the other processes of a multi-device run: only rank zero exports).
 
-    `max_epochs`, `batch_size` and `lr` override `train_config`. `resume=True` continues
-    from `out_dir/last.ckpt` (epoch counter, optimiser and history included) when it
-    exists; otherwise the old checkpoints in `out_dir` are set aside while it trains
+    `max_epochs`, `batch_size` and `lr` override `train_config`. Lightning's checkpoints
+    (`last.ckpt`, `best.ckpt`, each written atomically) go to `checkpoint_dir` (default:
+    `out_dir`). `resume=True` continues from its `last.ckpt` (epoch counter, optimiser and
+    history included) when it exists; otherwise the old checkpoints in `out_dir` are set aside while it trains
     (`fresh_checkpoints`), once the settings, the init checkpoint and the data have been
     checked (a run that fails early leaves them alone; bad settings raise a one-line ValueError). `init_checkpoint`
     is an official (Big-)LaMa checkpoint whose `generator.*` weights start the training
@@ -626,12 +630,12 @@ def train_inpainter(
     with torch_threads(num_threads):
         return _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume,
                       tracking_uri, init_checkpoint, train_config, mlflow, experiment_name, run_name, progress,
-                      artifact_location, protocol)
+                      artifact_location, protocol, checkpoint_dir)
 
 
 def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
            init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location,
-           protocol=None) -> Path | None:
+           protocol=None, checkpoint_dir=None) -> Path | None:
     # Everything that can fail is checked before a file is touched or an MLflow run is made: the
     # settings, the init checkpoint and the data; old checkpoints go only just before fit().
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
@@ -642,7 +646,8 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         model_config = InpainterConfig.from_dict(model_config)
     model_config = model_config or InpainterConfig()
     out_dir = Path(out_dir)
-    last = out_dir / LAST_CKPT
+    checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else out_dir
+    last = checkpoint_dir / LAST_CKPT
     ckpt_path = str(last) if resume and last.is_file() else None
     init_weights = None
     if init_checkpoint is not None:
@@ -663,6 +668,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
     data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
     data.setup("fit")  # the data check (no random state involved): before the MLflow logger exists
     out_dir.mkdir(parents=True, exist_ok=True)
+    checkpoint_dir.mkdir(parents=True, exist_ok=True)
     if resume and ckpt_path is None:
         warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
 
@@ -681,7 +687,7 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         del init_weights
         print(f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}")
 
-    checkpoint = ModelCheckpoint(dirpath=out_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
+    checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
                                  save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
     logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri, artifact_location) if mlflow else False
     trainer_options = dict(
@@ -691,19 +697,20 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         devices=devices,
         logger=logger,
         callbacks=[checkpoint],
-        default_root_dir=str(out_dir),
+        default_root_dir=str(checkpoint_dir),
         enable_progress_bar=progress,
         enable_model_summary=False,
         num_sanity_val_steps=0,
         use_distributed_sampler=False,
         log_every_n_steps=1,
+        plugins=[atomic_checkpoint_io()],
     )
     trainer = make_trainer(**trainer_options)
     if tc.adversarial_weight > 0 and trainer.world_size > 1:
         # The GAN's two steps each leave one network without gradients, which DDP refuses by default.
         trainer = make_trainer(**trainer_options, strategy="ddp_find_unused_parameters_true")
     started = time.perf_counter()
-    with fresh_checkpoints(out_dir, fresh=ckpt_path is None):
+    with fresh_checkpoints(checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
         trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
     seconds = time.perf_counter() - started
     export_path = out_dir / EXPORT_NAME

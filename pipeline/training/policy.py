@@ -26,6 +26,7 @@ from pipeline.data.observations import PlannerDataset, crop_observations, load_o
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy
 from pipeline.training.run_setup import (
+    atomic_checkpoint_io,
     check_accelerator,
     check_max_minutes,
     check_positive_int,
@@ -34,6 +35,7 @@ from pipeline.training.run_setup import (
     make_trainer,
     max_time,
     mlflow_logger,
+    quiet_checkpoint_folder,
     torch_threads,
     training_host,
 )
@@ -187,14 +189,16 @@ def train_planner(
     run_name: Optional[str] = None,
     progress: bool = False,
     num_threads: Optional[int] = None,
+    checkpoint_dir: str | Path | None = None,
 ) -> Path | None:
     """Train on an observation file (build_observations stage); returns the exported policy.pt
     (None in the other processes of a multi-device run: only rank zero exports).
 
-    `resume=True` continues from out_dir/last.ckpt (optimiser, EMA and history included)
-    when it exists; otherwise the old checkpoints are set aside while it trains
-    (`fresh_checkpoints`), once the settings and the data have been checked (a run that
-    fails early leaves them alone).
+    Lightning's checkpoints (`last.ckpt`, `best.ckpt`, each written atomically) go to
+    `checkpoint_dir` (default: `out_dir`). `resume=True` continues from its last.ckpt
+    (optimiser, EMA and history included) when it exists; otherwise the old checkpoints are
+    set aside while it trains (`fresh_checkpoints`), once the settings and the data have been
+    checked (a run that fails early leaves them alone).
     """
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
@@ -213,7 +217,9 @@ def train_planner(
     with torch_threads(num_threads):
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-        last = out_dir / LAST_CKPT
+        checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else out_dir
+        checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        last = checkpoint_dir / LAST_CKPT
         ckpt_path = str(last) if resume and last.is_file() else None
         if resume and ckpt_path is None:
             warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
@@ -228,19 +234,19 @@ def train_planner(
         train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
         module = PlannerLightning(mc.to_dict(), asdict(tc))
-        checkpoint = ModelCheckpoint(dirpath=out_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
+        checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
                                      save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
         logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri) if mlflow else False
         trainer = make_trainer(
             max_epochs=tc.max_epochs, max_time=max_time(tc.max_minutes), accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
-            default_root_dir=str(out_dir), enable_progress_bar=progress, enable_model_summary=False,
-            num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0,
+            default_root_dir=str(checkpoint_dir), enable_progress_bar=progress, enable_model_summary=False,
+            num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0, plugins=[atomic_checkpoint_io()],
         )
         if logger:  # makes the MLflow run: only once the trainer accepted the settings
             logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
                                     "observations": str(observations), "samples": len(arrays["episode"])})
         started = time.perf_counter()
-        with fresh_checkpoints(out_dir, fresh=ckpt_path is None):
+        with fresh_checkpoints(checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
             trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
         seconds = time.perf_counter() - started
         export_path = out_dir / EXPORT_NAME

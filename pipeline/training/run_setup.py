@@ -1,5 +1,6 @@
 """What every training run shares: settings checks, the Lightning trainer, old checkpoints set
-aside, torch's CPU threads and the MLflow logger.
+aside, checkpoints written atomically and resumed only for the same settings and data, torch's
+CPU threads and the MLflow logger.
 
 The inpainter (Stage I) and the diffusion planner (Stage II) train the same way: settings
 are checked before a file is touched or an MLflow run is made, Lightning's refusals become
@@ -9,6 +10,7 @@ its own.
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import shutil
@@ -21,7 +23,11 @@ from typing import Any, Iterator, Optional
 import lightning as L
 import torch
 
+from pipeline.common.atomic import atomic_file, atomic_write_json
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+
+LAST_CKPT = "last.ckpt"
+RUN_RECORD = "run.json"
 
 
 def check_max_minutes(value: Any) -> None:
@@ -126,7 +132,66 @@ def make_trainer(**options: Any) -> "L.Trainer":
                          f"devices={options.get('devices')!r}: {one_line(error)}") from None
 
 
+def atomic_checkpoint_io() -> Any:
+    """Lightning's checkpoint writer, with each file written under a temporary name and renamed:
+    a kill while `last.ckpt` is written leaves the previous epoch's, never a truncated one."""
+    from lightning.fabric.plugins.io.torch_io import TorchCheckpointIO
+
+    class AtomicCheckpointIO(TorchCheckpointIO):
+        def save_checkpoint(self, checkpoint: dict[str, Any], path: Any, storage_options: Any = None) -> None:
+            with atomic_file(path) as tmp:
+                super().save_checkpoint(checkpoint, tmp, storage_options)
+
+    return AtomicCheckpointIO()
+
+
+def resume_point(folder: str | Path, fingerprint: str, what: str) -> tuple[str, int] | None:
+    """(`folder/last.ckpt`, the epochs it finished) when `folder/run.json` says it was made with
+    `fingerprint` (the same settings and data), else None; one line says which, when there is a
+    checkpoint to decide on."""
+    folder = Path(folder)
+    last, record = folder / LAST_CKPT, folder / RUN_RECORD
+    if not last.is_file():
+        return None
+    try:
+        recorded = json.loads(record.read_text()).get("fingerprint") if record.is_file() else None
+    except (OSError, ValueError):
+        recorded = None
+    if recorded != fingerprint:
+        print(f"{what}: {last} was made with other settings or data: training afresh")
+        return None
+    try:
+        state = torch.load(last, map_location="cpu", weights_only=False)
+        finished = int(state["epoch"]) + 1  # Lightning saves at the end of an epoch, numbered from 0
+    except Exception as error:  # noqa: BLE001 - an unreadable checkpoint means: start afresh
+        print(f"{what}: {last} is unreadable ({type(error).__name__}): training afresh")
+        return None
+    print(f"{what}: resuming from {last} after {finished} epoch{'s' if finished != 1 else ''}")
+    return str(last), finished
+
+
+def start_afresh(folder: str | Path, fingerprint: str) -> None:
+    """Drop the checkpoints of other settings or data in `folder`, then record `fingerprint` as
+    the one the checkpoints written from now on are made with (in that order: a kill between the
+    two leaves no checkpoint to resume from)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("*.ckpt"):
+        old.unlink()
+    shutil.rmtree(folder / PREVIOUS_CHECKPOINTS, ignore_errors=True)
+    atomic_write_json(folder / RUN_RECORD, {"fingerprint": fingerprint})
+
+
 PREVIOUS_CHECKPOINTS = "previous_checkpoints"
+
+
+@contextmanager
+def quiet_checkpoint_folder() -> Iterator[None]:
+    """Lightning warns when its checkpoint folder is not empty; ours holds the run's record
+    (`run.json`) and, when resuming, the checkpoints it resumes from, by design."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Checkpoint directory .* exists and is not empty")
+        yield
 
 
 @contextmanager

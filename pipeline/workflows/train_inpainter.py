@@ -4,7 +4,6 @@ predicted free nodes per threshold, prediction time, training curves and sample 
 
 from __future__ import annotations
 
-import json
 import time
 import warnings
 from pathlib import Path
@@ -12,7 +11,10 @@ from typing import Any, Optional
 
 import numpy as np
 
-from pipeline.common.paths import DATA, MODELS, REPORTS
+from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.fingerprints import files_digest, settings_digest
+from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, REPORTS
+from pipeline.data.shards import read_manifest
 from pipeline.models import InpainterConfig, TracedInpainter
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
 from pipeline.training.inpainter import (
@@ -21,10 +23,12 @@ from pipeline.training.inpainter import (
     split_pairs,
     train_inpainter,
 )
+from pipeline.training.run_setup import resume_point, start_afresh
 from pipeline.world.protocol import Protocol
 
 DATA_DIR = DATA.pairs
 OUT_DIR = MODELS.inpainter
+CHECKPOINT_DIR = CHECKPOINTS.inpainter
 METRICS = REPORTS.inpainter
 CURVES = REPORTS.inpainter_curves
 SAMPLES = REPORTS.inpainter_samples
@@ -73,7 +77,8 @@ def plot_curves(history: list[dict[str, float]], path: Path) -> None:
     ax_val.grid(alpha=0.3)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 
@@ -125,31 +130,54 @@ def plot_samples(model, val_pairs: dict, threshold: float, path: Path, count: in
                  "green hit, red false, orange missed", fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
 
 
+def training_fingerprint(section: dict[str, Any], protocol: Protocol, accelerator: Any, devices: Any,
+                         init_checkpoint: Optional[str]) -> str:
+    """What the inpainter's weights depend on: its settings (not the MLflow experiment or the
+    thread count), the device layout, the protocol, the pairs and the init checkpoint's bytes."""
+    settings = {k: v for k, v in section.items() if k not in ("experiment", "threads", "init_checkpoint", "accelerator", "devices")}
+    return settings_digest({"settings": settings, "accelerator": accelerator, "devices": devices,
+                            "protocol": protocol.to_dict(), "pairs": files_digest([DATA_DIR]),
+                            "init_checkpoint": files_digest([init_checkpoint]) if init_checkpoint else None})
+
+
 def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: Optional[str] = None,
-                     devices: Optional[int | str] = None, resume: bool = False, init_checkpoint: Optional[str] = None,
+                     devices: Optional[int | str] = None, afresh: bool = False, init_checkpoint: Optional[str] = None,
                      tracking_uri: Optional[str] = None, progress: bool = False,
                      artifact_location: Optional[str] = None) -> dict[str, Any]:
     """Train the inpainter from the `train_inpainter` settings, then measure the export on the
     held-out pairs and write its metrics, curves and sample predictions; the metrics ({} in a
-    process of a multi-device run other than the first)."""
+    process of a multi-device run other than the first).
+
+    A run killed part-way continues from its last epoch's checkpoint in checkpoints/inpainter
+    when the settings and data are the same (`afresh` starts over regardless)."""
     section = dict(section)
+    accelerator = accelerator or section.get("accelerator") or "cpu"
+    devices = devices if devices is not None else (section.get("devices") or 1)
+    init_checkpoint = init_checkpoint or section.get("init_checkpoint")
+    read_manifest(DATA_DIR)  # a finished data set, before any checkpoint is decided on
+    fingerprint = training_fingerprint(section, protocol, accelerator, devices, init_checkpoint)
     run = {key: section.pop(key, None) for key in RUN_KEYS}
     train_config = TrainConfig.from_dict(section)
     model_config = InpainterConfig.from_dict(run["model"] or {})
+    resume_from = None if afresh else resume_point(CHECKPOINT_DIR, fingerprint, "train_inpainter")
+    if resume_from is None:
+        start_afresh(CHECKPOINT_DIR, fingerprint)
     export_path = train_inpainter(
         model_config,
         DATA_DIR,
         OUT_DIR,
         train_config=train_config,
-        accelerator=accelerator or run["accelerator"] or "cpu",
-        devices=devices if devices is not None else (run["devices"] or 1),
-        resume=resume,
+        accelerator=accelerator,
+        devices=devices,
+        resume=resume_from is not None,
+        checkpoint_dir=CHECKPOINT_DIR,
         tracking_uri=tracking_uri,
-        init_checkpoint=init_checkpoint or run["init_checkpoint"],
+        init_checkpoint=init_checkpoint,
         experiment_name=run["experiment"] or "inpainter",
         progress=progress,
         num_threads=run["threads"],
@@ -191,9 +219,9 @@ def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: O
         "predict_ms_48": round(prediction_ms(TracedInpainter(model)), 3),  # frozen trace, current threads
         "predict_ms_48_eager": round(prediction_ms(model), 3),
         "trained_on": export.get("trained_on"),  # torch build, CPU kernels, threads: weights differ across hosts
+        "resumed_after_epochs": resume_from[1] if resume_from else None,  # None: trained in one go
     }
-    METRICS.parent.mkdir(parents=True, exist_ok=True)
-    METRICS.write_text(json.dumps(metrics, indent=2) + "\n")
+    atomic_write_json(METRICS, metrics)
     plot_curves(export["history"], CURVES)
     plot_samples(model, val_pairs, tau, SAMPLES)
     return metrics

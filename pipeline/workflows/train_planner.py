@@ -3,12 +3,17 @@ variant trained on its observations, then its metrics and training curves."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from pipeline.common.paths import POLICIES
+from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.fingerprints import files_digest, settings_digest
+from pipeline.common.paths import CHECKPOINTS, POLICIES
 from pipeline.models.modeling_diffusion import load_policy
-from pipeline.training.policy import train_planner
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.training.policy import PlannerTrainConfig, train_planner
+from pipeline.training.run_setup import resume_point, start_afresh
+
+CHECKPOINTS_OF = {variant: getattr(CHECKPOINTS, f"planner_{variant}") for variant in POLICIES}
 
 
 def plot_curves(history: list[dict], path: Path, title: str) -> None:
@@ -34,26 +39,49 @@ def plot_curves(history: list[dict], path: Path, title: str) -> None:
     fig.suptitle(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 
+def training_fingerprint(model: dict, train: dict, accelerator: str, devices: str, observations: Path) -> str:
+    """What a policy's weights depend on: its model and training settings, the device layout and
+    the observations' bytes (not the MLflow experiment or the thread count)."""
+    return settings_digest({"model": model, "train": train, "accelerator": accelerator, "devices": devices,
+                            "observations": files_digest([observations])})
+
+
 def train_and_report(section: dict, variant: str, accelerator: str | None = None, devices: str | None = None,
-                     resume: bool = False, max_epochs: int | None = None) -> dict:
+                     afresh: bool = False, max_epochs: int | None = None) -> dict:
     """Train the `variant` policy from the `train_planner` settings and write its metrics and curves;
-    the metrics ({} in a process of a multi-device run other than the first)."""
+    the metrics ({} in a process of a multi-device run other than the first).
+
+    A run killed part-way continues from its last epoch's checkpoint in checkpoints/planner_<variant>
+    when the settings and observations are the same (`afresh` starts over regardless)."""
     paths = POLICIES[variant]
+    model = dict(section["model"] or {})
     train = dict(section["train"] or {})
     if max_epochs is not None:
         train["max_epochs"] = int(max_epochs)
+    accelerator = accelerator or section["accelerator"]
+    devices = devices or section["devices"]
+    checkpoint_dir = CHECKPOINTS_OF[variant]
+    PlannerTrainConfig.from_dict(train), DiffusionPolicyConfig.from_dict(model)  # the settings first: one-line errors
+    if not Path(paths.observations).is_file():  # before any checkpoint is decided on
+        raise FileNotFoundError(f"{paths.observations}: no observations; run the build_observations stage first")
+    fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations)
+    resume_from = None if afresh else resume_point(checkpoint_dir, fingerprint, f"train_planner {variant}")
+    if resume_from is None:
+        start_afresh(checkpoint_dir, fingerprint)
     export = train_planner(
         paths.observations,
         paths.model,
-        dict(section["model"] or {}),
+        model,
         train,
-        accelerator=accelerator or section["accelerator"],
-        devices=devices or section["devices"],
-        resume=resume,
+        accelerator=accelerator,
+        devices=devices,
+        resume=resume_from is not None,
+        checkpoint_dir=checkpoint_dir,
         experiment_name=str(section["experiment"]),
         run_name=variant,
         num_threads=section["threads"],
@@ -72,9 +100,9 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
         "val_loss": last.get("val_loss"),
         "val_first_step_accuracy": last.get("val_first_step_accuracy"),
         "trained_on": meta.get("trained_on"),  # torch build, CPU kernels, threads: weights differ across hosts
+        "resumed_after_epochs": resume_from[1] if resume_from else None,  # None: trained in one go
     }
-    paths.metrics.parent.mkdir(parents=True, exist_ok=True)
-    paths.metrics.write_text(json.dumps(metrics, indent=2) + "\n")
+    atomic_write_json(paths.metrics, metrics)
     if history:
         plot_curves(history, paths.curves, f"{variant} diffusion planner")
     return metrics

@@ -399,7 +399,8 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
               "train_inpainter": {"model": TINY, "max_epochs": 1, **FAST, "threshold": 0.4, "threads": 1}}
     Path("params.yaml").write_text(yaml.safe_dump(params))
     metrics = stage.main("params.yaml", tracking_uri=mlflow_uri, artifact_location=str(tmp_path / "mlartifacts"))
-    for path in ("models/inpainter/inpainter.pt", "models/inpainter/last.ckpt", "reports/inpainter_metrics.json",
+    assert sorted(p.name for p in Path("models/inpainter").iterdir()) == ["inpainter.pt"]  # the output: the export alone
+    for path in ("models/inpainter/inpainter.pt", "checkpoints/inpainter/last.ckpt", "reports/inpainter_metrics.json",
                  "reports/inpainter_curves.png", "reports/inpainter_samples.png"):
         assert Path(path).is_file(), path
     written = json.loads(Path("reports/inpainter_metrics.json").read_text())
@@ -455,3 +456,42 @@ def test_max_minutes_caps_the_wall_clock(pairs_dir, tmp_path):
     for bad in (0, -1.0, "ten", True):
         with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
             TrainConfig.from_dict({"max_minutes": bad})
+
+
+def test_stage_killed_mid_training_resumes_from_its_last_epoch(pairs_dir, tmp_path):
+    """SIGKILL once the first epoch's checkpoint is written, then the same command: it goes on from
+    there (epochs add up), and other settings start afresh, saying so in one line."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from import_graph import ROOT
+
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data/pairs").symlink_to(pairs_dir, target_is_directory=True)
+    params = {"protocol": {}, "train_inpainter": {"model": TINY, "max_epochs": 3, **FAST, "threads": 1}}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MLFLOW_TRACKING_URI": f"sqlite:///{tmp_path}/mlflow.db"}
+    command = [sys.executable, "-m", "stages.train_inpainter"]
+    last = tmp_path / "checkpoints/inpainter/last.ckpt"
+    with subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) as run:
+        deadline = time.monotonic() + 240
+        while not last.is_file() and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert run.poll() is None, "training ended before it could be killed"
+        os.kill(run.pid, signal.SIGKILL)
+    assert not (tmp_path / "models/inpainter/inpainter.pt").exists()
+    again = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "train_inpainter: resuming from checkpoints/inpainter/last.ckpt after" in again.stdout
+    metrics = json.loads((tmp_path / "reports/inpainter_metrics.json").read_text())
+    assert metrics["epochs"] == 3 and 1 <= metrics["resumed_after_epochs"] < 3
+    assert [row["epoch"] for row in read_inpainter_export(tmp_path / "models/inpainter/inpainter.pt")["history"]] == [0, 1, 2]
+    params["train_inpainter"]["lr"] = 0.004
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    afresh = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert afresh.returncode == 0, afresh.stderr[-2000:]
+    assert "was made with other settings or data: training afresh" in afresh.stdout
+    assert json.loads((tmp_path / "reports/inpainter_metrics.json").read_text())["resumed_after_epochs"] is None
