@@ -67,6 +67,8 @@ from pipeline.training.run_setup import (
     mlflow_logger,
     one_line,
     quiet_checkpoint_folder,
+    random_states,
+    restore_random_states,
     torch_threads,
     training_host,
 )
@@ -537,9 +539,11 @@ class InpainterLightning(L.LightningModule):
     # -- checkpoint extras ------------------------------------------------------------
     def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         checkpoint["inpainter_history"] = list(self.history)
+        checkpoint["random_states"] = random_states()
 
     def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         self.history = list(checkpoint.get("inpainter_history", []))
+        restore_random_states(checkpoint.get("random_states"))
 
 
 # ----------------------------------------------------------------------------- export / load

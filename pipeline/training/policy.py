@@ -36,6 +36,8 @@ from pipeline.training.run_setup import (
     max_time,
     mlflow_logger,
     quiet_checkpoint_folder,
+    random_states,
+    restore_random_states,
     torch_threads,
     training_host,
 )
@@ -98,6 +100,7 @@ class PlannerLightning(L.LightningModule):
         self.ema = AveragedModel(self.policy, multi_avg_fn=get_ema_multi_avg_fn(self.train_config.ema_decay), use_buffers=True)
         self.ema.requires_grad_(False)  # updated by averaging, never by gradients (DDP refuses trainable unused weights)
         self.history: list[dict[str, float]] = []
+        self.generators: list[torch.Generator | np.random.Generator] = []  # saved in checkpoints (`random_states`)
         self._epoch_losses: list[float] = []
         self._val: dict[str, list[float]] = {}
         self._epoch_start = time.perf_counter()
@@ -169,9 +172,11 @@ class PlannerLightning(L.LightningModule):
 
     def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         checkpoint["history"] = self.history
+        checkpoint["random_states"] = random_states(self.generators)
 
     def on_load_checkpoint(self, checkpoint: dict[str, Any]) -> None:
         self.history = list(checkpoint.get("history", []))
+        restore_random_states(checkpoint.get("random_states"), self.generators)
 
 
 def train_planner(
@@ -234,6 +239,7 @@ def train_planner(
         train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
         module = PlannerLightning(mc.to_dict(), asdict(tc))
+        module.generators = [generator, train_set.rng]  # the shuffle and the augmentation resume where they were
         checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
                                      save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
         logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri) if mlflow else False

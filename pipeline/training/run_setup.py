@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import random
 import shutil
 import warnings
 from contextlib import contextmanager
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any, Iterator, Optional
 
 import lightning as L
+import numpy as np
 import torch
 
 from pipeline.common.atomic import atomic_file, atomic_write_json
@@ -143,6 +145,35 @@ def atomic_checkpoint_io() -> Any:
                 super().save_checkpoint(checkpoint, tmp, storage_options)
 
     return AtomicCheckpointIO()
+
+
+Generators = list["torch.Generator | np.random.Generator"]
+
+
+def random_states(generators: Generators = ()) -> dict[str, Any]:
+    """The random generators' states at a checkpoint: torch's, numpy's and Python's global ones
+    (augmentation and diffusion noise draw from them) and `generators` (a data loader's shuffle,
+    a data set's augmentation), so that a resumed run draws what an uninterrupted one would and
+    trains the same weights."""
+    kind, keys, position, has_gauss, gauss = np.random.get_state()  # plain values: a weights-only load reads them
+    return {"torch": torch.get_rng_state(), "numpy": [kind, torch.from_numpy(keys.astype(np.int64)), position, has_gauss, gauss],
+            "python": random.getstate(),
+            "generators": [g.get_state() if isinstance(g, torch.Generator) else g.bit_generator.state for g in generators]}
+
+
+def restore_random_states(states: dict[str, Any] | None, generators: Generators = ()) -> None:
+    """Put back what `random_states` saved (nothing for a checkpoint that has none)."""
+    if not states:
+        return
+    torch.set_rng_state(states["torch"])
+    kind, keys, position, has_gauss, gauss = states["numpy"]
+    np.random.set_state((kind, keys.numpy().astype(np.uint32), position, has_gauss, gauss))
+    random.setstate(states["python"])
+    for generator, state in zip(generators, states["generators"]):
+        if isinstance(generator, torch.Generator):
+            generator.set_state(state)
+        else:
+            generator.bit_generator.state = state
 
 
 def resume_point(folder: str | Path, fingerprint: str, what: str) -> tuple[str, int] | None:

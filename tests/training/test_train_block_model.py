@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.prediction.block_maps import block_index, true_blocks
-from pipeline.world.maps import list_maps, load_map
 from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.prediction.block_maps import block_index, true_blocks
+from pipeline.training.block_model import (
+    BlockSamples,
+    _reveal,
+    block_error,
+    block_snapshots,
+    near_unknown,
+    train_block_model,
+)
+from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
-from pipeline.training.block_model import (BlockSamples, _reveal, block_error, block_snapshots, near_unknown,
-                                          train_block_model)
 
 
 def test_snapshots_follow_a_gated_greedy_episode(small_maze):

@@ -10,14 +10,30 @@ import numpy as np
 import pytest
 import torch
 import yaml
-
-from pipeline.models import InpainterConfig, InpainterModel
-from pipeline.world.protocol import Protocol
-from pipeline.data.shards import write_shard
-from pipeline.training.inpainter import NodeImagePairDataset, SizeGroupedBatchSampler, TrainConfig, dihedral, evaluate_inpainter, hide_box, hole_counts, inpainting_loss, maze_count, maze_ids, pair_count, precision_recall_f1, read_init_checkpoint, split_pairs, train_inpainter
-from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
-from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
 from import_graph import ROOT
+
+from pipeline.data.shards import write_shard
+from pipeline.models import InpainterConfig, InpainterModel
+from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
+from pipeline.training.inpainter import (
+    NodeImagePairDataset,
+    SizeGroupedBatchSampler,
+    TrainConfig,
+    dihedral,
+    evaluate_inpainter,
+    hide_box,
+    hole_counts,
+    inpainting_loss,
+    maze_count,
+    maze_ids,
+    pair_count,
+    precision_recall_f1,
+    read_init_checkpoint,
+    split_pairs,
+    train_inpainter,
+)
+from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
+from pipeline.world.protocol import Protocol
 
 TINY = {"ngf": 4, "n_blocks": 1}
 FAST = {"batch_size": 8, "val_fraction": 0.25, "lr": 0.005, "split": "rollout"}  # fixed batch counts
@@ -495,3 +511,32 @@ def test_stage_killed_mid_training_resumes_from_its_last_epoch(pairs_dir, tmp_pa
     assert afresh.returncode == 0, afresh.stderr[-2000:]
     assert "was made with other settings or data: training afresh" in afresh.stdout
     assert json.loads((tmp_path / "reports/inpainter_metrics.json").read_text())["resumed_after_epochs"] is None
+
+
+def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(pairs_dir, tmp_path, monkeypatch):
+    """The checkpoint carries the random generators' states (augmentation draws from torch's), so an
+    interrupted and resumed run gives the uninterrupted run's weights bit for bit."""
+    from lightning.pytorch.callbacks import Callback
+
+    import pipeline.training.inpainter as inpainter
+
+    whole = train_inpainter(TINY, pairs_dir, tmp_path / "whole", max_epochs=3, mlflow=False, train_config=FAST)
+
+    class Killed(Exception):
+        pass
+
+    class Interrupt(Callback):
+        def on_train_epoch_start(self, trainer, module):
+            if trainer.current_epoch == 2:
+                raise Killed  # after the second epoch's checkpoint
+
+    make_trainer = inpainter.make_trainer
+    monkeypatch.setattr(inpainter, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    with pytest.raises(Killed):
+        train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST)
+    assert not (tmp_path / "cut" / "inpainter.pt").exists()
+    monkeypatch.setattr(inpainter, "make_trainer", make_trainer)
+    resumed = train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST, resume=True)
+    a, b = read_inpainter_export(whole), read_inpainter_export(resumed)
+    assert [row["epoch"] for row in b["history"]] == [0, 1, 2]
+    assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])

@@ -8,15 +8,15 @@ import pytest
 import torch
 
 from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.world.maps import list_maps, load_map
-from pipeline.prediction.node_predictor import NodePredictor
 from pipeline.data.observations import ObservationConfig, concatenate, episode_observations, save_observations
-from pipeline.planners import make_planner
-from pipeline.world.protocol import Protocol
 from pipeline.data.shards import shard_path
-from pipeline.world.simulator import Episode, run_episode
-from pipeline.training.policy import PlannerTrainConfig, split_episodes, train_planner
 from pipeline.models.modeling_diffusion import load_policy, read_policy_export
+from pipeline.planners import make_planner
+from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.training.policy import PlannerTrainConfig, split_episodes, train_planner
+from pipeline.world.maps import list_maps, load_map
+from pipeline.world.protocol import Protocol
+from pipeline.world.simulator import Episode, run_episode
 
 TINY_MODEL = dict(max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1,
                   num_inference_steps=5)
@@ -263,3 +263,35 @@ def test_two_process_training_exports_once(trained, tmp_path):
     assert sorted(lines) == [f"exported: {out / 'policy.pt'}", "exported: None"]
     export = read_policy_export(out / "policy.pt")
     assert export["epochs"] == 2 and all(np.isfinite(h["val_loss"]) for h in export["history"])
+
+
+def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, tmp_path, monkeypatch):
+    """The checkpoint carries the random generators (the loader's shuffle, torch's diffusion noise),
+    so an interrupted and resumed run exports the uninterrupted run's EMA weights bit for bit."""
+    from lightning.pytorch.callbacks import Callback
+
+    import pipeline.training.policy as policy
+
+    root, _ = trained
+    settings = {**TINY_TRAIN, "max_epochs": 3}
+    whole = train_planner(root / "guide.npz", tmp_path / "whole", TINY_MODEL, settings, mlflow=False)
+
+    class Killed(Exception):
+        pass
+
+    class Interrupt(Callback):
+        def on_train_epoch_start(self, trainer, module):
+            if trainer.current_epoch == 2:
+                raise Killed
+
+    make_trainer = policy.make_trainer
+    monkeypatch.setattr(policy, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    with pytest.raises(Killed):
+        train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, checkpoint_dir=tmp_path / "ckpt")
+    monkeypatch.setattr(policy, "make_trainer", make_trainer)
+    resumed = train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, resume=True,
+                            checkpoint_dir=tmp_path / "ckpt")
+    assert sorted(p.name for p in (tmp_path / "cut").iterdir()) == ["policy.pt"]
+    a, b = torch.load(whole, weights_only=True), torch.load(resumed, weights_only=True)
+    assert [row["epoch"] for row in b["history"]] == [0, 1, 2]
+    assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
