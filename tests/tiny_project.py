@@ -50,10 +50,10 @@ def tiny_params(params: dict[str, Any], protocol: dict[str, Any] | None = None) 
     params["train_inpainter"].update(max_epochs=2, batch_size=4)
     params["build_observations"].update(max_nodes=64)
     params["train_planner"]["model"].update(max_nodes=64, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
-    params["train_planner"]["train"].update(max_epochs=1, batch_size=16, warmup_steps=2)
+    params["train_planner"]["train"].update(max_epochs=2, batch_size=16, warmup_steps=2)  # 2: a checkpoint to resume from
     params["report"].update(k_values=[2, 4], k_maps=1)
-    params["train_block_model"].update(mazes=3, holdout_mazes=1, side_m=50.0, epochs=1, model={"width": 8, "groups": 4})
-    params["train_drl"].update(model={"max_nodes": 32, "d_model": 16, "heads": 2, "encoder_layers": 1}, timesteps=64,
+    params["train_block_model"].update(mazes=3, holdout_mazes=1, side_m=50.0, epochs=2, model={"width": 8, "groups": 4})
+    params["train_drl"].update(model={"max_nodes": 32, "d_model": 16, "heads": 2, "encoder_layers": 1}, timesteps=128,
                                checkpoint_every=32, eval_mazes=1, eval_side_m=50)
     params["train_drl"]["env"].update(maze_sides_m=[50], max_steps=30)
     params["train_drl"]["ppo"].update(n_envs=2, n_steps=32, batch_size=32, n_epochs=1)
