@@ -88,12 +88,13 @@ def _test_count(row: dict[str, Any]) -> int:
     return row["data"]["params"]["params.yaml"]["data"]["mazes"]["test"]["count"]
 
 
-def check_headline(metrics: dict[str, Any], planners: set[str]) -> None:
-    """Every benchmark planner's headline numbers, Table I's precision and the stage times, all numbers."""
-    assert set(metrics) == planners | HEADLINE_GROUPS, sorted(metrics)
+def check_headline(metrics: dict[str, Any], planners: set[str], steps: list[int]) -> None:
+    """Every benchmark planner's headline numbers, Table I's precision and the stage times, all numbers
+    (Table I has no precision at a step where nothing was predicted, as on the tiny profile's small mazes)."""
+    assert planners | {"seconds"} <= set(metrics) <= planners | HEADLINE_GROUPS, sorted(metrics)  # DVC drops an empty group
     for planner in planners:
         assert set(metrics[planner]) <= PLANNER_KEYS and "distance_m" in metrics[planner], (planner, metrics[planner])
-    assert metrics["precision"] and all(key.startswith("step") for key in metrics["precision"])
+    assert set(metrics.get("precision", {})) <= {f"step{step}" for step in steps}, metrics["precision"]
     assert {"collect_pairs", "train_inpainter", "train_planner@guide", "train_planner@dare"} <= set(metrics["seconds"])
     values = [value for group in metrics.values() for value in group.values()]
     assert all(isinstance(value, (int, float)) for value in values), metrics
@@ -104,7 +105,8 @@ def check_experiments(project: Path) -> None:
     test-maze count, and `dvc exp show` / `dvc metrics diff` carry both headlines, no value missing."""
     params = yaml.safe_load((project / "params.yaml").read_text())
     planners = {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
-    check_headline(json.loads((project / HEADLINE).read_text()), planners)
+    steps = params["eval_predictor"]["steps"]
+    check_headline(json.loads((project / HEADLINE).read_text()), planners, steps)
 
     # git sees, under reports/, exactly the headline and the stages' summary JSONs
     status = git(project, "status", "--porcelain", "--untracked-files=all").stdout.splitlines()
@@ -125,7 +127,7 @@ def check_experiments(project: Path) -> None:
     (experiment,) = experiments
     assert (_test_count(baseline), _test_count(experiment)) == (2, 3)
     for row in (workspace, baseline, experiment):
-        check_headline(_headline_of(row), planners)
+        check_headline(_headline_of(row), planners, steps)
     assert _headline_of(experiment)["optimal"]["distance_m"] != _headline_of(baseline)["optimal"]["distance_m"]
     assert _headline_of(workspace) == _headline_of(experiment)  # `dvc exp run` leaves its results in the workspace
 

@@ -59,3 +59,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert "trained at other protocol values" not in run.stdout + run.stderr  # its own models match its protocol
     again = subprocess.run(["dvc", "status"], cwd=project, env=env, capture_output=True, text=True)
     assert "up to date" in again.stdout.lower() or again.stdout.strip() == "", again.stdout
+    if not protocol:  # the default case goes on with one experiment (its repro is the baseline)
+        from test_dvc_experiments import check_experiments
+
+        check_experiments(project)
