@@ -20,7 +20,7 @@ penalty, as LaMa's `r1` adversarial loss); off by default.
 
 Validation: precision, recall and F1 of the predicted free nodes (probability >= tau) over
 the hole pixels, summed over the validation set. Checkpoints (`last.ckpt`, `best.ckpt` by
-validation F1) go to the output folder; `resume=True` continues from `last.ckpt`. At the
+validation F1) go to the checkpoint folder; `resume=True` continues from `last.ckpt`. At the
 end the best weights are exported as a small `inpainter.pt` (config + state_dict +
 metrics) that `load_inpainter` reads for inference.
 """
