@@ -8,14 +8,27 @@ reports/expert_episode.png (rebuilt from the shard, so it also checks the round 
 from __future__ import annotations
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.settings import Fields, Flag, Satisfies, Text, Whole, check_stage, keys_of
+from pipeline.planners import planner_config
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.collect_expert import collect_expert
 from pipeline.world.protocol import Protocol
 
-KEYS = ("seed", "episodes", "episodes_per_shard", "planner", "horizon", "random_starts", "workers", "backend")
+SETTINGS = Fields({
+    "seed": Whole(0),
+    "episodes": Whole(1),
+    "episodes_per_shard": Whole(1),
+    "planner": Satisfies(planner_config, "a registered planner name"),
+    "horizon": Whole(1, note="future waypoints per step"),
+    "random_starts": Flag(),
+    "workers": Whole(0, note="0 or 1: in this process"),
+    "backend": Text(("process", "ray")),
+})
+KEYS = keys_of(SETTINGS)
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
+    check_stage(params_path, "collect_expert", SETTINGS)
     params = load_params(params_path)
     section = complete_section(params, "collect_expert", params_path, KEYS)
     protocol = Protocol.from_dict(params.get("protocol") or {})

@@ -22,6 +22,7 @@ import pandas as pd
 
 from pipeline.common.params import complete_section, load_params
 from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.settings import Fields, ListOf, Maybe, Real, Text, Whole, check_stage, fraction, keys_of
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.table1 import compare_with, log_run, run, table1_graph_config
@@ -29,7 +30,16 @@ from pipeline.world.protocol import Protocol
 
 TEST_MAZES = DATA.mazes_test
 OUT_DIR = REPORTS.predictor
-SECTION_KEYS = {"steps", "threshold", "min_component", "keep_share", "sweep_thresholds", "checkpoint", "compare_checkpoint"}
+SETTINGS = Fields({
+    "steps": ListOf(Whole(0, note="exploration steps")),
+    "threshold": fraction("tau of V_u"),
+    "min_component": Whole(0, note="0 or 1: keep every predicted node"),
+    "keep_share": Real(0.0, 1.0, low_open=True, note="share of scored regions"),
+    "sweep_thresholds": Maybe(ListOf(fraction(), min_length=0), "no sweep"),
+    "checkpoint": Maybe(Text(note="an inpainter export"), "models/inpainter/inpainter.pt"),
+    "compare_checkpoint": Maybe(Text(note="an inpainter export"), "no comparison"),
+})
+SECTION_KEYS = set(keys_of(SETTINGS))
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -47,6 +57,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
 
 
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
+    check_stage(params_path, "eval_predictor", SETTINGS)
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
     graph_config = table1_graph_config(float(section["keep_share"]))

@@ -18,11 +18,23 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.settings import Fields, ListOf, Whole, check_stage, fraction, keys_of
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.fit_gate import fit_gate
 from pipeline.world.protocol import Protocol
 
-KEYS = ("maps", "holdout_maps", "offices", "office_holdout", "hidden", "min_gain", "wall_margin", "threshold", "workers")
+SETTINGS = Fields({
+    "maps": Whole(1),
+    "holdout_maps": Whole(0),
+    "offices": Whole(0),
+    "office_holdout": Whole(0),
+    "hidden": ListOf(Whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)"),
+    "min_gain": Whole(0, note="cells"),
+    "wall_margin": Whole(0, note="cells"),
+    "threshold": fraction("P(big)"),
+    "workers": Whole(1),
+})
+KEYS = keys_of(SETTINGS)
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -44,6 +56,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Fit, measure and write the gate; returns the metrics written to reports/sliver_gate.json."""
+    check_stage(params_path, "fit_gate", SETTINGS)
     section, protocol = read_params(params_path)
     metrics = fit_gate(section, protocol)
     print(json.dumps(metrics, indent=2))

@@ -19,6 +19,7 @@ import numpy as np
 
 from pipeline.common.params import load_params, params_section
 from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.settings import Fields, Pair, Whole, check_stage, positive
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OfficeConfig, generate_office_set
@@ -34,6 +35,18 @@ PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
 PREVIEW_GAP = 10
+SPLIT = Fields({"count": Whole(0), "side_m": Pair(positive("metres"))})
+# block_m, rooms, room_blocks, extra_loops and offices may be left out: MazeConfig's defaults, no office floors.
+SETTINGS = Fields({
+    "seed": Whole(0),
+    "block_m": positive("metres"),
+    "rooms": Pair(Whole(0, note="rooms per 100 m x 100 m")),
+    "room_blocks": Pair(Whole(1, note="blocks")),
+    "extra_loops": Whole(0),
+    "train": SPLIT,
+    "test": SPLIT,
+    "offices": Fields({"count": Whole(0)}),
+}, frozenset({"block_m", "rooms", "room_blocks", "extra_loops", "offices"}))
 
 
 def _load_params(params_path: str | Path) -> tuple[dict, float]:
@@ -102,6 +115,7 @@ def preview_image(paths: list[Path]) -> np.ndarray:
 
 def main(params_path: str = "params.yaml") -> None:
     """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and the previews in reports/."""
+    check_stage(params_path, "mazes", SETTINGS)
     mazes, cell_size = _load_params(params_path)
     seed = mazes.get("seed")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

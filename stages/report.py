@@ -22,11 +22,24 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.settings import Fields, ListOf, Maybe, Satisfies, Text, Whole, check_stage, keys_of
+from pipeline.planners import planner_config
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.report import write_report
 from pipeline.world.protocol import Protocol
 
-KEYS = ("k_values", "k_planners", "k_option", "k_maps", "ablation_planners", "figure_planners", "workers", "seed")
+LABEL = Text(note="a planner's label in the benchmark")  # a label absent from the benchmark shows as "not run"
+SETTINGS = Fields({
+    "k_values": ListOf(Whole(1), min_length=0),  # [] (or no k_planners): no sweep, no Table IV
+    "k_planners": ListOf(Satisfies(planner_config, "a registered planner name"), min_length=0),
+    "k_option": Text(identifier=True, note="a planner option name"),
+    "k_maps": Whole(1),
+    "ablation_planners": ListOf(LABEL),
+    "figure_planners": ListOf(LABEL),
+    "workers": Maybe(Whole(1), "all cores"),
+    "seed": Whole(0),
+})
+KEYS = keys_of(SETTINGS)
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
@@ -46,6 +59,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
 
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
+    check_stage(params_path, "report", SETTINGS)
     section, protocol = read_params(params_path)
     return write_report(section, protocol)
 

@@ -21,13 +21,28 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.settings import Fields, ListOf, Real, Whole, check_stage, config_mapping, fraction, keys_of, positive
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.train_block_model import maze_config, train_the_block_model
 from pipeline.world.protocol import Protocol
 
-KEYS = ("mazes", "holdout_mazes", "side_m", "maze_seed", "snapshot_every", "epochs", "batch_size", "lr", "reveal_share",
-        "model", "workers", "seed")
+SETTINGS = Fields({
+    "mazes": Whole(1),
+    "holdout_mazes": Whole(0),
+    "side_m": positive("metres"),
+    "maze_seed": Whole(0),
+    "snapshot_every": Whole(1, note="steps"),
+    "epochs": Whole(1),
+    "batch_size": Whole(1),
+    "lr": Real(0.0),
+    "reveal_share": fraction(),
+    "model": config_mapping(BlockModelConfig, {"width": Whole(1), "dilations": ListOf(Whole(1)), "groups": Whole(1),
+                                               "block_m": positive("metres")}),
+    "workers": Whole(1),
+    "seed": Whole(0),
+})
+KEYS = keys_of(SETTINGS)
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
@@ -59,6 +74,7 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConf
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
+    check_stage(params_path, "train_block_model", SETTINGS)
     section, config, protocol = read_params(params_path)
     metrics = train_the_block_model(section, config, protocol)
     print(json.dumps({k: v for k, v in metrics.items() if k != "history"}, indent=2))

@@ -15,15 +15,49 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
+from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Satisfies, Text, Whole, check_stage,
+                                      config_mapping, fraction, keys_of, positive)
 from pipeline.models.configuration_drl import DRLPolicyConfig
+from pipeline.planners import planner_config
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.training.drl import PPOSettings, TrainingEnvironment
 from pipeline.training.drl_imitation import ImitationSettings
 from pipeline.workflows.train_drl import train_the_drl_policy
 from pipeline.world.protocol import Protocol
 
-KEYS = ("model", "env", "ppo", "imitation", "init_checkpoint", "timesteps", "checkpoint_every", "eval_mazes", "eval_side_m", "eval_seed", "seed",
-        "threads", "device", "experiment")
+SETTINGS = Fields({
+    "model": config_mapping(DRLPolicyConfig, {"max_nodes": Whole(1), "d_model": Whole(1), "heads": Whole(1),
+                                              "encoder_layers": Whole(1), "guidepost_prior": Real(0.0)}),
+    "env": Fields({
+        "maze_sides_m": AnyOf((ListOf(positive()), positive()), "a non-empty list of maze sides (m), each > 0"),
+        "max_steps": Whole(1),
+        "area_weight": Real(0.0),
+        "distance_weight": Real(0.0),
+        "completion_bonus": Real(0.0),
+    }),
+    "ppo": Fields({
+        **{key: Whole(1) for key in ("n_envs", "n_steps", "batch_size", "n_epochs")},
+        "learning_rate": positive(), "gamma": fraction(), "gae_lambda": fraction(), "clip_range": positive(),
+        "ent_coef": Real(), "vf_coef": Real(), "max_grad_norm": positive(), "subprocess": Flag(),
+    }),
+    "imitation": Fields({
+        "planner": Satisfies(planner_config, "a registered planner name"),
+        "episodes": Whole(0, note="0: no warm start"), "epochs": Whole(1), "dagger_rounds": Whole(0),
+        "dagger_episodes": Whole(1), "dagger_epochs": Whole(1), "batch_size": Whole(1),
+        "learning_rate": positive(), "value_weight": Real(0.0),
+    }),
+    "init_checkpoint": Maybe(Text(note="a drl export"), "the warm start"),
+    "timesteps": Whole(1),
+    "checkpoint_every": Whole(1),
+    "eval_mazes": Whole(0),
+    "eval_side_m": positive("metres"),
+    "eval_seed": Whole(0),
+    "seed": Whole(0),
+    "threads": Whole(0, note="0: torch's default"),
+    "device": Text(("cpu", "cuda", "auto")),
+    "experiment": Text(note="an MLflow experiment"),
+})
+KEYS = keys_of(SETTINGS)
 
 
 def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[dict[str, Any], Protocol]:
@@ -67,6 +101,7 @@ def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[
 
 def main(params_path: str = "params.yaml", timesteps: int | None = None) -> dict[str, Any]:
     """Train (or continue), export and evaluate the drl policy; returns the metrics written."""
+    check_stage(params_path, "train_drl", SETTINGS)
     section, protocol = read_params(params_path, timesteps)
     metrics = train_the_drl_policy(section, protocol)
     print(json.dumps({k: v for k, v in metrics.items() if k not in ("history", "evaluation", "host")}, indent=2))
