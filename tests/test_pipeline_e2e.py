@@ -25,7 +25,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
     metrics = json.loads((project / "reports/benchmark.json").read_text())
     assert set(metrics) == {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
-    # 64 PPO steps train no explorer: drl must run, not finish (tests/planners/baselines/test_drl.py checks the shipped one)
+    # 128 PPO steps train no explorer: drl must run, not finish (tests/planners/baselines/test_drl.py checks the shipped one)
     assert all(m["completion_rate"] == 1.0 for label, m in metrics.items() if label != "drl")
     assert metrics["drl"]["distance_mean_m"] > 0
     assert all(0 < m["coverage_auc"] <= 1 and m["efficiency_m2_per_m"] > 0 for m in metrics.values())
@@ -36,10 +36,10 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     precision = (project / "reports/predictor/precision.csv").read_text().splitlines()
     assert precision[0] == "step,precision,predicted_nodes,maps,prediction_ms_median"
     drl = json.loads((project / "reports/drl_metrics.json").read_text())
-    assert drl["timesteps"] == 64 and drl["evaluation"]["mazes"] == 1 and (project / "models/drl/policy.pt").is_file()
+    assert drl["timesteps"] == 128 and drl["evaluation"]["mazes"] == 1 and (project / "models/drl/policy.pt").is_file()
     for variant in ("guide", "dare"):
         assert (project / f"models/planner_{variant}/policy.pt").is_file()
-        assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 1
+        assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 2
     report = (project / "reports/report.md").read_text()
     assert "Table II" in report and "Table IV" in report and "## Table V" in report and "coverage.png" in report
     assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
