@@ -101,11 +101,11 @@ def test_benchmark_stage_settings_are_checked_before_any_episode(generated_maze_
     shutil.copytree(generated_maze_dir, tmp_path / "data" / "mazes" / "test")
     (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo], seed: 0, workers: 1, speed_mps: 2.0}\n")
     line = stage_error(capsys, benchmark, "p.yaml")
-    assert line.startswith("error: unknown planner 'foo'; choose from: ") and "nearest_frontier" in line
+    assert line.startswith("error: p.yaml: benchmark.planners[1]: ") and "unknown planner 'foo'" in line and "nearest_frontier" in line
     (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0, speed_mps: 2}\n")
-    assert stage_error(capsys, benchmark, "w.yaml") == "error: workers must be a whole number >= 1 (or null: all cores), got 0"
+    assert stage_error(capsys, benchmark, "w.yaml") == "error: w.yaml: benchmark.workers: must be a whole number >= 1, or null (all cores), got 0"
     (tmp_path / "s.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: -2}\n")
-    assert stage_error(capsys, benchmark, "s.yaml").startswith("error: speed_mps must be a positive number")
+    assert stage_error(capsys, benchmark, "s.yaml") == "error: s.yaml: benchmark.speed_mps: must be a finite number > 0 (metres per second), got -2"
     assert not (tmp_path / "reports" / "benchmark").exists()
 
 
