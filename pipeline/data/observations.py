@@ -16,6 +16,7 @@ from typing import Iterable
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_file
 from pipeline.data.expert_episodes import ExpertEpisode
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
@@ -93,11 +94,8 @@ def concatenate(parts: Iterable[dict[str, np.ndarray]]) -> dict[str, np.ndarray]
 def save_observations(path: str | Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
     import json
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
-    tmp.replace(path)
+    with atomic_file(path) as tmp:  # the temporary name ends in .npz too, so numpy adds no suffix
+        np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
 
 
 def load_observations(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:

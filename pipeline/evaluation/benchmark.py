@@ -17,6 +17,7 @@ import pandas as pd
 import scipy.stats
 from tqdm import tqdm
 
+from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.evaluation.exploration_curves import (
     EXPLORATION_CSV,
     SpeedModel,
@@ -369,9 +370,10 @@ def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_reco
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
     exploration = planner_table(episode_table(records_from_results(results), speed), speed)
-    exploration.to_csv(out_dir / EXPLORATION_CSV, index=False, float_format="%.6g")
-    (out_dir / "summary.md").write_text(summary_markdown(frame, protocol_record, baseline)
-                                        + "\n" + exploration_markdown(exploration))
+    with atomic_file(out_dir / EXPLORATION_CSV) as tmp:
+        exploration.to_csv(tmp, index=False, float_format="%.6g")
+    atomic_write_text(out_dir / "summary.md", summary_markdown(frame, protocol_record, baseline)
+                      + "\n" + exploration_markdown(exploration))
     return frame
 
 
@@ -401,7 +403,7 @@ def write_run_record(
             for spec, description in zip(specs, descriptions)
         },
     }
-    path.write_text(json.dumps(record, indent=2) + "\n")
+    atomic_write_text(path, json.dumps(record, indent=2) + "\n")
     return record
 
 

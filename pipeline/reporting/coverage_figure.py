@@ -8,6 +8,7 @@ from typing import Mapping
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_file
 from pipeline.evaluation.exploration_curves import SpeedModel, StepRecord, mean_curve
 
 GRID_POINTS = 400  # samples along each axis
@@ -58,7 +59,7 @@ def coverage_figure(records: Mapping[tuple[str, str], StepRecord], path: str | P
     fig.suptitle(title or "Coverage curves: mean over maps, band one standard deviation", fontsize=10)
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp)
     plt.close(fig)
     return path

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pandas as pd
 
+from pipeline.common.atomic import atomic_file
 from pipeline.evaluation.predictor_eval import (
     PAPER_PRECISION,
     Checkpoint,
@@ -50,7 +51,8 @@ def plot_threshold_sweep(sweep: pd.DataFrame, out_path: str | Path) -> Path:
     ax_n.grid(alpha=0.3)
     fig.tight_layout()
     out_path = Path(out_path)
-    fig.savefig(out_path, dpi=110)
+    with atomic_file(out_path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return out_path
 

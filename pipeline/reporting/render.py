@@ -14,6 +14,7 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
+from pipeline.common.atomic import atomic_file
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import NODE_FREE, LatticeGraph
 from pipeline.world.maps import GroundTruthMap
@@ -303,13 +304,13 @@ def episode_title(
 
 # ----------------------------------------------------------------------------- files
 def save_png(image: np.ndarray, path: str | Path) -> Path:
-    """Write an RGB image as PNG (cv2 wants BGR); creates the folder. Returns the path."""
+    """Write an RGB image as PNG (cv2 wants BGR), atomically; creates the folder. Returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     image = np.asarray(image)
     bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
-    if not cv2.imwrite(str(path), bgr):
-        raise OSError(f"could not write {path}")
+    with atomic_file(path) as tmp:
+        if not cv2.imwrite(str(tmp), bgr):
+            raise OSError(f"could not write {path}")
     return path
 
 
@@ -322,7 +323,6 @@ def save_gif(
     if not frames:
         raise ValueError("no frames to write")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     images = [Image.fromarray(np.ascontiguousarray(f, dtype=np.uint8), "RGB") for f in frames]
     # One palette for all frames (from the first, middle and last) so colours do not flicker.
     picks = sorted({0, len(images) // 2, len(images) - 1})
@@ -332,15 +332,16 @@ def save_gif(
     frame_ms = int(round(1000.0 / max(fps, 0.1)))
     durations = [frame_ms] * len(quantised)
     durations[-1] = max(frame_ms, int(round(hold_last_s * 1000)))
-    quantised[0].save(
-        path,
-        save_all=True,
-        append_images=quantised[1:],
-        duration=durations,
-        loop=0,
-        disposal=1,
-        optimize=True,  # drops unused palette entries: several times smaller files
-    )
+    with atomic_file(path) as tmp:
+        quantised[0].save(
+            tmp,  # the same suffix as `path`, so Pillow picks the same format
+            save_all=True,
+            append_images=quantised[1:],
+            duration=durations,
+            loop=0,
+            disposal=1,
+            optimize=True,  # drops unused palette entries: several times smaller files
+        )
     return path
 
 

@@ -26,6 +26,7 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 from torch import nn
 
+from pipeline.common.atomic import atomic_write_text
 from pipeline.common.params import dataclass_from_dict
 from pipeline.envs.explore_env import ExploreEnv
 from pipeline.models.configuration_drl import DRLPolicyConfig
@@ -248,8 +249,7 @@ def evaluate(policy: DRLPolicy, envs: list[ExploreEnv], seeds: list[int]) -> lis
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(payload, indent=2) + "\n")
+    atomic_write_text(path, json.dumps(payload, indent=2) + "\n")
 
 
 def load_agent(path: Path, envs: VecEnv, device: str = "cpu") -> MaskablePPO:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from pipeline.common.atomic import atomic_write_text
 from pipeline.evaluation.benchmark import build_planner, resolve_planner_specs, with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
 from pipeline.reporting.render import EpisodeRecorder, render_final
@@ -84,7 +85,7 @@ def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bo
               "planner": {"label": exploration.label, "name": exploration.name, "options": exploration.options,
                           "description": agent.description},
               "protocol": protocol.to_dict()}
-    (out / "run.json").write_text(json.dumps(record, indent=2) + "\n")
+    atomic_write_text(out / "run.json", json.dumps(record, indent=2) + "\n")
     written.append(out / "run.json")
     return result, written
 

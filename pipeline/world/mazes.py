@@ -19,8 +19,6 @@ wall, 195 for free and 208 for the free start block, which is what
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +27,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from pipeline.common.atomic import atomic_write_bytes
 from pipeline.world.maps import MAX_IMAGE_PIXELS
 
 WALL_VALUE = 127
@@ -393,16 +392,7 @@ def write_maze_png(image: np.ndarray, path: str | Path) -> Path:
     ok, encoded = cv2.imencode(".png", image)
     if not ok:
         raise OSError(f"{path}: PNG encoding failed")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            stream.write(encoded.tobytes())
-        os.chmod(temp_name, 0o644)  # mkstemp makes 0600; a map is for sharing, like any file the user writes
-        os.replace(temp_name, path)
-    except BaseException:
-        Path(temp_name).unlink(missing_ok=True)
-        raise
+    atomic_write_bytes(path, encoded.tobytes())
     return path
 
 

@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 import yaml
 
+from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.world.maps import GroundTruthMap, MapError
 
 ROS_FREE_VALUE = 254
@@ -102,8 +103,9 @@ def write_ros_map(ground_truth: GroundTruthMap, yaml_path: str | Path, origin: t
     yaml_path = Path(yaml_path)
     image_path = yaml_path.with_suffix(".pgm")
     image = np.where(ground_truth.free, ROS_FREE_VALUE, ROS_OCCUPIED_VALUE).astype(np.uint8)[::-1]  # row 0 is the top
-    if not cv2.imwrite(str(image_path), image):
-        raise OSError(f"{image_path}: cannot write the map image")
+    with atomic_file(image_path) as tmp:
+        if not cv2.imwrite(str(tmp), image):
+            raise OSError(f"{image_path}: cannot write the map image")
     col, row = ground_truth.start_cell
     size = ground_truth.cell_size
     meta = {
@@ -116,5 +118,5 @@ def write_ros_map(ground_truth: GroundTruthMap, yaml_path: str | Path, origin: t
         "mode": "trinary",
         "start": [float(origin[0] + (col + 0.5) * size), float(origin[1] + (row + 0.5) * size)],
     }
-    yaml_path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    atomic_write_text(yaml_path, yaml.safe_dump(meta, sort_keys=False))
     return image_path

@@ -5,12 +5,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
 
+from pipeline.common.atomic import atomic_file
 from pipeline.world.maps import _is_file  # the loaders' check, shared: a bad file name is not an OSError
 from pipeline.world.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
 
@@ -46,13 +46,10 @@ def _format_number(value: float | None, decimals: int = 6) -> str:
 def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]) -> Path:
     """Write waypoints as `x,y` rows in metres, first row the start (0, 0)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as handle:
+    with atomic_file(path) as tmp, tmp.open("w", newline="") as handle:
         handle.write("x,y\n")
         for x, y in trajectory:
             handle.write(f"{_format_number(float(x))},{_format_number(float(y))}\n")
-    os.replace(tmp, path)
     return path
 
 
@@ -122,14 +119,11 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
 def write_metrics_csv(path: str | Path, rows: Iterable[dict]) -> Path:
     """Write metrics.csv with docs/protocol.md's columns, in that order."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as handle:
+    with atomic_file(path) as tmp, tmp.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=METRICS_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         for row in rows:
             writer.writerow(row)
-    os.replace(tmp, path)
     return path
 
 
@@ -150,16 +144,13 @@ def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
     """Write the per-step record (`EpisodeResult.step_rows`) with STEP_COLUMNS; an empty
     decision_ms is one the run did not measure (a replay)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as handle:
+    with atomic_file(path) as tmp, tmp.open("w", newline="") as handle:
         handle.write(",".join(STEP_COLUMNS) + "\n")
         for row in rows:
             handle.write(
                 f"{int(row['step'])},{_format_number(row['distance_m'], 6)},{_format_number(row['explored_m2'], 4)},"
                 f"{_format_number(row['explored_share'], 6)},{_format_number(row['decision_ms'], 3)}\n"
             )
-    os.replace(tmp, path)
     return path
 
 

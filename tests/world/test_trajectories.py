@@ -104,3 +104,12 @@ def test_other_malformed_files(tmp_path, text, fragment):
     path = tmp_path / "t.csv"
     path.write_text(text)
     refused(path, fragment)
+
+
+def test_a_write_that_fails_halfway_leaves_the_previous_file(tmp_path):
+    path = write_trajectory_csv(tmp_path / "maze.csv", [(0.0, 0.0), (1.5, 0.0)])
+    before = path.read_bytes()
+    with pytest.raises(ValueError):
+        write_trajectory_csv(path, [(0.0, 0.0), (2.0, 0.0), ("not a number", 0.0)])
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["maze.csv"]

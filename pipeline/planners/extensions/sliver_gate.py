@@ -37,6 +37,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from pipeline.common.atomic import atomic_write_text
 from pipeline.common.params import dataclass_from_dict
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import nested_visible_counts
@@ -206,9 +207,8 @@ def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:
 def save_gate(gate: SliverGate, path: str | Path, protocol: dict | None = None, **record) -> Path:
     """Write the gate as JSON, with the protocol it was fitted at and anything in `record` (metrics, data)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     body = {"features": list(FEATURES), "gate": asdict(gate), "protocol": protocol, **record}
-    path.write_text(json.dumps(body, indent=2) + "\n")
+    atomic_write_text(path, json.dumps(body, indent=2) + "\n")
     return path
 
 
