@@ -12,11 +12,13 @@ gate is fitted on them beside the mazes, so that it holds on maps unlike the maz
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from pipeline.common.atomic import atomic_folder
 from pipeline.common.params import load_params, params_section
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.common.settings import Fields, Pair, Whole, check_stage, positive
@@ -86,11 +88,25 @@ def _office_count(mazes: dict) -> int:
     return count
 
 
-def _clear_pngs(directory: Path) -> None:
-    """Remove the PNGs of an earlier run so a smaller count leaves no stale mazes behind."""
-    if directory.is_dir():
-        for stale in directory.glob("*.png"):
-            stale.unlink()
+def _write_map_sets(splits: dict[str, tuple[MazeConfig, int]], offices: int, office_config: OfficeConfig,
+                    seed: int) -> tuple[dict[str, list[Path]], list[Path]]:
+    """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
+
+    Each set is drawn into a temporary folder, and the three replace data/mazes/{train,test} and
+    data/offices/train (and whatever they held, so a smaller count leaves no stale map) only once
+    every map and both previews are written: a stage killed halfway leaves the previous sets.
+    The paths returned are the final ones.
+    """
+    with ExitStack() as stack:
+        folders = {split: stack.enter_context(atomic_folder(SPLIT_DIRS[split])) for split in splits}
+        office_folder = stack.enter_context(atomic_folder(OFFICE_DIR))
+        drawn = {split: generate_maze_set(config, count, folders[split], seed=(seed, SPLITS[split]))
+                 for split, (config, count) in splits.items()}
+        office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
+        write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
+        write_maze_png(preview_image(office_drawn), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
+    written = {split: [SPLIT_DIRS[split] / path.name for path in paths] for split, paths in drawn.items()}
+    return written, [OFFICE_DIR / path.name for path in office_drawn]
 
 
 def preview_image(paths: list[Path]) -> np.ndarray:
@@ -124,15 +140,7 @@ def main(params_path: str = "params.yaml") -> None:
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
     offices = _office_count(mazes)
     office_config = OfficeConfig(cell_size=cell_size)
-    written: dict[str, list[Path]] = {}
-    for split, (config, count) in splits.items():
-        out_dir = SPLIT_DIRS[split]
-        _clear_pngs(out_dir)
-        written[split] = generate_maze_set(config, count, out_dir, seed=(seed, SPLITS[split]))
-    _clear_pngs(OFFICE_DIR)
-    office_paths = generate_office_set(office_config, offices, OFFICE_DIR, seed=(seed, OFFICE_SEED_WORD))
-    write_maze_png(preview_image(written["test"]), PREVIEW_PATH)
-    write_maze_png(preview_image(office_paths), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
+    written, office_paths = _write_map_sets(splits, offices, office_config, seed)
     for split, paths in written.items():
         print(f"{split}: {len(paths)} mazes in {SPLIT_DIRS[split]}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")

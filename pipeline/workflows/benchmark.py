@@ -10,6 +10,7 @@ from typing import Callable
 
 import pandas as pd
 
+from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import (
@@ -107,8 +108,8 @@ def distance_chart(summary, path: Path) -> None:
     ax.set_xlabel("distance to complete exploration (m), mean +- std over test mazes")
     ax.set_xlim(0, float((summary["distance_mean_m"] + summary["distance_std_m"]).max()) * 1.35)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp)
     plt.close(fig)
 
 
@@ -124,16 +125,24 @@ def trajectory_figure(map_path: Path, frame, out_dir: Path, path: Path, protocol
 
 
 def benchmark_test_mazes(section: dict, protocol: Protocol):
-    """Every planner of the `benchmark` settings on the test mazes: run, tabulated, charted, logged."""
+    """Every planner of the `benchmark` settings on the test mazes: run, tabulated, charted, logged.
+
+    reports/benchmark/ is built in a temporary folder that replaces it as a whole once every file
+    in it is written: a stage killed halfway leaves the previous folder, never a mix of two runs.
+    """
     maps = generated_maps(TEST_MAZES, "test mazes")
     speed = SpeedModel(section["speed_mps"])
-    frame = run_benchmark(
-        maps, section["planners"], protocol, OUT_DIR, workers=section["workers"], seed=int(section["seed"]), speed=speed
-    )
-    draw_coverage(frame, OUT_DIR, speed)
+    with atomic_folder(OUT_DIR) as out_dir:
+        frame = run_benchmark(
+            maps, section["planners"], protocol, out_dir, workers=section["workers"], seed=int(section["seed"]), speed=speed
+        )
+        draw_coverage(frame, out_dir, speed)
+    # After the folder is in place: reports/benchmark.json's temporary name shares the folder's
+    # ".benchmark.partial-" prefix, and a write clears temporaries with its prefix.
     summary = summarise(frame)
     exploration = pd.read_csv(OUT_DIR / EXPLORATION_CSV).set_index("planner")
-    METRICS_PATH.write_text(
+    atomic_write_text(
+        METRICS_PATH,
         json.dumps(
             {
                 planner: {
@@ -147,7 +156,7 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
             },
             indent=2,
         )
-        + "\n"
+        + "\n",
     )
     distance_chart(summary, CHART_PATH)
     trajectory_figure(maps[0], frame, OUT_DIR, FIGURE_PATH, protocol)

@@ -10,6 +10,7 @@ from typing import Any
 
 import pandas as pd
 
+from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
@@ -57,14 +58,16 @@ def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
 
 
 def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
-    """The denoising-steps sweep into reports/denoising_steps/ (None when no K or no planner)."""
+    """The denoising-steps sweep into reports/denoising_steps/ (None when no K or no planner), built
+    in a temporary folder that replaces the folder as a whole when the sweep is done."""
     specs = sweep_specs(section["k_planners"], section["k_values"], section["k_option"])
     if not specs:
         return None
     try:
-        return run_benchmark(
-            maps, specs, protocol, SWEEP_DIR, workers=section["workers"], seed=int(section["seed"])
-        )
+        with atomic_folder(SWEEP_DIR) as folder:
+            return run_benchmark(
+                maps, specs, protocol, folder, workers=section["workers"], seed=int(section["seed"])
+            )
     except KeyError as error:  # an unregistered planner name
         raise SystemExit(f"error: report.k_planners: {error.args[0]}") from None
     except ValueError as error:  # an option the planner does not take
@@ -99,18 +102,19 @@ def write_report(section: dict, protocol: Protocol):
         "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
         "table5": table5(exploration),
     }
-    TABLES_DIR.mkdir(parents=True, exist_ok=True)
     precision_compare = read_precision(PRECISION_COMPARE_CSV)
-    (TABLES_DIR / "table1.md").write_text(table1_markdown(precision, precision_compare))
-    (TABLES_DIR / "table2.md").write_text(table2_markdown(tables["table2"]))
-    (TABLES_DIR / "table3.md").write_text(table3_markdown(tables["table3"]))
-    (TABLES_DIR / "table5.md").write_text(table5_markdown(tables["table5"], speed.speed_mps))
-    coverage_figure(read_step_records(BENCHMARK_DIR, frame), COVERAGE_PATH, speed,
-                    title=f"Coverage curves on the {frame['map'].nunique()} test mazes: mean, band one standard deviation")
-    (TABLES_DIR / "table4.md").write_text(
-        table4_markdown(tables["table4"]) if tables["table4"] is not None
-        else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n"
-    )
+    with atomic_folder(TABLES_DIR) as tables_dir:  # reports/tables/ appears with all five tables or not at all
+        atomic_write_text(tables_dir / "table1.md", table1_markdown(precision, precision_compare))
+        atomic_write_text(tables_dir / "table2.md", table2_markdown(tables["table2"]))
+        atomic_write_text(tables_dir / "table3.md", table3_markdown(tables["table3"]))
+        atomic_write_text(tables_dir / "table5.md", table5_markdown(tables["table5"], speed.speed_mps))
+        coverage_figure(read_step_records(BENCHMARK_DIR, frame), COVERAGE_PATH, speed,
+                        title=f"Coverage curves on the {frame['map'].nunique()} test mazes: mean, band one standard deviation")
+        atomic_write_text(
+            tables_dir / "table4.md",
+            table4_markdown(tables["table4"]) if tables["table4"] is not None
+            else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n",
+        )
 
     benchmark_maps = sorted(str(m) for m in frame["map"].unique())
     map_order = {Path(p).stem: p for p in maps}
@@ -121,16 +125,17 @@ def write_report(section: dict, protocol: Protocol):
     except ValueError as error:
         raise SystemExit(f"error: report.figure_planners: {error}") from None
 
-    REPORT_MD.write_text(
+    atomic_write_text(
+        REPORT_MD,
         report_markdown(
             tables["table2"], tables["table3"], tables["table4"], precision,
             maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
             protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
             table5_frame=tables["table5"], speed_mps=speed.speed_mps, coverage_figure=COVERAGE_PATH.name,
-        )
+        ),
     )
     metrics = metrics_json(tables)
-    REPORT_JSON.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    atomic_write_text(REPORT_JSON, json.dumps(metrics, indent=2, sort_keys=True) + "\n")
     log_tables_to_mlflow(
         tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)},
         artifacts={"table5": [COVERAGE_PATH]},

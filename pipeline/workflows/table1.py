@@ -16,6 +16,7 @@ from typing import Any, Optional
 
 import pandas as pd
 
+from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.evaluation.predictor_eval import (
     COLUMNS,
@@ -78,14 +79,17 @@ def run(
         warnings.warn(f"no exploration reached step {', '.join(map(str, unreached))}: every episode completed "
                       f"earlier, so there is nothing to count there (precision n/a); larger maps reach later steps",
                       stacklevel=2)
-    frame.to_csv(out_dir / PRECISION_CSV, columns=list(COLUMNS), index=False)
-    frame.to_csv(out_dir / DETAIL_CSV, index=False)
+    with atomic_file(out_dir / PRECISION_CSV) as tmp:
+        frame.to_csv(tmp, columns=list(COLUMNS), index=False)
+    with atomic_file(out_dir / DETAIL_CSV) as tmp:
+        frame.to_csv(tmp, index=False)
     table = table1_markdown(frame, threshold=predictor_config.threshold)
     if sweep is not None:
-        sweep.to_csv(out_dir / "precision_by_threshold.csv", index=False)
+        with atomic_file(out_dir / "precision_by_threshold.csv") as tmp:
+            sweep.to_csv(tmp, index=False)
         plot_threshold_sweep(sweep, out_dir / "threshold_sweep.png")
         table += "\n" + sweep_markdown(sweep)
-    (out_dir / "table1.md").write_text(table)
+    atomic_write_text(out_dir / "table1.md", table)
     if figure:
         steps_sorted = sorted(int(s) for s in steps)
         figure_step = steps_sorted[min(1, len(steps_sorted) - 1)]  # the paper's Fig. 3 is mid-exploration
@@ -135,15 +139,31 @@ def compare_with(checkpoint: Optional[str], maps_dir: str | Path, out_dir: str |
     only when `checkpoint` is None, so the stage's outputs always exist) and a section of table1.md."""
     out_dir = Path(out_dir)
     if checkpoint is None:
-        pd.DataFrame(columns=list(COLUMNS)).to_csv(out_dir / COMPARE_CSV, index=False)
+        with atomic_file(out_dir / COMPARE_CSV) as tmp:
+            pd.DataFrame(columns=list(COLUMNS)).to_csv(tmp, index=False)
         return None
     if not Path(checkpoint).is_file():
         raise FileNotFoundError(f"eval_predictor.compare_checkpoint: {checkpoint}: no inpainter export there")
     frame = evaluate_predictor(list_maps(maps_dir), load_inpaint_fn(checkpoint), steps, predictor_config, graph_config,
                                protocol, progress=True)
-    frame.to_csv(out_dir / COMPARE_CSV, columns=list(COLUMNS), index=False)
-    with open(out_dir / "table1.md", "a") as table:
-        table.write("\n" + comparison_markdown(frame, f"Another inpainter: {checkpoint}"))
+    with atomic_file(out_dir / COMPARE_CSV) as tmp:
+        frame.to_csv(tmp, columns=list(COLUMNS), index=False)
+    table = out_dir / "table1.md"
+    before = table.read_text(encoding="utf-8") if table.is_file() else ""
+    atomic_write_text(table, before + "\n" + comparison_markdown(frame, f"Another inpainter: {checkpoint}"))
+    return frame
+
+
+def predictor_folder(maps_dir: str | Path, out_dir: str | Path, checkpoint: Optional[str], compare_checkpoint: Optional[str],
+                     steps, predictor_config: NodePredictorConfig, protocol: Protocol,
+                     graph_config: GlobalGraphConfig = GlobalGraphConfig(), sweep_thresholds=()) -> pd.DataFrame:
+    """The `eval_predictor` stage's folder: `run` and then `compare_with`, both into a temporary folder
+    that replaces `out_dir` as a whole once both are done, so a stage killed halfway leaves the
+    previous folder (or none), never one run's precision.csv beside another's table1.md."""
+    with atomic_folder(out_dir) as folder:
+        frame = run(maps_dir, folder, checkpoint, steps, predictor_config, protocol, graph_config=graph_config,
+                    sweep_thresholds=sweep_thresholds)
+        compare_with(compare_checkpoint, maps_dir, folder, steps, predictor_config, graph_config, protocol)
     return frame
 
 

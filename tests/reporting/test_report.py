@@ -416,3 +416,51 @@ def test_report_stage_errors(report_workspace):
     (report_workspace / "params.yaml").write_text(yaml.safe_dump(params))
     with pytest.raises(SystemExit, match="run the benchmark stage first"):
         stage.main("params.yaml")
+
+
+def _files(folder) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_report_stage_folders_are_replaced_as_a_whole_or_not_at_all(report_workspace, monkeypatch):
+    """reports/tables/ and reports/denoising_steps/: a failure halfway leaves each as the last run wrote it."""
+    from pipeline.evaluation import benchmark as evaluation
+    from pipeline.workflows import report as workflow
+    from stages import report as stage
+
+    root = report_workspace
+    tables, sweep = root / "reports/tables", root / "reports/denoising_steps"
+    stage.main("params.yaml")
+    (tables / "table9.md").write_text("an earlier run's table")
+    before = {folder: _files(folder) for folder in (tables, sweep)}
+
+    def fails(*args, **kwargs):
+        raise OSError("killed")
+
+    real_table4, real_steps = workflow.table4_markdown, evaluation.write_steps_csv
+    monkeypatch.setattr(workflow, "table4_markdown", fails)  # after table1, 2, 3 and 5 are written
+    with pytest.raises(OSError, match="killed"):
+        stage.main("params.yaml")
+    assert _files(tables) == before[tables]
+    monkeypatch.setattr(workflow, "table4_markdown", real_table4)
+    before[sweep] = _files(sweep)  # the sweep, before the tables, was done and replaced as a whole
+
+    episodes: list[str] = []
+
+    def dies_on_the_second_episode(path, rows):
+        if episodes:
+            raise OSError("killed")
+        episodes.append(str(path))
+        return real_steps(path, rows)
+
+    monkeypatch.setattr(evaluation, "write_steps_csv", dies_on_the_second_episode)
+    with pytest.raises(OSError, match="killed"):
+        stage.main("params.yaml")
+    assert episodes and "denoising_steps.partial" in episodes[0]
+    assert _files(sweep) == before[sweep] and _files(tables) == before[tables]
+    monkeypatch.setattr(evaluation, "write_steps_csv", real_steps)
+
+    stage.main("params.yaml")
+    assert sorted(_files(tables)) == [f"table{k}.md" for k in (1, 2, 3, 4, 5)]
+    assert sorted(_files(sweep)) == sorted(before[sweep])
+    assert not [p for p in (root / "reports").rglob(".*")]

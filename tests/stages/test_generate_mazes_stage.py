@@ -89,3 +89,41 @@ def test_stage_runs_as_a_module(tmp_path):
     subprocess.run(command, cwd=tmp_path, env=env, check=True, capture_output=True)
     assert (tmp_path / "data/mazes/train/maze_0000.png").is_file()
     assert (tmp_path / "reports/mazes_preview.png").is_file()
+
+
+def _files(root) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*.png"))}
+
+
+def test_a_failure_halfway_leaves_the_previous_map_sets(tmp_path, monkeypatch):
+    """The three sets replace theirs only together, once all are drawn: here the office floors fail
+    after the mazes are done, and data/ is as the first run left it."""
+    import stages.generate_mazes as stage
+
+    monkeypatch.chdir(tmp_path)
+    _write_params(tmp_path / "params.yaml", PARAMS)
+    main()
+    before = _files(tmp_path)
+    real = stage.generate_office_set
+
+    def dies_after_one_floor(config, count, out_dir, seed):
+        real(config, 1, out_dir, seed=seed, progress=False)
+        raise OSError("killed")
+
+    monkeypatch.setattr(stage, "generate_office_set", dies_after_one_floor)
+    smaller = {**PARAMS, "mazes": {**PARAMS["mazes"], "train": {"count": 1, "side_m": [40, 50]}}}
+    _write_params(tmp_path / "params.yaml", smaller)
+    with pytest.raises(OSError, match="killed"):
+        main()
+    assert _files(tmp_path) == before
+    assert not [p for p in tmp_path.rglob(".*")]  # no temporary folder left behind
+
+
+def test_two_runs_write_identical_bytes(tmp_path, monkeypatch):
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        monkeypatch.chdir(tmp_path / name)
+        _write_params(tmp_path / name / "params.yaml", PARAMS)
+        main()
+    first, second = _files(tmp_path / "a"), _files(tmp_path / "b")
+    assert len(first) == 7 and first == second  # 2 + 1 mazes, 2 office floors, 2 previews

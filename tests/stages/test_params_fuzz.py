@@ -58,7 +58,7 @@ class Stage:
 
 
 STAGES = [
-    Stage("generate_mazes", "mazes", True, "_clear_pngs"),  # the first call that touches data/
+    Stage("generate_mazes", "mazes", True, "_write_map_sets"),  # the first call that touches data/
     Stage("fit_gate", "fit_gate", True, "fit_gate"),
     Stage("train_block_model", "train_block_model", True, "train_the_block_model"),
     Stage("train_drl", "train_drl", True, "train_the_drl_policy"),
