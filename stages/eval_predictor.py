@@ -25,7 +25,7 @@ from pipeline.common.paths import DATA, REPORTS
 from pipeline.common.settings import Fields, ListOf, Maybe, Real, Text, Whole, check_stage, fraction, keys_of
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
-from pipeline.workflows.table1 import compare_with, log_run, run, table1_graph_config
+from pipeline.workflows.table1 import log_run, predictor_folder, table1_graph_config
 from pipeline.world.protocol import Protocol
 
 TEST_MAZES = DATA.mazes_test
@@ -61,9 +61,8 @@ def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
     graph_config = table1_graph_config(float(section["keep_share"]))
-    frame = run(TEST_MAZES, OUT_DIR, section["checkpoint"], section["steps"], config, protocol,
-                graph_config=graph_config, sweep_thresholds=section["sweep_thresholds"])
-    compare_with(section["compare_checkpoint"], TEST_MAZES, OUT_DIR, section["steps"], config, graph_config, protocol)
+    frame = predictor_folder(TEST_MAZES, OUT_DIR, section["checkpoint"], section["compare_checkpoint"], section["steps"],
+                             config, protocol, graph_config=graph_config, sweep_thresholds=section["sweep_thresholds"])
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame

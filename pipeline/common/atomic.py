@@ -27,14 +27,16 @@ PARTIAL = ".partial"
 
 
 def _partial_name(path: Path) -> Path:
-    return path.with_name(f".{path.stem}{PARTIAL}-{os.getpid()}{path.suffix}")
+    """`.name.partial-PID.suffix`: the whole name, so that `reports/benchmark.json`'s temporary and the
+    `reports/benchmark` folder's never match each other; the suffix kept for writers that read it."""
+    return path.with_name(f".{path.name}{PARTIAL}-{os.getpid()}{path.suffix}")
 
 
 def remove_partials(path: str | Path) -> None:
     """Temporaries of `path` left by an earlier, killed writer."""
     path = Path(path)
     if path.parent.is_dir():
-        for stray in path.parent.glob(f".{path.stem}{PARTIAL}-*"):
+        for stray in path.parent.glob(f".{path.name}{PARTIAL}-*"):
             shutil.rmtree(stray) if stray.is_dir() and not stray.is_symlink() else stray.unlink(missing_ok=True)
 
 

@@ -35,7 +35,7 @@ def test_a_writer_that_wrote_nothing_is_an_error(tmp_path):
 
 
 def test_leftovers_of_a_killed_writer_are_removed(tmp_path):
-    (tmp_path / ".summary.partial-999.json").write_text("{")
+    (tmp_path / ".summary.json.partial-999.json").write_text("{")
     (tmp_path / ".maps.partial-999").mkdir()
     atomic_write_text(tmp_path / "summary.json", "{}")
     with atomic_folder(tmp_path / "maps") as folder:
@@ -57,3 +57,12 @@ def test_a_folder_is_replaced_as_a_whole(tmp_path):
             raise ValueError("stopped")
     assert [p.name for p in target.iterdir()] == ["new.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["maps"]
+
+
+def test_a_file_and_a_folder_of_the_same_stem_keep_their_own_temporaries(tmp_path):
+    """reports/benchmark.json and reports/benchmark/ are written side by side."""
+    with atomic_folder(tmp_path / "benchmark") as folder:
+        (folder / "metrics.csv").write_text("a")
+        atomic_write_json(tmp_path / "benchmark.json", {"a": 1})
+        assert folder.is_dir()
+    assert (tmp_path / "benchmark" / "metrics.csv").is_file() and (tmp_path / "benchmark.json").is_file()

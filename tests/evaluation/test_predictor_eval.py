@@ -1,26 +1,28 @@
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
 
-from pipeline.world.maps import list_maps
-from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.evaluation.predictor_eval import (
     COLUMNS,
     DETAIL_COLUMNS,
+    SWEEP_COLUMNS,
     all_free_inpaint,
     evaluate_predictor,
     evaluate_with_sweep,
     load_inpaint_fn,
-    SWEEP_COLUMNS,
     oracle_inpaint_for,
     precision_by_threshold,
     table1_markdown,
 )
+from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.reporting.predictor_figures import prediction_figure
 from pipeline.workflows import table1
+from pipeline.world.maps import list_maps
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 
 STEPS = (3, 6)
 # The stage's settings these tests run with, each test writing its changes over them.
@@ -66,8 +68,8 @@ def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
 
 
 def test_cells_free_in_truth_is_false_off_the_map(maze_paths):
-    from pipeline.world.maps import load_map
     from pipeline.evaluation.predictor_eval import cells_free_in_truth
+    from pipeline.world.maps import load_map
 
     ground_truth = load_map(maze_paths[0])
     col, row = ground_truth.start_cell
@@ -115,8 +117,8 @@ def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
 
 
 def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, mlflow_uri):
-    import stages.eval_predictor as stage
     import pipeline.workflows.table1 as predictor_eval
+    import stages.eval_predictor as stage
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -159,8 +161,8 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
 
 def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp_path, monkeypatch, mlflow_uri):
     """compare_checkpoint: Table I again with that export; the table says which steps reach the paper's."""
-    import stages.eval_predictor as stage
     import pipeline.workflows.table1 as predictor_eval
+    import stages.eval_predictor as stage
 
     (tmp_path / "data" / "mazes").mkdir(parents=True)
     (tmp_path / "data" / "mazes" / "test").symlink_to(maze_dir, target_is_directory=True)
@@ -171,9 +173,9 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
     networks = {None: graded_inpaint, "other.pt": all_free_inpaint}
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: networks[checkpoint])
-    monkeypatch.setattr(stage, "run", lambda *a, **k: (stage.OUT_DIR.mkdir(parents=True, exist_ok=True),
-                                                       (stage.OUT_DIR / "table1.md").write_text("# Table I\n"),
-                                                       pd.DataFrame(columns=list(COLUMNS)))[-1])
+    monkeypatch.setattr(predictor_eval, "run", lambda *a, **k: (Path(a[1]).mkdir(parents=True, exist_ok=True),
+                                                                (Path(a[1]) / "table1.md").write_text("# Table I\n"),
+                                                                pd.DataFrame(columns=list(COLUMNS)))[-1])
     stage.main("params.yaml")
     out = tmp_path / "reports" / "predictor"
     compared = pd.read_csv(out / "precision_compare.csv")
@@ -190,8 +192,8 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
 
 
 def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch):
-    import stages.eval_predictor as stage
     import pipeline.workflows.table1 as predictor_eval
+    import stages.eval_predictor as stage
 
     seen = []
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)

@@ -66,7 +66,7 @@ STAGES = [
     Stage("collect_pairs", "collect_pairs", True, "collect_pairs"),
     Stage("collect_expert", "collect_expert", True, "collect_expert"),
     Stage("train_inpainter", "train_inpainter", True, "train_and_report"),
-    Stage("eval_predictor", "eval_predictor", True, "run"),
+    Stage("eval_predictor", "eval_predictor", True, "predictor_folder"),
     Stage("build_observations", "build_observations", True, "build_observations"),
     Stage("train_planner", "train_planner", False, "train_and_report", ("guide",)),  # reads no protocol
     Stage("train_planner", "train_planner", False, "train_and_report", ("dare",)),
