@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -44,17 +45,24 @@ class Refused(Exception):
         return f"{self.path}: " + self.shape.format(what=self.what, value=self.value)
 
 
-class Check:
+class Check(ABC):
     """One rule for a value: `what` says it in words ("a whole number >= 1"), `check` refuses others."""
 
     what: str = "a value"
+
+    @abstractmethod
+    def check(self, value: Any, path: str) -> None: ...
+
+
+class Predicate(Check):
+    """A rule that looks at the value alone (`accepts`), not into its items."""
 
     def check(self, value: Any, path: str) -> None:
         if not self.accepts(value):
             raise Refused(path, self.what, value)
 
-    def accepts(self, value: Any) -> bool:
-        raise NotImplementedError
+    @abstractmethod
+    def accepts(self, value: Any) -> bool: ...
 
 
 def is_number(value: Any) -> bool:
@@ -67,7 +75,7 @@ def _bound(value: float) -> str:
 
 
 @dataclass(frozen=True)
-class Whole(Check):
+class Whole(Predicate):
     """A whole number (an int, not a bool, not 3.0) in minimum..maximum (no upper bound when None)."""
 
     minimum: int = 0
@@ -85,7 +93,7 @@ class Whole(Check):
 
 
 @dataclass(frozen=True)
-class Real(Check):
+class Real(Predicate):
     """A finite number (int or float, not a bool, never NaN or +-inf) between `low` and `high`
     (closed ends unless `low_open` / `high_open`; None: unbounded on that side)."""
 
@@ -127,7 +135,7 @@ def fraction(note: str = "") -> Real:
 
 
 @dataclass(frozen=True)
-class Flag(Check):
+class Flag(Predicate):
     """true or false (not 0 / 1, not "yes")."""
 
     what: str = "true or false"
@@ -137,7 +145,7 @@ class Flag(Check):
 
 
 @dataclass(frozen=True)
-class Text(Check):
+class Text(Predicate):
     """A non-empty string; with `choices`, one of them; with `identifier`, a Python identifier."""
 
     choices: tuple[str, ...] = ()
@@ -266,7 +274,7 @@ class Satisfies(Check):
 
 
 @dataclass(frozen=True)
-class Anything(Check):
+class Anything(Predicate):
     """Any value: a key whose value another check judges (see `config_mapping`)."""
 
     what: str = "any value"
