@@ -126,8 +126,9 @@ def future_waypoints(trajectory: np.ndarray, horizon: int) -> np.ndarray:
     return trajectory[np.minimum(index, steps - 1)]
 
 
-def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, seed: int) -> dict[str, Any]:
-    """Run the expert and keep, per step, the belief diff the step's scan made."""
+def record_episode(ground_truth: GroundTruthMap, planner, protocol: Protocol, seed: int) -> dict[str, Any]:
+    """Run `planner` and keep, per step, the belief diff the step's scan made: the episode's
+    result, its (steps, 2) trajectory and the diffs (`change_index`, `change_value`)."""
     previous = {"grid": None}
     change_index: list[np.ndarray] = []
     change_value: list[np.ndarray] = []
@@ -142,14 +143,45 @@ def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, se
         change_value.append(grid[changed].copy())
         previous["grid"] = grid.copy()
 
-    result = run_episode(ground_truth, make_planner(config.planner), config.protocol, seed=seed, on_step=record)
-    trajectory = np.asarray(result.trajectory, dtype=np.float32)
+    result = run_episode(ground_truth, planner, protocol, seed=seed, on_step=record)
     return {
         "result": result,
-        "trajectory": trajectory,
-        "targets": future_waypoints(trajectory, config.horizon),
+        "trajectory": np.asarray(result.trajectory, dtype=np.float32),
         "change_index": change_index,
         "change_value": change_value,
+    }
+
+
+def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, seed: int) -> dict[str, Any]:
+    """Run the expert; its labels (`targets`) are its own next T_p waypoints."""
+    record = record_episode(ground_truth, make_planner(config.planner), config.protocol, seed)
+    return {**record, "targets": future_waypoints(record["trajectory"], config.horizon)}
+
+
+def episode_shard_arrays(ground_truths: list[GroundTruthMap], map_names: list[str], records: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    """The arrays of one Stage II shard: per episode its map and diffs, per step the position and
+    its label (`future_waypoints`, T_p waypoints), read back by `load_expert_episodes`."""
+    grids = [np.packbits(g.free.reshape(-1)) for g in ground_truths]
+    step_counts = [len(r["trajectory"]) for r in records]
+    change_index = [c for r in records for c in r["change_index"]]
+    change_value = [v for r in records for v in r["change_value"]]
+    return {
+        "map_names": np.array(map_names),
+        "map_shapes": np.array([g.shape for g in ground_truths], dtype=np.int32),
+        "start_cells": np.array([g.start_cell for g in ground_truths], dtype=np.int32),
+        "ground_truth_bits": np.concatenate(grids),
+        "ground_truth_bit_lengths": np.array([len(g) for g in grids], dtype=np.int64),
+        "step_counts": np.array(step_counts, dtype=np.int32),  # waypoints incl. the start, per episode
+        "positions": np.concatenate([r["trajectory"] for r in records]),  # (sum steps, 2) metres
+        "future_waypoints": np.concatenate([r["targets"] for r in records]),  # (sum steps, T_p, 2) metres
+        "change_counts": np.array([len(c) for c in change_index], dtype=np.int32),  # per step
+        "change_index": np.concatenate(change_index) if change_index else np.zeros(0, np.int32),
+        "change_value": np.concatenate(change_value) if change_value else np.zeros(0, np.uint8),
+        "complete": np.array([r["result"].complete for r in records]),
+        "distance_m": np.array([r["result"].distance_m for r in records], dtype=np.float64),
+        "summary_episodes": np.array(len(records)),
+        "summary_steps": np.array(int(sum(step_counts))),
+        "summary_complete": np.array(int(sum(r["result"].complete for r in records))),
     }
 
 
@@ -157,45 +189,17 @@ def collect_expert_shard(job: ShardJob) -> dict[str, Any]:
     """Write `episodes_per_shard` expert episodes as one shard of raw per-step state."""
     config: ExpertConfig = job.params["config"]
     rng = np.random.default_rng([config.seed, job.index])
-    maps, shapes, starts, grids, trajectories, targets = [], [], [], [], [], []
-    step_counts, change_counts, change_index, change_value, complete, distance = [], [], [], [], [], []
+    ground_truths, names, records = [], [], []
     for _ in range(config.episodes_per_shard):
         map_path = str(rng.choice(config.maps))
         ground_truth = load_map(map_path, cell_size=config.protocol.cell_size)
         if config.random_starts:
             ground_truth = random_open_start(ground_truth, rng)
-        record = record_expert_episode(ground_truth, config, seed=int(rng.integers(1 << 31)))
-        maps.append(Path(map_path).name)
-        shapes.append(ground_truth.shape)
-        starts.append(ground_truth.start_cell)
-        grids.append(np.packbits(ground_truth.free.reshape(-1)))
-        trajectories.append(record["trajectory"])
-        targets.append(record["targets"])
-        step_counts.append(len(record["trajectory"]))
-        change_counts.extend(len(c) for c in record["change_index"])
-        change_index.extend(record["change_index"])
-        change_value.extend(record["change_value"])
-        complete.append(record["result"].complete)
-        distance.append(record["result"].distance_m)
-    grid_lengths = [len(g) for g in grids]
-    arrays = {
-        "map_names": np.array(maps),
-        "map_shapes": np.array(shapes, dtype=np.int32),
-        "start_cells": np.array(starts, dtype=np.int32),
-        "ground_truth_bits": np.concatenate(grids),
-        "ground_truth_bit_lengths": np.array(grid_lengths, dtype=np.int64),
-        "step_counts": np.array(step_counts, dtype=np.int32),  # waypoints incl. the start, per episode
-        "positions": np.concatenate(trajectories),  # (sum steps, 2) metres
-        "future_waypoints": np.concatenate(targets),  # (sum steps, T_p, 2) metres
-        "change_counts": np.array(change_counts, dtype=np.int32),  # per step
-        "change_index": np.concatenate(change_index) if change_index else np.zeros(0, np.int32),
-        "change_value": np.concatenate(change_value) if change_value else np.zeros(0, np.uint8),
-        "complete": np.array(complete),
-        "distance_m": np.array(distance, dtype=np.float64),
-        "summary_episodes": np.array(len(maps)),
-        "summary_steps": np.array(int(sum(step_counts))),
-        "summary_complete": np.array(int(sum(complete))),
-    }
+        records.append(record_expert_episode(ground_truth, config, seed=int(rng.integers(1 << 31))))
+        ground_truths.append(ground_truth)
+        names.append(Path(map_path).name)
+    arrays = episode_shard_arrays(ground_truths, names, records)
     path = shard_path(job.out_dir, job.index)
     write_shard(path, arrays)
-    return {"episodes": len(maps), "steps": int(sum(step_counts)), "complete": int(sum(complete)), "bytes": path.stat().st_size}
+    steps = int(arrays["summary_steps"])
+    return {"episodes": len(records), "steps": steps, "complete": int(arrays["summary_complete"]), "bytes": path.stat().st_size}

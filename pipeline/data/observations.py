@@ -45,16 +45,21 @@ def episode_observations(
     predictor: NodePredictor | None,
     config: ObservationConfig = ObservationConfig(),
     episode_id: int = 0,
+    variants: tuple[str, ...] = VARIANTS,
 ) -> dict[str, dict[str, np.ndarray]]:
-    """{variant: arrays} for every step of one expert episode."""
+    """{variant: arrays} for every step of one expert episode, for each of `variants`."""
     ground_truth = episode_ground_truth(episode, protocol)
     lattice = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
+    unknown = set(variants) - set(VARIANTS)
+    if unknown:
+        raise ValueError(f"unknown observation variants {sorted(unknown)}; choose from {', '.join(VARIANTS)}")
     graphs = {
         "guide": GlobalGraph(lattice, GlobalGraphConfig(max_nodes=config.max_nodes)),
         "dare": GlobalGraph(lattice, GlobalGraphConfig(max_nodes=config.max_nodes, use_region_evaluation=False)),
     }
+    graphs = {variant: graph for variant, graph in graphs.items() if variant in variants}
     visited = np.zeros(lattice.node_count, dtype=bool)
-    out: dict[str, dict[str, list]] = {v: {k: [] for k in ARRAY_KEYS} for v in VARIANTS}
+    out: dict[str, dict[str, list]] = {v: {k: [] for k in ARRAY_KEYS} for v in graphs}
     previous = None
     for step, belief in enumerate(episode.beliefs()):
         changed = None if previous is None else np.flatnonzero(previous != belief)

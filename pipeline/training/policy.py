@@ -24,7 +24,7 @@ from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 from pipeline.common.params import dataclass_from_dict
 from pipeline.data.observations import PlannerDataset, crop_observations, load_observations
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
-from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy
+from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy, load_policy
 from pipeline.training.run_setup import (
     atomic_checkpoint_io,
     check_accelerator,
@@ -179,6 +179,16 @@ class PlannerLightning(L.LightningModule):
         restore_random_states(checkpoint.get("random_states"), self.generators)
 
 
+def start_from(module: PlannerLightning, export: str | Path) -> None:
+    """Load a policy export's weights into the module's policy and its EMA copy (same model config)."""
+    policy, _ = load_policy(export)
+    if policy.config.to_dict() != module.model_config.to_dict():
+        raise ValueError(f"{export}: its model config differs from the one being trained; start from an export of "
+                         "the same config or from scratch")
+    module.policy.load_state_dict(policy.state_dict())
+    module.ema.module.load_state_dict(policy.state_dict())
+
+
 def train_planner(
     observations: str | Path,
     out_dir: str | Path,
@@ -195,6 +205,7 @@ def train_planner(
     progress: bool = False,
     num_threads: Optional[int] = None,
     checkpoint_dir: str | Path | None = None,
+    init_policy: str | Path | None = None,
 ) -> Path | None:
     """Train on an observation file (build_observations stage); returns the exported policy.pt
     (None in the other processes of a multi-device run: only rank zero exports).
@@ -203,7 +214,9 @@ def train_planner(
     `checkpoint_dir` (default: `out_dir`). `resume=True` continues from its last.ckpt
     (optimiser, EMA and history included) when it exists; otherwise the old checkpoints are
     set aside while it trains (`fresh_checkpoints`), once the settings and the data have been
-    checked (a run that fails early leaves them alone).
+    checked (a run that fails early leaves them alone). `init_policy`, a policy export of the
+    same model config, gives a fresh run its starting weights (its EMA copy too) instead of a
+    random draw; a resumed run continues from its checkpoint.
     """
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
@@ -239,6 +252,8 @@ def train_planner(
         train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
         module = PlannerLightning(mc.to_dict(), asdict(tc))
+        if init_policy is not None and ckpt_path is None:
+            start_from(module, init_policy)
         module.generators = [generator, train_set.rng]  # the shuffle and the augmentation resume where they were
         checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
                                      save_last=True, auto_insert_metric_name=False, enable_version_counter=False)

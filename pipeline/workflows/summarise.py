@@ -31,6 +31,7 @@ STAGE_SUMMARIES: dict[str, Path] = {
     "train_inpainter": REPORTS.inpainter,
     "build_observations": REPORTS.observations,
     **{f"train_planner@{variant}": paths.metrics for variant, paths in POLICIES.items()},
+    "distil_policy": REPORTS.distil,
 }
 
 

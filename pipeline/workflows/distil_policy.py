@@ -1,0 +1,306 @@
+"""DAgger (the `distil_policy` stage, ours): the guide policy distilled from a belief-only teacher,
+with the policy driving.
+
+The policy trained on the ground-truth expert (`train_planner`) imitates moves that depend on a map
+the robot cannot see. Here its teacher sees only the belief (`guide:lookahead=3` by default) and
+labels each state with the first T_p steps of the shortest known path toward its target
+(`pipeline.data.teacher_labels`).
+
+- Round 0: the teacher drives `teacher_episodes` episodes on training mazes and labels its own
+  states; the policy (from `start_policy`) is fine-tuned on them.
+- Round r >= 1: the policy of round r - 1 drives `episodes` episodes as the paper's planner
+  (`guide:mode=policy`), the teacher labels every state it reaches, the data of every round so far
+  is aggregated and the policy fine-tuned on it (from round r - 1's weights).
+
+After each round its policy drives `eval_mazes` fresh mazes (`eval_seed`, never the test mazes)
+beside `greedy_utility`, paired; the start policy does too, as the line the rounds are measured
+from. Every round's work is kept in checkpoints/distil/round_<r>/ (shards, observations, training
+checkpoints, evaluation), so a killed run takes up where it was; the rounds' labelled episodes are
+published under data/dagger/.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_json
+from pipeline.common.fingerprints import files_digest, settings_digest, source_digest
+from pipeline.common.kept_results import KeptResults
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.parallel import map_with_progress
+from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, POLICIES, REPORTS
+from pipeline.data.collect import COLLECTION_SOURCES
+from pipeline.data.dagger import DaggerConfig, collect_dagger_shard
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.observations import ObservationConfig, concatenate, episode_observations, load_observations, save_observations
+from pipeline.data.shards import read_manifest, run_shards, shard_count_for
+from pipeline.evaluation.benchmark import paired_difference, run_benchmark
+from pipeline.models.defaults import PIPELINE_INPAINTER, cached_inpainter
+from pipeline.models.modeling_diffusion import load_policy
+from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
+from pipeline.training.policy import train_planner
+from pipeline.training.run_setup import resume_point, start_afresh
+from pipeline.world.mazes import MazeConfig, generate_maze_set
+from pipeline.workflows.stage_inputs import generated_maps
+from pipeline.world.protocol import Protocol
+
+BASELINE = "greedy_utility"
+STUDENT_LABEL = "guide_policy"  # the policy driving as the paper's planner: guide in mode policy
+TEACHER_MODELS = (MODELS.inpainter, MODELS.block_model, MODELS.sliver_gate, POLICIES["guide"].model)
+
+
+def round_folder(r: int) -> Path:
+    return CHECKPOINTS.distil / f"round_{r}"
+
+
+def start_policy_path(section: dict) -> Path:
+    path = Path(section["start_policy"] or POLICIES["guide"].model / "policy.pt")
+    if not path.is_file():
+        raise SystemExit(f"error: {path}: no start policy; run the train_planner@guide stage first")
+    return path
+
+
+def observation_settings(start_meta: dict) -> dict:
+    """The graph observations the start policy was trained on (its export says): the rounds' data
+    is built the same way, so that the fine-tuned policy sees the graphs the planner builds."""
+    seen = dict(start_meta.get("observations") or {})
+    if seen.get("variant", "guide") != "guide":
+        raise SystemExit(f"error: the start policy was trained on {seen['variant']} observations; distil_policy "
+                         "fine-tunes a guide policy")
+    return {"threshold": float(seen.get("threshold", 0.8)), "count_threshold": float(seen.get("count_threshold", 0.5)),
+            "min_component": int(seen.get("min_component", 3)), "max_nodes": int(seen.get("max_nodes", 128)),
+            "max_neighbors": int(seen.get("max_neighbors", 25))}
+
+
+# ----------------------------------------------------------------------------- one round's data
+def collect_round(section: dict, protocol: Protocol, r: int, student: Path | None, horizon: int) -> dict:
+    """Round r's labelled episodes: made in checkpoints/, published at data/dagger/round_<r>; its manifest."""
+    episodes = int(section["teacher_episodes"] if student is None else section["episodes"])
+    per_shard = int(section["episodes_per_shard"])
+    config = DaggerConfig(
+        maps=tuple(str(p) for p in generated_maps(DATA.mazes_train, "training mazes")),
+        episodes_per_shard=per_shard, teacher=str(section["teacher"]["planner"]),
+        teacher_options=dict(section["teacher"].get("options") or {}),
+        student=None if student is None else str(student), horizon=horizon, seed=int(section["seed"]), round=r,
+        protocol=protocol, random_starts=bool(section["random_starts"]),
+    )
+    # The labels depend on the teacher's models and the driver's weights, not only on their paths.
+    models = {"teacher": files_digest([p for p in TEACHER_MODELS if p.exists()]),
+              "student": None if student is None else files_digest([student])}
+    who = "the teacher drives" if student is None else "the policy drives"
+    return run_shards(collect_dagger_shard, shard_count_for(episodes, per_shard, "episodes"), DATA.dagger / f"round_{r}",
+                      {"config": config, "models": models}, workers=int(section["workers"]),
+                      description=f"round {r} ({who})", sources=COLLECTION_SOURCES, work_dir=round_folder(r) / "shards")
+
+
+def _shard_observations(task: tuple) -> dict:
+    """Graph observations of every episode of one round shard (runs in a worker process)."""
+    shard, first_episode_id, protocol_dict, inpainter, settings = task
+    import torch
+
+    torch.set_num_threads(1)
+    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(
+        settings["threshold"], settings["min_component"], count_threshold=settings["count_threshold"]))
+    config = ObservationConfig(settings["max_nodes"], settings["max_neighbors"])
+    parts = [episode_observations(episode, Protocol.from_dict(protocol_dict), predictor, config,
+                                  episode_id=first_episode_id + k, variants=("guide",))["guide"]
+             for k, episode in enumerate(load_expert_episodes(shard))]
+    return concatenate(parts)
+
+
+def round_observations(section: dict, protocol: Protocol, r: int, first_episode: int, settings: dict, inpainter: Path,
+                       workers: int) -> dict[str, np.ndarray]:
+    """Round r's episodes replayed into guide observations (episode ids from `first_episode`)."""
+    folder = DATA.dagger / f"round_{r}"
+    entries = read_manifest(folder)["shards"]
+    counts = [int(entry["episodes"]) for entry in entries]
+    firsts = first_episode + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
+    tasks = [(str(folder / entry["file"]), int(f), protocol.to_dict(), str(inpainter), settings)
+             for entry, f in zip(entries, firsts)]
+    identity = {"tasks": tasks, "data": files_digest([folder]), "inpainter": files_digest([inpainter]), "source": source_digest()}
+    results = map_with_progress(_shard_observations, tasks, workers, f"round {r} observations", "shard",
+                                keep=KeptResults(round_folder(r) / "observations", identity))
+    return concatenate(results)
+
+
+# ----------------------------------------------------------------------------- one round's policy
+def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict, threads: Any) -> tuple[Path, dict]:
+    """Fine-tune from `init` on the aggregate; the export and its metadata. A killed training
+    resumes from its checkpoint when its settings, data and starting weights are the same."""
+    train = dict(section["train"])
+    folder = round_folder(r)
+    fingerprint = settings_digest({"model": model, "train": train, "data": files_digest([aggregate]),
+                                   "init": files_digest([init])})
+    checkpoints = folder / "training"
+    resume_from = resume_point(checkpoints, fingerprint, f"distil_policy round {r}")
+    if resume_from is None:
+        start_afresh(checkpoints, fingerprint)
+    export = train_planner(aggregate, folder / "policy", model, train, accelerator="cpu", devices=1,
+                           resume=resume_from is not None, checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]),
+                           run_name=f"distil round {r}", num_threads=threads, init_policy=init)
+    assert export is not None  # one device: this process exports
+    _, meta = load_policy(export)
+    return export, meta
+
+
+# ----------------------------------------------------------------------------- closed loop
+def eval_mazes(section: dict, protocol: Protocol) -> list[Path]:
+    """The fresh evaluation mazes (seed `eval_seed`), drawn once into checkpoints/distil/eval_mazes."""
+    count, side = int(section["eval_mazes"]), float(section["eval_side_m"])
+    folder = CHECKPOINTS.distil / f"eval_mazes_{count}_{side:g}m_seed{int(section['eval_seed'])}"
+    paths = sorted(folder.glob("maze_*.png"))
+    if len(paths) != count:
+        shutil.rmtree(folder, ignore_errors=True)
+        config = MazeConfig(side_m=(side, side), cell_size=protocol.cell_size)
+        with atomic_folder(folder) as tmp:
+            generate_maze_set(config, count, tmp, seed=int(section["eval_seed"]), progress=False)
+        paths = sorted(folder.glob("maze_*.png"))
+    return paths
+
+
+def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, mazes: list[Path]) -> dict:
+    """`guide:mode=policy` with `policy` and `greedy_utility` on the evaluation mazes, paired; kept
+    in checkpoints/distil/ under `name` (a rerun with the same policy and mazes reads it back)."""
+    folder = CHECKPOINTS.distil / f"eval_{name}"
+    identity = settings_digest({"policy": files_digest([policy]), "mazes": files_digest(mazes), "protocol": protocol.to_dict(),
+                                "source": source_digest()})
+    record = folder / "closed_loop.json"
+    if record.is_file():
+        import json
+
+        kept = json.loads(record.read_text())
+        if kept.get("identity") == identity:
+            return kept["result"]
+    shutil.rmtree(folder, ignore_errors=True)
+    specs = [BASELINE, f"{STUDENT_LABEL}=guide:mode=policy,checkpoint={policy}"]
+    frame = run_benchmark(mazes, specs, protocol, folder, workers=int(section["workers"]), progress=True)
+    mean, half, maps = paired_difference(frame, STUDENT_LABEL, BASELINE)
+    ours = frame[frame.planner == STUDENT_LABEL]
+    result = {
+        "mazes": maps,
+        "distance_m": round(float(ours.distance_m.mean()), 1),
+        "greedy_utility_distance_m": round(float(frame[frame.planner == BASELINE].distance_m.mean()), 1),
+        "vs_greedy_pct": round(100 * mean, 2),
+        "vs_greedy_ci95_pct": None if math.isnan(half) else round(100 * half, 2),
+        "completed": int(ours.complete.sum()),
+        "decision_ms_median": round(float(ours.decision_ms_median.median()), 1) if "decision_ms_median" in ours else None,
+    }
+    atomic_write_json(record, {"identity": identity, "result": result})
+    return result
+
+
+# ----------------------------------------------------------------------------- the rounds
+def distil_policy(section: dict, protocol: Protocol) -> dict:
+    """Round 0 and `rounds` DAgger rounds from the `distil_policy` settings; the summary."""
+    started = time.perf_counter()
+    start = start_policy_path(section)
+    _, start_meta = load_policy(start)
+    settings = observation_settings(start_meta)
+    model = dict(start_meta["config"])
+    horizon = int(model["horizon"])
+    inpainter = Path(section["inpainter"] or PIPELINE_INPAINTER)
+    if not inpainter.is_file():
+        raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
+    workers = max(1, int(section["workers"]))
+    mazes = eval_mazes(section, protocol)
+    rows: list[dict[str, Any]] = [{"round": "start", "policy": str(start), **closed_loop(section, protocol, start, "start", mazes)}]
+    parts: list[dict[str, np.ndarray]] = []
+    policy, episodes_so_far = start, 0
+    meta_for_file = {"variant": "guide", **settings, "protocol": protocol.to_dict(), "teacher": section["teacher"]}
+    for r in range(int(section["rounds"]) + 1):
+        manifest = collect_round(section, protocol, r, None if r == 0 else policy, horizon)
+        totals = manifest["totals"]
+        parts.append(round_observations(section, protocol, r, episodes_so_far, settings, inpainter, workers))
+        episodes_so_far += int(totals["episodes"])
+        aggregate = round_folder(r) / "aggregate.npz"
+        arrays = concatenate(parts)
+        if not aggregate.is_file() or not _same_arrays(aggregate, arrays):
+            save_observations(aggregate, arrays, {**meta_for_file, "rounds": r + 1})
+        policy, meta = train_round(section, r, aggregate, policy, model, section["threads"])
+        last = (meta.get("history") or [{}])[-1]
+        row = {
+            "round": r,
+            "driver": "teacher" if r == 0 else f"policy of round {r - 1}",
+            "episodes": int(totals["episodes"]),
+            "complete": int(totals["complete"]),
+            "labelled_steps": int(totals["steps"]),
+            "aggregate_steps": int(len(arrays["episode"])),
+            # The driver's moves that were the teacher's first step (round 0: the teacher's own chunked moves).
+            "driver_agreement": round(totals["agreements"] / max(1, totals["moves"]), 4),
+            "heldout_agreement": last.get("val_first_step_accuracy"),
+            "train_seconds": meta.get("train_seconds"),
+            "policy": str(policy),
+            **closed_loop(section, protocol, policy, f"round_{r}", mazes),
+        }
+        rows.append(row)
+        print(f"round {r}: {row['labelled_steps']} labelled steps ({row['driver']}), driver agreement "
+              f"{row['driver_agreement']:.0%}, held-out agreement {row['heldout_agreement']:.0%}; guide:mode=policy "
+              f"{row['distance_m']} m against greedy_utility {row['greedy_utility_distance_m']} m "
+              f"({row['vs_greedy_pct']:+.1f} %) on {row['mazes']} fresh mazes")
+    MODELS.planner_distilled.mkdir(parents=True, exist_ok=True)
+    with atomic_file(MODELS.planner_distilled / "policy.pt") as tmp:
+        shutil.copyfile(policy, tmp)
+    summary = {"teacher": section["teacher"], "start_policy": str(start),
+               "eval": {"mazes": len(mazes), "side_m": float(section["eval_side_m"]), "seed": int(section["eval_seed"])},
+               "rounds": rows, "seconds": round(time.perf_counter() - started, 1)}
+    atomic_write_json(REPORTS.distil, summary)
+    rounds_figure(rows, REPORTS.distil_figure)
+    log_rounds(section, rows)
+    return summary
+
+
+def _same_arrays(path: Path, arrays: dict[str, np.ndarray]) -> bool:
+    kept, _ = load_observations(path)
+    return all(np.array_equal(kept[k], arrays[k]) for k in arrays)
+
+
+def rounds_figure(rows: list[dict], path: Path) -> None:
+    """Agreement with the teacher and the closed-loop distance against greedy_utility, per round."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = [str(r["round"]) for r in rows]
+    fig, (ax_agree, ax_dist) = plt.subplots(1, 2, figsize=(10, 3.6))
+    rounds = [r for r in rows if r["round"] != "start"]
+    ax_agree.plot([str(r["round"]) for r in rounds], [r["heldout_agreement"] for r in rounds], "o-", label="held-out states")
+    ax_agree.plot([str(r["round"]) for r in rounds], [r["driver_agreement"] for r in rounds], "s--", label="driver's own moves")
+    ax_agree.set(xlabel="round", ylabel="first step = teacher's", ylim=(0, 1))
+    ax_agree.legend(fontsize=8)
+    ax_agree.grid(alpha=0.3)
+    values = [r["vs_greedy_pct"] for r in rows]
+    errors = [r["vs_greedy_ci95_pct"] or 0.0 for r in rows]
+    ax_dist.errorbar(labels, values, yerr=errors, fmt="o-", capsize=3, color="#c44e52")
+    ax_dist.axhline(0.0, color="grey", ls="--", lw=1)
+    ax_dist.set(xlabel="round (start: the expert-trained policy)", ylabel="guide:mode=policy vs greedy_utility (%)")
+    ax_dist.grid(alpha=0.3)
+    fig.suptitle(f"DAgger: the policy driving, labelled by the teacher ({rows[-1].get('mazes')} fresh mazes, paired, 95 %)",
+                 fontsize=9)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def log_rounds(section: dict, rows: list[dict]) -> None:
+    """One MLflow run with each round's figures as a step (the MLflow curves of the rounds)."""
+    mlflow = import_mlflow()
+    mlflow.set_tracking_uri(resolve_tracking_uri(None))
+    mlflow.set_experiment(str(section["experiment"]))
+    with mlflow.start_run(run_name="distil rounds"):
+        teacher = section["teacher"]
+        mlflow.log_params({"teacher": teacher["planner"], **{f"teacher.{k}": v for k, v in (teacher.get("options") or {}).items()},
+                           "rounds": section["rounds"], "episodes": section["episodes"],
+                           "teacher_episodes": section["teacher_episodes"], "eval_mazes": section["eval_mazes"]})
+        for step, row in enumerate(rows):
+            metrics = {k: row[k] for k in ("distance_m", "vs_greedy_pct", "heldout_agreement", "driver_agreement",
+                                           "aggregate_steps") if isinstance(row.get(k), (int, float))}
+            mlflow.log_metrics(metrics, step=step)
