@@ -39,6 +39,7 @@ PROGRESS = {
     "build_observations": "checkpoints/observations/item_*.pkl",
     "train_planner@guide": "checkpoints/planner_guide/last.ckpt",
     "train_planner@dare": "checkpoints/planner_dare/last.ckpt",
+    "distil_policy": "checkpoints/distil/round_0/shards/shard_*.json",
 }
 # What the rerun after such a kill must say it did.
 RESUMED = {
@@ -51,6 +52,7 @@ RESUMED = {
     "build_observations": "kept from an interrupted run",
     "train_planner@guide": "resuming from checkpoints/planner_guide/last.ckpt",
     "train_planner@dare": "resuming from checkpoints/planner_dare/last.ckpt",
+    "distil_policy": "kept from an earlier run",
 }
 RUNNING = re.compile(r"Running stage '([^']+)'")
 

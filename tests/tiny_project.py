@@ -58,6 +58,8 @@ def tiny_params(params: dict[str, Any], protocol: dict[str, Any] | None = None) 
     params["train_drl"]["env"].update(maze_sides_m=[50], max_steps=30)
     params["train_drl"]["ppo"].update(n_envs=2, n_steps=32, batch_size=32, n_epochs=1)
     params["train_drl"]["imitation"].update(episodes=2, epochs=1, dagger_rounds=1, dagger_episodes=1, dagger_epochs=1)
+    params["distil_policy"].update(teacher_episodes=2, episodes=1, episodes_per_shard=1, eval_mazes=2, eval_side_m=50)
+    params["distil_policy"]["train"].update(max_epochs=1, batch_size=16, warmup_steps=2)
     # The shipped drl policy was trained at the default protocol: its row is the benchmark's, not this copy's.
     params["benchmark"]["planners"] = [p for p in params["benchmark"]["planners"] if not p.startswith("drl_shipped=")]
     return params

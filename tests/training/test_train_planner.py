@@ -295,3 +295,21 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, 
     a, b = torch.load(whole, weights_only=True), torch.load(resumed, weights_only=True)
     assert [row["epoch"] for row in b["history"]] == [0, 1, 2]
     assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])
+
+
+def test_a_fresh_run_can_start_from_an_export(trained, tmp_path, mlflow_uri):
+    """DAgger fine-tunes each round from the round before: `init_policy` gives a fresh run its weights."""
+    root, paths = trained
+    no_steps = dict(TINY_TRAIN, max_epochs=1, lr=1e-12, warmup_steps=0, ema_decay=0.0)  # a step of ~0: weights kept
+    export = train_planner(root / "guide.npz", tmp_path / "from", TINY_MODEL, no_steps, tracking_uri=mlflow_uri,
+                           experiment_name="test_planner", init_policy=paths["guide"])
+    start, _ = load_policy(paths["guide"])
+    tuned, _ = load_policy(export)
+    for name, value in start.state_dict().items():
+        torch.testing.assert_close(tuned.state_dict()[name], value, atol=1e-6, rtol=0)
+    scratch = train_planner(root / "guide.npz", tmp_path / "scratch", TINY_MODEL, dict(no_steps, seed=7), mlflow=False)
+    drawn, _ = load_policy(scratch)
+    assert any(not torch.allclose(drawn.state_dict()[k], v) for k, v in start.state_dict().items() if v.is_floating_point())
+    with pytest.raises(ValueError, match="model config differs"):
+        train_planner(root / "guide.npz", tmp_path / "other", dict(TINY_MODEL, d_model=16, heads=2), no_steps, mlflow=False,
+                      init_policy=paths["guide"])

@@ -12,6 +12,7 @@ from pipeline.world.maps import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.workflows import explore
 from pipeline.workflows.benchmark import benchmark_folder
+from pipeline.workflows.distil_policy import observation_settings
 
 
 def test_explore_prepares_checks_and_writes_every_file(small_maze_path, tmp_path):
@@ -53,3 +54,11 @@ def test_benchmark_folder_runs_every_map_and_logs_one_run_per_planner(generated_
     (tmp_path / "empty").mkdir()
     with pytest.raises(MapError, match="no maps in this folder"):
         benchmark_folder(tmp_path / "empty", ["nearest_frontier"], Protocol(), tmp_path / "d", mlflow=False)
+
+
+def test_distil_policy_builds_its_observations_as_the_start_policy_was_trained():
+    seen = {"variant": "guide", "threshold": 0.7, "count_threshold": 0.4, "min_component": 2, "max_nodes": 64, "max_neighbors": 25}
+    assert observation_settings({"observations": seen}) == {k: v for k, v in seen.items() if k != "variant"}
+    assert observation_settings({})["threshold"] == 0.8  # older exports: the planners' defaults
+    with pytest.raises(SystemExit, match="dare observations"):
+        observation_settings({"observations": {"variant": "dare"}})
