@@ -50,6 +50,7 @@ SETTINGS = Fields({
     "eval_seed": Whole(0),
     "workers": Whole(0, note="0 or 1: in this process"),
     "threads": Maybe(Whole(0, note="0: torch's default"), "torch's default"),
+    "accelerator": Text(note="Lightning's accelerator: cpu, gpu, auto"),
     "experiment": Text(note="an MLflow experiment"),
 })
 KEYS = keys_of(SETTINGS)

@@ -135,13 +135,13 @@ def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict,
     resumes from its checkpoint when its settings, data and starting weights are the same."""
     train = dict(section["train"])
     folder = round_folder(r)
-    fingerprint = settings_digest({"model": model, "train": train, "data": files_digest([aggregate]),
+    fingerprint = settings_digest({"model": model, "train": train, "accelerator": section["accelerator"], "data": files_digest([aggregate]),
                                    "init": files_digest([init])})
     checkpoints = folder / "training"
     resume_from = resume_point(checkpoints, fingerprint, f"distil_policy round {r}")
     if resume_from is None:
         start_afresh(checkpoints, fingerprint)
-    export = train_planner(aggregate, folder / "policy", model, train, accelerator="cpu", devices=1,
+    export = train_planner(aggregate, folder / "policy", model, train, accelerator=str(section["accelerator"]), devices=1,
                            resume=resume_from is not None, checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]),
                            run_name=f"distil round {r}", num_threads=threads, init_policy=init)
     assert export is not None  # one device: this process exports
