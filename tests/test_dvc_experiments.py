@@ -21,7 +21,7 @@ from pipeline.evaluation.benchmark import parse_planner_spec
 from tiny_project import dvc, git
 
 HEADLINE = "reports/metrics.json"
-HEADLINE_GROUPS = {"precision", "seconds"}
+HEADLINE_GROUPS = {"precision", "seconds", "distil"}
 PLANNER_KEYS = {"distance_m", "gap_pct", "vs_greedy_pct", "vs_greedy_ci95_pct"}
 
 

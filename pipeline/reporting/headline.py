@@ -7,7 +7,9 @@ keeps a handful, named for reading, in one flat-ish JSON (reports/metrics.json):
 - per benchmark planner: mean distance (m), gap to `optimal` (%), and the paired difference to
   `greedy_utility` (%) with its 95 % half-width, as the report stage's Table II computed them;
 - Table I: the node predictor's precision at each exploration step;
-- each stage's seconds, as the stage's own summary recorded them.
+- each stage's seconds, as the stage's own summary recorded them;
+- DAgger (`distil_policy`): the last round's `guide:mode=policy` against `greedy_utility` on the
+  fresh mazes, the start policy's on the same mazes, and the last round's held-out agreement.
 
 Everything here is pure: parsed JSON and CSV rows in, a dict out.
 """
@@ -31,7 +33,8 @@ PLANNER_FIELDS: dict[str, tuple[str, float]] = {
     "vs_baseline": ("vs_greedy_pct", 100.0),
     "vs_baseline_ci95": ("vs_greedy_ci95_pct", 100.0),
 }
-GROUPS = ("precision", "seconds")  # the non-planner keys of the headline
+GROUPS = ("precision", "seconds", "distil")  # the non-planner keys of the headline
+DISTIL_STAGE = "distil_policy"  # its summary's rounds give the `distil` group
 
 
 def _number(value: Any) -> float | None:
@@ -95,16 +98,37 @@ def stage_seconds(summaries: Mapping[str, Mapping[str, Any]]) -> dict[str, float
     return out
 
 
+def distil_metrics(summary: Mapping[str, Any]) -> dict[str, float]:
+    """The DAgger stage's few numbers from its summary's `rounds` (the start row first, then each
+    round): the start's and the last round's paired difference to greedy_utility (%), and the
+    last round's first-step agreement with the teacher on held-out episodes."""
+    rows = [row for row in summary.get("rounds") or [] if isinstance(row, Mapping)]
+    start = next((row for row in rows if row.get("round") == "start"), {})
+    rounds = [row for row in rows if row.get("round") != "start"]
+    last = rounds[-1] if rounds else {}
+    values = {
+        "rounds": _number(len(rounds) - 1) if rounds else None,  # DAgger rounds after round 0
+        "start_vs_greedy_pct": _number(start.get("vs_greedy_pct")),
+        "policy_vs_greedy_pct": _number(last.get("vs_greedy_pct")),
+        "heldout_agreement": _number(last.get("heldout_agreement")),
+    }
+    return {key: round(value, 3) for key, value in values.items() if value is not None}
+
+
 def headline(
     table2: Mapping[str, Mapping[str, Any]],
     precision_rows: Iterable[Mapping[str, Any]],
     summaries: Mapping[str, Mapping[str, Any]],
 ) -> dict[str, dict[str, Any]]:
-    """The headline metrics: one key per benchmark planner (sorted), then `precision` and `seconds`.
+    """The headline metrics: one key per benchmark planner (sorted), then `precision`, `seconds` and,
+    when the DAgger stage's summary is among `summaries`, `distil`.
 
     ValueError when a planner's label is one of the group names (its column would be ambiguous)."""
     planners = planner_metrics(table2)
     clash = sorted(set(planners) & set(GROUPS))
     if clash:
         raise ValueError(f"planner label(s) {clash} clash with the headline's groups {list(GROUPS)}; relabel them")
-    return {**planners, "precision": precision_by_step(precision_rows), "seconds": stage_seconds(summaries)}
+    out = {**planners, "precision": precision_by_step(precision_rows), "seconds": stage_seconds(summaries)}
+    if DISTIL_STAGE in summaries:
+        out["distil"] = distil_metrics(summaries[DISTIL_STAGE])
+    return out

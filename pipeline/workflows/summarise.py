@@ -16,7 +16,7 @@ from typing import Any
 
 from pipeline.common.atomic import atomic_write_json
 from pipeline.common.paths import POLICIES, REPORTS
-from pipeline.reporting.headline import headline
+from pipeline.reporting.headline import GROUPS, headline
 
 REPORT_JSON = REPORTS.report_metrics
 PRECISION_CSV = REPORTS.predictor / "precision.csv"  # eval_predictor's Table I (pipeline/workflows/table1.py)
@@ -70,7 +70,7 @@ def write_headline(out: Path = HEADLINE_JSON) -> dict[str, dict[str, Any]]:
     summaries = {stage: read_json(path, stage.split("@")[0]) for stage, path in STAGE_SUMMARIES.items()}
     metrics = headline(table2, precision_rows, summaries)
     atomic_write_json(out, metrics)
-    planners = [key for key in metrics if key not in ("precision", "seconds")]
+    planners = [key for key in metrics if key not in GROUPS]
     print(f"{out}: {len(planners)} planners, {len(metrics['precision'])} Table I steps, "
           f"{len(metrics['seconds'])} stage times")
     return metrics

@@ -80,3 +80,15 @@ def test_the_reference_and_baseline_names_match_the_report_stages():
 
     assert hl.PAIRED_BASELINE == DEFAULT_BASELINE == PAIRED_BASELINE
     assert hl.REFERENCE_PLANNER == REFERENCE_PLANNER
+
+
+def test_the_dagger_rounds_give_the_start_and_the_last_round():
+    summary = {"seconds": 12.0, "rounds": [
+        {"round": "start", "vs_greedy_pct": 15.02, "heldout_agreement": None},
+        {"round": 0, "vs_greedy_pct": 9.5, "heldout_agreement": 0.41},
+        {"round": 1, "vs_greedy_pct": 6.25, "heldout_agreement": 0.5}]}
+    metrics = hl.headline(TABLE2, [], {"distil_policy": summary})
+    assert metrics["distil"] == {"rounds": 1.0, "start_vs_greedy_pct": 15.02, "policy_vs_greedy_pct": 6.25,
+                                 "heldout_agreement": 0.5}
+    assert metrics["seconds"] == {"distil_policy": 12.0}
+    assert "distil" not in hl.headline(TABLE2, [], {})
