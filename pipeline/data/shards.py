@@ -110,6 +110,7 @@ def run_shards(
     progress: bool = True,
     sources: Sequence[str] | None = None,
     work_dir: str | Path | None = None,
+    inputs: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Make every missing shard (in parallel) in `work_dir`, then publish the data set at `out_dir`;
     returns its manifest with this run's provenance.
@@ -118,6 +119,9 @@ def run_shards(
     arrays); `job.out_dir` is the work folder (default: `out_dir` with `.work` appended, beside
     it). Shards from other params or code and stray temporaries are removed from it first.
     `sources` names the library files whose code the shards depend on (see `fingerprint`).
+    `inputs` is what else they depend on, such as the digests of the models a collection runs:
+    it enters the fingerprint only, since those bytes can differ where the data do not (an export
+    records its training time).
 
     The manifest holds only what the data are (params, shards, totals), so the data set's
     bytes, and DVC's hash of them, do not change with the code's commit or with a resume. The
@@ -131,7 +135,7 @@ def run_shards(
     out_dir = Path(out_dir)
     work = Path(work_dir) if work_dir is not None else out_dir.with_name(out_dir.name + ".work")
     work.mkdir(parents=True, exist_ok=True)
-    fp = fingerprint(params, sources)
+    fp = fingerprint(params if inputs is None else {"params": params, "inputs": inputs}, sources)
     for stray in work.glob(".*"):
         shutil.rmtree(stray) if stray.is_dir() else stray.unlink()
     for old in work.glob("shard_*.npz"):

@@ -95,8 +95,8 @@ def collect_round(section: dict, protocol: Protocol, r: int, student: Path | Non
               "student": None if student is None else files_digest([student])}
     who = "the teacher drives" if student is None else "the policy drives"
     return run_shards(collect_dagger_shard, shard_count_for(episodes, per_shard, "episodes"), DATA.dagger / f"round_{r}",
-                      {"config": config, "models": models}, workers=int(section["workers"]),
-                      description=f"round {r} ({who})", sources=COLLECTION_SOURCES, work_dir=round_folder(r) / "shards")
+                      {"config": config}, workers=int(section["workers"]), description=f"round {r} ({who})",
+                      sources=COLLECTION_SOURCES, work_dir=round_folder(r) / "shards", inputs=models)
 
 
 def _shard_observations(task: tuple) -> dict:

@@ -41,6 +41,24 @@ def test_the_data_do_not_depend_on_the_code_that_made_them(tmp_path, monkeypatch
     assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["manifest.json", "shard_00000.npz", "shard_00001.npz"]
 
 
+def test_inputs_decide_what_is_resumed_but_are_not_in_the_data(tmp_path):
+    """A model a collection runs (its digest): other bytes remake the shards, and the manifest does not name it."""
+    calls = []
+
+    def counted(job):
+        calls.append(job.index)
+        return make_counting_shard(job)
+
+    params = {"seed": 1, "size": 5}
+    run_shards(counted, 2, tmp_path / "a", params, work_dir=tmp_path / "w", inputs={"model": "one"}, progress=False)
+    run_shards(counted, 2, tmp_path / "a", params, work_dir=tmp_path / "w", inputs={"model": "one"}, progress=False)
+    assert calls == [0, 1]  # the same inputs: kept
+    first = (tmp_path / "a" / MANIFEST).read_bytes()
+    run_shards(counted, 2, tmp_path / "a", params, work_dir=tmp_path / "w", inputs={"model": "two"}, progress=False)
+    assert calls == [0, 1, 0, 1]  # another model: made again
+    assert (tmp_path / "a" / MANIFEST).read_bytes() == first and b"model" not in first
+
+
 def test_a_deleted_output_is_published_again_from_the_work_folder(tmp_path):
     """DVC deletes a stage's outputs before it reruns the stage: the finished shards survive in the work folder."""
     import shutil
