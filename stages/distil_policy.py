@@ -44,6 +44,7 @@ SETTINGS = Fields({
         "max_epochs": Whole(1), "batch_size": Whole(1), "lr": positive(), "weight_decay": Real(0.0),
         "warmup_steps": Whole(0), "ema_decay": fraction(), "val_fraction": Real(0.0, 1.0, high_open=True),
         "augment": Flag(), "seed": Whole(0), "max_minutes": Maybe(positive("minutes"), "no cap"),
+        "val_accuracy_samples": Whole(1),
     }),
     "eval_mazes": Whole(2, note="paired comparison needs at least 2"),
     "eval_side_m": positive("metres"),

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pipeline.data.teacher_labels import NoTargetError, TeacherLabelledDriver, path_label, teacher_target
+from pipeline.data.teacher_labels import NoTargetError, TeacherLabelledDriver, path_label, teacher_target, unit_steps
 from pipeline.planners import make_planner
 from pipeline.prediction.graph_observation import expert_action_deltas
 from pipeline.world.protocol import Protocol
@@ -60,3 +60,20 @@ def test_a_planner_that_names_no_target_cannot_teach(small_maze):
     assert isinstance(NoTargetError("x"), ValueError)
     with pytest.raises(NoTargetError):
         teacher_target(make_planner("nearest_frontier"))
+
+
+def test_straight_double_edges_are_split_into_unit_steps(small_maze):
+    planner, _ = labelled_run(small_maze)
+    graph = planner.teacher.graph
+    doubles = [(a, b) for a in range(graph.node_count) for b in graph.neighbours(a)
+               if np.abs(graph.node_ij[b] - graph.node_ij[a]).max() == 2
+               and np.all((graph.node_ij[b] - graph.node_ij[a]) % 2 == 0)]
+    assert doubles  # the lattice's 5 x 5 window has them
+    for a, b in doubles[:20]:
+        split = unit_steps(graph, [int(a), int(b)])
+        assert split[0] == a and split[-1] == b and len(split) in (2, 3)
+        for u, v in zip(split[:-1], split[1:]):
+            assert v in graph.neighbours(u)
+        if len(split) == 3:
+            np.testing.assert_array_equal(graph.node_ij[split[1]] * 2, graph.node_ij[a] + graph.node_ij[b])
+    assert any(len(unit_steps(graph, [int(a), int(b)])) == 3 for a, b in doubles)
