@@ -271,7 +271,7 @@ def rounds_figure(rows: list[dict], path: Path) -> None:
     fig, (ax_agree, ax_dist) = plt.subplots(1, 2, figsize=(10, 3.6))
     rounds = [r for r in rows if r["round"] != "start"]
     ax_agree.plot([str(r["round"]) for r in rounds], [r["heldout_agreement"] for r in rounds], "o-", label="held-out states")
-    ax_agree.plot([str(r["round"]) for r in rounds], [r["driver_agreement"] for r in rounds], "s--", label="driver's own moves")
+    ax_agree.plot([str(r["round"]) for r in rounds], [r["driver_agreement"] for r in rounds], "s--", label="the driver's moves (round r: round r - 1's policy; 0: the teacher)")
     ax_agree.set(xlabel="round", ylabel="first step = teacher's", ylim=(0, 1))
     ax_agree.legend(fontsize=8)
     ax_agree.grid(alpha=0.3)
