@@ -21,6 +21,7 @@ published under data/dagger/.
 
 from __future__ import annotations
 
+import json
 import math
 import shutil
 import time
@@ -155,8 +156,7 @@ def eval_mazes(section: dict, protocol: Protocol) -> list[Path]:
     count, side = int(section["eval_mazes"]), float(section["eval_side_m"])
     folder = CHECKPOINTS.distil / f"eval_mazes_{count}_{side:g}m_seed{int(section['eval_seed'])}"
     paths = sorted(folder.glob("maze_*.png"))
-    if len(paths) != count:
-        shutil.rmtree(folder, ignore_errors=True)
+    if len(paths) != count:  # none yet, or another count: drawn afresh (the folder replaced whole)
         config = MazeConfig(side_m=(side, side), cell_size=protocol.cell_size)
         with atomic_folder(folder) as tmp:
             generate_maze_set(config, count, tmp, seed=int(section["eval_seed"]), progress=False)
@@ -172,8 +172,6 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
                                 "source": source_digest()})
     record = folder / "closed_loop.json"
     if record.is_file():
-        import json
-
         kept = json.loads(record.read_text())
         if kept.get("identity") == identity:
             return kept["result"]
