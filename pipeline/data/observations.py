@@ -17,11 +17,12 @@ from typing import Iterable
 import numpy as np
 
 from pipeline.common.atomic import atomic_file
-from pipeline.data.expert_episodes import ExpertEpisode
+from pipeline.data.expert_episodes import ExpertEpisode, load_expert_episodes
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
+from pipeline.models.defaults import cached_inpainter
 from pipeline.prediction.graph_observation import expert_action_deltas, observe, rotate_steps
-from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 
@@ -87,6 +88,23 @@ def episode_observations(
             arrays["episode"].append(episode_id)
             arrays["step"].append(step)
     return {v: {k: np.asarray(a) for k, a in arrays.items()} for v, arrays in out.items()}
+
+
+def shard_observations(shard: str | Path, first_episode_id: int, protocol: Protocol, inpainter: str | Path, settings: dict,
+                       variants: tuple[str, ...] = VARIANTS) -> dict[str, dict[str, np.ndarray]]:
+    """{variant: arrays} for every episode of one Stage II shard (expert or DAgger), replayed with the
+    inpainter at `inpainter` and the predictor and observation `settings` (threshold,
+    count_threshold, min_component, max_nodes, max_neighbors); episode ids from `first_episode_id`.
+    Runs in a worker process: one torch thread."""
+    import torch
+
+    torch.set_num_threads(1)
+    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(
+        settings["threshold"], settings["min_component"], count_threshold=settings["count_threshold"]))
+    config = ObservationConfig(settings["max_nodes"], settings["max_neighbors"])
+    parts = [episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k, variants=variants)
+             for k, episode in enumerate(load_expert_episodes(shard))]
+    return {variant: concatenate(p[variant] for p in parts) for variant in variants}
 
 
 def concatenate(parts: Iterable[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:

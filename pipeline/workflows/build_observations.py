@@ -15,20 +15,10 @@ from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.parallel import map_with_progress
 from pipeline.common.paths import CHECKPOINTS, DATA, POLICIES, REPORTS
-from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.data.observations import (
-    ObservationConfig,
-    concatenate,
-    episode_observations,
-    save_observations,
-)
+from pipeline.data.observations import concatenate, save_observations, shard_observations
 from pipeline.data.shards import MANIFEST, read_manifest
-from pipeline.models.defaults import PIPELINE_INPAINTER, cached_inpainter
+from pipeline.models.defaults import PIPELINE_INPAINTER
 from pipeline.prediction.global_graph import FEATURE_NAMES
-from pipeline.prediction.node_predictor import (
-    NodePredictor,
-    NodePredictorConfig,
-)
 from pipeline.world.protocol import Protocol
 
 EXPERT_DIR = DATA.expert
@@ -38,19 +28,9 @@ SUMMARY = REPORTS.observations
 def _shard_observations(task: tuple) -> dict:
     """Observations for every episode of one expert shard (runs in a worker process)."""
     shard, first_episode_id, protocol_dict, inpainter, threshold, count_threshold, min_component, max_nodes, max_neighbors = task
-    import torch
-
-    torch.set_num_threads(1)
-
-    protocol = Protocol.from_dict(protocol_dict)
-    predictor_config = NodePredictorConfig(threshold, min_component, count_threshold=count_threshold)
-    predictor = NodePredictor(cached_inpainter(inpainter), predictor_config)
-    config = ObservationConfig(max_nodes, max_neighbors)
-    parts = [
-        episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k)
-        for k, episode in enumerate(load_expert_episodes(shard))
-    ]
-    return {variant: concatenate(p[variant] for p in parts) for variant in ("guide", "dare")}
+    settings = {"threshold": threshold, "count_threshold": count_threshold, "min_component": min_component,
+                "max_nodes": max_nodes, "max_neighbors": max_neighbors}
+    return shard_observations(shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings)
 
 
 def build_observations(section: dict, protocol: Protocol):

@@ -38,13 +38,11 @@ from pipeline.common.parallel import map_with_progress
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, POLICIES, REPORTS
 from pipeline.data.collect import COLLECTION_SOURCES
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard
-from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.data.observations import ObservationConfig, concatenate, episode_observations, load_observations, save_observations
+from pipeline.data.observations import concatenate, load_observations, save_observations, shard_observations
 from pipeline.data.shards import read_manifest, run_shards, shard_count_for
 from pipeline.evaluation.benchmark import paired_difference, run_benchmark
-from pipeline.models.defaults import PIPELINE_INPAINTER, cached_inpainter
+from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
-from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
 from pipeline.training.policy import train_planner
 from pipeline.training.run_setup import resume_point, start_afresh
 from pipeline.world.mazes import MazeConfig, generate_maze_set
@@ -61,7 +59,7 @@ def round_folder(r: int) -> Path:
 
 
 def start_policy_path(section: dict) -> Path:
-    path = Path(section["start_policy"] or POLICIES["guide"].model / "policy.pt")
+    path = Path(section["start_policy"] or PIPELINE_POLICY["guide"])
     if not path.is_file():
         raise SystemExit(f"error: {path}: no start policy; run the train_planner@guide stage first")
     return path
@@ -101,21 +99,13 @@ def collect_round(section: dict, protocol: Protocol, r: int, student: Path | Non
 
 
 def _shard_observations(task: tuple) -> dict:
-    """Graph observations of every episode of one round shard (runs in a worker process)."""
+    """Guide observations of every episode of one round shard (runs in a worker process)."""
     shard, first_episode_id, protocol_dict, inpainter, settings = task
-    import torch
-
-    torch.set_num_threads(1)
-    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(
-        settings["threshold"], settings["min_component"], count_threshold=settings["count_threshold"]))
-    config = ObservationConfig(settings["max_nodes"], settings["max_neighbors"])
-    parts = [episode_observations(episode, Protocol.from_dict(protocol_dict), predictor, config,
-                                  episode_id=first_episode_id + k, variants=("guide",))["guide"]
-             for k, episode in enumerate(load_expert_episodes(shard))]
-    return concatenate(parts)
+    return shard_observations(shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings,
+                              variants=("guide",))["guide"]
 
 
-def round_observations(section: dict, protocol: Protocol, r: int, first_episode: int, settings: dict, inpainter: Path,
+def round_observations(protocol: Protocol, r: int, first_episode: int, settings: dict, inpainter: Path,
                        workers: int) -> dict[str, np.ndarray]:
     """Round r's episodes replayed into guide observations (episode ids from `first_episode`)."""
     folder = DATA.dagger / f"round_{r}"
@@ -131,7 +121,7 @@ def round_observations(section: dict, protocol: Protocol, r: int, first_episode:
 
 
 # ----------------------------------------------------------------------------- one round's policy
-def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict, threads: Any) -> tuple[Path, dict]:
+def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict) -> tuple[Path, dict]:
     """Fine-tune from `init` on the aggregate; the export and its metadata. A killed training
     resumes from its checkpoint when its settings, data and starting weights are the same."""
     train = dict(section["train"])
@@ -144,7 +134,7 @@ def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict,
         start_afresh(checkpoints, fingerprint)
     export = train_planner(aggregate, folder / "policy", model, train, accelerator=str(section["accelerator"]), devices=1,
                            resume=resume_from is not None, checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]),
-                           run_name=f"distil round {r}", num_threads=threads, init_policy=init)
+                           run_name=f"distil round {r}", num_threads=section["threads"], init_policy=init)
     assert export is not None  # one device: this process exports
     _, meta = load_policy(export)
     return export, meta
@@ -214,13 +204,13 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
     for r in range(int(section["rounds"]) + 1):
         manifest = collect_round(section, protocol, r, None if r == 0 else policy, horizon)
         totals = manifest["totals"]
-        parts.append(round_observations(section, protocol, r, episodes_so_far, settings, inpainter, workers))
+        parts.append(round_observations(protocol, r, episodes_so_far, settings, inpainter, workers))
         episodes_so_far += int(totals["episodes"])
         aggregate = round_folder(r) / "aggregate.npz"
         arrays = concatenate(parts)
         if not aggregate.is_file() or not _same_arrays(aggregate, arrays):
             save_observations(aggregate, arrays, {**meta_for_file, "rounds": r + 1})
-        policy, meta = train_round(section, r, aggregate, policy, model, section["threads"])
+        policy, meta = train_round(section, r, aggregate, policy, model)
         last = (meta.get("history") or [{}])[-1]
         row = {
             "round": r,
