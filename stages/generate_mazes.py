@@ -8,6 +8,11 @@ sequences [seed, 0, i] and [seed, 1, i], so the two sets never share a maze. `ro
 `side_m` have the room density of the 100 m test mazes. `mazes.offices.count` office floors
 of 100 m (`pipeline.world.offices`, seed sequence [seed, 2, i]) go to data/offices/train: the sliver
 gate is fitted on them beside the mazes, so that it holds on maps unlike the mazes.
+
+A split's `kind: office` draws office floors instead of mazes (a side per floor from its
+`side_m` range), and `office_scale` sets their sizes: `maze` (doors a 4 m lattice passes) or
+`real_robot` (building sizes, doors from 0.8 m: profiles/real_robot.yaml trains on these).
+The files keep the maze sets' names and folders, so every later stage reads them as it reads mazes.
 """
 
 from __future__ import annotations
@@ -21,10 +26,10 @@ import numpy as np
 from pipeline.common.atomic import atomic_folder
 from pipeline.common.params import load_params, params_section
 from pipeline.common.paths import DATA, REPORTS
-from pipeline.common.settings import Fields, Pair, Whole, check_stage, positive
+from pipeline.common.settings import Fields, Pair, Text, Whole, check_stage, positive
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
-from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.protocol import Protocol
 
 PREVIEW_PATH = REPORTS.mazes_preview
@@ -37,8 +42,10 @@ PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
 PREVIEW_GAP = 10
-SPLIT = Fields({"count": Whole(0), "side_m": Pair(positive("metres"))})
-# block_m, rooms, room_blocks, extra_loops and offices may be left out: MazeConfig's defaults, no office floors.
+MAP_KINDS = ("maze", "office")
+SPLIT = Fields({"count": Whole(0), "side_m": Pair(positive("metres")), "kind": Text(MAP_KINDS)}, frozenset({"kind"}))
+# block_m, rooms, room_blocks, extra_loops, offices and office_scale may be left out: MazeConfig's defaults,
+# no office floors, maze-scale floors; a split's kind may be left out: mazes.
 SETTINGS = Fields({
     "seed": Whole(0),
     "block_m": positive("metres"),
@@ -48,7 +55,8 @@ SETTINGS = Fields({
     "train": SPLIT,
     "test": SPLIT,
     "offices": Fields({"count": Whole(0)}),
-}, frozenset({"block_m", "rooms", "room_blocks", "extra_loops", "offices"}))
+    "office_scale": Text(OFFICE_SCALES),
+}, frozenset({"block_m", "rooms", "room_blocks", "extra_loops", "offices", "office_scale"}))
 
 
 def _load_params(params_path: str | Path) -> tuple[dict, float]:
@@ -60,21 +68,31 @@ def _load_params(params_path: str | Path) -> tuple[dict, float]:
     return mazes, cell_size
 
 
-def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig, int]:
-    """The MazeConfig and count of one split; shared keys come from the section's top level."""
+def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig | OfficeConfig, int]:
+    """The MazeConfig (OfficeConfig for `kind: office`) and count of one split; shared keys come
+    from the section's top level."""
     if not isinstance(mazes.get(split), dict):
         raise ValueError(f"params 'mazes' section is missing the '{split}' subsection")
     section = mazes[split]
     shared = {key: mazes[key] for key in ("block_m", "rooms", "room_blocks", "extra_loops") if key in mazes}
     if "side_m" not in section or "count" not in section:
         raise ValueError(f"params 'mazes.{split}' needs 'count' and 'side_m'")
+    if section.get("kind", "maze") == "office":
+        low, high = (float(v) for v in section["side_m"])
+        config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size)
+        if low < 20:
+            raise ValueError(f"params 'mazes.{split}.side_m': office floors need sides of 20 m or more, got {low:g}")
+        return config, _count(section["count"], split)
     config = MazeConfig(side_m=tuple(section["side_m"]), cell_size=cell_size, **{
         key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()
     })
-    count = section["count"]
+    return config, _count(section["count"], split)
+
+
+def _count(count: object, split: str) -> int:
     if isinstance(count, bool) or not isinstance(count, int) or count < 0:
         raise ValueError(f"params 'mazes.{split}.count' must be a non-negative integer, got {count!r}")
-    return config, count
+    return count
 
 
 def _office_count(mazes: dict) -> int:
@@ -88,8 +106,16 @@ def _office_count(mazes: dict) -> int:
     return count
 
 
-def _write_map_sets(splits: dict[str, tuple[MazeConfig, int]], offices: int, office_config: OfficeConfig,
-                    seed: int) -> tuple[dict[str, list[Path]], list[Path]]:
+def _draw_split(config: MazeConfig | OfficeConfig, count: int, folder: Path, seed: tuple[int, int],
+                side_m: tuple[float, float]) -> list[Path]:
+    """One split's maps: mazes, or office floors with a side per floor from `side_m`."""
+    if isinstance(config, OfficeConfig):
+        return generate_office_set(config, count, folder, seed=seed, side_m=side_m)
+    return generate_maze_set(config, count, folder, seed=seed)
+
+
+def _write_map_sets(splits: dict[str, tuple[MazeConfig | OfficeConfig, int]], sides: dict[str, tuple[float, float]],
+                    offices: int, office_config: OfficeConfig, seed: int) -> tuple[dict[str, list[Path]], list[Path]]:
     """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
 
     Each set is drawn into a temporary folder, and the three replace data/mazes/{train,test} and
@@ -100,7 +126,7 @@ def _write_map_sets(splits: dict[str, tuple[MazeConfig, int]], offices: int, off
     with ExitStack() as stack:
         folders = {split: stack.enter_context(atomic_folder(SPLIT_DIRS[split])) for split in splits}
         office_folder = stack.enter_context(atomic_folder(OFFICE_DIR))
-        drawn = {split: generate_maze_set(config, count, folders[split], seed=(seed, SPLITS[split]))
+        drawn = {split: _draw_split(config, count, folders[split], (seed, SPLITS[split]), sides[split])
                  for split, (config, count) in splits.items()}
         office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
         write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
@@ -139,10 +165,12 @@ def main(params_path: str = "params.yaml") -> None:
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
     offices = _office_count(mazes)
-    office_config = OfficeConfig(cell_size=cell_size)
-    written, office_paths = _write_map_sets(splits, offices, office_config, seed)
+    office_config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), cell_size=cell_size)
+    sides = {split: tuple(float(v) for v in mazes[split]["side_m"]) for split in SPLITS}
+    written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed)
     for split, paths in written.items():
-        print(f"{split}: {len(paths)} mazes in {SPLIT_DIRS[split]}")
+        what = "office floors" if isinstance(splits[split][0], OfficeConfig) else "mazes"
+        print(f"{split}: {len(paths)} {what} in {SPLIT_DIRS[split]}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
     print(f"previews: {PREVIEW_PATH}, {OFFICE_PREVIEW_PATH}")
 

@@ -14,7 +14,7 @@ from pipeline.cli.options import CellSize, DoneCells, NodeRes, SensorRange, chec
 from pipeline.world.caves import CaveConfig, generate_cave_set
 from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
-from pipeline.world.offices import OfficeConfig, generate_office_set
+from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.protocol import protocol_for_map
 from pipeline.world.resample import resample_map, write_ros_map
 from pipeline.world.simulator import replay as replay_trajectory
@@ -32,6 +32,9 @@ def mazes(
     kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
                                           "wide rooms, clutter), a family the sliver gate is also fitted on; "
                                           "cave: rough-walled caves, a family no model is fitted on."),
+    scale: str = typer.Option("maze", help="Office floor sizes: maze (doors wider than the 4 m lattice) or "
+                                           "real_robot (building sizes for 0.2 m cells and a 1 m lattice: "
+                                           "doors from 0.8 m, walls 0.1-0.3 m, rooms from 3 m)."),
     cell_size: float = CellSize,
 ) -> None:
     """Draw mazes like the benchmark's (the pipeline's generator and defaults), office floors or caves, into a folder.
@@ -41,13 +44,18 @@ def mazes(
     """
     if kind not in ("maze", "office", "cave"):
         fail(f"--kind must be maze, office or cave, got {kind!r}")
+    if scale not in OFFICE_SCALES:
+        fail(f"--scale must be {' or '.join(OFFICE_SCALES)}, got {scale!r}")
+    if scale != "maze" and kind != "office":
+        fail(f"--scale {scale} sizes office floors; drop it or add --kind office")
     if not (math.isfinite(side) and side > 0):
         fail(f"--side must be a positive number of metres, got {side:g}")
     if kind != "maze":
         config_class, write_set, what = {"office": (OfficeConfig, generate_office_set, "office floor"),
                                          "cave": (CaveConfig, generate_cave_set, "cave")}[kind]
         try:
-            family = config_class(side_m=side, cell_size=cell_size)
+            family = (OfficeConfig.for_scale(scale, side, cell_size) if kind == "office"
+                      else config_class(side_m=side, cell_size=cell_size))
         except ValueError as error:  # named by this command's words, not the config's fields
             message = str(error).replace(f"{config_class.__name__} needs", f"{what}s need")
             fail(message.replace("CaveConfig.block_m", "the 4 m block"))

@@ -8,6 +8,11 @@ is split again until it is small, deep enough, or stops by chance. Then each roo
 boxes of clutter, kept off its walls so that no door is blocked. Doors are wider than the
 4 m lattice, so a lattice robot can always pass them.
 
+`OfficeConfig.real_robot` draws the same family at building sizes, for the paper's real-robot
+scale (0.2 m cells, a 1 m lattice): walls 0.1-0.3 m, rooms from 3 m, doors from 0.8 m. A door
+narrower than the lattice step passes a lattice robot only where a lattice line crosses it, so
+such doors are placed over a line of the lattice the floor's start cell fixes (`lattice_m`).
+
 The sliver gate is fitted on both families (`stages.fit_gate`): fitted on mazes alone it
 left real targets behind in office floors and made routes longer there
 (docs/findings.md, "Off the maze generator").
@@ -17,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -26,6 +31,7 @@ import numpy as np
 from pipeline.world.maps import MAX_IMAGE_PIXELS
 from pipeline.world.mazes import FREE_VALUE, START_VALUE, WALL_VALUE, generate_map_set
 
+OFFICE_SCALES = ("maze", "real_robot")  # the sizes of `OfficeConfig.for_scale`
 START_CELLS = 4  # the start is marked as a 4 x 4-cell square: its 11th cell (row-major) is the start
 
 
@@ -45,6 +51,26 @@ class OfficeConfig:
     clutter: tuple[int, int] = (0, 4)  # boxes per room
     clutter_m: tuple[float, float] = (1.2, 2.8)  # box side
     clutter_margin_m: float = 4.8  # boxes keep this far from their room's walls (and so from doors)
+    lattice_m: float = 4.0  # the lattice the floors are drawn for: each door lets a lattice line through
+
+    @classmethod
+    def real_robot(cls, side_m: float = 60.0, cell_size: float = 0.2) -> "OfficeConfig":
+        """Office floors at building sizes for the real-robot scale (Sec. V-C: 0.2 m cells, 1 m lattice)."""
+        return cls(side_m=side_m, cell_size=cell_size, wall_m=(0.1, 0.3), door_m=(0.8, 1.6), min_room_m=3.0,
+                   split_above_m=8.0, max_depth=10, stop_chance=0.15, clutter=(0, 3), clutter_m=(0.4, 1.2),
+                   clutter_margin_m=1.2, lattice_m=1.0)
+
+    @classmethod
+    def for_scale(cls, scale: str, side_m: float = 100.0, cell_size: float = 0.4) -> "OfficeConfig":
+        """`maze`: the sizes a 4 m lattice passes (the maze benchmark's scale); `real_robot`: building sizes."""
+        if scale not in OFFICE_SCALES:
+            raise ValueError(f"office scale must be one of {', '.join(OFFICE_SCALES)}, got {scale!r}")
+        return cls.real_robot(side_m, cell_size) if scale == "real_robot" else cls(side_m=side_m, cell_size=cell_size)
+
+    @property
+    def aligns_doors(self) -> bool:
+        """Whether doors are placed over lattice lines: some are too narrow to always hold one."""
+        return self.door_m[0] < self.lattice_m + 2 * self.cell_size
 
     def __post_init__(self) -> None:
         if not self.cell_size > 0 or not self.side_m >= 20:
@@ -53,8 +79,16 @@ class OfficeConfig:
             low, high = getattr(self, name)
             if not 0 <= low <= high:
                 raise ValueError(f"OfficeConfig.{name} must be a range low <= high of non-negative values, got {(low, high)}")
-        if self.door_m[0] < 4.8:
-            raise ValueError(f"OfficeConfig.door_m must start at 4.8 m or more (a 4 m lattice must pass), got {self.door_m}")
+        if self.aligns_doors:
+            step = self.lattice_m / self.cell_size
+            if not (step >= 2 and abs(step - round(step)) < 1e-9):
+                raise ValueError(f"OfficeConfig.lattice_m ({self.lattice_m:g} m) must be a whole number (2 or more) of "
+                                 f"cells ({self.cell_size:g} m) for doors narrower than it to be placed over its lines")
+            if self.cells(self.wall_m[1]) >= round(step):
+                raise ValueError(f"OfficeConfig.wall_m must stay thinner than lattice_m ({self.lattice_m:g} m): walls "
+                                 f"sit between lattice lines, got {self.wall_m}")
+            if self.door_m[0] < 2 * self.cell_size:
+                raise ValueError(f"OfficeConfig.door_m must start at two cells or more, got {self.door_m}")
         if (2 * self.cells(self.side_m)) ** 2 > MAX_IMAGE_PIXELS:
             largest = math.isqrt(MAX_IMAGE_PIXELS) // 2 * self.cell_size
             raise ValueError(f"office floors of {self.side_m:g} m make an image of more than the map loader reads; "
@@ -74,6 +108,28 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
     free[2:-2, 2:-2] = True
     rooms: list[tuple[int, int, int, int]] = []
     min_room, split_above = config.cells(config.min_room_m), config.cells(config.split_above_m)
+    # Narrow doors: the lattice's phase (row, col residues of its lines) is drawn first, each door
+    # is placed over one of its lines, and the start (which fixes the lattice) sits on that phase.
+    step = config.cells(config.lattice_m)
+    phase = tuple(int(v) for v in rng.integers(0, step, size=2)) if config.aligns_doors else None
+
+    def wall_start(low: int, high: int, wall: int, line_phase: int) -> int:
+        """A wall's first cell in [low, high): anywhere, or (aligned) between two lattice lines, so
+        that no wall lies along a line and the lines cross walls only at their doors."""
+        if phase is None:
+            return int(rng.integers(low, high))
+        starts = np.arange(low, high)
+        offset = (starts - line_phase) % step  # the wall's cells start..start+wall-1 miss every line
+        starts = starts[(offset >= 1) & (offset <= step - wall)]
+        return int(rng.choice(starts)) if starts.size else int(rng.integers(low, high))
+
+    def door_start(low: int, high: int, door: int, line_phase: int) -> int:
+        """A door's first cell in [low, high): anywhere, or (aligned) so that a lattice line runs through it."""
+        if phase is None:
+            return int(rng.integers(low, high))
+        starts = np.arange(low, high)
+        starts = starts[(line_phase - starts) % step < door]  # some cell start..start+door-1 is on a line
+        return int(rng.choice(starts)) if starts.size else int(rng.integers(low, high))
 
     def cells_in(bounds: tuple[float, float]) -> int:
         low, high = (config.cells(v) for v in bounds)
@@ -89,7 +145,7 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
         wall = cells_in(config.wall_m)
         across_rows = height >= width  # cut the longer side
         low, high = (top, bottom) if across_rows else (left, right)
-        cut = int(rng.integers(low + min_room, high - min_room - wall + 1))
+        cut = wall_start(low + min_room, high - min_room - wall + 1, wall, phase[0 if across_rows else 1] if phase else 0)
         span = (left, right) if across_rows else (top, bottom)
         doors = 1 + int(span[1] - span[0] > 3 * door + 10 and rng.random() < config.second_door_chance)
         if across_rows:
@@ -97,7 +153,8 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
         else:
             free[top:bottom, cut : cut + wall] = False
         for _ in range(doors):
-            start = int(rng.integers(span[0] + 2, span[1] - door - 1))
+            # A wall across rows holds doors along its columns, so the lattice's column lines cross it.
+            start = door_start(span[0] + 2, span[1] - door - 1, door, phase[1 if across_rows else 0] if phase else 0)
             if across_rows:
                 free[cut : cut + wall, start : start + door] = True
             else:
@@ -124,12 +181,18 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
     sizes = np.bincount(labels.ravel())
     sizes[0] = 0
     free = labels == int(sizes.argmax())
-    return free, _start_cell(free, rooms, rng)
+    return free, _start_cell(free, rooms, rng, None if phase is None else (step, phase))
 
 
-def _start_cell(free: np.ndarray, rooms: list[tuple[int, int, int, int]], rng: np.random.Generator) -> tuple[int, int]:
-    """A start in a random room, with free cells all around the START_CELLS square that marks it."""
+def _start_cell(free: np.ndarray, rooms: list[tuple[int, int, int, int]], rng: np.random.Generator,
+                lattice: tuple[int, tuple[int, int]] | None = None) -> tuple[int, int]:
+    """A start in a random room, with free cells all around the START_CELLS square that marks it
+    (and, given `lattice` = (step, (row, col) phase), on a lattice node of that phase)."""
     clear = cv2.erode(free.astype(np.uint8), np.ones((2 * START_CELLS + 1,) * 2, np.uint8)).astype(bool)
+    if lattice is not None:
+        step, (row_phase, col_phase) = lattice
+        rows, cols = np.indices(clear.shape)
+        clear &= (rows % step == row_phase) & (cols % step == col_phase)
     for index in rng.permutation(len(rooms)):
         top, left, bottom, right = rooms[index]
         rows, cols = np.nonzero(clear[top:bottom, left:right])
@@ -158,6 +221,23 @@ def generate_office(config: OfficeConfig, rng: np.random.Generator) -> np.ndarra
 
 
 def generate_office_set(config: OfficeConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
-                        prefix: str = "office", progress: bool = True) -> list[Path]:
-    """Write `count` office floors as `{prefix}_{i:04d}.png`, floor i drawn from default_rng([*seed, i])."""
-    return generate_map_set(lambda rng: generate_office(config, rng), count, out_dir, seed, prefix, progress)
+                        prefix: str = "office", progress: bool = True,
+                        side_m: tuple[float, float] | None = None) -> list[Path]:
+    """Write `count` office floors as `{prefix}_{i:04d}.png`, floor i drawn from default_rng([*seed, i]).
+
+    With `side_m` = (low, high), each floor's side is drawn in whole metres from that range
+    (inclusive) before the floor itself; else every floor has `config.side_m`.
+    """
+    if side_m is not None:
+        low, high = math.ceil(side_m[0]), math.floor(side_m[1])
+        if not 20 <= low <= high:
+            raise ValueError(f"office floor sides must be a range low <= high of at least 20 m, got {tuple(side_m)}")
+        for side in (low, high):  # a side the config refuses fails here, before any floor is written
+            replace(config, side_m=float(side))
+
+        def draw(rng: np.random.Generator) -> np.ndarray:
+            return generate_office(replace(config, side_m=float(rng.integers(low, high + 1))), rng)
+    else:
+        def draw(rng: np.random.Generator) -> np.ndarray:
+            return generate_office(config, rng)
+    return generate_map_set(draw, count, out_dir, seed, prefix, progress)
