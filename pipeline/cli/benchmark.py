@@ -48,7 +48,7 @@ def benchmark(
         None, help="One start for every map, as in `explore` (needed for .npy grids and ROS maps without 'start'): "
                    "COL ROW cells for maze PNGs and .npy grids, X Y metres for ROS maps, so keep each kind in its own folder."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
-    utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
+    utility_range: Optional[float] = UtilityRange, region_size: Optional[float] = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
     speed_mps: float = typer.Option(PAPER_SPEED_MPS, help="The robot's speed for exploration time and the "
                                                           "per-second efficiency (m/s) [default: the paper's maximum]."),

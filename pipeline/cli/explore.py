@@ -41,7 +41,7 @@ def explore(
     seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = Checkpoint,
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
-    utility_range: Optional[float] = UtilityRange, region_size: float = RegionSize,
+    utility_range: Optional[float] = UtilityRange, region_size: Optional[float] = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
 ) -> None:

@@ -96,6 +96,7 @@ class ExpertConfig:
     maps: tuple[str, ...]
     episodes_per_shard: int
     planner: str = "expert"
+    planner_options: tuple[tuple[str, Any], ...] = ()  # (option, value) pairs `make_planner` gets
     horizon: int = 8  # T_p future waypoints stored per step
     seed: int = 0
     protocol: Protocol = Protocol()
@@ -154,7 +155,7 @@ def record_episode(ground_truth: GroundTruthMap, planner, protocol: Protocol, se
 
 def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, seed: int) -> dict[str, Any]:
     """Run the expert; its labels (`targets`) are its own next T_p waypoints."""
-    record = record_episode(ground_truth, make_planner(config.planner), config.protocol, seed)
+    record = record_episode(ground_truth, make_planner(config.planner, **dict(config.planner_options)), config.protocol, seed)
     return {**record, "targets": future_waypoints(record["trajectory"], config.horizon)}
 
 

@@ -3,22 +3,31 @@
 A planner that needs a model takes the file it is given; else the one the pipeline trained
 (`models/...` of pipeline/paths.yaml, relative to the folder it runs in, where `dvc repro`
 writes them); else the one shipped in `pipeline/assets/`. A file is read once per process (`pipeline.models.cache`).
+
+Two sets are shipped: the maze benchmark's (`pipeline/assets/`, 4 m lattice, 20 m sensor) and the
+real-robot scale's (`pipeline/assets/real_robot/`, 1 m lattice, 10 m sensor; profiles/real_robot.yaml
+trains them). `pick_model(kind, protocol)` takes, among the pipeline's model and the shipped ones
+in that order, the first trained at the protocol's model inputs (`MODEL_INPUT_FIELDS`); when none
+is, the first there (the planner then warns that it runs at other protocol values).
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from pipeline.common.paths import MODELS, POLICIES
 from pipeline.models.cache import load_once
 from pipeline.models.exports import require_file
-from pipeline.models.modeling_block_model import BlockModel, load_block_model
+from pipeline.models.modeling_block_model import BlockModel, block_model_protocol, load_block_model
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.models.modeling_drl import DRLPolicy, load_drl_policy
 from pipeline.models.modeling_inpainter import TracedInpainter, inpainter_from_payload, read_inpainter_export
 from pipeline.prediction.node_predictor import InpaintFn
+from pipeline.world.protocol import Protocol, model_input_differences
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
+REAL_ROBOT_ASSETS = ASSETS / "real_robot"  # the models shipped for the real-robot scale (0.2 m / 1 m / 10 m)
 
 PIPELINE_INPAINTER = MODELS.inpainter / "inpainter.pt"
 SHIPPED_INPAINTER = ASSETS / "inpainter.pt"
@@ -30,6 +39,52 @@ PIPELINE_DRL = MODELS.drl / "policy.pt"
 SHIPPED_DRL = ASSETS / "planner_drl.pt"
 PIPELINE_GATE = MODELS.sliver_gate / "sliver_gate.json"
 SHIPPED_GATE = ASSETS / "sliver_gate.json"
+
+# kind -> (the pipeline's file, the shipped files: maze scale first, then real-robot scale)
+MODEL_FILES: dict[str, tuple[Path, tuple[Path, ...]]] = {
+    "inpainter": (PIPELINE_INPAINTER, (SHIPPED_INPAINTER, REAL_ROBOT_ASSETS / "inpainter.pt")),
+    "policy_guide": (PIPELINE_POLICY["guide"], (SHIPPED_POLICY["guide"], REAL_ROBOT_ASSETS / "planner_guide.pt")),
+    "policy_dare": (PIPELINE_POLICY["dare"], (SHIPPED_POLICY["dare"], REAL_ROBOT_ASSETS / "planner_dare.pt")),
+    "block_model": (PIPELINE_BLOCK_MODEL, (SHIPPED_BLOCK_MODEL, REAL_ROBOT_ASSETS / "block_model.pt")),
+    "drl": (PIPELINE_DRL, (SHIPPED_DRL, REAL_ROBOT_ASSETS / "planner_drl.pt")),
+    "gate": (PIPELINE_GATE, (SHIPPED_GATE, REAL_ROBOT_ASSETS / "sliver_gate.json")),
+}
+
+
+def model_protocol(kind: str, path: str | Path) -> dict | None:
+    """The protocol the `kind` model at `path` was trained at, as its file records it (None: not
+    recorded, which stands for the maze defaults the first shipped models were trained at)."""
+    if kind == "inpainter":
+        return inpainter_protocol(path)
+    if kind.startswith("policy_"):
+        return cached_policy(path)[1].get("protocol")
+    if kind == "drl":
+        return cached_drl_policy(path)[1].get("protocol")
+    if kind == "gate":
+        return load_once("gate_protocol", path, _gate_protocol)
+    if kind == "block_model":
+        return load_once("block_model_protocol", path, block_model_protocol)
+    raise ValueError(f"unknown model kind {kind!r}; known: {', '.join(MODEL_FILES)}")
+
+
+def _gate_protocol(path: Path) -> dict | None:
+    """The protocol a sliver gate file records (its JSON's `protocol`); the gate itself is read by the planners."""
+    try:
+        return json.loads(path.read_text()).get("protocol")
+    except (OSError, json.JSONDecodeError, AttributeError) as error:
+        raise ValueError(f"{path}: not a sliver gate file ({error})") from None
+
+
+def pick_model(kind: str, protocol: Protocol | None = None) -> Path | None:
+    """The default `kind` model: of the pipeline's and the shipped files that exist, in that order,
+    the first trained at `protocol`'s model inputs, else the first (None when there is none)."""
+    pipeline, shipped = MODEL_FILES[kind]
+    present = [path for path in (pipeline, *shipped) if path.is_file()]
+    if protocol is not None:
+        for path in present:
+            if not model_input_differences(model_protocol(kind, path), protocol):
+                return path
+    return present[0] if present else None
 
 
 # ----------------------------------------------------------------------------- inpainter

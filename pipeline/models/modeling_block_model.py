@@ -67,6 +67,12 @@ def save_block_model(model: BlockModel, path: str | Path, trained_on: dict[str, 
     return write_weights_file(payload, path)
 
 
+def block_model_protocol(path: str | Path) -> dict | None:
+    """The protocol the block model in `path` was trained at (None: not recorded)."""
+    payload = read_weights_file(path, "a block model file")
+    return (payload.get("trained_on") or {}).get("protocol")
+
+
 def load_block_model(path: str | Path) -> BlockModel:
     """The model in `path`, in eval mode; a one-line error if it is not a block model file."""
     payload = read_weights_file(path, "a block model file")

@@ -49,6 +49,11 @@ class PlannerConfig:
     def check(self) -> None:
         """ValueError naming the option, the value and the valid range for a value that makes no sense."""
 
+    def model_slots(self) -> dict[str, str]:
+        """Option name -> model kind (`pipeline.models.defaults.MODEL_FILES`) of each trained model
+        this planner loads with these options; an option left None takes the default model."""
+        return {}
+
     @classmethod
     def options(cls) -> list[OptionInfo]:
         """Every option: name, default, the spec kinds it takes, help (those of the configs it

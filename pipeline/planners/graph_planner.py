@@ -44,6 +44,9 @@ class GatedPlannerConfig(LatticePlannerConfig):
         if self.gate_file is not None and not self.sliver_gate:
             raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
 
+    def model_slots(self) -> dict[str, str]:
+        return {**super().model_slots(), **({"gate_file": "gate"} if self.sliver_gate else {})}
+
 
 class GraphPlanner(Planner):
     """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation.

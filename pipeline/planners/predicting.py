@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -30,6 +31,7 @@ class PredictorOptions(LatticePlannerConfig):
     """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
 
     objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
+    inpainter_option: ClassVar[str] = "checkpoint"  # the option that names the inpainter export
 
     checkpoint: str | None = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, else the "
                                           "shipped one]")
@@ -44,7 +46,11 @@ class PredictorOptions(LatticePlannerConfig):
 
     def inpainter(self) -> str | None:
         """The inpainter export this config names (None: the default)."""
-        return self.checkpoint
+        return getattr(self, self.inpainter_option)
+
+    def model_slots(self) -> dict[str, str]:
+        predicts = getattr(self, "predicts", True)  # dare's observed graph loads no inpainter
+        return {**super().model_slots(), **({self.inpainter_option: "inpainter"} if predicts else {})}
 
 
 class PredictingPlanner(GraphPlanner):

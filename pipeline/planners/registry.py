@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, TypeVar
 
 from pipeline.planners.config import OptionInfo, PlannerConfig
+from pipeline.planners.matched_models import ProtocolMatchedModels, default_slots
 from pipeline.world.planner import Planner
 
 Build = TypeVar("Build", bound=Callable[..., Planner])
@@ -96,8 +97,15 @@ def make_config(name: str, **options: Any) -> tuple[PlannerConfig, dict[str, Any
 
 
 def make_planner(name: str, **options: Any) -> Planner:
-    """A fresh planner by its registered name, with options as the command line and params.yaml give them."""
+    """A fresh planner by its registered name, with options as the command line and params.yaml give them.
+
+    A planner with trained models left to the default (and no Python object injected) comes
+    wrapped in `ProtocolMatchedModels`, so that each reset takes the models trained at its protocol.
+    """
     config, objects = make_config(name, **options)
-    planner = planner_entry(name).build(config, **objects)
+    build = planner_entry(name).build
+    if default_slots(config) and not objects:
+        return ProtocolMatchedModels(config, build, name)
+    planner = build(config, **objects)
     planner.name = name
     return planner

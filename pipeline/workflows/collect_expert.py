@@ -49,6 +49,7 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
         maps=maps,
         episodes_per_shard=per_shard,
         planner=str(section["planner"]),
+        planner_options=tuple(sorted((section.get("planner_options") or {}).items())),
         horizon=int(section["horizon"]),
         seed=int(section["seed"]),
         protocol=protocol,

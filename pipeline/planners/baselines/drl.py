@@ -48,6 +48,9 @@ class DRLConfig(PlannerConfig):
     def check(self) -> None:
         check_int("stall_steps", self.stall_steps, 0, note="0 = never hand over")
 
+    def model_slots(self) -> dict[str, str]:
+        return {"checkpoint": "drl"}
+
 
 @register_planner("drl", DRLConfig)
 class DRLPlanner(Planner):

@@ -72,6 +72,9 @@ class SampledLookaheadConfig(GreedyUtilityConfig):
         check_number("switch_margin_m", self.switch_margin_m, 0.0, none="off")
         check_lookahead_options(self.samples, self.horizon_m, self.exit_weight, self.temperature, self.workers)
 
+    def model_slots(self) -> dict[str, str]:
+        return {**super().model_slots(), "checkpoint": "block_model"}
+
 
 @register_planner("sampled_lookahead", SampledLookaheadConfig)
 class SampledLookaheadPlanner(GreedyUtilityPlanner):

@@ -32,6 +32,7 @@ class GuideConfig(TourOptions):
     variant: ClassVar[str] = "guide"  # which trained policy: one trained on guide's or on dare's observations
     predicts: ClassVar[bool] = True  # predicted nodes enter the global graph (Sec. IV-B)
     region_evaluation: ClassVar[bool] = True  # ... filtered by region score r(g); False: every prediction
+    inpainter_option: ClassVar[str] = "inpainter_checkpoint"  # `checkpoint` names the policy
 
     # --- the diffusion policy (Sec. IV-C)
     checkpoint: str | None = option(None, "the policy export [default: models/planner_guide/policy.pt "
@@ -90,8 +91,9 @@ class GuideConfig(TourOptions):
             raise ValueError(f"sampler must be ddpm or ddim, got {self.sampler!r}")
         super().check()
 
-    def inpainter(self) -> str | None:
-        return self.inpainter_checkpoint
+    def model_slots(self) -> dict[str, str]:
+        lookahead = {"block_model": "block_model"} if self.lookahead > 0 else {}
+        return {**super().model_slots(), "checkpoint": f"policy_{self.variant}", **lookahead}
 
 
 @dataclass(frozen=True)
