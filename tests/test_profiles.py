@@ -1,6 +1,7 @@
 """The paper profile is a complete params file: the same keys as the default, valid model configs."""
 
 
+import pytest
 import yaml
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
@@ -10,8 +11,11 @@ from import_graph import ROOT
 
 
 
+OPTION_MAPS = {"planner_options", "options"}  # a planner's options: any keys it takes
+
+
 def key_paths(tree, prefix=()):
-    if isinstance(tree, dict):
+    if isinstance(tree, dict) and not (prefix and prefix[-1] in OPTION_MAPS):
         for key, value in tree.items():
             yield from key_paths(value, prefix + (key,))
     else:
@@ -56,3 +60,28 @@ def test_every_profile_uses_the_planners_tau():
         assert params["build_observations"]["threshold"] == DEFAULT_THRESHOLD, name
         assert params["build_observations"]["count_threshold"] == DEFAULT_COUNT_THRESHOLD, name
         assert params["eval_predictor"]["threshold"] == DEFAULT_THRESHOLD, name
+
+
+def test_real_robot_profile_has_the_default_keys_the_papers_scale_and_passes_every_stages_checks():
+    import importlib
+
+    from pipeline.common.settings import check_stage
+    from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+
+    default = yaml.safe_load((ROOT / "params.yaml").read_text())
+    path = ROOT / "profiles" / "real_robot.yaml"
+    real = yaml.safe_load(path.read_text())
+    assert set(key_paths(default)) == set(key_paths(real))
+    protocol = Protocol.from_dict(real["protocol"])
+    assert protocol == PAPER_REAL_ROBOT
+    assert protocol.done_unknown_cells * protocol.cell_size ** 2 == pytest.approx(40.0)  # the 40 m^2 done rule
+    assert real["mazes"]["office_scale"] == "real_robot"
+    assert real["mazes"]["train"]["kind"] == real["mazes"]["test"]["kind"] == "office"
+    assert real["train_planner"]["model"]["max_nodes"] == real["build_observations"]["max_nodes"]
+    stages = {"benchmark": "benchmark", "build_observations": "build_observations", "collect_expert": "collect_expert",
+              "collect_pairs": "collect_pairs", "distil_policy": "distil_policy", "eval_predictor": "eval_predictor",
+              "fit_gate": "fit_gate", "generate_mazes": "mazes", "report": "report",
+              "train_block_model": "train_block_model", "train_drl": "train_drl", "train_inpainter": "train_inpainter",
+              "train_planner": "train_planner"}
+    for module, section in stages.items():
+        check_stage(path, section, importlib.import_module(f"stages.{module}").SETTINGS)

@@ -110,9 +110,7 @@ def inpainter_protocol(path: str | Path) -> dict | None:
 
 def inpainter_path(checkpoint: str | Path | None = None) -> Path:
     """`checkpoint`, else the pipeline's trained inpainter, else the shipped default; FileNotFoundError if none is there."""
-    path = Path(checkpoint) if checkpoint else PIPELINE_INPAINTER
-    if not checkpoint and not path.is_file() and SHIPPED_INPAINTER.is_file():
-        path = SHIPPED_INPAINTER
+    path = Path(checkpoint) if checkpoint else (pick_model("inpainter") or PIPELINE_INPAINTER)
     if not path.is_file():
         if checkpoint:
             raise FileNotFoundError(f"inpainter checkpoint {path} not found")
@@ -130,10 +128,11 @@ def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tupl
     if checkpoint is not None:
         path = require_file(checkpoint, "an inpainter export")
         return cached_inpainter(path), f"trained inpainter {checkpoint}", path
-    if PIPELINE_INPAINTER.is_file():
-        return cached_inpainter(PIPELINE_INPAINTER), f"trained inpainter {PIPELINE_INPAINTER}", PIPELINE_INPAINTER
-    if SHIPPED_INPAINTER.is_file():
-        return cached_inpainter(SHIPPED_INPAINTER), "shipped default inpainter", SHIPPED_INPAINTER
+    path = pick_model("inpainter")
+    if path == PIPELINE_INPAINTER:
+        return cached_inpainter(path), f"trained inpainter {path}", path
+    if path is not None:
+        return cached_inpainter(path), "shipped default inpainter", path
     return None, "no inpainter found: nothing predicted (frontier-only fallback)", None
 
 
@@ -154,9 +153,9 @@ def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
     """`checkpoint`, else the pipeline's `kind` ("guide" or "dare") policy, else the shipped one."""
     if checkpoint is not None:
         return require_file(checkpoint, "a planner checkpoint")
-    for path in (PIPELINE_POLICY[kind], SHIPPED_POLICY[kind]):
-        if path.is_file():
-            return path
+    path = pick_model(f"policy_{kind}")
+    if path is not None:
+        return path
     raise FileNotFoundError(
         f"no trained {kind} policy: neither {PIPELINE_POLICY[kind]} nor the shipped {SHIPPED_POLICY[kind]} exists; "
         f"run `dvc repro train_planner` or pass --checkpoint PATH"
@@ -164,21 +163,22 @@ def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
 
 
 # ----------------------------------------------------------------------------- block model
-def pipeline_or_shipped(checkpoint: str | Path | None, pipeline: Path, shipped: Path, what: str, stage: str) -> Path:
-    """`checkpoint` (a `what` file), else the pipeline's model at `pipeline`, else the `shipped` one;
+def pipeline_or_shipped(checkpoint: str | Path | None, kind: str, what: str, stage: str) -> Path:
+    """`checkpoint` (a `what` file), else the pipeline's `kind` model, else the shipped one;
     FileNotFoundError naming the `stage` that makes it when none is there."""
     if checkpoint is not None:
         return require_file(checkpoint, what)
-    for path in (pipeline, shipped):
-        if path.is_file():
-            return path
+    path = pick_model(kind)
+    if path is not None:
+        return path
+    pipeline, (shipped, *_) = MODEL_FILES[kind]
     raise FileNotFoundError(f"no {what.removeprefix('a ')}: neither {pipeline} (`dvc repro {stage}`) nor the shipped "
                             f"{shipped} exists; pass checkpoint=PATH")
 
 
 def resolve_block_model(checkpoint: str | None) -> Path:
     """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
-    return pipeline_or_shipped(checkpoint, PIPELINE_BLOCK_MODEL, SHIPPED_BLOCK_MODEL, "a block model file",
+    return pipeline_or_shipped(checkpoint, "block_model", "a block model file",
                                "train_block_model")
 
 
@@ -196,7 +196,7 @@ def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> 
 # ----------------------------------------------------------------------------- drl policy
 def resolve_drl_path(checkpoint: str | Path | None) -> Path:
     """`checkpoint`, else the pipeline's drl policy in models/, else the shipped one."""
-    return pipeline_or_shipped(checkpoint, PIPELINE_DRL, SHIPPED_DRL, "a drl policy export", "train_drl")
+    return pipeline_or_shipped(checkpoint, "drl", "a drl policy export", "train_drl")
 
 
 def cached_drl_policy(path: str | Path) -> tuple[DRLPolicy, dict]:
@@ -212,4 +212,4 @@ def resolve_gate_path(gate_file: str | Path | None) -> Path:
         if not path.is_file():
             raise ValueError(f"sliver gate file {path} does not exist")
         return path
-    return PIPELINE_GATE if PIPELINE_GATE.is_file() else SHIPPED_GATE
+    return pick_model("gate") or SHIPPED_GATE

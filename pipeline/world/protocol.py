@@ -77,8 +77,10 @@ def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) 
     ]
 
 
-PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=8.0)
-"""The paper's real-robot setting: 0.2 m cells, 1 m nodes, 10 m sensor."""
+PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=10.0,
+                            done_unknown_cells=1000, max_steps=2000)
+"""The paper's real-robot setting (0.2 m cells, 1 m nodes, 10 m sensor) as profiles/real_robot.yaml
+runs it: regions as wide as the sensor reaches, done at 40 m^2 unseen."""
 
 
 def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: str | Path | None = None) -> Protocol:
