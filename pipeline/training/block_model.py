@@ -59,7 +59,10 @@ def block_snapshots(ground_truth: GroundTruthMap, protocol: Protocol, block_m: f
             shares.append(block_shares(episode.belief.grid, blocks, grid))
 
     run_episode(ground_truth, make_planner("greedy_utility", sliver_gate=True), protocol, seed, on_step=record)
-    return np.stack(shares), true_blocks(ground_truth.free, blocks, grid)
+    truth = true_blocks(ground_truth.free, blocks, grid)
+    if not shares:  # an episode done in fewer than `every` steps (one scan saw a small maze): no sample
+        return np.zeros((0, 3, *truth.shape), dtype=np.float32), truth
+    return np.stack(shares), truth
 
 
 def _reveal(shares: np.ndarray, truth: np.ndarray, reveal_share: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
