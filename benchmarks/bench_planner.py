@@ -11,12 +11,16 @@ p95 of full decisions and of all calls, per planner and K. One torch thread, as 
 benchmark workers. `--option KEY=VALUE` passes planner options (as `guide:KEY=VALUE` in
 `guide benchmark`), e.g. `--option lookahead=3` to time `guide` with its block-model lookahead;
 then a second line per K gives the full decisions that rolled out (chose a new target) apart.
+`--protocol real_robot` runs at the real-robot scale (0.2 m cells, 1 m lattice, 10 m lidar), where
+the planners take the real-robot models, e.g. on a 60 m floor from
+`guide mazes --kind office --scale real_robot --cell-size 0.2 --side 60 --count 1 --out runs/floor60`.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +29,9 @@ import torch
 from pipeline.evaluation.benchmark import parse_option_value
 from pipeline.world.maps import list_maps, load_map
 from pipeline.planners import make_planner
-from pipeline.world.protocol import Protocol
+from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+
+PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}
 from pipeline.world.simulator import run_episode
 
 
@@ -59,6 +65,8 @@ def main() -> None:
     parser.add_argument("--planner", action="append", default=None)
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--checkpoint", default=None)
+    parser.add_argument("--protocol", choices=sorted(PROTOCOLS), default="maze",
+                        help="maze: the benchmark's (0.4 m / 4 m / 20 m); real_robot: 0.2 m / 1 m / 10 m")
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a planner option; repeatable")
     args = parser.parse_args()
     for option in args.option:
@@ -66,7 +74,7 @@ def main() -> None:
             parser.error(f"--option takes KEY=VALUE, got {option!r}")
     torch.set_num_threads(1)
     maps = list_maps(Path(args.maps))[: args.count]
-    protocol = Protocol(max_steps=args.steps)
+    protocol = replace(PROTOCOLS[args.protocol], max_steps=args.steps)
     print(f"{'planner':<8} {'K':>4} {'full decision ms (median / p95)':>32} {'all calls ms (median)':>22} {'full decisions':>15}")
     for name in args.planner or ["guide", "dare"]:
         for k in args.k:
@@ -77,7 +85,7 @@ def main() -> None:
             full, rolled, every = [], [], []
             for path in maps:
                 timed = TimedPlanner(make_planner(name, **options))
-                run_episode(load_map(path), timed, protocol)
+                run_episode(load_map(path, None, protocol.cell_size), timed, protocol)
                 calls = timed.calls[1:]  # the first call also loads the model
                 full += [ms for ms, sampled, _ in calls if sampled]
                 rolled += [ms for ms, sampled, rolled_out in calls if sampled and rolled_out]

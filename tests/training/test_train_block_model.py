@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pipeline.models.configuration_block_model import BlockModelConfig
@@ -25,6 +27,12 @@ def test_snapshots_follow_a_gated_greedy_episode(small_maze):
     assert np.array_equal(truth, true_blocks(small_maze.free, blocks, grid))
     unknown = shares[:, 2].sum(axis=(1, 2))
     assert np.all(np.diff(unknown) <= 1e-6) and unknown[0] > unknown[-1]  # the map is seen more and more
+
+
+def test_an_episode_done_before_the_first_snapshot_gives_no_sample(small_maze):
+    seen_at_once = replace(Protocol(), done_unknown_cells=small_maze.free_cell_count - 1)  # done after one move
+    shares, truth = block_snapshots(small_maze, seen_at_once, 5.0, every=50)
+    assert shares.shape == (0, 3, *truth.shape) and shares.dtype == np.float32
 
 
 def test_reveal_shows_part_of_the_unknown_blocks_with_their_truth():
