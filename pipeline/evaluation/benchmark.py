@@ -303,10 +303,10 @@ def run_benchmark(
         warnings.warn(f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
                       "its metrics.csv and summary.md list only this run's", stacklevel=2)
     protocol_record = recorded_protocol(protocol, sorted(cell_sizes))
+    for planner in built:  # models trained at other protocol values: said once here, not by every worker
+        planner.check_protocol(protocol)  # (a learned planner takes the protocol's models first: the record names them)
     write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start,
                      protocol_record, [str(path) for path in map_paths], speed)
-    for planner in built:  # models trained at other protocol values: said once here, not by every worker
-        planner.check_protocol(protocol)
     tasks = [
         EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
         for spec in specs

@@ -29,7 +29,13 @@ def default_slots(config: PlannerConfig) -> dict[str, str]:
 
 
 class ProtocolMatchedModels(Planner):
-    """`build(config)`, rebuilt at a reset whose protocol picks other default models."""
+    """`build(config)`, rebuilt at a reset whose protocol picks other default models.
+
+    Transparent: reading or setting any other attribute reaches the held planner (an oracle
+    bound swaps its base planner's gate after each reset, for one).
+    """
+
+    OWN = frozenset({"config", "build", "name", "slots", "inner", "picked", "_picks"})
 
     def __init__(self, config: PlannerConfig, build: Callable[[PlannerConfig], Planner], name: str):
         self.config, self.build, self.name = config, build, name
@@ -50,21 +56,39 @@ class ProtocolMatchedModels(Planner):
             self._picks[key] = picks
         return self._picks[key]
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def use_models_for(self, protocol: Protocol) -> None:
+        """Hold the planner built with the default models `protocol` picks."""
         picks = self.picks_for(protocol)
         if picks != self.picked:
             self.inner = self.build(replace(self.config, **{k: v for k, v in picks.items() if v is not None}))
             self.inner.name = self.name
             self.picked = picks
+
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+        self.use_models_for(protocol)
         self.inner.reset(ground_truth, protocol, seed)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.inner.plan(observation)
 
     def check_protocol(self, protocol: Protocol) -> None:
+        """Take the models of `protocol` (so that `description` names them), then warn as the planner does."""
+        self.use_models_for(protocol)
         self.inner.check_protocol(protocol)
 
-    def __getattr__(self, attribute: str) -> Any:  # description, last_decision, graph, ...: the planner's own
+    # The Planner attributes with class defaults are the held planner's, not the wrapper's.
+    description = property(lambda self: self.inner.description)
+    needs_policy = property(lambda self: self.inner.needs_policy)
+    uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
+    ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)
+
+    def __getattr__(self, attribute: str) -> Any:  # last_decision, graph, ...: the planner's own
         if attribute == "inner":  # not yet built: no recursion
             raise AttributeError(attribute)
         return getattr(self.inner, attribute)
+
+    def __setattr__(self, attribute: str, value: Any) -> None:
+        if attribute in self.OWN:
+            object.__setattr__(self, attribute, value)
+        else:
+            setattr(self.inner, attribute, value)

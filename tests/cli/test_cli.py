@@ -330,6 +330,27 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
     assert warnings.formatwarning is not _warning_line  # restored once the command ended
 
 
+def test_explore_at_the_real_robots_lattice_and_lidar_runs_the_real_robot_models(tmp_path, monkeypatch):
+    """`--node-resolution 1 --sensor-range 10` and nothing else: the shipped real-robot models, no warning."""
+    from pipeline.world.protocol import ProtocolMismatchWarning
+
+    monkeypatch.chdir(tmp_path)  # no models/ here
+    drawn = runner.invoke(app, ["mazes", "--kind", "office", "--scale", "real_robot", "--cell-size", "0.2", "--side", "20",
+                                "--count", "1", "--seed", "3", "--out", "floors"])
+    assert drawn.exit_code == 0, drawn.output
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = runner.invoke(app, ["explore", "--map", "floors/office_0000.png", "--planner", "guide", "--no-progress",
+                                     "--cell-size", "0.2", "--node-resolution", "1", "--sensor-range", "10",
+                                     "--done-unknown-cells", "1000", "--out", "o"])
+    assert result.exit_code == 0, result.output
+    assert not [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
+    assert "assets/real_robot/inpainter.pt" in result.output  # the description printed before the episode
+    record = json.loads((tmp_path / "o" / "run.json").read_text())
+    assert record["protocol"]["region_size"] == 10.0 and record["protocol"]["utility_range"] == 5.0
+    assert "assets/real_robot/" in record["planner"]["description"]
+
+
 def test_maps_with_one_name_are_refused(tmp_path):
     from pipeline.evaluation.benchmark import check_unique_map_names
     from pipeline.world.maps import MapError

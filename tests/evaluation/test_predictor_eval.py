@@ -111,7 +111,8 @@ def test_missing_checkpoint_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     import pipeline.models.defaults as planners_module
 
-    monkeypatch.setattr(planners_module, "SHIPPED_INPAINTER", tmp_path / "no_shipped.pt")
+    pipeline_file = planners_module.MODEL_FILES["inpainter"][0]
+    monkeypatch.setitem(planners_module.MODEL_FILES, "inpainter", (pipeline_file, (tmp_path / "no_shipped.pt",)))
     with pytest.raises(FileNotFoundError, match="train_inpainter"):
         load_inpaint_fn(None)
 

@@ -227,10 +227,12 @@ def test_diffusion_planner_options_are_checked(trained):
 def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_path):
     import pipeline.models.defaults as guide_module
 
-    monkeypatch.setattr(guide_module, "PIPELINE_POLICY", {k: tmp_path / f"{k}.pt" for k in ("guide", "dare")})
+    for k in ("guide", "dare"):
+        monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", guide_module.MODEL_FILES[f"policy_{k}"][1]))
     planner = make_planner("dare")
     assert planner.diffusion.source.endswith("planner_dare.pt") and "assets" in planner.diffusion.source
-    monkeypatch.setattr(guide_module, "SHIPPED_POLICY", {k: tmp_path / f"shipped_{k}.pt" for k in ("guide", "dare")})
+    for k in ("guide", "dare"):
+        monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", (tmp_path / f"shipped_{k}.pt",)))
     with pytest.raises(FileNotFoundError, match="train_planner"):
         make_planner("guide")
 

@@ -103,13 +103,12 @@ def test_the_shipped_policy_explores_a_generated_maze(generated_maze_dir, tmp_pa
 
 def test_the_pipelines_policy_comes_before_the_shipped_one(tmp_path, monkeypatch):
     path = save_drl_policy(fresh_policy(6), tmp_path / "models" / "drl" / "policy.pt")
-    monkeypatch.setattr(defaults, "PIPELINE_DRL", path)
+    monkeypatch.setitem(defaults.MODEL_FILES, "drl", (path, defaults.MODEL_FILES["drl"][1]))
     assert make_planner("drl").source == f"drl policy {path}"
 
 
 def test_no_policy_anywhere_is_a_one_line_error(tmp_path, monkeypatch):
-    monkeypatch.setattr(defaults, "PIPELINE_DRL", tmp_path / "a" / "policy.pt")
-    monkeypatch.setattr(defaults, "SHIPPED_DRL", tmp_path / "b" / "planner_drl.pt")
+    monkeypatch.setitem(defaults.MODEL_FILES, "drl", (tmp_path / "a" / "policy.pt", (tmp_path / "b" / "planner_drl.pt",)))
     with pytest.raises(ValueError, match="no drl policy") as error:
         make_planner("drl")
     assert "\n" not in str(error.value)
