@@ -85,11 +85,8 @@ def no_pipeline_models(monkeypatch, tmp_path):
     from pipeline.models import defaults
 
     absent = tmp_path / "no-pipeline-models"
-    monkeypatch.setattr(defaults, "PIPELINE_INPAINTER", absent / "inpainter.pt")
-    monkeypatch.setattr(defaults, "PIPELINE_POLICY", {k: absent / f"planner_{k}.pt" for k in ("guide", "dare")})
-    monkeypatch.setattr(defaults, "PIPELINE_GATE", absent / "sliver_gate.json")
-    monkeypatch.setattr(defaults, "PIPELINE_BLOCK_MODEL", absent / "block_model.pt")
-    monkeypatch.setattr(defaults, "PIPELINE_DRL", absent / "drl.pt")
+    for kind, (pipeline, shipped) in list(defaults.MODEL_FILES.items()):  # the catalogue every default goes through
+        monkeypatch.setitem(defaults.MODEL_FILES, kind, (absent / pipeline.name, shipped))
 
 
 TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model", "drl")  # "inpainter-test" sets its own location

@@ -22,7 +22,8 @@ from stages import collect_expert, collect_pairs
 
 PAIRS = dict(seed=5, pairs=6, pairs_per_shard=3, planners=["nearest_frontier", "greedy_utility"], snapshot_every=2,
              stop_steps=[3, 12], workers=1, backend="process")
-EXPERT = dict(seed=12, episodes=2, episodes_per_shard=1, planner="expert", horizon=4, random_starts=True, workers=1,
+EXPERT = dict(seed=12, episodes=2, episodes_per_shard=1, planner="expert", planner_options={"time_limit_s": 20}, horizon=4,
+              random_starts=True, workers=1,
               backend="process")
 
 

@@ -6,7 +6,10 @@ Each option's score is multiplied by 1 + `prior_weight` x how much the policy's 
 head for it (`target_votes`): the learned prior says which way the expert would go, the global
 graph says what is worth going for. The executed chunk is the first T_a steps of the sample
 that makes the most progress toward the chosen target, cut where it leaves a shortest known
-path to it, or that path itself when no sample heads there (`fallback_share`).
+path to it, or that path itself when no sample heads there (`fallback_share`). Back at a node
+with nothing new seen since it chose there, it keeps the target chosen there until reached or
+news (`GuideTspPlanner.keep_through_cycles`): the vote, drawn afresh at each decision, can
+otherwise swing between two targets in turn and walk the robot back and forth until `max_steps`.
 
 With `lookahead=K` the chosen target is checked by simulation (`BlockLookahead`): guide's own
 choice and gated greedy's best targets (`lookahead_targets=greedy`), or guide's K best-scored
@@ -122,6 +125,9 @@ class TourVotePlanner(GuideTspPlanner):
                 target = candidates[int(np.argmin(costs))]
                 tour = [target] + [t for t in tour if t != target]
             self.lookahead_choice = target
+        else:  # guide_tsp's cycle guard: back at a node with nothing new seen, the target chosen there is kept
+            target = self.keep_through_cycles(observation, robot, useful, target)
+            tour = [target] + [t for t in tour if t != target]
         self.previous = target
         # The chunk: a sample's steps while each one shortens the known-graph distance to the target by its length.
         to_target, _ = graph.shortest_paths(target)

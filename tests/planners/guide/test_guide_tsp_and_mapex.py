@@ -40,14 +40,15 @@ def oracle_inpainter(ground_truth: GroundTruthMap):
 def no_shipped_model(monkeypatch, tmp_path):
     """These tests build the predictor planners without any inpainter unless they give one
     (conftest already hides models/ in the working tree)."""
-    monkeypatch.setattr(defaults, "SHIPPED_INPAINTER", tmp_path / "absent" / "shipped.pt")
+    pipeline = defaults.MODEL_FILES["inpainter"][0]
+    monkeypatch.setitem(defaults.MODEL_FILES, "inpainter", (pipeline, (tmp_path / "absent" / "shipped.pt",)))
 
 
 def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkeypatch):
     shipped = defaults.ASSETS / "inpainter.pt"
     if not shipped.is_file():
         pytest.fail("the package ships pipeline/assets/inpainter.pt")
-    monkeypatch.setattr(defaults, "SHIPPED_INPAINTER", shipped)
+    monkeypatch.setitem(defaults.MODEL_FILES, "inpainter", (defaults.MODEL_FILES["inpainter"][0], (shipped,)))
     planner = make_planner("guide_tsp")
     assert "shipped default inpainter" in planner.description and planner.predictor is not None
 
