@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from pipeline.models.defaults import pick_model
@@ -52,7 +51,7 @@ class ProtocolMatchedModels(Planner):
             picks = {}
             for slot, kind in self.slots.items():
                 path, first = pick_model(kind, protocol), pick_model(kind)
-                picks[slot] = None if path is None or path == first else str(Path(path))
+                picks[slot] = None if path is None or path == first else str(path)
             self._picks[key] = picks
         return self._picks[key]
 
