@@ -45,7 +45,7 @@ class DaggerConfig:
 
 def labelled_driver(config: DaggerConfig) -> TeacherLabelledDriver:
     teacher = make_planner(config.teacher, **config.teacher_options)
-    driver = None if config.student is None else make_planner(STUDENT, mode="policy", checkpoint=config.student)
+    driver = None if config.student is None else make_planner(STUDENT, mode="policy", policy_file=config.student)
     return TeacherLabelledDriver(teacher, config.horizon, driver)
 
 

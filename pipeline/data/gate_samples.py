@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
-from pipeline.planners.extensions.sliver_gate import TrueGain, gate_features
+from pipeline.models.sliver_gate import TrueGain, gate_features
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol

@@ -168,7 +168,7 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[Planner
 
 
 def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> list[str]:
-    """`specs` with checkpoint=PATH added to each diffusion planner's (the command line's --checkpoint);
+    """`specs` with policy_file=PATH added to each diffusion planner's (the command line's --checkpoint);
     ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too."""
     if checkpoint is None:
         return specs
@@ -179,15 +179,15 @@ def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> l
         if not planner_config(parsed.name).needs_policy:
             out.append(spec)
             continue
-        if "checkpoint" in parsed.options:
-            raise ValueError(f"planner {parsed.label!r} names its own checkpoint; drop it or --checkpoint")
+        if {"checkpoint", "policy_file"} & set(parsed.options):
+            raise ValueError(f"planner {parsed.label!r} names its own policy_file; drop it or --checkpoint")
         used = True
-        options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "checkpoint": str(checkpoint)}.items())
+        options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "policy_file": str(checkpoint)}.items())
         out.append(f"{parsed.label}={parsed.name}:{options}")
     if not used:
         raise ValueError(
             "--checkpoint is a diffusion policy for guide, guide_noregion or dare, and no planner given uses one "
-            "(guide_tsp and mapex take an inpainter as label=name:checkpoint=PATH)"
+            "(guide_tsp and mapex take an inpainter as label=name:inpainter_file=PATH)"
         )
     return out
 

@@ -158,7 +158,7 @@ def resolve_policy_path(kind: str, checkpoint: str | Path | None) -> Path:
         return path
     raise FileNotFoundError(
         f"no trained {kind} policy: neither {PIPELINE_POLICY[kind]} nor the shipped {SHIPPED_POLICY[kind]} exists; "
-        f"run `dvc repro train_planner` or pass --checkpoint PATH"
+        f"run `dvc repro train_planner` or pass policy_file=PATH"
     )
 
 
@@ -173,7 +173,7 @@ def pipeline_or_shipped(checkpoint: str | Path | None, kind: str, what: str, sta
         return path
     pipeline, (shipped, *_) = MODEL_FILES[kind]
     raise FileNotFoundError(f"no {what.removeprefix('a ')}: neither {pipeline} (`dvc repro {stage}`) nor the shipped "
-                            f"{shipped} exists; pass checkpoint=PATH")
+                            f"{shipped} exists; pass its option, e.g. policy_file=PATH")
 
 
 def resolve_block_model(checkpoint: str | None) -> Path:

@@ -16,8 +16,10 @@ and T_o observation vectors) is just a few tokens that cross-attention reads dir
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -382,25 +384,35 @@ class DiffusionPolicy(nn.Module):
             target = self.noise_scheduler.get_velocity(clean, noise, timesteps)
         return F.mse_loss(predicted, target)
 
+    def with_sampler(self, sampler: str) -> "DiffusionPolicy":
+        """A shallow copy (weights shared) that samples with another update rule: ddpm or ddim."""
+        from diffusers import DDIMScheduler, DDPMScheduler
+
+        variant = copy.copy(self)
+        variant.config = replace(self.config, sampler=sampler)
+        scheduler_class = DDIMScheduler if sampler == "ddim" else DDPMScheduler
+        variant.inference_scheduler = scheduler_class.from_config(self.noise_scheduler.config)
+        return variant
+
+    def _conditioning(self, obs: Mapping[str, torch.Tensor] | torch.Tensor) -> torch.Tensor:
+        """(B, T_o, d): `obs` encoded, or `obs` itself when it is already an encoding."""
+        return obs if isinstance(obs, torch.Tensor) else self._encode_obs_dict(obs)
+
     @torch.no_grad()
     def sample(
         self,
-        obs: Mapping[str, torch.Tensor] | None,
+        obs: Mapping[str, torch.Tensor] | torch.Tensor,
         num_inference_steps: int | None = None,
         generator: torch.Generator | None = None,
-        obs_z: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Denoise Gaussian noise into encoded actions (B, T_p, action_dim) in [-1, 1].
 
-        The observations are encoded once (or given already encoded as `obs_z` (B, T_o, d), which
-        a receding-horizon planner uses to encode each graph only once), and the memory tokens of
-        all K steps are built in one batched call before the loop, which then runs only the
-        decoder layers and the scheduler.
+        `obs` is the last T_o observations (a mapping of OBS_KEYS tensors) or their encoding
+        (B, T_o, d), which a receding-horizon planner keeps so that each graph is encoded once.
+        The memory tokens of all K steps are built in one batched call before the loop, which
+        then runs only the decoder layers and the scheduler.
         """
-        if obs_z is None:
-            if obs is None:
-                raise ValueError("give the observations or their encoding obs_z")
-            obs_z = self._encode_obs_dict(obs)
+        obs_z = self._conditioning(obs)
         batch = obs_z.shape[0]
         shape = (batch, self.config.horizon, self.config.action_dim)
         x = torch.randn(shape, generator=generator, device=obs_z.device, dtype=obs_z.dtype)
@@ -420,13 +432,13 @@ class DiffusionPolicy(nn.Module):
     @torch.no_grad()
     def predict_action(
         self,
-        obs: Mapping[str, torch.Tensor] | None,
+        obs: Mapping[str, torch.Tensor] | torch.Tensor,
         num_inference_steps: int | None = None,
         generator: torch.Generator | None = None,
-        obs_z: torch.Tensor | None = None,
     ) -> dict[str, torch.Tensor]:
-        """Sample and decode: {"deltas": (B, T_p, 2) long, "expected": (B, T_p, 2), "raw": (B, T_p, action_dim)}."""
-        raw = self.sample(obs, num_inference_steps=num_inference_steps, generator=generator, obs_z=obs_z)
+        """T_p actions for the last T_o observations (or their encoding), K denoising steps:
+        {"deltas": (B, T_p, 2) long, "expected": (B, T_p, 2), "raw": (B, T_p, action_dim)}."""
+        raw = self.sample(obs, num_inference_steps=num_inference_steps, generator=generator)
         deltas, expected = decode_actions(raw, self.config)
         return {"deltas": deltas, "expected": expected, "raw": raw}
 
@@ -441,7 +453,7 @@ def read_policy_export(path: str | Path) -> dict[str, Any]:
     data = read_weights_file(path, "a planner checkpoint")
     if export_kind(data) == "inpainter":
         raise ValueError(f"{path}: an inpainter export, not a planner policy (pass it as the inpainter: "
-                         "inpainter_checkpoint= for guide, checkpoint= for guide_tsp and mapex)")
+                         "inpainter=PATH)")
     if "config" not in data or "state_dict" not in data:
         raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
     return data

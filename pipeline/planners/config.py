@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import warnings
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -42,6 +43,8 @@ class PlannerConfig:
     needs_policy: ClassVar[bool] = False  # runs a trained diffusion policy (models/ or the shipped default)
     lattice_planner: ClassVar[bool] = True  # keeps the lattice graph (what the oracle bounds wrap)
     objects: ClassVar[tuple[str, ...]] = ()  # Python objects the planner takes beside its config
+    # Old option name -> its new name: still taken for one release, with a one-line FutureWarning.
+    renamed: ClassVar[dict[str, str]] = {}
 
     def __post_init__(self) -> None:
         self.check()
@@ -63,12 +66,29 @@ class PlannerConfig:
 
     @classmethod
     def split(cls, options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], list[str]]:
-        """(config fields, Python objects, unknown names) of keyword options."""
+        """(config fields, Python objects, unknown names) of keyword options (old names renamed)."""
+        options = cls.rename_old_options(options)
         names = {f.name for f in dataclasses.fields(cls)}
         fields = {k: v for k, v in options.items() if k in names}
         objects = {k: v for k, v in options.items() if k in cls.objects}
         unknown = sorted(set(options) - names - set(cls.objects))
         return fields, objects, unknown
+
+    @classmethod
+    def rename_old_options(cls, options: dict[str, Any]) -> dict[str, Any]:
+        """`options` with each old name of `renamed` replaced by its new one, warning once per name."""
+        old = [name for name in cls.renamed if name in options]
+        if not old:
+            return options
+        options = dict(options)
+        for name in old:
+            new = cls.renamed[name]
+            if new in options:
+                raise ValueError(f"{cls.name or cls.__name__}: give {new} only ({name} is its old name)")
+            warnings.warn(f"{cls.name or cls.__name__}: option {name} is now {new}; {name} goes in the next release",
+                          FutureWarning, stacklevel=4)
+            options[new] = options.pop(name)
+        return options
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

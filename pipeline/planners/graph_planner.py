@@ -11,7 +11,7 @@ from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.extensions.sliver_gate import SliverGate, load_gate
+from pipeline.models.sliver_gate import SliverGate, load_gate
 from pipeline.planners.options import check_int, require
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, Waypoint
@@ -26,12 +26,13 @@ class LatticePlannerConfig(PlannerConfig):
                                  "that see nothing would be targets too and the robot would tour every node)")
 
     def check(self) -> None:
+        super().check()
         check_int("min_utility", self.min_utility, 1)
 
 
 @dataclass(frozen=True)
 class GatedPlannerConfig(LatticePlannerConfig):
-    """A lattice-graph planner that can leave slivers for later (`pipeline.planners.extensions.sliver_gate`)."""
+    """A lattice-graph planner that can leave slivers for later (`pipeline.models.sliver_gate`)."""
 
     sliver_gate: bool = option(False, "consider first only the targets the sliver gate calls big (their scan would "
                                       "reveal much); the rest only when none is")
@@ -52,7 +53,7 @@ class GraphPlanner(Planner):
     """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation.
 
     With the sliver gate (a `GatedPlannerConfig` with `sliver_gate`), its useful nodes are first
-    only those the gate calls big (`pipeline.planners.extensions.sliver_gate`); the fitted gate in
+    only those the gate calls big (`pipeline.models.sliver_gate`); the fitted gate in
     models/ when present, else the shipped one, unless `gate_file` names another.
     """
 

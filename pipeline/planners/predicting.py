@@ -1,7 +1,7 @@
 """Lattice planners that predict free nodes V_p in unknown space (Algorithm 1), with the node predictor.
 
 The inpainter: an `inpaint` callable (uint8 node image -> free probability; tests pass an
-oracle) wins; else a `checkpoint` path; else the pipeline's trained inpainter, else the shipped
+oracle) wins; else the `inpainter_file` option's file; else the pipeline's trained inpainter, else the shipped
 one (`pipeline.models.defaults`). With none, nothing is predicted and the planner reduces to
 its frontier-only version (the instance's `description` says which predictor is in use).
 """
@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
@@ -20,7 +19,7 @@ from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
-from pipeline.prediction.node_predictor import DEFAULT_THRESHOLD, InpaintFn, NodePredictor, NodePredictorConfig
+from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, InpaintFn, NodePredictor, NodePredictorConfig
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
@@ -31,10 +30,10 @@ class PredictorOptions(LatticePlannerConfig):
     """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
 
     objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
-    inpainter_option: ClassVar[str] = "checkpoint"  # the option that names the inpainter export
+    renamed = {"checkpoint": "inpainter_file"}
 
-    checkpoint: str | None = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, else the "
-                                          "shipped one]")
+    inpainter_file: str | None = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, else the "
+                                         "shipped one]")
     threshold: float = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
     min_component: int = option(3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)")
 
@@ -44,13 +43,23 @@ class PredictorOptions(LatticePlannerConfig):
         check_number("threshold", self.threshold, 0.0, 1.0)
         check_int("min_component", self.min_component, 0, note="0 or 1 = keep every prediction")
 
-    def inpainter(self) -> str | None:
-        """The inpainter export this config names (None: the default)."""
-        return getattr(self, self.inpainter_option)
-
     def model_slots(self) -> dict[str, str]:
         predicts = getattr(self, "predicts", True)  # dare's observed graph loads no inpainter
-        return {**super().model_slots(), **({self.inpainter_option: "inpainter"} if predicts else {})}
+        return {**super().model_slots(), **({"inpainter_file": "inpainter"} if predicts else {})}
+
+
+@dataclass(frozen=True)
+class GlobalGraphOptions(PredictorOptions):
+    """The options of a planner that builds the global graph of Sec. IV-B from its predictions."""
+
+    count_threshold: float | None = option(DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost "
+                                                                    "counts [None: threshold]")
+    global_graph: GlobalGraphConfig = option(GlobalGraphConfig(), "the global graph's settings: region size and "
+                                                                  "score (r(g)), node window (a Python object)")
+
+    def check(self) -> None:
+        super().check()
+        check_number("count_threshold", self.count_threshold, 0.0, 1.0, none="threshold")
 
 
 class PredictingPlanner(GraphPlanner):
@@ -60,7 +69,7 @@ class PredictingPlanner(GraphPlanner):
 
     def __init__(self, config: PredictorOptions, inpaint: InpaintFn | None = None):
         super().__init__(config)
-        checkpoint, threshold, min_component = config.inpainter(), config.threshold, config.min_component
+        checkpoint, threshold, min_component = config.inpainter_file, config.threshold, config.min_component
         count_threshold = getattr(config, "count_threshold", None)  # the utility boost's tau, where there is one
         if getattr(config, "predicts", True):
             fn, source, path = resolve_inpainter(inpaint, checkpoint)
@@ -116,7 +125,7 @@ class GlobalGraphPlanner(PredictingPlanner):
     """A predicting planner that builds the global graph of Sec. IV-B at each decision: the known
     nodes, the predicted nodes region evaluation keeps (r(g)), centroids, boosted utilities u(v)."""
 
-    def __init__(self, config: PredictorOptions, inpaint: InpaintFn | None = None):
+    def __init__(self, config: GlobalGraphOptions, inpaint: InpaintFn | None = None):
         super().__init__(config, inpaint)
         self.global_config: GlobalGraphConfig = config.global_graph
 

@@ -75,6 +75,7 @@ def accepted_options(name: str, options: dict[str, Any] | None = None) -> dict[s
     """The options a planner takes (for a wrapper, its base's too, by the `base` in `options`)."""
     config = planner_config(name)
     accepted = {info.name: info for info in config.options()}
+    accepted.update({old: accepted[new] for old, new in config.renamed.items() if new in accepted})  # for one release
     accepted.update({obj: OptionInfo(obj, None, None, "a Python object, set from Python")
                      for obj in config.objects if obj != "base_options"})
     base = getattr(config, "base_planner", None)

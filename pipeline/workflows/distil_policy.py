@@ -166,7 +166,7 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
         if kept.get("identity") == identity:
             return kept["result"]
     shutil.rmtree(folder, ignore_errors=True)
-    specs = [BASELINE, f"{STUDENT_LABEL}=guide:mode=policy,checkpoint={policy}"]
+    specs = [BASELINE, f"{STUDENT_LABEL}=guide:mode=policy,policy_file={policy}"]
     frame = run_benchmark(mazes, specs, protocol, folder, workers=int(section["workers"]), progress=True)
     mean, half, maps = paired_difference(frame, STUDENT_LABEL, BASELINE)
     ours = frame[frame.planner == STUDENT_LABEL]

@@ -20,7 +20,7 @@ from pipeline.common.parallel import map_with_progress
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
 from pipeline.models.defaults import PIPELINE_GATE
-from pipeline.planners.extensions.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
+from pipeline.models.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 

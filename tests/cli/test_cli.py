@@ -168,7 +168,7 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     explore = ["explore", "--map", str(small_maze_path), "--out", str(tmp_path / "o")]
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(fake)]))
     assert "not a planner checkpoint (not a file written by torch.save)" in line
-    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"g=guide_tsp:checkpoint={fake}"]))
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"g=guide_tsp:inpainter_file={fake}"]))
     assert "not an inpainter export" in line
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide_tsp", "--checkpoint", str(fake)]))
     assert "no planner given uses one" in line  # --checkpoint is a policy; guide_tsp has none
@@ -179,7 +179,7 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     assets = ROOT / "pipeline" / "assets"
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(assets / "inpainter.pt")]))
     assert "an inpainter export, not a planner policy" in line  # named for what it is, not by its config keys
-    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"t=guide_tsp:checkpoint={assets / 'planner_guide.pt'}"]))
+    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"t=guide_tsp:inpainter_file={assets / 'planner_guide.pt'}"]))
     assert "a planner policy export, not an inpainter export" in line
     line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out",
                                                str(tmp_path / "p"), "--checkpoint", str(fake)]))

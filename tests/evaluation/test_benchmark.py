@@ -135,7 +135,7 @@ def test_a_protocol_mismatch_is_said_once_before_the_episodes(generated_maze_dir
 
     shipped = defaults.SHIPPED_INPAINTER
     maps = list_maps(generated_maze_dir)[:2]
-    spec = f"tsp=guide_tsp:checkpoint={shipped}"
+    spec = f"tsp=guide_tsp:inpainter_file={shipped}"
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run_benchmark(maps, [spec], Protocol(node_resolution=2.0, max_steps=2), tmp_path, workers=1, progress=False)

@@ -9,7 +9,7 @@ from pipeline.models.defaults import SHIPPED_GATE
 from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
-from pipeline.planners.extensions.sliver_gate import SliverGate, save_gate
+from pipeline.models.sliver_gate import SliverGate, save_gate
 
 
 @pytest.mark.parametrize(("name", "gated"), [("greedy_utility", False), ("nearest_frontier", False),

@@ -11,7 +11,7 @@ import pytest
 
 from pipeline.models import defaults
 from pipeline.models.defaults import MODEL_FILES, REAL_ROBOT_ASSETS, pick_model
-from pipeline.planners.extensions.sliver_gate import FEATURES, SliverGate, save_gate
+from pipeline.models.sliver_gate import FEATURES, SliverGate, save_gate
 from pipeline.planners.matched_models import ProtocolMatchedModels
 from pipeline.planners.registry import make_planner
 from pipeline.world.maps import GroundTruthMap
@@ -88,12 +88,12 @@ def test_the_shipped_real_robot_models_are_picked_at_that_scale_and_the_maze_one
         warnings.simplefilter("error", ProtocolMismatchWarning)  # the real-robot models match: no warning
         result = run_episode(_floor(), planner, REAL, seed=0)
     assert result.complete
-    assert Path(planner.inner.config.checkpoint) == REAL_ROBOT_ASSETS / "planner_guide.pt"
-    assert Path(planner.inner.config.inpainter_checkpoint) == REAL_ROBOT_ASSETS / "inpainter.pt"
+    assert Path(planner.inner.config.policy_file) == REAL_ROBOT_ASSETS / "planner_guide.pt"
+    assert Path(planner.inner.config.inpainter_file) == REAL_ROBOT_ASSETS / "inpainter.pt"
     assert {Path(model) for model, _ in planner.trained_models} == {REAL_ROBOT_ASSETS / "planner_guide.pt",
                                                                     REAL_ROBOT_ASSETS / "inpainter.pt"}
     planner.reset(_floor(), Protocol(cell_size=0.2), 0)
-    assert planner.inner.config.checkpoint is None  # the maze benchmark's protocol: the shipped maze models
+    assert planner.inner.config.policy_file is None  # the maze benchmark's protocol: the shipped maze models
     assert {Path(model) for model, _ in planner.trained_models} == {defaults.SHIPPED_POLICY["guide"],
                                                                     defaults.SHIPPED_INPAINTER}
 
@@ -103,4 +103,4 @@ def test_a_protocol_no_model_was_trained_at_still_warns(tmp_path, monkeypatch):
     planner = make_planner("guide_tsp")
     with pytest.warns(ProtocolMismatchWarning, match="trained at other protocol values"):
         planner.reset(_floor(), replace(REAL, node_resolution=2.0), 0)
-    assert planner.inner.config.checkpoint is None  # the first default, as before
+    assert planner.inner.config.inpainter_file is None  # the first default, as before

@@ -105,7 +105,7 @@ BAD = [
     ("dare", {"num_inference_steps": 101}, "num_inference_steps must be in 1..100"),
     ("dare", {"candidates": 0}, "candidates must be >= 1"),
     ("drl", {"stall_steps": -1}, "stall_steps must be"),
-    ("drl", {"checkpoint": "no/such/policy.pt"}, "no/such/policy.pt"),
+    ("drl", {"policy_file": "no/such/policy.pt"}, "no/such/policy.pt"),
     ("dare", {"threshold": 1.5}, "threshold must be a number in [0, 1]"),
     # the oracle bounds check their own options and pass the rest to their base planner
     ("oracle_gate", {"min_gain": 0}, "min_gain must be >= 1"),
@@ -121,7 +121,7 @@ BAD = [
     ("sampled_lookahead", {"switch_margin_m": -1.0}, "switch_margin_m must be a finite number >= 0"),
     ("sampled_lookahead", {"exit_weight": -1.0}, "exit_weight must be a finite number >= 0"),
     ("sampled_lookahead", {"temperature": 0.0}, "temperature must be a finite number > 0"),
-    ("sampled_lookahead", {"checkpoint": "no/such/block_model.pt"}, "file not found (expected a block model file)"),
+    ("sampled_lookahead", {"block_model_file": "no/such/block_model.pt"}, "file not found (expected a block model file)"),
     ("oracle_tail", {"base": "guide_tsp", "threshold": 2}, "threshold must be a number in [0, 1]"),
 ]
 
@@ -174,8 +174,8 @@ def test_every_planner_builds_with_its_defaults(name):
 def test_diffusion_defaults_come_from_the_policy():
     for name in LEARNED:
         planner = make_planner(name)
-        config = planner.diffusion.config
-        assert planner.diffusion.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
+        config = planner.policy.config
+        assert planner.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
         assert planner.action_steps == config.action_steps
 
 

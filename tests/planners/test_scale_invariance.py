@@ -26,13 +26,13 @@ PLANNERS = {
     "greedy_utility": {},
     "tare": {},
     "nbvp": {},
-    "guide_tsp": {"checkpoint": INPAINTER},
-    "mapex": {"checkpoint": INPAINTER},
+    "guide_tsp": {"inpainter_file": INPAINTER},
+    "mapex": {"inpainter_file": INPAINTER},
     # Two denoising steps: scale invariance does not depend on K, and K = 30 triples the test's time.
-    "guide": {"checkpoint": str(SHIPPED_POLICY["guide"]), "inpainter_checkpoint": INPAINTER, "num_inference_steps": 2},
-    "guide_noregion": {"checkpoint": str(SHIPPED_POLICY["guide"]), "inpainter_checkpoint": INPAINTER,
+    "guide": {"policy_file": str(SHIPPED_POLICY["guide"]), "inpainter_file": INPAINTER, "num_inference_steps": 2},
+    "guide_noregion": {"policy_file": str(SHIPPED_POLICY["guide"]), "inpainter_file": INPAINTER,
                        "num_inference_steps": 2},
-    "dare": {"checkpoint": str(SHIPPED_POLICY["dare"]), "num_inference_steps": 2},
+    "dare": {"policy_file": str(SHIPPED_POLICY["dare"]), "num_inference_steps": 2},
 }
 
 

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from pipeline.world.offices import OfficeConfig, generate_office_set
-from pipeline.planners.extensions.sliver_gate import load_gate
+from pipeline.models.sliver_gate import load_gate
 from stages import fit_gate
 
 

@@ -142,7 +142,7 @@ def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, gener
     options = {"candidates": candidates, "mode": mode}
     if name != "dare":
         options["inpaint"] = wall_aware_inpaint
-    planner = make_planner(name, checkpoint=str(checkpoint), num_inference_steps=3, **options)
+    planner = make_planner(name, policy_file=str(checkpoint), num_inference_steps=3, **options)
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
     result = run_episode(ground_truth, planner, Protocol())
     assert result.complete, result.failure  # tour targets / the stall guard guarantee progress even for a 2-epoch policy
@@ -152,7 +152,7 @@ def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, gener
 
 def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_the_target(trained, generated_maze_dir):
     _, paths = trained
-    planner = make_planner("guide", checkpoint=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint)
+    planner = make_planner("guide", policy_file=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint)
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
     checked = []
 
@@ -183,8 +183,8 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
     dist, pred = graph.shortest_paths(robot)
     useful = planner.reachable_useful(robot, dist)
     planner.update_global_graph(observation)
-    planner.diffusion.observe(planner.global_graph, observation.position)
-    options = planner.first_target_scores(robot, dist, useful)
+    planner.observe(observation.position)
+    options = planner.tour.first_target_scores(planner.graph, planner.global_graph, robot, dist, useful)
     target = int(options["targets"][options["firsts"][0]])
     straight = graph.path_from_predecessors(pred, target)[:4]
     votes = planner.target_votes(robot, [straight, [robot]], options)
@@ -196,7 +196,7 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
 def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated_maze_dir):
     _, paths = trained
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
-    planner = make_planner("guide", checkpoint=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint, prior_weight=0.0)
+    planner = make_planner("guide", policy_file=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint, prior_weight=0.0)
     planner.reset(ground_truth, Protocol(), 0)
     observation = Episode(ground_truth, Protocol()).observe()
     planner.plan(observation)
@@ -209,19 +209,19 @@ def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated
 def test_diffusion_planner_options_are_checked(trained):
     _, paths = trained
     with pytest.raises(ValueError, match="action_steps"):
-        make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, action_steps=20)
+        make_planner("guide", policy_file=str(paths["guide"]), inpaint=wall_aware_inpaint, action_steps=20)
     with pytest.raises(FileNotFoundError, match=r"file not found \(expected a planner checkpoint\)"):
-        make_planner("dare", checkpoint="/nonexistent/policy.pt")
+        make_planner("dare", policy_file="/nonexistent/policy.pt")
     with pytest.raises(ValueError, match="a guide policy .* dare needs a dare policy"):
-        make_planner("dare", checkpoint=str(paths["guide"]))
+        make_planner("dare", policy_file=str(paths["guide"]))
     with pytest.raises(ValueError, match="a dare policy .* guide needs a guide policy"):
-        make_planner("guide", checkpoint=str(paths["dare"]), inpaint=wall_aware_inpaint)
+        make_planner("guide", policy_file=str(paths["dare"]), inpaint=wall_aware_inpaint)
     with pytest.raises(ValueError, match="mode"):
-        make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, mode="greedy")
+        make_planner("guide", policy_file=str(paths["guide"]), inpaint=wall_aware_inpaint, mode="greedy")
     with pytest.raises(ValueError, match="prior_weight"):
-        make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, prior_weight=-1.0)
-    ddim = make_planner("guide", checkpoint=str(paths["guide"]), inpaint=wall_aware_inpaint, sampler="ddim")
-    assert type(ddim.diffusion.policy.inference_scheduler).__name__ == "DDIMScheduler"
+        make_planner("guide", policy_file=str(paths["guide"]), inpaint=wall_aware_inpaint, prior_weight=-1.0)
+    ddim = make_planner("guide", policy_file=str(paths["guide"]), inpaint=wall_aware_inpaint, sampler="ddim")
+    assert type(ddim.policy.inference_scheduler).__name__ == "DDIMScheduler"
 
 
 def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_path):
@@ -230,7 +230,7 @@ def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_
     for k in ("guide", "dare"):
         monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", guide_module.MODEL_FILES[f"policy_{k}"][1]))
     planner = make_planner("dare")
-    assert planner.diffusion.source.endswith("planner_dare.pt") and "assets" in planner.diffusion.source
+    assert planner.policy_source.endswith("planner_dare.pt") and "assets" in planner.policy_source
     for k in ("guide", "dare"):
         monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", (tmp_path / f"shipped_{k}.pt",)))
     with pytest.raises(FileNotFoundError, match="train_planner"):

@@ -40,8 +40,9 @@ OBSERVED_GRAPH_INPUTS = ("cell_size", "node_resolution", "sensor_range", "utilit
 class DRLConfig(PlannerConfig):
     description = "DRL (Cao et al. 2024): graph attention + pointer over the robot's window, trained by PPO"
     objects = ("policy",)
+    renamed = {"checkpoint": "policy_file"}
 
-    checkpoint: str | None = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped one]")
+    policy_file: str | None = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped one]")
     stall_steps: int = option(4, "decisions in a row that reveal no free cell before the nearest-frontier hand-over "
                                  "breaks a cycle (0: never; the policy alone, as in the environment)")
 
@@ -49,7 +50,7 @@ class DRLConfig(PlannerConfig):
         check_int("stall_steps", self.stall_steps, 0, note="0 = never hand over")
 
     def model_slots(self) -> dict[str, str]:
-        return {"checkpoint": "drl"}
+        return {"policy_file": "drl"}
 
 
 @register_planner("drl", DRLConfig)
@@ -63,7 +64,7 @@ class DRLPlanner(Planner):
             self.policy, self.trained_on, source = policy.eval(), {}, "injected drl policy"
         else:
             try:
-                path = resolve_drl_path(config.checkpoint)
+                path = resolve_drl_path(config.policy_file)
             except FileNotFoundError as error:  # an option error, reported in one line like the others
                 raise ValueError(str(error)) from None
             self.policy, self.trained_on = cached_drl_policy(path)

@@ -53,13 +53,14 @@ class SampledLookaheadConfig(GreedyUtilityConfig):
     description = ("gated greedy whose k best targets are each run to completion on maps drawn from the learned "
                    "block model; one step toward the one whose rollouts are shortest")
     objects = ("model",)  # an injected block model
+    renamed = {"checkpoint": "block_model_file"}
 
     sliver_gate: bool = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
     k: int = option(3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself")
     samples: int = option(4, "block maps drawn from the block model per decision; each target is rolled out on each")
     horizon_m: float = option(20.0, "metres: the drawn maps are cut this far beyond the known free space")
-    checkpoint: str | None = option(None, "the block model [default: models/block_model/block_model.pt, else the "
-                                          "shipped one]")
+    block_model_file: str | None = option(None, "the block model [default: models/block_model/block_model.pt, "
+                                                "else the shipped one]")
     switch_margin_m: float | None = option(None, "metres: leave the last target only for one whose mean rollout is "
                                                  "shorter by more (None: off)")
     exit_weight: float = option(0.0, "weight of each rollout's way back to the horizon cut (0 = off)")
@@ -73,7 +74,7 @@ class SampledLookaheadConfig(GreedyUtilityConfig):
         check_lookahead_options(self.samples, self.horizon_m, self.exit_weight, self.temperature, self.workers)
 
     def model_slots(self) -> dict[str, str]:
-        return {**super().model_slots(), "checkpoint": "block_model"}
+        return {**super().model_slots(), "block_model_file": "block_model"}
 
 
 @register_planner("sampled_lookahead", SampledLookaheadConfig)
@@ -84,7 +85,7 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
 
     def __init__(self, config: SampledLookaheadConfig = SampledLookaheadConfig(), model: BlockModel | None = None):
         super().__init__(config)
-        k, samples, horizon_m, checkpoint = config.k, config.samples, config.horizon_m, config.checkpoint
+        k, samples, horizon_m, checkpoint = config.k, config.samples, config.horizon_m, config.block_model_file
         switch_margin_m = None if config.switch_margin_m is None else float(config.switch_margin_m)
         exit_weight, temperature, workers = config.exit_weight, config.temperature, config.workers
         self.k, self.switch_margin_m = int(k), switch_margin_m

@@ -8,7 +8,7 @@ graph says what is worth going for. The executed chunk is the first T_a steps of
 that makes the most progress toward the chosen target, cut where it leaves a shortest known
 path to it, or that path itself when no sample heads there (`fallback_share`). Back at a node
 with nothing new seen since it chose there, it keeps the target chosen there until reached or
-news (`GuideTspPlanner.keep_through_cycles`): the vote, drawn afresh at each decision, can
+news (`FrontierTour.keep_through_cycles`): the vote, drawn afresh at each decision, can
 otherwise swing between two targets in turn and walk the robot back and forth until `max_steps`.
 
 With `lookahead=K` the chosen target is checked by simulation (`BlockLookahead`): guide's own
@@ -24,48 +24,70 @@ The robot moves only along known-free lattice edges.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pipeline.models.defaults import block_model_for
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
-from pipeline.planners.extensions.lookahead import BlockLookahead, gated_greedy_like
-from pipeline.planners.guide.configuration_guide import GuideConfig
-from pipeline.planners.guide.diffusion import attach_policy, drive
-from pipeline.planners.guide.guide_tsp import GuideTspPlanner
+from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.extensions.lookahead import BlockLookahead, LookaheadConfig, gated_greedy_like
+from pipeline.planners.guide.configuration_guide_tsp import TourOptions
+from pipeline.planners.guide.guide import GuidePlanner, drive
+from pipeline.planners.guide.guide_tsp import FrontierTour
+from pipeline.planners.options import check_number
+from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.prediction.global_graph import KNOWN
-from pipeline.prediction.node_predictor import InpaintFn
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
 
-class TourVotePlanner(GuideTspPlanner):
-    """guide_tsp's frontier tour, its first target voted on by the diffusion policy's samples."""
+@dataclass(frozen=True)
+class TourVoteConfig(PlannerConfig):
+    prior_weight: float = option(1.0, "mode tour: an option's score is multiplied by 1 + prior_weight x the share "
+                                      "of samples heading for it (0: the policy does not vote)")
 
-    def __init__(self, config: GuideConfig = GuideConfig(), inpaint: InpaintFn | None = None, policy=None,
-                 name: str = "guide"):
-        super().__init__(config, inpaint)
-        self.diffusion = attach_policy(self, config, name, policy)
-        self.action_steps = self.diffusion.action_steps
-        self.prior_weight = float(config.prior_weight)
+    def check(self) -> None:
+        super().check()
+        check_number("prior_weight", self.prior_weight, 0.0, note="0 = the policy does not vote")
+
+
+class TourVote(PlannerWrapper):
+    """guide_tsp's frontier tour (`FrontierTour`), its first target voted on by the samples of
+    GUIDE's policy (`paper`, a `GuidePlanner`, which keeps the graphs and the T_o history)."""
+
+    own = frozenset({"paper", "tour", "prior_weight", "lookahead", "lookahead_k", "lookahead_targets",
+                     "lookahead_commit", "lookahead_rollout", "lookahead_rng", "lookahead_choice", "queue",
+                     "decisions", "fallbacks", "last_decision", "description"})
+
+    def __init__(self, paper: GuidePlanner, tour: TourOptions, vote: TourVoteConfig, lookahead: LookaheadConfig,
+                 candidates: int, description: str):
+        super().__init__(paper)
+        self.paper = paper
+        self.paper.candidates = int(candidates)
+        self.tour = FrontierTour(tour)
+        self.prior_weight = float(vote.prior_weight)
         self.lookahead: BlockLookahead | None = None
-        self.lookahead_k, self.lookahead_targets = int(config.lookahead), config.lookahead_targets
-        self.lookahead_commit = config.lookahead_commit is not False
-        self.lookahead_rollout = config.lookahead_rollout or "full"
+        self.lookahead_k, self.lookahead_targets = int(lookahead.lookahead), lookahead.lookahead_targets
+        self.lookahead_commit = lookahead.lookahead_commit is not False
+        self.lookahead_rollout = lookahead.lookahead_rollout or "full"
         lookahead_source = ""
-        if config.lookahead:
-            model, lookahead_source = block_model_for(config.block_model)
-            self.lookahead = BlockLookahead(model, config.lookahead_samples, per_target=self.lookahead_rollout == "fast",
-                                            workers=config.lookahead_workers or 1)
+        if lookahead.lookahead:
+            model, lookahead_source = block_model_for(lookahead.block_model_file)
+            self.lookahead = BlockLookahead(model, lookahead.lookahead_samples,
+                                            per_target=self.lookahead_rollout == "fast",
+                                            workers=lookahead.lookahead_workers or 1)
             processes = f" in {self.lookahead.workers} processes" if self.lookahead.workers > 1 else ""
-            lookahead_source = (f"; lookahead {config.lookahead} x {config.lookahead_samples} maps, "
+            lookahead_source = (f"; lookahead {lookahead.lookahead} x {lookahead.lookahead_samples} maps, "
                                 f"{self.lookahead_rollout} rollouts{processes}, {lookahead_source}")
-        self.description = (f"{config.description} [mode tour; policy {self.diffusion.source}; {self.predictor_source}; "
-                            f"{self.gate_source}; K={self.diffusion.num_inference_steps}{lookahead_source}]")
+        self.description = (f"{description} [mode tour; policy {paper.policy_source}; {paper.predictor_source}; "
+                            f"{paper.gate_source}; K={paper.num_inference_steps}{lookahead_source}]")
+        self.last_decision: dict = {}
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
-        self.diffusion.reset(seed)
+        self.paper.reset(ground_truth, protocol, seed)
+        self.tour.reset(protocol)
         self.queue: list[int] = []  # the rest of the executed chunk, while it still heads for the target
         self.decisions = 0
         self.fallbacks = 0
@@ -75,10 +97,11 @@ class TourVotePlanner(GuideTspPlanner):
         self.lookahead_choice: int | None = None
 
     def plan(self, observation: Observation) -> list[Waypoint]:
-        graph, robot, dist, pred, useful = self.locate(observation)
+        paper = self.paper
+        graph, robot, dist, pred, useful = paper.locate(observation)
         if useful.size == 0:
             return []  # nothing reachable is left to explore
-        target = self.previous
+        target = self.tour.previous
         queued = None  # the next step of the last chunk, when it is still on the way to a target
         if self.queue and target is not None and target in set(useful.tolist()):
             nxt = int(self.queue[0])
@@ -92,16 +115,16 @@ class TourVotePlanner(GuideTspPlanner):
             greedy = [int(t) for t in ranked[: self.lookahead_k]]
             if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the prediction and denoising
                 rollouts = self.lookahead.start(self._rollout_planner(), observation, greedy, pred, self.lookahead_rng)
-        self.update_global_graph(observation)
-        self.diffusion.observe(self.global_graph, observation.position)
+        paper.update_global_graph(observation)
+        paper.observe(observation.position)
         self.decisions += 1
         if queued is not None:
             self.queue.pop(0)
             self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
             return [tuple(map(float, graph.node_world[queued]))]
         self.queue = []
-        options = self.first_target_scores(robot, dist, useful)
-        deltas, expected = self.diffusion.sample()
+        options = self.tour.first_target_scores(graph, paper.global_graph, robot, dist, useful)
+        deltas, expected = paper.sample_plans()
         paths = drive(graph, robot, deltas, expected)
         votes = self.target_votes(robot, paths, options)
         scores = options["scores"] * (1.0 + self.prior_weight * votes)
@@ -126,15 +149,15 @@ class TourVotePlanner(GuideTspPlanner):
                 tour = [target] + [t for t in tour if t != target]
             self.lookahead_choice = target
         else:  # guide_tsp's cycle guard: back at a node with nothing new seen, the target chosen there is kept
-            target = self.keep_through_cycles(observation, robot, useful, target)
+            target = self.tour.keep_through_cycles(observation, robot, useful, target)
             tour = [target] + [t for t in tour if t != target]
-        self.previous = target
+        self.tour.previous = target
         # The chunk: a sample's steps while each one shortens the known-graph distance to the target by its length.
         to_target, _ = graph.shortest_paths(target)
         chunk: list[int] = []
-        for path in sorted(paths, key=lambda q: to_target[q[min(len(q) - 1, self.action_steps)]]):
+        for path in sorted(paths, key=lambda q: to_target[q[min(len(q) - 1, paper.action_steps)]]):
             run = []
-            for node, nxt in zip(path[: self.action_steps], path[1 : self.action_steps + 1]):
+            for node, nxt in zip(path[: paper.action_steps], path[1 : paper.action_steps + 1]):
                 step = float(np.hypot(*(graph.node_world[nxt] - graph.node_world[node])))
                 if not to_target[nxt] < to_target[node] - step + 1e-6:
                     break
@@ -145,7 +168,7 @@ class TourVotePlanner(GuideTspPlanner):
         aligned = bool(chunk)
         if not chunk:
             self.fallbacks += 1
-            chunk = graph.path_from_predecessors(pred, target)[1 : 1 + self.action_steps]
+            chunk = graph.path_from_predecessors(pred, target)[1 : 1 + paper.action_steps]
         self.queue = chunk[1:]
         self.last_decision = {
             "target": target,
@@ -165,9 +188,8 @@ class TourVotePlanner(GuideTspPlanner):
         the plan's last node than at the robot, per metre driven (1 = straight at it). The
         vote of an option is the plans' mean progress toward it.
         """
-        graph = self.graph
-        assert graph is not None
-        gg = self.global_graph
+        graph = self.paper.graph
+        gg = self.paper.global_graph
         known_ids = gg.lattice_ids[gg.types == KNOWN]
         distance = options["target_distance"][options["firsts"]]  # (options, global-graph rows)
         start = distance[:, np.searchsorted(known_ids, robot)]
@@ -184,4 +206,4 @@ class TourVotePlanner(GuideTspPlanner):
 
     def _rollout_planner(self) -> GreedyUtilityPlanner:
         """What the lookahead rolls out: gated greedy in this planner's graph state (ungated for fast rollouts)."""
-        return gated_greedy_like(self, gated=self.lookahead_rollout == "full")
+        return gated_greedy_like(self.paper, gated=self.lookahead_rollout == "full")

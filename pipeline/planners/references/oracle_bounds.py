@@ -32,7 +32,7 @@ import numpy as np
 
 from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.extensions.sliver_gate import TrueGain
+from pipeline.models.sliver_gate import TrueGain
 from pipeline.planners.options import check_int, require
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner

@@ -83,10 +83,10 @@ def test_a_checkpoint_is_loaded_and_decides_as_the_policy_saved(tmp_path, maps):
     policy = fresh_policy(5).eval()
     path = save_drl_policy(policy, tmp_path / "policy.pt", {"protocol": Protocol().to_dict()})
     protocol = Protocol(max_steps=25)
-    from_file = run_episode(load_map(maps[1]), make_planner("drl", checkpoint=str(path), stall_steps=0), protocol)
+    from_file = run_episode(load_map(maps[1]), make_planner("drl", policy_file=str(path), stall_steps=0), protocol)
     injected = run_episode(load_map(maps[1]), make_planner("drl", policy=policy, stall_steps=0), protocol)
     assert from_file.trajectory == injected.trajectory
-    assert str(path) in make_planner("drl", checkpoint=str(path)).description
+    assert str(path) in make_planner("drl", policy_file=str(path)).description
 
 
 def test_the_shipped_policy_explores_a_generated_maze(generated_maze_dir, tmp_path, monkeypatch):
@@ -115,22 +115,22 @@ def test_no_policy_anywhere_is_a_one_line_error(tmp_path, monkeypatch):
 def test_a_missing_checkpoint_is_a_one_line_error_naming_it(tmp_path):
     missing = tmp_path / "nowhere" / "policy.pt"
     with pytest.raises(ValueError, match="policy.pt: file not found") as error:
-        make_planner("drl", checkpoint=str(missing))
+        make_planner("drl", policy_file=str(missing))
     assert str(missing) in str(error.value) and "\n" not in str(error.value)
     with pytest.raises(ValueError, match="a folder, not a file"):
-        make_planner("drl", checkpoint=str(tmp_path))
+        make_planner("drl", policy_file=str(tmp_path))
 
 
 def test_a_checkpoint_that_is_not_a_drl_export_is_refused(tmp_path):
     torch.save({"format": "x"}, tmp_path / "other.pt")
     with pytest.raises(ValueError, match="not a drl policy export"):
-        make_planner("drl", checkpoint=str(tmp_path / "other.pt"))
+        make_planner("drl", policy_file=str(tmp_path / "other.pt"))
 
 
 def test_a_policy_trained_at_another_protocol_warns_at_reset(tmp_path, small_maze):
     trained = Protocol(node_resolution=2.0, sensor_range=12.0)
     path = save_drl_policy(fresh_policy(7), tmp_path / "other_protocol.pt", {"protocol": trained.to_dict()})
-    planner = make_planner("drl", checkpoint=str(path))
+    planner = make_planner("drl", policy_file=str(path))
     with pytest.warns(ProtocolMismatchWarning, match=r"node_resolution 2 -> 4.*sensor_range 12 -> 20"):
         planner.reset(small_maze, Protocol(), 0)
     # At its own protocol values (the cell size aside, which the graph does not depend on), no warning.
@@ -140,7 +140,7 @@ def test_a_policy_trained_at_another_protocol_warns_at_reset(tmp_path, small_maz
         # An injected policy, and an export that records no protocol, have nothing to compare.
         make_planner("drl", policy=fresh_policy(7)).reset(small_maze, Protocol(node_resolution=2.0), 0)
         bare = save_drl_policy(fresh_policy(7), tmp_path / "bare.pt")
-        make_planner("drl", checkpoint=str(bare)).reset(small_maze, Protocol(node_resolution=2.0), 0)
+        make_planner("drl", policy_file=str(bare)).reset(small_maze, Protocol(node_resolution=2.0), 0)
 
 
 # The small maze with two closed rooms no sensor reaches: it can never be complete.
@@ -186,7 +186,7 @@ def test_the_observed_graph_does_not_depend_on_the_region_size(small_maze_path):
 
 def test_a_policy_trained_at_another_region_size_does_not_warn(tmp_path, small_maze):
     path = save_drl_policy(fresh_policy(8), tmp_path / "regions.pt", {"protocol": Protocol().to_dict()})
-    planner = make_planner("drl", checkpoint=str(path))
+    planner = make_planner("drl", policy_file=str(path))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ProtocolMismatchWarning)
         planner.reset(small_maze, Protocol(region_size=8.0), 0)

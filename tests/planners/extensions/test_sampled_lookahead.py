@@ -69,14 +69,14 @@ def test_a_true_block_map_makes_it_no_longer_than_gated_greedy(small_maze):
 
 def test_model_file_resolution(tmp_path):
     with pytest.raises(ValueError, match="expected a block model file"):
-        make_planner("sampled_lookahead", checkpoint=str(tmp_path / "missing.pt"))
+        make_planner("sampled_lookahead", block_model_file=str(tmp_path / "missing.pt"))
     path = save_block_model(BlockModel(BlockModelConfig(width=4, dilations=(1,), groups=1)), tmp_path / "b.pt")
-    planner = make_planner("sampled_lookahead", checkpoint=str(path))
+    planner = make_planner("sampled_lookahead", block_model_file=str(path))
     assert planner.model.config.width == 4 and str(path) in planner.model_source
     assert str(path) in planner.description and "sliver gate (shipped)" in planner.description
     assert resolve_block_model(None) == SHIPPED_BLOCK_MODEL  # no models/ in tests: the shipped one
     with pytest.raises(ValueError, match="samples"):
-        make_planner("sampled_lookahead", samples=0, checkpoint=str(path))
+        make_planner("sampled_lookahead", samples=0, block_model_file=str(path))
 
 
 def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, monkeypatch):
@@ -139,7 +139,7 @@ def _guide(**options):
     from pipeline.models.defaults import SHIPPED_POLICY
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
-    return make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options)
+    return make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options)
 
 
 @pytest.mark.parametrize("targets", ["greedy", "tour"])
@@ -158,7 +158,7 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
         return finish(self, rollouts, candidates)
 
     def decide(cheap: int | None) -> dict:
-        planner = _guide(lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model=str(SHIPPED_BLOCK_MODEL))
+        planner = _guide(lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model_file=str(SHIPPED_BLOCK_MODEL))
         planner.reset(small_maze, protocol, 0)
         observation = Episode(small_maze, protocol).observe()
 
@@ -197,7 +197,7 @@ def test_guide_lookahead_options_are_checked():
     with pytest.raises(ValueError, match="in mode policy"):
         _guide(lookahead=3, mode="policy")
     with pytest.raises(ValueError, match="lookahead is off"):
-        _guide(block_model="x.pt")
+        _guide(block_model_file="x.pt")
     with pytest.raises(ValueError, match="lookahead is off"):
         _guide(lookahead_commit=False)
     with pytest.raises(ValueError, match="samples"):

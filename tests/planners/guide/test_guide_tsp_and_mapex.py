@@ -129,10 +129,10 @@ def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze
     dist = np.zeros(planner.graph.node_count)
     dist[[a, b, c]] = [8.0, 4.0, 20.0]
     utility = np.array([{a: 10.0, b: 3.0, c: 2.0}[n] for n in candidates])
-    targets, weights = planner.select_targets(candidates, utility, dist)
+    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist)
     assert targets.tolist() == [b]  # a's cluster {a, b}: weight 13, target = the member nearer the robot
     assert weights.tolist() == [13.0]
-    targets, weights = planner.select_targets(candidates, utility, dist, keep=c)
+    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist, keep=c)
     assert targets[0] == c  # the previous first target seeds a cluster and survives the weight filter
 
 
@@ -149,7 +149,7 @@ def test_guide_tsp_keeps_its_target_through_a_cycle_on_an_unchanged_map(maze):
     def decide(robot: int, first: int, news: bool) -> int:
         changed = np.array([5]) if news else np.zeros(0, dtype=np.int64)
         observation = Observation(belief=maze.free, position=(0.0, 0.0), cell=(0, 0), changed=changed, step=0)
-        return planner.keep_through_cycles(observation, robot, candidates, first)
+        return planner.tour.keep_through_cycles(observation, robot, candidates, first)
 
     assert decide(a, x, news=True) == x
     assert decide(b, y, news=False) == y  # a new node: the fresh choice
@@ -187,9 +187,9 @@ def test_mapex_paints_only_unknown_cells_near_predicted_nodes(maze):
 
 def test_a_missing_checkpoint_is_an_error(tmp_path):
     with pytest.raises(FileNotFoundError, match=r"inpainter\.pt: file not found \(expected an inpainter export\)"):
-        make_planner("guide_tsp", checkpoint="/nonexistent/inpainter.pt")
+        make_planner("guide_tsp", inpainter_file="/nonexistent/inpainter.pt")
     with pytest.raises(FileNotFoundError, match=r"a folder, not a file"):
-        make_planner("mapex", checkpoint=str(tmp_path))
+        make_planner("mapex", inpainter_file=str(tmp_path))
 
 
 def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
@@ -201,12 +201,12 @@ def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank)
-        make_planner("dare", checkpoint=str(SHIPPED_POLICY["dare"]), threshold=0.3)  # predicts nothing: no tau to match
+        make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank)
+        make_planner("dare", policy_file=str(SHIPPED_POLICY["dare"]), threshold=0.3)  # predicts nothing: no tau to match
     with pytest.warns(UserWarning, match=r"tau 0.8 \(utility count at 0.5\); this planner builds them at 0.5 \(0.5\)"):
-        make_planner("guide", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, threshold=0.5)
+        make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, threshold=0.5)
     with pytest.warns(UserWarning, match=r"at 0.8 \(0.3\)"):
-        make_planner("guide_noregion", checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, count_threshold=0.3)
+        make_planner("guide_noregion", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, count_threshold=0.3)
 
 
 SHIPPED_INPAINTER = defaults.SHIPPED_INPAINTER
@@ -236,12 +236,12 @@ def test_predictor_planners_warn_when_their_inpainter_was_trained_at_another_pro
     halved = Protocol(node_resolution=2.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        make_planner(name, checkpoint=str(SHIPPED_INPAINTER)).reset(maze, PROTOCOL, 0)
+        make_planner(name, inpainter_file=str(SHIPPED_INPAINTER)).reset(maze, PROTOCOL, 0)
     expected = re.escape(f"{SHIPPED_INPAINTER} was trained at other protocol values (node_resolution 4 -> 2)")
     with pytest.warns(ProtocolMismatchWarning, match=expected):
-        make_planner(name, checkpoint=str(SHIPPED_INPAINTER)).reset(maze, halved, 0)
+        make_planner(name, inpainter_file=str(SHIPPED_INPAINTER)).reset(maze, halved, 0)
     recorded = copy_with_protocol(SHIPPED_INPAINTER, tmp_path / "inpainter_2m.pt", halved)
-    planner = make_planner(name, checkpoint=str(recorded))
+    planner = make_planner(name, inpainter_file=str(recorded))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         planner.reset(maze, halved, 0)
@@ -259,7 +259,7 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     wide = Protocol(sensor_range=30.0, utility_range=15.0)
     policy = copy_with_protocol(SHIPPED_POLICY["guide"], tmp_path / "policy_30m.pt", wide, "observations")
-    planner = make_planner("guide", checkpoint=str(policy), inpaint=blank)
+    planner = make_planner("guide", policy_file=str(policy), inpaint=blank)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         planner.reset(maze, wide, 0)
@@ -277,9 +277,9 @@ def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_poli
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     option = GlobalGraphConfig(centroid_links=1, max_nodes=7, use_region_evaluation=not region_evaluation)
-    planner = make_planner(name, checkpoint=str(SHIPPED_POLICY["guide"]), inpaint=blank, global_graph=option)
+    planner = make_planner(name, policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, global_graph=option)
     planner.reset(maze, PROTOCOL, 0)
     config = planner.global_graph.config
     assert config.centroid_links == 1
     assert config.use_region_evaluation is region_evaluation
-    assert config.max_nodes == planner.diffusion.config.max_nodes
+    assert config.max_nodes == planner.policy.config.max_nodes

@@ -9,7 +9,7 @@ import pytest
 
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
-from pipeline.planners.extensions.sliver_gate import (
+from pipeline.models.sliver_gate import (
     FEATURES,
     SliverGate,
     fit_sliver_gate,

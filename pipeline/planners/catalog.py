@@ -1,0 +1,76 @@
+"""The registered `guide`, `guide_noregion` and `dare`: GUIDE's policy (`pipeline.planners.guide`)
+with our additions around it (`pipeline.planners.extensions`).
+
+This module sits above both: the paper's planner knows nothing of the additions, and each
+addition only of what it wraps. `mode=tour` (the default) is the tour vote around the paper's
+policy; `mode=policy` is the paper's policy driving, with several ranked samples and the stall
+hand-over around it (`candidates=1` and a large `stall_steps` leave the paper's own planner).
+The sliver gate is a fitted model any lattice planner's target rule consults
+(`pipeline.models.sliver_gate`), on by default here as for `guide_tsp`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pipeline.planners.config import option
+from pipeline.planners.extensions.lookahead import LookaheadConfig
+from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig
+from pipeline.planners.extensions.stall_handover import StallHandover, StallHandoverConfig
+from pipeline.planners.extensions.tour_vote import TourVote, TourVoteConfig
+from pipeline.planners.guide.configuration_guide import DareConfig, GuideConfig, GuideNoRegionConfig
+from pipeline.planners.guide.configuration_guide_tsp import TourOptions
+from pipeline.planners.guide.guide import GuidePlanner
+from pipeline.planners.registry import register_planner
+from pipeline.prediction.node_predictor import InpaintFn
+from pipeline.world.planner import Planner
+
+MODES = ("tour", "policy")
+
+
+@dataclass(frozen=True)
+class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig):
+    """Every option of the registered `guide`: the paper's (`GuideConfig`) and each addition's."""
+
+    composition = ("the tour vote (extensions/tour_vote.py) around GUIDE's policy (guide/guide.py); mode=policy: "
+                   "ranked plans and the stall hand-over (extensions/) around it")
+    renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file", "block_model": "block_model_file"}
+
+    mode: str = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
+                               "policy: the sampled plans are driven (the paper's)")
+
+    def check(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be tour or policy, got {self.mode!r}")
+        if self.lookahead and self.mode != "tour":
+            raise ValueError(f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode {self.mode}")
+        super().check()
+
+
+@dataclass(frozen=True)
+class GuideNoRegionOptions(GuideOptions, GuideNoRegionConfig):
+    pass
+
+
+@dataclass(frozen=True)
+class DareOptions(GuideOptions, DareConfig):
+    sliver_gate: bool = option(False, "consider first only the targets the sliver gate calls big (off: DARE as "
+                                      "published)")
+
+
+def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=None) -> Planner:
+    """The planner `options` describe: the tour vote (mode tour) or the ranked, stall-guarded
+    policy (mode policy), around the paper's `GuidePlanner`."""
+    paper = GuidePlanner(options, inpaint=inpaint, policy=policy)
+    if options.mode == "tour":
+        return TourVote(paper, options, options, options, options.candidates, options.description)
+    planner = StallHandover(RankedPlans(paper, options.candidates), options.stall_steps)
+    planner.description = (f"{options.description} [mode policy; {options.candidates} ranked samples, stall hand-over "
+                           f"after {options.stall_steps}; policy {paper.policy_source}; {paper.predictor_source}; "
+                           f"{paper.gate_source}; K={paper.num_inference_steps}]")
+    return planner
+
+
+register_planner("guide", GuideOptions)(build_guide)
+register_planner("guide_noregion", GuideNoRegionOptions)(build_guide)
+register_planner("dare", DareOptions)(build_guide)
