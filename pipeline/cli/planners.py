@@ -28,6 +28,8 @@ def planners(
         except UnknownPlannerError as error:
             fail(str(error))
         typer.echo(f"{options}: {config.description}")
+        if config.composition:
+            typer.echo(f"  built as: {config.composition}")
         for info in config.options():
             if info.kinds is None:
                 continue  # a Python object: not set from a spec

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pipeline.planners.config import option
+from pipeline.planners.config import OptionInfo, option
 from pipeline.planners.extensions.lookahead import LookaheadConfig
 from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig
 from pipeline.planners.extensions.stall_handover import StallHandover, StallHandoverConfig
@@ -38,6 +38,13 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
 
     mode: str = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
                                "policy: the sampled plans are driven (the paper's)")
+
+    @classmethod
+    def options(cls) -> list[OptionInfo]:
+        """The paper's options first (`GuideConfig`), then the mode and each addition's."""
+        paper = {info.name for info in GuideConfig.options()}
+        every = super().options()
+        return [i for i in every if i.name in paper] + [i for i in every if i.name not in paper]
 
     def check(self) -> None:
         if self.mode not in MODES:

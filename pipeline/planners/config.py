@@ -38,6 +38,7 @@ class PlannerConfig:
 
     name: ClassVar[str] = ""  # the registered name (set by `register_planner`)
     description: ClassVar[str] = ""
+    composition: ClassVar[str] = ""  # what the planner is built of, where it wraps others (one line)
     uses_ground_truth: ClassVar[bool] = False  # an oracle: sees the ground truth (a reference or a bound)
     ignores_motion_rule: ClassVar[bool] = False  # moves through unobserved free space (the `optimal` reference only)
     needs_policy: ClassVar[bool] = False  # runs a trained diffusion policy (models/ or the shipped default)

@@ -10,8 +10,8 @@ import numpy as np
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
-from pipeline.planners.config import PlannerConfig, option
 from pipeline.models.sliver_gate import SliverGate, load_gate
+from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.options import check_int, require
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, Waypoint

@@ -19,7 +19,13 @@ from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
-from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, InpaintFn, NodePredictor, NodePredictorConfig
+from pipeline.prediction.node_predictor import (
+    DEFAULT_COUNT_THRESHOLD,
+    DEFAULT_THRESHOLD,
+    InpaintFn,
+    NodePredictor,
+    NodePredictorConfig,
+)
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences

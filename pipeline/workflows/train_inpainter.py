@@ -17,12 +17,9 @@ from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, REPORTS
 from pipeline.data.shards import read_manifest
 from pipeline.models import InpainterConfig, TracedInpainter
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
-from pipeline.training.inpainter import (
-    TrainConfig,
-    evaluate_inpainter,
-    split_pairs,
-    train_inpainter,
-)
+from pipeline.training.inpainter import TrainConfig, train_inpainter
+from pipeline.training.inpainter_data import split_pairs
+from pipeline.training.inpainter_losses import evaluate_inpainter
 from pipeline.training.run_setup import resume_point, start_afresh
 from pipeline.world.protocol import Protocol
 

@@ -15,23 +15,18 @@ from import_graph import ROOT
 from pipeline.data.shards import write_shard
 from pipeline.models import InpainterConfig, InpainterModel
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
-from pipeline.training.inpainter import (
+from pipeline.training.inpainter import TrainConfig, read_init_checkpoint, train_inpainter
+from pipeline.training.inpainter_data import (
     NodeImagePairDataset,
     SizeGroupedBatchSampler,
-    TrainConfig,
     dihedral,
-    evaluate_inpainter,
     hide_box,
-    hole_counts,
-    inpainting_loss,
     maze_count,
     maze_ids,
     pair_count,
-    precision_recall_f1,
-    read_init_checkpoint,
     split_pairs,
-    train_inpainter,
 )
+from pipeline.training.inpainter_losses import evaluate_inpainter, hole_counts, inpainting_loss, precision_recall_f1
 from pipeline.training.run_setup import PREVIOUS_CHECKPOINTS
 from pipeline.world.protocol import Protocol
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from pipeline.models.modeling_block_model import BlockModel
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
-from pipeline.planners.extensions.rollout_worker import JobContext, RolloutWorker
 from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.extensions.rollout_worker import JobContext, RolloutWorker
 from pipeline.planners.graph_planner import GraphPlanner
 from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.block_maps import block_index, block_shares, drawn_world, exit_steps, imagined_free

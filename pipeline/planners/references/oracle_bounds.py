@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.models.sliver_gate import TrueGain
 from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.models.sliver_gate import TrueGain
 from pipeline.planners.options import check_int, require
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner
