@@ -17,10 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.planners.references.coverage import coverage_model, run_oracle_episode
+from pipeline.planners import make_planner
+from pipeline.planners.references.coverage import run_oracle_episode
+from pipeline.planners.references.coverage_model import coverage_model
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
 

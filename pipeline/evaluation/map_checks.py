@@ -11,7 +11,7 @@ import math
 import cv2
 import numpy as np
 
-from pipeline.planners.references.coverage import unobservable_free_cells
+from pipeline.planners.references.coverage_model import unobservable_free_cells
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import DEFAULT_ANGLES

@@ -26,12 +26,11 @@ from pipeline.planners.options import check_int, check_number
 from pipeline.planners.references.coverage import (
     DEFAULT_LNS_ITERATIONS,
     DEFAULT_RESTARTS,
-    CoverageModel,
     CoveragePlan,
-    coverage_model,
     coverage_plan,
     plan_coverage,
 )
+from pipeline.planners.references.coverage_model import CoverageModel, coverage_model
 from pipeline.planners.registry import register_planner
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap

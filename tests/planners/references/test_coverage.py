@@ -10,6 +10,7 @@ import pytest
 
 from pipeline.lattice import tsp
 from pipeline.planners.references import coverage as cov
+from pipeline.planners.references import coverage_model as cm
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.lattice.graph import WINDOW_RADIUS
 from pipeline.world.maps import load_maze_png
@@ -58,7 +59,7 @@ def unseen_after(ground_truth, points) -> int:
 
 # --------------------------------------------------------------------------- the model
 def test_ground_truth_graph_edges_are_exactly_the_free_segments(maze):
-    graph = cov.ground_truth_graph(maze, PROTOCOL)
+    graph = cm.ground_truth_graph(maze, PROTOCOL)
     free_nodes = maze.free.reshape(-1)[graph.node_flat]
     for (a, b), valid in zip(graph.edge_nodes, graph.edge_valid):
         expected = bool(free_nodes[a] and free_nodes[b]) and segment_is_known_free(
@@ -68,7 +69,7 @@ def test_ground_truth_graph_edges_are_exactly_the_free_segments(maze):
 
 
 def test_node_scans_are_the_protocol_sensor(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
+    model = cm.coverage_model(maze, PROTOCOL)
     assert model.nodes[model.start] == model.start_node
     assert tuple(model.node_cells[model.start]) == tuple(maze.start_cell)
     for k in range(0, model.node_count, max(1, model.node_count // 7)):
@@ -79,7 +80,7 @@ def test_node_scans_are_the_protocol_sensor(maze):
 
 
 def test_all_pairs_paths_follow_ground_truth_edges(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
+    model = cm.coverage_model(maze, PROTOCOL)
     rng = np.random.default_rng(0)
     for a, b in rng.integers(0, model.node_count, size=(20, 2)):
         path = model.path(int(a), int(b))
@@ -90,15 +91,15 @@ def test_all_pairs_paths_follow_ground_truth_edges(maze):
 
 
 def test_model_is_cached_per_map_and_protocol(small_maze):
-    assert cov.coverage_model(small_maze, PROTOCOL) is cov.coverage_model(small_maze, PROTOCOL)
+    assert cm.coverage_model(small_maze, PROTOCOL) is cm.coverage_model(small_maze, PROTOCOL)
     other = Protocol(done_unknown_cells=10)
-    assert cov.coverage_model(small_maze, other) is not cov.coverage_model(small_maze, PROTOCOL)
+    assert cm.coverage_model(small_maze, other) is not cm.coverage_model(small_maze, PROTOCOL)
 
 
 # --------------------------------------------------------------------------- covers
 def test_greedy_cover_covers_as_needed_not_more(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
-    objective = cov.CoverageObjective(model, cov.uncovered_after_scan(model, model.start))
+    model = cm.coverage_model(maze, PROTOCOL)
+    objective = cm.CoverageObjective(model, cov.uncovered_after_scan(model, model.start))
     for seed in range(3):
         chosen = cov.greedy_cover(objective, model.start, np.random.default_rng(seed), tolerance=0.2 * seed)
         points = [(0.0, 0.0)] + [tuple(model.world[v]) for v in chosen]
@@ -108,7 +109,7 @@ def test_greedy_cover_covers_as_needed_not_more(maze):
 
 
 def test_choose_viewpoints_with_the_path_scans_complete(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
+    model = cm.coverage_model(maze, PROTOCOL)
     viewpoints = cov.choose_viewpoints(model, seed=0, **FAST)
     order = [model.start] + [int(model.local[v]) for v in viewpoints]
     path = model.expand(order)
@@ -116,8 +117,8 @@ def test_choose_viewpoints_with_the_path_scans_complete(maze):
 
 
 def test_objective_simulation_matches_the_sensor(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
-    objective = cov.CoverageObjective(model, cov.uncovered_after_scan(model, model.start))
+    model = cm.coverage_model(maze, PROTOCOL)
+    objective = cm.CoverageObjective(model, cov.uncovered_after_scan(model, model.start))
     rng = np.random.default_rng(1)
     path = model.expand([model.start] + [int(v) for v in rng.integers(0, model.node_count, size=3)])
     needed, length, remaining = objective.simulate(path)
@@ -129,19 +130,19 @@ def test_objective_simulation_matches_the_sensor(maze):
 def test_pack_bits_puts_bit_j_in_word_j_over_64():
     rows = np.zeros((2, 130), dtype=bool)
     rows[0, [0, 63, 64, 129]] = True
-    bits = cov.pack_bits(rows)
+    bits = cm.pack_bits(rows)
     assert bits.shape == (2, 3) and bits.dtype == np.uint64
     assert bits[0].tolist() == [1 | (1 << 63), 1, 2] and not bits[1].any()
 
 
 def test_objective_counts_only_uncovered_cells_and_survives_an_empty_set(maze):
-    model = cov.coverage_model(maze, PROTOCOL)
+    model = cm.coverage_model(maze, PROTOCOL)
     uncovered = cov.uncovered_after_scan(model, model.start)
-    objective = cov.CoverageObjective(model, uncovered)
+    objective = cm.CoverageObjective(model, uncovered)
     # A node's gain is exactly its scan's uncovered cells (bits of covered cells are masked out).
     expected = [int(uncovered[model.row(k)].sum()) for k in range(model.node_count)]
     assert objective.gain.tolist() == expected
-    empty = cov.CoverageObjective(model, np.zeros_like(uncovered))
+    empty = cm.CoverageObjective(model, np.zeros_like(uncovered))
     assert empty.total == 0 and not empty.gain.any()
     assert empty.simulate([model.start])[2] == 0
 
@@ -164,7 +165,7 @@ def test_open_tsp_exact_for_small_instances(n):
 
 def test_open_tsp_heuristic_on_graph_distances(small_maze):
     """Lin-Kernighan + 2-opt/or-opt (forced): a permutation from 0, near the exact optimum."""
-    model = cov.coverage_model(small_maze, PROTOCOL)
+    model = cm.coverage_model(small_maze, PROTOCOL)
     rng = np.random.default_rng(0)
     for _ in range(5):
         nodes = [model.start] + [int(v) for v in rng.choice(model.node_count, size=9, replace=False) if v != model.start]
@@ -177,7 +178,7 @@ def test_open_tsp_heuristic_on_graph_distances(small_maze):
 
 def test_open_tsp_lin_kernighan_terminates_where_float_lengths_loop(small_maze):
     """python-tsp's Lin-Kernighan never stopped on this instance with float lengths."""
-    model = cov.coverage_model(small_maze, PROTOCOL)
+    model = cm.coverage_model(small_maze, PROTOCOL)
     nodes = [1, 28, 19, 55, 33, 0, 32, 62, 49, 26, 24, 30, 45, 14, 18, 53, 69, 5, 63, 51]
     nodes = [v for v in nodes if v < model.node_count]
     dist = model.dist[np.ix_(nodes, nodes)]
@@ -267,10 +268,10 @@ def test_unobservable_free_cells_are_those_no_reachable_scan_reveals():
     ground_truth = diagonal_pocket_map()
     protocol = Protocol(node_resolution=2.0, sensor_range=8.0, utility_range=4.0)
     assert unreachable_free_cells(ground_truth) == 0  # the corner joins them for 8-connectivity
-    assert cov.unobservable_free_cells(ground_truth, protocol) == 100
-    model = cov.CoverageModel(ground_truth, protocol)
+    assert cm.unobservable_free_cells(ground_truth, protocol) == 100
+    model = cm.CoverageModel(ground_truth, protocol)
     assert model.free_cell_count - len(model.cells) == 100
 
 
 def test_a_maze_has_no_unobservable_free_cells(generated_maze):
-    assert cov.unobservable_free_cells(generated_maze, Protocol()) == 0
+    assert cm.unobservable_free_cells(generated_maze, Protocol()) == 0
