@@ -23,6 +23,7 @@ from pipeline.cli.options import (
     protocol,
     warn,
 )
+from pipeline.planners.matched_models import model_files
 from pipeline.workflows import explore as exploration
 from pipeline.world.maps import MapError
 
@@ -59,6 +60,9 @@ def explore(
         warn(problem)
     run.planner.check_protocol(run.protocol)  # before the progress bar, which a warning from inside the episode would cut
     typer.echo(f"{run.label}: {run.planner.description}")
+    files = model_files(run.planner)
+    if files:
+        typer.echo(f"models: {', '.join(files)}")
     result, written = exploration.run(run, seed=seed, gif=gif, progress=progress, start=start)
     typer.echo(exploration.summary_line(run, result))
     typer.echo("wrote " + ", ".join(str(path) for path in written))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -63,10 +64,11 @@ class GraphPlanner(Planner):
         self.graph: LatticeGraph | None = None
         self.rng = np.random.default_rng(0)
         self.gate: SliverGate | None = None
+        self.gate_path: Path | None = None
         self.gate_source = "no sliver gate"
         if getattr(config, "sliver_gate", False):
             path = resolve_gate_path(config.gate_file)
-            self.gate = load_gate(path)[0]
+            self.gate, self.gate_path = load_gate(path)[0], path
             self.gate_source = f"sliver gate {path if path != SHIPPED_GATE else '(shipped)'}"
             # Which gate a run used belongs in its run.json: gated routes move with the gate's fit.
             self.description = f"{self.description} [{self.gate_source}]"

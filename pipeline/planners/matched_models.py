@@ -91,3 +91,11 @@ class ProtocolMatchedModels(Planner):
             object.__setattr__(self, attribute, value)
         else:
             setattr(self.inner, attribute, value)
+
+
+def model_files(planner: Planner) -> list[str]:
+    """Every trained model file `planner` runs (through any wrapper): its policy and inpainter
+    (`trained_models`, as the protocol check sees them), then its sliver gate."""
+    files = [str(path) for path, _ in getattr(planner, "trained_models", [])]
+    gate = getattr(planner, "gate_path", None)
+    return files + ([str(gate)] if gate is not None else [])

@@ -427,3 +427,23 @@ def test_eval_predictor_says_when_no_exploration_reaches_a_step(tmp_path):
     assert pd.read_csv(tmp_path / "p" / "precision.csv")["maps"].eq(0).all()
     nan = runner.invoke(app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "q"), "--threshold", "nan"])
     assert _one_error_line(nan) == "error: --threshold must be a probability in [0, 1], got nan"
+
+
+def test_explore_prints_every_model_file_the_planner_runs(small_maze_path, tmp_path):
+    result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "guide_tsp", "--out",
+                                 str(tmp_path / "o"), "--max-steps", "2", "--no-progress"])
+    (line,) = [line for line in result.output.splitlines() if line.startswith("models: ")]
+    files = line.removeprefix("models: ").split(", ")
+    assert [name.rsplit("/", 1)[-1] for name in files] == ["inpainter.pt", "sliver_gate.json"]
+    plain = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "nearest_frontier", "--out",
+                                str(tmp_path / "p"), "--max-steps", "2", "--no-progress"])
+    assert "models: " not in plain.output  # no trained model: no line
+
+
+def test_planners_options_says_what_guide_is_built_of():
+    result = runner.invoke(app, ["planners", "--options", "guide"])
+    assert result.exit_code == 0
+    (line,) = [line for line in result.output.splitlines() if "built as:" in line]
+    assert "tour vote" in line and "guide/guide.py" in line
+    names = [line.split(" = ")[0].strip() for line in result.output.splitlines() if line.startswith("  ") and " = " in line]
+    assert names[:2] == ["min_utility", "inpainter_file"] and "policy_file" in names[:8]  # the paper's options first
