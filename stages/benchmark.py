@@ -12,7 +12,7 @@ from pathlib import Path
 
 from pipeline.common.params import complete_section, load_params
 from pipeline.common.settings import Fields, ListOf, Maybe, Satisfies, Whole, check_stage, keys_of, positive
-from pipeline.evaluation.benchmark import resolve_planner_specs
+from pipeline.planners.specs import resolve_planner_specs
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.benchmark import benchmark_test_mazes
 from pipeline.world.protocol import Protocol

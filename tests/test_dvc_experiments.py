@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
 from import_graph import ROOT
-from pipeline.evaluation.benchmark import parse_planner_spec
 from tiny_project import dvc, git
+
+from pipeline.planners.specs import parse_planner_spec
 
 HEADLINE = "reports/metrics.json"
 HEADLINE_GROUPS = {"precision", "seconds", "distil"}

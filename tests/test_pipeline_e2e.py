@@ -5,9 +5,9 @@ import subprocess
 
 import pytest
 import yaml
-
-from pipeline.evaluation.benchmark import parse_planner_spec
 from tiny_project import dvc_env, make_tiny_project
+
+from pipeline.planners.specs import parse_planner_spec
 
 # The README's advice for maps at other protocol values: set them in params.yaml and rerun. A lattice
 # and sensor half the maze benchmark's must run end to end and give models that record them.
@@ -49,9 +49,9 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()
-    from pipeline.world.protocol import Protocol
-    from pipeline.models.modeling_inpainter import read_inpainter_export
     from pipeline.models.modeling_diffusion import read_policy_export
+    from pipeline.models.modeling_inpainter import read_inpainter_export
+    from pipeline.world.protocol import Protocol
 
     trained_at = Protocol.from_dict(params["protocol"]).to_dict()
     assert read_inpainter_export(project / "models/inpainter/inpainter.pt")["protocol"] == trained_at

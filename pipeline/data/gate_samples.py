@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.models.sliver_gate import TrueGain, gate_features
+from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
@@ -28,10 +27,9 @@ from pipeline.evaluation.exploration_curves import (
 )
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
 from pipeline.models.exports import require_file
-from pipeline.planners.config import SPEC_KINDS, OptionInfo
-from pipeline.planners.registry import accepted_options, make_planner, planner_config
+from pipeline.planners.registry import make_planner, planner_config
+from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
-from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import (
@@ -47,124 +45,6 @@ RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and model
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
 OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
-_LABEL = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")  # a label names a folder and an MLflow run
-
-
-@dataclass(frozen=True)
-class PlannerSpec:
-    """A registered planner under a label, built with keyword options (`make_planner(name, **options)`)."""
-
-    label: str
-    name: str
-    options: dict[str, Any] = field(default_factory=dict, hash=False)
-
-    def __str__(self) -> str:
-        if not self.options and self.label == self.name:
-            return self.name
-        text = f"{self.label}={self.name}"
-        if self.options:
-            text += ":" + ",".join(f"{key}={value}" for key, value in self.options.items())
-        return text
-
-
-def parse_option_value(text: str) -> Any:
-    """'10' -> 10, '0.5' -> 0.5, 'true'/'false' (any case) -> bool, anything else stays a string."""
-    lowered = text.lower()
-    if lowered in ("true", "false"):
-        return lowered == "true"
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
-
-
-def parse_planner_spec(text: str) -> PlannerSpec:
-    """Parse "name" or "label=name:key=value,key=value" (e.g. "guide_k10=guide:num_inference_steps=10").
-
-    "label=name" without options is an alias. Values are parsed as int, float, bool or str.
-    Only the syntax is checked here; `run_benchmark` checks that the name is registered
-    and that the planner accepts the options. Raises ValueError naming the problem.
-    """
-    if not isinstance(text, str) or not text.strip():
-        raise ValueError(f"empty planner spec {text!r}; expected 'name' or 'label=name:key=value,...'")
-    raw = text.strip()
-    head, colon, tail = raw.partition(":")
-    if "=" in head:
-        label, _, name = (part.strip() for part in head.partition("="))
-    elif colon:
-        raise ValueError(
-            f"planner spec {raw!r}: a planner with options needs a label, e.g. '{head.strip()}_v1={raw}'"
-        )
-    else:
-        label = name = head.strip()
-    if not label or not _LABEL.match(label):
-        raise ValueError(
-            f"planner spec {raw!r}: label {label!r} must be letters, digits, '_', '-' or '.' (it names a folder)"
-        )
-    if label.lower() in OUTPUT_FILES or label.lower().endswith(".tmp"):
-        raise ValueError(f"planner spec {raw!r}: label {label!r} is the name of a benchmark output file; pick another")
-    if not name or not name.isidentifier() or name != name.lower():
-        raise ValueError(f"planner spec {raw!r}: planner name {name!r} must be a lower-case identifier")
-    options: dict[str, Any] = {}
-    if colon:
-        if not tail.strip():
-            raise ValueError(f"planner spec {raw!r}: nothing after ':'; expected key=value[,key=value]")
-        for item in tail.split(","):
-            key, equals, value = (part.strip() for part in item.partition("="))
-            if not equals or not key or not value:
-                raise ValueError(f"planner spec {raw!r}: option {item.strip()!r} is not key=value")
-            if not key.isidentifier():
-                raise ValueError(f"planner spec {raw!r}: option name {key!r} is not an identifier")
-            if key in options:
-                raise ValueError(f"planner spec {raw!r}: option {key!r} is given twice")
-            options[key] = parse_option_value(value)
-    return PlannerSpec(label, name, options)
-
-
-def check_option_value(key: str, value: Any, info: OptionInfo) -> None:
-    """ValueError when a spec's value is not of a kind the option's annotation allows."""
-    kinds = info.kinds
-    if kinds is None:
-        raise ValueError(f"option {key!r} takes a Python object; set it from Python, not a spec")
-    kind = "bool" if isinstance(value, bool) else type(value).__name__
-    if kind == "float" and not math.isfinite(value):
-        raise ValueError(f"option {key}={value!r} must be a finite number")
-    if kind in kinds or (kind == "int" and "float" in kinds):
-        return
-    wanted = {"bool": "true or false", "int": "an integer", "float": "a number", "str": "text"}
-    expected = " or ".join(wanted[k] for k in SPEC_KINDS if k in kinds)
-    raise ValueError(f"option {key}={value!r} must be {expected}")
-
-
-def resolve_planner_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
-    """Parse every entry, check the names are registered (KeyError listing the known ones),
-    the options are the planner's config's with values of the right kind, and the labels are
-    unique (ValueError). The values themselves are checked by the configs: `build_planner`."""
-    specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
-    seen: set[str] = set()
-    for spec in specs:
-        planner_config(spec.name)  # unknown names fail here, with the list of known ones
-        if spec.label in seen:
-            raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
-        seen.add(spec.label)
-        if not spec.options:
-            continue
-        accepted = accepted_options(spec.name, spec.options)
-        unknown = sorted(set(spec.options) - set(accepted))
-        if unknown:
-            settable = [name for name, info in accepted.items() if info.kinds is not None]
-            raise ValueError(
-                f"planner {spec.label!r}: {spec.name} has no option {', '.join(unknown)}; "
-                f"it accepts: {', '.join(settable) or 'no options'}"
-            )
-        try:
-            for key, value in spec.options.items():
-                check_option_value(key, value, accepted[key])
-        except ValueError as error:
-            raise ValueError(_option_error(spec, error)) from None
-    return specs
 
 
 def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> list[str]:
@@ -190,21 +70,6 @@ def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> l
             "(guide_tsp and mapex take an inpainter as label=name:inpainter_file=PATH)"
         )
     return out
-
-
-def build_planner(spec: PlannerSpec) -> Planner:
-    """The planner a resolved spec names; a value its constructor refuses is a ValueError naming the label."""
-    try:
-        return make_planner(spec.name, **spec.options)
-    except (TypeError, ValueError) as error:
-        raise ValueError(_option_error(spec, error)) from None
-
-
-def _option_error(spec: PlannerSpec, error: Exception) -> str:
-    message = f"planner {spec.label!r}: {error}"
-    if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
-        message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
-    return message
 
 
 @dataclass(frozen=True)
@@ -282,7 +147,7 @@ def run_benchmark(
     """
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
-    specs = resolve_planner_specs(planners)
+    specs = resolve_planner_specs(planners, OUTPUT_FILES)
     built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
     names, cell_sizes, loaded = [], set(), {}
     for path in map_paths:

@@ -16,12 +16,12 @@ from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
     DEFAULT_BASELINE,
-    parse_planner_spec,
     run_benchmark,
     summarise,
     with_policy_checkpoint,
 )
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.planners.specs import parse_planner_spec
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark

@@ -45,8 +45,8 @@ from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.training.policy import train_planner
 from pipeline.training.run_setup import resume_point, start_afresh
-from pipeline.world.mazes import MazeConfig, generate_maze_set
 from pipeline.workflows.stage_inputs import generated_maps
+from pipeline.world.mazes import MazeConfig, generate_maze_set
 from pipeline.world.protocol import Protocol
 
 BASELINE = "greedy_utility"

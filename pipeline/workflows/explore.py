@@ -10,8 +10,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from pipeline.common.atomic import atomic_write_text
-from pipeline.evaluation.benchmark import build_planner, resolve_planner_specs, with_policy_checkpoint
+from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
+from pipeline.planners.specs import build_planner, resolve_planner_specs
 from pipeline.reporting.render import EpisodeRecorder, render_final
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map

@@ -12,8 +12,9 @@ import pandas as pd
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.paths import DATA, REPORTS
-from pipeline.evaluation.benchmark import PlannerSpec, run_benchmark
+from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.planners.specs import PlannerSpec
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.report import (
     log_tables_to_mlflow,

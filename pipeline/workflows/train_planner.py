@@ -8,8 +8,8 @@ from pathlib import Path
 from pipeline.common.atomic import atomic_file, atomic_write_json
 from pipeline.common.fingerprints import files_digest, settings_digest
 from pipeline.common.paths import CHECKPOINTS, POLICIES
-from pipeline.models.modeling_diffusion import load_policy
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.modeling_diffusion import load_policy
 from pipeline.training.policy import PlannerTrainConfig, train_planner
 from pipeline.training.run_setup import resume_point, start_afresh
 

@@ -3,11 +3,10 @@ import pandas as pd
 import pytest
 
 from pipeline.evaluation.benchmark import run_benchmark
-from pipeline.world.maps import MapError, list_maps
+from pipeline.world.maps import MapError, list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay
 from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv
-from pipeline.world.maps import load_map
 
 
 def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_path):
@@ -77,7 +76,8 @@ def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
 
 
 def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze_path):
-    from pipeline.evaluation.benchmark import EpisodeTask, PlannerSpec, resolve_planner_specs, run_task
+    from pipeline.evaluation.benchmark import EpisodeTask, run_task
+    from pipeline.planners.specs import PlannerSpec, resolve_planner_specs
 
     plain = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0)
     assert plain.label == "nearest_frontier" and plain.options == {}

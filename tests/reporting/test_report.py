@@ -11,11 +11,12 @@ import pandas as pd
 import pytest
 import yaml
 
-from pipeline.reporting import report as reports
-from pipeline.evaluation.benchmark import PlannerSpec, parse_planner_spec, run_benchmark
-from pipeline.world.protocol import Protocol
+from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import SpeedModel, episode_table, planner_table, step_record
+from pipeline.planners.specs import PlannerSpec, parse_planner_spec
+from pipeline.reporting import report as reports
 from pipeline.world.maps import load_maze_png
+from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay
 from pipeline.world.trajectories import (
     METRICS_COLUMNS,
@@ -101,7 +102,7 @@ def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path, 
 
 
 def test_oracle_bound_specs_reach_their_base_planner():
-    from pipeline.evaluation.benchmark import build_planner, resolve_planner_specs
+    from pipeline.planners.specs import build_planner, resolve_planner_specs
 
     (spec,) = resolve_planner_specs(["t=oracle_tail:base=greedy_utility,sliver_gate=true,handover_cells=10"])
     planner = build_planner(spec)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from pipeline.planners.references import coverage as cov
-from pipeline.planners.references import coverage_model as cm
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
