@@ -71,7 +71,7 @@ def benchmark(
         frame = benchmark_folder(maps, list(planner), rules, out, workers=workers, seed=seed, baseline=baseline,
                                  start=start, checkpoint=checkpoint, tracking_uri=tracking_uri,
                                  experiment=experiment, mlflow=mlflow_log, warn=warn,
-                                 speed=speed)
+                                 speed=speed).frame
     except BenchmarkInterrupted as stop:
         kept = f"; {out}/metrics.csv and summary.md hold them" if stop.done else ""
         typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}", err=True)

@@ -1,9 +1,15 @@
-"""Benchmark many maps x planners in parallel processes and write docs/protocol.md's outputs."""
+"""Benchmark many maps x planners in parallel processes and write docs/protocol.md's outputs.
+
+Data makes one trip: each map is loaded once and each planner built once per benchmark, in the
+main process, before the episodes (the checks need them); worker processes, forked from it,
+take both from there, and a planner is reset for each of its episodes. The episodes' metrics,
+per-step records, exploration table and summary are computed once, in memory, written once and
+handed back (`BenchmarkRun`) for the figures and the MLflow runs.
+"""
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import warnings
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -13,7 +19,6 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 import pandas as pd
-import scipy.stats
 from tqdm import tqdm
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
@@ -26,10 +31,12 @@ from pipeline.evaluation.exploration_curves import (
     records_from_results,
 )
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
+from pipeline.evaluation.statistics import paired_difference, summarise
 from pipeline.models.exports import require_file
 from pipeline.planners.registry import make_planner, planner_config
 from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
+from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import (
@@ -40,7 +47,6 @@ from pipeline.world.trajectories import (
     write_trajectory_csv,
 )
 
-REFERENCE_PLANNER = "optimal"
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
 OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
@@ -103,15 +109,50 @@ def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]
         seen[name] = path
 
 
+# This process's maps and planners: filled by `run_benchmark` before its workers fork, so that a
+# worker takes them from there; a task run elsewhere loads or builds what it lacks once.
+_MAPS: dict[tuple, tuple[GroundTruthMap, Protocol]] = {}
+_PLANNERS: dict[tuple[str, str], Planner] = {}
+
+
+def task_map(task: EpisodeTask) -> tuple[GroundTruthMap, Protocol]:
+    """The task's map and the protocol it runs under (a ROS map brings its own cell size)."""
+    key = (task.map_path, task.start, task.protocol)
+    if key not in _MAPS:
+        ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
+        _MAPS[key] = ground_truth, protocol_for_map(task.protocol, ground_truth, task.map_path)
+    return _MAPS[key]
+
+
+def task_planner(task: EpisodeTask) -> Planner:
+    """The task's planner, built once per process and reset by each episode."""
+    key = (task.planner, json.dumps(task.options, sort_keys=True, default=str))
+    if key not in _PLANNERS:
+        _PLANNERS[key] = make_planner(task.planner, **task.options)
+    return _PLANNERS[key]
+
+
 def run_task(task: EpisodeTask) -> EpisodeResult:
-    ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
-    protocol = protocol_for_map(task.protocol, ground_truth, task.map_path)
+    ground_truth, protocol = task_map(task)
     with warnings.catch_warnings():
         # run_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        result = run_episode(ground_truth, make_planner(task.planner, **task.options), protocol, seed=task.seed)
+        result = run_episode(ground_truth, task_planner(task), protocol, seed=task.seed)
     result.planner = task.label
     return result
+
+
+@dataclass
+class BenchmarkRun:
+    """What a benchmark made, in memory: metrics.csv's rows (`frame`), each episode's per-step
+    record ({(label, map): record}), exploration.csv's rows, the per-planner summary, and the maps
+    (name -> (map, its protocol, whether the checks before the run found it completable))."""
+
+    frame: pd.DataFrame
+    records: dict[tuple[str, str], dict[str, np.ndarray]]
+    exploration: pd.DataFrame
+    summary: pd.DataFrame
+    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
 
 
 def default_workers() -> int:
@@ -130,8 +171,9 @@ def run_benchmark(
     start: tuple[float, float] | None = None,
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
-) -> pd.DataFrame:
-    """Run every map with every planner; write trajectories, their per-step files, metrics.csv and summary.md.
+) -> BenchmarkRun:
+    """Run every map with every planner; write trajectories, their per-step files, metrics.csv,
+    exploration.csv and summary.md; return them in memory (`BenchmarkRun`).
 
     A planner entry is a registered name or a labelled variant "label=name:key=value,..."
     (see `parse_planner_spec`), or a PlannerSpec; the label is the `planner` column of
@@ -148,11 +190,10 @@ def run_benchmark(
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
     specs = resolve_planner_specs(planners, OUTPUT_FILES)
-    built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read; workers build their own
+    built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read
     names, cell_sizes, loaded = [], set(), {}
     for path in map_paths:
-        ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
-        map_protocol = protocol_for_map(protocol, ground_truth, path)
+        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
         cell_sizes.add(map_protocol.cell_size)  # a ROS map's own
         names.append(ground_truth.name)
         problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
@@ -177,6 +218,8 @@ def run_benchmark(
         for spec in specs
         for p in map_paths
     ]
+    for spec, planner in zip(specs, built):  # the episodes (and forked workers) take these planners
+        _PLANNERS[spec.name, json.dumps(dict(spec.options), sort_keys=True, default=str)] = planner
     workers = default_workers() if workers is None else workers
     results: list[EpisodeResult] = []
     bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress)
@@ -194,14 +237,14 @@ def run_benchmark(
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         bar.close()
         if results:
-            _write_tables(results, out_dir, protocol_record, baseline, speed)
+            _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     bar.close()
-    frame = _write_tables(results, out_dir, protocol_record, baseline, speed)
+    run = _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
     if warn is not None:
-        for hint in failure_hints(frame, loaded):
+        for hint in failure_hints(run.frame, loaded):
             warn(hint)
-    return frame
+    return run
 
 
 def failure_hints(frame: pd.DataFrame, loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]]) -> list[str]:
@@ -231,15 +274,18 @@ class BenchmarkInterrupted(KeyboardInterrupt):
 
 
 def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_record: dict[str, Any],
-                  baseline: str | None, speed: SpeedModel) -> pd.DataFrame:
+                  baseline: str | None, speed: SpeedModel, maps: dict) -> BenchmarkRun:
+    """metrics.csv, exploration.csv and summary.md from the episodes, each computed once."""
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
-    exploration = planner_table(episode_table(records_from_results(results), speed), speed)
+    records = records_from_results(results)
+    exploration = planner_table(episode_table(records, speed), speed)
     with atomic_file(out_dir / EXPLORATION_CSV) as tmp:
         exploration.to_csv(tmp, index=False, float_format="%.6g")
-    atomic_write_text(out_dir / "summary.md", summary_markdown(frame, protocol_record, baseline)
+    summary = summarise(frame)
+    atomic_write_text(out_dir / "summary.md", summary_markdown(frame, protocol_record, baseline, summary)
                       + "\n" + exploration_markdown(exploration))
-    return frame
+    return BenchmarkRun(frame, records, exploration, summary, maps)
 
 
 def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[str, Any]:
@@ -291,57 +337,13 @@ def metrics_frame(results: Sequence[EpisodeResult]) -> pd.DataFrame:
     return frame.sort_values(["planner", "map"]).reset_index(drop=True)
 
 
-def student_t_975(dof: int) -> float:
-    """The two-sided 95 % quantile of Student's t: 1.96 would be 11 % too narrow on 12 maps."""
-    return float(scipy.stats.t.ppf(0.975, dof))
-
-
-def paired_difference(frame: pd.DataFrame, planner: str, baseline: str) -> tuple[float, float, int]:
-    """(mean, 95 % half-width, maps) of planner minus baseline distance over the maps both ran,
-    as fractions of the baseline's mean there; the half-width is Student's t interval. NaNs when they share no map (half-width: < 2 maps).
-
-    Per-maze spread (about 65 m on 100 m mazes) swamps most differences between planners on a
-    handful of mazes; pairing by map removes the mazes' own difficulty, and the interval says
-    which differences the test set can resolve.
-    """
-    by_map = frame.groupby(["planner", "map"])["distance_m"].mean()
-    if planner not in by_map.index.get_level_values(0) or baseline not in by_map.index.get_level_values(0):
-        return float("nan"), float("nan"), 0
-    ours, theirs = by_map.loc[planner], by_map.loc[baseline]
-    maps = ours.index.intersection(theirs.index)
-    base = float(theirs.loc[maps].mean()) if len(maps) else float("nan")
-    if not len(maps) or not base > 0:
-        return float("nan"), float("nan"), 0
-    diff = (ours.loc[maps] - theirs.loc[maps]).astype(float).to_numpy()
-    half = student_t_975(len(diff) - 1) * diff.std(ddof=1) / math.sqrt(len(diff)) / base if len(diff) > 1 else float("nan")
-    return float(diff.mean() / base), float(half), int(len(diff))
-
-
-def summarise(frame: pd.DataFrame) -> pd.DataFrame:
-    """Per planner: mean and std distance, completion rate, decision time."""
-    groups = frame.groupby("planner", sort=True)
-    summary = pd.DataFrame(
-        {
-            "episodes": groups.size(),
-            "completion_rate": groups["complete"].mean(),
-            "distance_mean_m": groups["distance_m"].mean(),
-            "distance_std_m": groups["distance_m"].std(ddof=0),
-            "decision_ms_median": groups["decision_ms_median"].median(),
-            "decision_ms_p95": groups["decision_ms_p95"].median(),
-        }
-    )
-    if REFERENCE_PLANNER in summary.index:
-        # The paper's gap: mean distance over the reference's mean distance, minus one.
-        summary["gap_to_optimal"] = summary["distance_mean_m"] / summary.loc[REFERENCE_PLANNER, "distance_mean_m"] - 1.0
-    return summary.sort_values("distance_mean_m")
-
-
-def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], baseline: str | None = DEFAULT_BASELINE) -> str:
+def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], baseline: str | None = DEFAULT_BASELINE,
+                     summary: pd.DataFrame | None = None) -> str:
     """A markdown table: mean +- std distance, completion rate, decision time per planner, and,
     when `baseline` ran too, each planner's paired difference to it (`paired_difference`).
     `protocol` is a Protocol or its record as the run wrote it (`recorded_protocol`)."""
     fields = protocol.to_dict() if isinstance(protocol, Protocol) else dict(protocol)
-    summary = summarise(frame)
+    summary = summarise(frame) if summary is None else summary
     has_gap = "gap_to_optimal" in summary
     has_paired = bool(baseline) and baseline in summary.index and len(summary) > 1
     gap_head = " gap to optimal |" if has_gap else ""

@@ -92,7 +92,8 @@ def make_config(name: str, **options: Any) -> tuple[PlannerConfig, dict[str, Any
     config = planner_config(name)
     fields, objects, unknown = config.split(options)
     if unknown:
-        settable = [n for n, info in accepted_options(name, options).items() if info.kinds is not None]
+        settable = [n for n, info in accepted_options(name, options).items()
+                    if info.kinds is not None and n not in config.renamed]
         raise ValueError(f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}")
     return config(**fields), objects
 

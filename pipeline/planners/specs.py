@@ -123,7 +123,8 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec], reserved: Seque
         accepted = accepted_options(spec.name, spec.options)
         unknown = sorted(set(spec.options) - set(accepted))
         if unknown:
-            settable = [name for name, info in accepted.items() if info.kinds is not None]
+            renamed = planner_config(spec.name).renamed  # old names: still taken, no longer listed
+            settable = [name for name, info in accepted.items() if info.kinds is not None and name not in renamed]
             raise ValueError(
                 f"planner {spec.label!r}: {spec.name} has no option {', '.join(unknown)}; "
                 f"it accepts: {', '.join(settable) or 'no options'}"

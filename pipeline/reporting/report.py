@@ -19,7 +19,7 @@ import pandas as pd
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 from pipeline.evaluation.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE
-from pipeline.evaluation.benchmark import paired_difference
+from pipeline.evaluation.statistics import paired_difference
 from pipeline.evaluation.predictor_eval import comparison_markdown
 from pipeline.evaluation.predictor_eval import table1_markdown as predictor_table1
 from pipeline.reporting.render import PANEL_GAP_RGB, render_comparison, save_png

@@ -8,21 +8,21 @@ from pathlib import Path
 import pandas as pd
 
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, summarise
+from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, BenchmarkRun
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV
 from pipeline.world.protocol import Protocol
 
 
 def log_benchmark(
-    frame: pd.DataFrame,
+    run: BenchmarkRun,
     out_dir: str | Path,
     protocol: Protocol,
     maps: str,
     tracking_uri: str | None = None,
     experiment: str = "benchmark",
 ) -> list[str]:
-    """One MLflow run per planner: protocol params, the planner's name, options and description
-    (from the benchmark's run.json), summary metrics, the exploration metrics (exploration.csv:
+    """One MLflow run per planner of a benchmark `run` written to `out_dir`: protocol params, the
+    planner's name, options and description (from its run.json), summary metrics, the exploration metrics (exploration.csv:
     distance to 50 / 90 / 99 %, coverage AUC, Table V efficiency), and as artifacts summary.md,
     metrics.csv, exploration.csv and the coverage figure.
 
@@ -32,12 +32,10 @@ def log_benchmark(
     out_dir = Path(out_dir)
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     mlflow.set_experiment(experiment)
-    summary = summarise(frame)
+    summary = run.summary
     record_path = out_dir / RUN_RECORD
     record = json.loads(record_path.read_text()) if record_path.is_file() else {}
-    exploration_path = out_dir / EXPLORATION_CSV
-    exploration = (pd.read_csv(exploration_path).set_index("planner") if exploration_path.is_file()
-                   else pd.DataFrame())
+    exploration = run.exploration.set_index("planner")
     run_ids = []
     for planner, row in summary.iterrows():
         with mlflow.start_run(run_name=str(planner)) as run:

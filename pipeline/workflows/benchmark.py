@@ -8,7 +8,6 @@ import json
 from pathlib import Path
 from typing import Callable
 
-import pandas as pd
 
 from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import check_tracking_uri
@@ -16,17 +15,17 @@ from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
     DEFAULT_BASELINE,
+    BenchmarkRun,
     run_benchmark,
-    summarise,
     with_policy_checkpoint,
 )
-from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.planners.specs import parse_planner_spec
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
-from pipeline.world.maps import MapError, list_maps, load_map
+from pipeline.world.maps import MapError, list_maps
 from pipeline.world.protocol import Protocol
 from pipeline.world.trajectories import read_trajectory_csv
 
@@ -47,7 +46,7 @@ def benchmark_folder(
     mlflow: bool = True,
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
-) -> pd.DataFrame:
+) -> BenchmarkRun:
     """Every map in `maps` with each planner spec; writes OUT's trajectories and their per-step files,
     metrics.csv, summary.md, exploration.csv, the coverage figure and run.json, and logs one MLflow
     run per planner when `mlflow`.
@@ -67,18 +66,18 @@ def benchmark_folder(
         baseline = DEFAULT_BASELINE if DEFAULT_BASELINE in labels else ""
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
-    frame = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
-                          start=start, warn=warn, speed=speed)
-    draw_coverage(frame, out, speed)
+    run = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
+                        start=start, warn=warn, speed=speed)
+    draw_coverage(run, out, speed)
     if mlflow:
-        log_benchmark(frame, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
-    return frame
+        log_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
+    return run
 
 
-def draw_coverage(frame: pd.DataFrame, out: Path, speed: SpeedModel) -> Path:
-    """OUT/coverage.png from the benchmark's per-step files."""
-    return coverage_figure(read_step_records(out, frame), Path(out) / COVERAGE_FIGURE, speed,
-                           title=f"Coverage curves on {maps_text(frame['map'].nunique())}: mean, band one standard deviation")
+def draw_coverage(run: BenchmarkRun, out: Path, speed: SpeedModel) -> Path:
+    """OUT/coverage.png from the benchmark's per-step records."""
+    return coverage_figure(run.records, Path(out) / COVERAGE_FIGURE, speed,
+                           title=f"Coverage curves on {maps_text(run.frame['map'].nunique())}: mean, band one standard deviation")
 
 
 def maps_text(count: int) -> str:
@@ -113,9 +112,8 @@ def distance_chart(summary, path: Path) -> None:
     plt.close(fig)
 
 
-def trajectory_figure(map_path: Path, frame, out_dir: Path, path: Path, protocol: Protocol) -> None:
-    """The first test maze with every planner's path side by side."""
-    ground_truth = load_map(map_path, cell_size=protocol.cell_size)
+def paths_figure(ground_truth, frame, out_dir: Path, path: Path) -> None:
+    """One map with every planner's path side by side."""
     rows = frame[frame["map"] == ground_truth.name]
     panels = [
         (row.planner, read_trajectory_csv(out_dir / row.planner / f"{ground_truth.name}.csv"), float(row.distance_m))
@@ -133,14 +131,14 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
     maps = generated_maps(TEST_MAZES, "test mazes")
     speed = SpeedModel(section["speed_mps"])
     with atomic_folder(OUT_DIR) as out_dir:
-        frame = run_benchmark(
+        run = run_benchmark(
             maps, section["planners"], protocol, out_dir, workers=section["workers"], seed=int(section["seed"]), speed=speed
         )
-        draw_coverage(frame, out_dir, speed)
+        draw_coverage(run, out_dir, speed)
     # After the folder is in place: reports/benchmark.json's temporary name shares the folder's
     # ".benchmark.partial-" prefix, and a write clears temporaries with its prefix.
-    summary = summarise(frame)
-    exploration = pd.read_csv(OUT_DIR / EXPLORATION_CSV).set_index("planner")
+    summary = run.summary
+    exploration = run.exploration.set_index("planner")
     atomic_write_text(
         METRICS_PATH,
         json.dumps(
@@ -159,6 +157,7 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
         + "\n",
     )
     distance_chart(summary, CHART_PATH)
-    trajectory_figure(maps[0], frame, OUT_DIR, FIGURE_PATH, protocol)
-    log_benchmark(frame, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
+    first, _, _ = run.maps[Path(maps[0]).stem]
+    paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
+    log_benchmark(run, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
     print((OUT_DIR / "summary.md").read_text())

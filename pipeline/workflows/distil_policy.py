@@ -40,7 +40,8 @@ from pipeline.data.collect import COLLECTION_SOURCES
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard
 from pipeline.data.observations import concatenate, load_observations, save_observations, shard_observations
 from pipeline.data.shards import read_manifest, run_shards, shard_count_for
-from pipeline.evaluation.benchmark import paired_difference, run_benchmark
+from pipeline.evaluation.benchmark import run_benchmark
+from pipeline.evaluation.statistics import paired_difference
 from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.training.policy import train_planner
@@ -167,7 +168,7 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
             return kept["result"]
     shutil.rmtree(folder, ignore_errors=True)
     specs = [BASELINE, f"{STUDENT_LABEL}=guide:mode=policy,policy_file={policy}"]
-    frame = run_benchmark(mazes, specs, protocol, folder, workers=int(section["workers"]), progress=True)
+    frame = run_benchmark(mazes, specs, protocol, folder, workers=int(section["workers"]), progress=True).frame
     mean, half, maps = paired_difference(frame, STUDENT_LABEL, BASELINE)
     ours = frame[frame.planner == STUDENT_LABEL]
     result = {

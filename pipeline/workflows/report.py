@@ -68,7 +68,7 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
         with atomic_folder(SWEEP_DIR) as folder:
             return run_benchmark(
                 maps, specs, protocol, folder, workers=section["workers"], seed=int(section["seed"])
-            )
+            ).frame
     except KeyError as error:  # an unregistered planner name
         raise SystemExit(f"error: report.k_planners: {error.args[0]}") from None
     except ValueError as error:  # an option the planner does not take

@@ -11,7 +11,7 @@ from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv
 
 def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:2]
-    frame = run_benchmark(maps, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path, workers=2, progress=False)
+    frame = run_benchmark(maps, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path, workers=2, progress=False).frame
     metrics = pd.read_csv(tmp_path / "metrics.csv")
     assert list(metrics.columns) == METRICS_COLUMNS
     assert len(metrics) == 4 and metrics["complete"].all()
@@ -48,7 +48,8 @@ def test_summary_compares_with_the_baseline_map_by_map():
 
 
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
-    from pipeline.evaluation.benchmark import summarise, summary_markdown
+    from pipeline.evaluation.benchmark import summary_markdown
+    from pipeline.evaluation.statistics import summarise
 
     frame = metrics_frame_of({"optimal": [80, 160, 240], "nf": [110, 220, 330]})
     summary = summarise(frame)
@@ -70,7 +71,7 @@ def test_benchmark_rejects_unknown_planner_and_bad_maps(generated_maze_dir, tmp_
 
 def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
     maps = [small_maze_path]
-    frame = run_benchmark(maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False)
+    frame = run_benchmark(maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False).frame
     assert len(frame) == 1 and not frame["complete"].any()
     assert "step limit" in (tmp_path / "summary.md").read_text()
 
@@ -122,7 +123,7 @@ def test_a_map_with_too_few_free_cells_is_refused(tmp_path):
         run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(), tmp_path / "out", start=(12, 12))
     assert str(info.value).startswith(f"{tmp_path / 'tiny.npy'}: ")  # the file, not just its stem
     frame = run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(done_unknown_cells=10),
-                          tmp_path / "out", workers=1, progress=False, start=(12, 12))
+                          tmp_path / "out", workers=1, progress=False, start=(12, 12)).frame
     assert frame["complete"].all()
 
 

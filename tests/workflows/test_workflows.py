@@ -42,7 +42,7 @@ def test_explore_says_why_a_map_cannot_be_completed_before_the_episode(tmp_path)
 def test_benchmark_folder_runs_every_map_and_logs_one_run_per_planner(generated_maze_dir, tmp_path, mlflow_uri):
     said: list[str] = []
     frame = benchmark_folder(generated_maze_dir, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path / "b",
-                             workers=1, tracking_uri=mlflow_uri, experiment="benchmark", warn=said.append)
+                             workers=1, tracking_uri=mlflow_uri, experiment="benchmark", warn=said.append).frame
     assert len(frame) == 6 and frame["complete"].all() and not said
     assert "vs greedy_utility (paired, 95 %)" in (tmp_path / "b" / "summary.md").read_text()
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
