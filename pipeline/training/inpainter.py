@@ -39,7 +39,6 @@ from typing import Any, Optional
 import lightning as L
 import torch
 import torch.nn.functional as F
-from lightning.pytorch.callbacks import ModelCheckpoint
 
 from pipeline.common.params import dataclass_from_dict
 from pipeline.models.configuration_inpainter import InpainterConfig
@@ -63,27 +62,17 @@ from pipeline.training.inpainter_losses import (
     inpainting_loss,
     precision_recall_f1,
 )
+from pipeline.training.lightning_run import RunOptions, export, fit, start
 from pipeline.training.run_setup import (
-    atomic_checkpoint_io,
-    check_accelerator,
     check_max_minutes,
     check_positive_int,
-    fresh_checkpoints,
-    log_export,
-    make_trainer,
-    max_time,
-    mlflow_logger,
     one_line,
-    quiet_checkpoint_folder,
     random_states,
     restore_random_states,
     torch_threads,
-    training_host,
 )
 
 EXPORT_NAME = "inpainter.pt"
-LAST_CKPT = "last.ckpt"
-BEST_NAME = "best"
 
 
 @dataclass
@@ -352,28 +341,21 @@ def train_inpainter(
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
     (MLflow's default: ./mlruns).
     """
-    with torch_threads(num_threads):
-        return _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume,
-                      tracking_uri, init_checkpoint, train_config, mlflow, experiment_name, run_name, progress,
-                      artifact_location, protocol, checkpoint_dir)
-
-
-def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelerator, devices, resume, tracking_uri,
-           init_checkpoint, train_config, mlflow, experiment_name, run_name, progress, artifact_location,
-           protocol=None, checkpoint_dir=None) -> Path | None:
-    # Everything that can fail is checked before a file is touched or an MLflow run is made: the
-    # settings, the init checkpoint and the data; old checkpoints go only just before fit().
+    run = RunOptions(Path(out_dir), None if checkpoint_dir is None else Path(checkpoint_dir), accelerator, devices,
+                     resume, mlflow, tracking_uri, experiment_name, run_name, artifact_location, progress)
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
     overrides = {k: v for k, v in (("max_epochs", max_epochs), ("batch_size", batch_size), ("lr", lr)) if v is not None}
     tc = TrainConfig(**{**asdict(tc), **overrides})
-    check_accelerator(accelerator, devices)
     if isinstance(model_config, dict):
         model_config = InpainterConfig.from_dict(model_config)
-    model_config = model_config or InpainterConfig()
-    out_dir = Path(out_dir)
-    checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else out_dir
-    last = checkpoint_dir / LAST_CKPT
-    ckpt_path = str(last) if resume and last.is_file() else None
+    with torch_threads(num_threads):
+        return _train(model_config or InpainterConfig(), tc, Path(data_dir), run, init_checkpoint, protocol)
+
+
+def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: RunOptions,
+           init_checkpoint: Optional[str | Path], protocol: Optional[dict[str, Any]]) -> Path | None:
+    # Everything that can fail is checked before a file is touched or an MLflow run is made: the
+    # settings, the init checkpoint and the data; old checkpoints go only just before fit().
     init_weights = None
     if init_checkpoint is not None:
         # Read even when resuming: an export's layout must be known to rebuild the network for last.ckpt.
@@ -382,22 +364,17 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             exported = InpainterConfig.from_dict(init_weights["config"])
             if exported != model_config:
                 warnings.warn(f"init_checkpoint is an inpainter export: using its layout (ngf {exported.ngf}, "
-                              f"{exported.n_blocks} blocks), not the configured one", stacklevel=2)
+                              f"{exported.n_blocks} blocks), not the configured one", stacklevel=3)
                 model_config = exported
         elif not is_big_lama_layout(model_config):
             warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
-                          stacklevel=2)
+                          stacklevel=3)
             model_config = InpainterConfig.big_lama()
-        if ckpt_path is not None:  # a resumed run continues from last.ckpt, not from these weights
+        if run.resume_from() is not None:  # a resumed run continues from last.ckpt, not from these weights
             init_weights = None
     data = InpainterDataModule(data_dir, tc.batch_size, tc.val_fraction, tc.augment, tc.seed, tc.hide_prob, tc.split)
     data.setup("fit")  # the data check (no random state involved): before the MLflow logger exists
-    out_dir.mkdir(parents=True, exist_ok=True)
-    checkpoint_dir.mkdir(parents=True, exist_ok=True)
-    if resume and ckpt_path is None:
-        warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
-
-    L.seed_everything(tc.seed, workers=True, verbose=False)
+    start(run, tc.seed)
     module = InpainterLightning(model_config.to_dict(), asdict(tc))
     if init_weights is not None and is_inpainter_export(init_weights):
         module.generator.load_state_dict(init_weights["state_dict"])
@@ -412,35 +389,13 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
         del init_weights
         print(f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}")
 
-    checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename=BEST_NAME, monitor="val_f1", mode="max", save_top_k=1,
-                                 save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
-    logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri, artifact_location) if mlflow else False
-    trainer_options = dict(
-        max_epochs=tc.max_epochs,
-        max_time=max_time(tc.max_minutes),
-        accelerator=accelerator,
-        devices=devices,
-        logger=logger,
-        callbacks=[checkpoint],
-        default_root_dir=str(checkpoint_dir),
-        enable_progress_bar=progress,
-        enable_model_summary=False,
-        num_sanity_val_steps=0,
-        use_distributed_sampler=False,
-        log_every_n_steps=1,
-        plugins=[atomic_checkpoint_io()],
-    )
-    trainer = make_trainer(**trainer_options)
-    if tc.adversarial_weight > 0 and trainer.world_size > 1:
-        # The GAN's two steps each leave one network without gradients, which DDP refuses by default.
-        trainer = make_trainer(**trainer_options, strategy="ddp_find_unused_parameters_true")
-    started = time.perf_counter()
-    with fresh_checkpoints(checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
-        trainer.fit(module, datamodule=data, ckpt_path=ckpt_path)
-    seconds = time.perf_counter() - started
-    export_path = out_dir / EXPORT_NAME
-    if trainer.is_global_zero:
-        best_path = checkpoint.best_model_path
+    result = fit(run, module, monitor="val_f1", mode="max", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
+                 fit_args={"datamodule": data}, unused_parameters=tc.adversarial_weight > 0,
+                 trainer_options={"use_distributed_sampler": False, "log_every_n_steps": 1})
+    export_path = run.out_dir / EXPORT_NAME
+
+    def write(host: dict[str, Any]) -> None:
+        best_path = result.checkpoint.best_model_path
         generator = module.generator
         if best_path and Path(best_path).is_file():
             state = torch.load(best_path, map_location="cpu", weights_only=True)["state_dict"]
@@ -448,7 +403,6 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             generator.load_state_dict({k[len("generator."):]: v for k, v in state.items() if k.startswith("generator.")})
         history = list(module.history)
         best = max(history, key=lambda h: h["val_f1"]) if history else {}
-        host = training_host(trainer.strategy.root_device)
         export_inpainter(
             generator.cpu().eval(), export_path,
             threshold=tc.threshold,
@@ -456,14 +410,13 @@ def _train(model_config, data_dir, out_dir, max_epochs, batch_size, lr, accelera
             history=history,
             best_epoch=int(best.get("epoch", -1)),
             val_metrics={k: float(v) for k, v in best.items() if k.startswith("val_")},
-            train_seconds=round(seconds, 2),  # this fit() call (a resumed run counts its own part)
+            train_seconds=round(result.seconds, 2),  # this fit() call (a resumed run counts its own part)
             epoch_seconds_total=round(sum(h["seconds"] for h in history), 2),  # all epochs, across resumes
-            epochs=int(trainer.current_epoch),
+            epochs=int(result.trainer.current_epoch),
             trained_on=host,
             pairs={"train": pair_count(data.train_pairs), "val": pair_count(data.val_pairs)},
             mazes={"train": maze_count(data.train_pairs), "val": maze_count(data.val_pairs)},
             **({"protocol": dict(protocol)} if protocol else {}),  # what the pairs were drawn at (planners check it)
         )
-        if logger:
-            log_export(logger, export_path, seconds, module.generator.num_parameters(), host)
-    return export_path if trainer.is_global_zero else None
+
+    return export(result, export_path, write, module.generator.num_parameters())

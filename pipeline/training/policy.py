@@ -10,7 +10,6 @@ loss and how often the first sampled step equals the expert's.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Optional
@@ -18,32 +17,22 @@ from typing import Any, Optional
 import lightning as L
 import numpy as np
 import torch
-from lightning.pytorch.callbacks import ModelCheckpoint
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from pipeline.common.params import dataclass_from_dict
 from pipeline.data.observations import PlannerDataset, crop_observations, load_observations
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy, load_policy
+from pipeline.training.lightning_run import RunOptions, export, fit, start
 from pipeline.training.run_setup import (
-    atomic_checkpoint_io,
-    check_accelerator,
     check_max_minutes,
     check_positive_int,
-    fresh_checkpoints,
-    log_export,
-    make_trainer,
-    max_time,
-    mlflow_logger,
-    quiet_checkpoint_folder,
     random_states,
     restore_random_states,
     torch_threads,
-    training_host,
 )
 
 EXPORT_NAME = "policy.pt"
-LAST_CKPT = "last.ckpt"
 
 
 @dataclass(frozen=True)
@@ -220,7 +209,8 @@ def train_planner(
     """
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
-    check_accelerator(accelerator, devices)  # before any file is touched or an MLflow run is made
+    run = RunOptions(Path(out_dir), None if checkpoint_dir is None else Path(checkpoint_dir), accelerator, devices, resume,
+                     mlflow, tracking_uri, experiment_name, run_name, None, progress)
     arrays, meta = load_observations(observations)
     n_max = arrays["features"].shape[1]
     if n_max < mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
@@ -233,15 +223,7 @@ def train_planner(
         raise ValueError(f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}")
     arrays["actions"] = arrays["actions"][:, : mc.horizon]
     with torch_threads(num_threads):
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        checkpoint_dir = Path(checkpoint_dir) if checkpoint_dir is not None else out_dir
-        checkpoint_dir.mkdir(parents=True, exist_ok=True)
-        last = checkpoint_dir / LAST_CKPT
-        ckpt_path = str(last) if resume and last.is_file() else None
-        if resume and ckpt_path is None:
-            warnings.warn(f"resume asked but {last} does not exist: training from scratch", stacklevel=2)
-        L.seed_everything(tc.seed, workers=True, verbose=False)
+        start(run, tc.seed)
         train_rows, val_rows = split_episodes(arrays["episode"], tc.val_fraction, tc.seed)
         train_set = PlannerDataset(arrays, mc.obs_steps, train_rows, augment=tc.augment, seed=tc.seed)
         # Validation samples first steps from its first `val_accuracy_samples` rows: shuffled once (fixed seed),
@@ -249,38 +231,27 @@ def train_planner(
         val_rows = np.random.default_rng(tc.seed).permutation(val_rows) if len(val_rows) else train_rows[:1]
         val_set = PlannerDataset(arrays, mc.obs_steps, val_rows)
         generator = torch.Generator().manual_seed(tc.seed)
-        train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate, generator=generator, drop_last=len(train_set) > tc.batch_size)
+        train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate,
+                                                   generator=generator, drop_last=len(train_set) > tc.batch_size)
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
         module = PlannerLightning(mc.to_dict(), asdict(tc))
-        if init_policy is not None and ckpt_path is None:
+        if init_policy is not None and run.resume_from() is None:
             start_from(module, init_policy)
         module.generators = [generator, train_set.rng]  # the shuffle and the augmentation resume where they were
-        checkpoint = ModelCheckpoint(dirpath=checkpoint_dir, filename="best", monitor="val_loss", mode="min", save_top_k=1,
-                                     save_last=True, auto_insert_metric_name=False, enable_version_counter=False)
-        logger: Any = mlflow_logger(experiment_name, run_name, tracking_uri) if mlflow else False
-        trainer = make_trainer(
-            max_epochs=tc.max_epochs, max_time=max_time(tc.max_minutes), accelerator=accelerator, devices=devices, logger=logger, callbacks=[checkpoint],
-            default_root_dir=str(checkpoint_dir), enable_progress_bar=progress, enable_model_summary=False,
-            num_sanity_val_steps=0, log_every_n_steps=5, gradient_clip_val=1.0, plugins=[atomic_checkpoint_io()],
-        )
-        if logger:  # makes the MLflow run: only once the trainer accepted the settings
-            logger.log_hyperparams({**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
-                                    "observations": str(observations), "samples": len(arrays["episode"])})
-        started = time.perf_counter()
-        with fresh_checkpoints(checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
-            trainer.fit(module, train_loader, val_loader, ckpt_path=ckpt_path)
-        seconds = time.perf_counter() - started
-        export_path = out_dir / EXPORT_NAME
-        if trainer.is_global_zero:
-            history = list(module.history)
-            host = training_host(trainer.strategy.root_device)
+        hyperparams = {**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
+                       "observations": str(observations), "samples": len(arrays["episode"])}
+        result = fit(run, module, monitor="val_loss", mode="min", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
+                     fit_args={"train_dataloaders": train_loader, "val_dataloaders": val_loader}, hyperparams=hyperparams,
+                     trainer_options={"log_every_n_steps": 5, "gradient_clip_val": 1.0})
+        export_path = run.out_dir / EXPORT_NAME
+
+        def write(host: dict[str, Any]) -> None:
             export_policy(
                 module.ema.module.cpu().eval(), export_path,
-                train_config=asdict(tc), history=history, train_seconds=round(seconds, 2),
-                epochs=int(trainer.current_epoch), samples={"train": len(train_rows), "val": len(val_rows)},
+                train_config=asdict(tc), history=list(module.history), train_seconds=round(result.seconds, 2),
+                epochs=int(result.trainer.current_epoch), samples={"train": len(train_rows), "val": len(val_rows)},
                 trained_on=host,
                 observations=meta,
             )
-            if logger:
-                log_export(logger, export_path, seconds, module.policy.num_parameters(), host)
-        return export_path if trainer.is_global_zero else None
+
+        return export(result, export_path, write, module.policy.num_parameters())

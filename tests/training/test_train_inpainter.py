@@ -513,7 +513,7 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(pairs_dir
     interrupted and resumed run gives the uninterrupted run's weights bit for bit."""
     from lightning.pytorch.callbacks import Callback
 
-    import pipeline.training.inpainter as inpainter
+    import pipeline.training.lightning_run as lightning_run
 
     whole = train_inpainter(TINY, pairs_dir, tmp_path / "whole", max_epochs=3, mlflow=False, train_config=FAST)
 
@@ -525,12 +525,12 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(pairs_dir
             if trainer.current_epoch == 2:
                 raise Killed  # after the second epoch's checkpoint
 
-    make_trainer = inpainter.make_trainer
-    monkeypatch.setattr(inpainter, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    make_trainer = lightning_run.make_trainer
+    monkeypatch.setattr(lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
     with pytest.raises(Killed):
         train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST)
     assert not (tmp_path / "cut" / "inpainter.pt").exists()
-    monkeypatch.setattr(inpainter, "make_trainer", make_trainer)
+    monkeypatch.setattr(lightning_run, "make_trainer", make_trainer)
     resumed = train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST, resume=True)
     a, b = read_inpainter_export(whole), read_inpainter_export(resumed)
     assert [row["epoch"] for row in b["history"]] == [0, 1, 2]

@@ -272,7 +272,7 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, 
     so an interrupted and resumed run exports the uninterrupted run's EMA weights bit for bit."""
     from lightning.pytorch.callbacks import Callback
 
-    import pipeline.training.policy as policy
+    import pipeline.training.lightning_run as lightning_run
 
     root, _ = trained
     settings = {**TINY_TRAIN, "max_epochs": 3}
@@ -286,11 +286,11 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, 
             if trainer.current_epoch == 2:
                 raise Killed
 
-    make_trainer = policy.make_trainer
-    monkeypatch.setattr(policy, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    make_trainer = lightning_run.make_trainer
+    monkeypatch.setattr(lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
     with pytest.raises(Killed):
         train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, checkpoint_dir=tmp_path / "ckpt")
-    monkeypatch.setattr(policy, "make_trainer", make_trainer)
+    monkeypatch.setattr(lightning_run, "make_trainer", make_trainer)
     resumed = train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, resume=True,
                             checkpoint_dir=tmp_path / "ckpt")
     assert sorted(p.name for p in (tmp_path / "cut").iterdir()) == ["policy.pt"]

@@ -1,0 +1,139 @@
+"""The skeleton every Lightning training here shares (the inpainter's, the diffusion policy's).
+
+A run is set up the same way whatever it learns (`RunOptions`: the device, the checkpoint
+folder, resume, the MLflow run): `start` makes the folders and seeds every generator; `fit`
+trains with the best and last checkpoints written atomically (old ones set aside until the new
+run has one), the MLflow logger on `tracking_uri`, and the wall-clock cap; `export` writes the
+model on rank zero only and logs it. What a training learns (its module, data and export
+format) stays in its own module.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional
+
+import lightning as L
+from lightning.pytorch.callbacks import ModelCheckpoint
+
+from pipeline.training.run_setup import (
+    LAST_CKPT,
+    atomic_checkpoint_io,
+    check_accelerator,
+    fresh_checkpoints,
+    log_export,
+    make_trainer,
+    max_time,
+    mlflow_logger,
+    quiet_checkpoint_folder,
+    training_host,
+)
+
+BEST_NAME = "best"
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Where and how a training runs, apart from what it learns.
+
+    `checkpoint_dir` holds Lightning's `last.ckpt` and `best.ckpt` (default: `out_dir`, where the
+    export goes); `resume` continues from `last.ckpt` when there is one. MLflow logs to
+    `tracking_uri` (default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db) in `experiment`;
+    `artifact_location` is where a newly made experiment keeps its artifacts.
+    """
+
+    out_dir: Path
+    checkpoint_dir: Optional[Path] = None
+    accelerator: str = "cpu"
+    devices: int | str = 1
+    resume: bool = False
+    mlflow: bool = True
+    tracking_uri: Optional[str] = None
+    experiment: str = "training"
+    run_name: Optional[str] = None
+    artifact_location: Optional[str] = None
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "out_dir", Path(self.out_dir))
+        folder = self.out_dir if self.checkpoint_dir is None else Path(self.checkpoint_dir)
+        object.__setattr__(self, "checkpoint_dir", folder)
+        check_accelerator(self.accelerator, self.devices)  # before any file is touched or an MLflow run is made
+
+    @property
+    def last(self) -> Path:
+        return self.checkpoint_dir / LAST_CKPT
+
+    def resume_from(self) -> Optional[str]:
+        """The checkpoint a resumed run continues from (None: a fresh run)."""
+        return str(self.last) if self.resume and self.last.is_file() else None
+
+
+@dataclass
+class FitResult:
+    trainer: Any
+    checkpoint: ModelCheckpoint
+    logger: Any
+    seconds: float
+
+
+def start(run: RunOptions, seed: int) -> None:
+    """The folders made, a resume with nothing to resume said, and every generator seeded."""
+    run.out_dir.mkdir(parents=True, exist_ok=True)
+    run.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+    if run.resume and run.resume_from() is None:
+        warnings.warn(f"resume asked but {run.last} does not exist: training from scratch", stacklevel=3)
+    L.seed_everything(seed, workers=True, verbose=False)
+
+
+def fit(run: RunOptions, module: L.LightningModule, *, monitor: str, mode: str, max_epochs: int,
+        max_minutes: Optional[float], fit_args: dict[str, Any], trainer_options: dict[str, Any],
+        hyperparams: Optional[dict[str, Any]] = None, unused_parameters: bool = False) -> FitResult:
+    """Train `module` (`fit_args`: its datamodule or loaders), keeping the best checkpoint by
+    `monitor` (`mode` min or max) and the last. `unused_parameters`: a multi-device run lets a step
+    leave some parameters without gradients (the GAN's two steps)."""
+    checkpoint = ModelCheckpoint(dirpath=run.checkpoint_dir, filename=BEST_NAME, monitor=monitor, mode=mode,
+                                 save_top_k=1, save_last=True, auto_insert_metric_name=False,
+                                 enable_version_counter=False)
+    logger: Any = mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location) if run.mlflow else False
+    options = dict(
+        max_epochs=max_epochs,
+        max_time=max_time(max_minutes),
+        accelerator=run.accelerator,
+        devices=run.devices,
+        logger=logger,
+        callbacks=[checkpoint],
+        default_root_dir=str(run.checkpoint_dir),
+        enable_progress_bar=run.progress,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        plugins=[atomic_checkpoint_io()],
+        **trainer_options,
+    )
+    trainer = make_trainer(**options)
+    if unused_parameters and trainer.world_size > 1:
+        # Each of the GAN's two steps leaves one network without gradients, which DDP refuses by default.
+        trainer = make_trainer(**options, strategy="ddp_find_unused_parameters_true")
+    if logger and hyperparams:  # makes the MLflow run: only once the trainer accepted the settings
+        logger.log_hyperparams(hyperparams)
+    ckpt_path = run.resume_from()
+    started = time.perf_counter()
+    with fresh_checkpoints(run.checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
+        trainer.fit(module, ckpt_path=ckpt_path, **fit_args)
+    return FitResult(trainer, checkpoint, logger, time.perf_counter() - started)
+
+
+def export(result: FitResult, path: Path, write: Callable[[dict[str, Any]], Any], num_parameters: int) -> Optional[Path]:
+    """`write(host)` writes the export at `path` on rank zero (the other ranks return None), then
+    the MLflow run logs it with the training time and the host it was made on."""
+    if not result.trainer.is_global_zero:
+        return None
+    host = training_host(result.trainer.strategy.root_device)
+    write(host)
+    if result.logger:
+        log_export(result.logger, path, result.seconds, num_parameters, host)
+    return path
