@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Callable
 
 
-from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_text
+from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.evaluation.benchmark import (
@@ -21,13 +21,12 @@ from pipeline.evaluation.benchmark import (
 )
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.planners.specs import parse_planner_spec
+from pipeline.reporting.benchmark_figures import distance_bar_chart, planner_paths_figure
 from pipeline.reporting.coverage_figure import coverage_figure
-from pipeline.reporting.render import render_comparison, save_png
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.maps import MapError, list_maps
 from pipeline.world.protocol import Protocol
-from pipeline.world.trajectories import read_trajectory_csv
 
 
 def benchmark_folder(
@@ -91,37 +90,6 @@ CHART_PATH = REPORTS.benchmark_chart
 FIGURE_PATH = REPORTS.benchmark_figure
 
 
-def distance_chart(summary, path: Path) -> None:
-    """Bar chart of mean distance (+- std) and completion per planner, as a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.2), dpi=120)
-    names = list(summary.index)
-    ax.barh(names, summary["distance_mean_m"], xerr=summary["distance_std_m"], color="#4c72b0", capsize=3)
-    for y, (_, row) in enumerate(summary.iterrows()):
-        ax.text(row.distance_mean_m + row.distance_std_m + 5, y, f"{row.distance_mean_m:.0f} m, {row.completion_rate * 100:.0f} % done", va="center", fontsize=8)
-    ax.invert_yaxis()
-    ax.set_xlabel("distance to complete exploration (m), mean +- std over test mazes")
-    ax.set_xlim(0, float((summary["distance_mean_m"] + summary["distance_std_m"]).max()) * 1.35)
-    fig.tight_layout()
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-
-
-def paths_figure(ground_truth, frame, out_dir: Path, path: Path) -> None:
-    """One map with every planner's path side by side."""
-    rows = frame[frame["map"] == ground_truth.name]
-    panels = [
-        (row.planner, read_trajectory_csv(out_dir / row.planner / f"{ground_truth.name}.csv"), float(row.distance_m))
-        for row in rows.itertuples()
-    ]
-    save_png(render_comparison(ground_truth, panels), path)
-
-
 def benchmark_test_mazes(section: dict, protocol: Protocol):
     """Every planner of the `benchmark` settings on the test mazes: run, tabulated, charted, logged.
 
@@ -156,8 +124,8 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
         )
         + "\n",
     )
-    distance_chart(summary, CHART_PATH)
+    distance_bar_chart(summary, CHART_PATH)
     first, _, _ = run.maps[Path(maps[0]).stem]
-    paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
+    planner_paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
     log_benchmark(run, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
     print((OUT_DIR / "summary.md").read_text())

@@ -44,6 +44,7 @@ from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
+from pipeline.reporting.training_figures import dagger_rounds_figure
 from pipeline.training.policy import train_planner
 from pipeline.training.run_setup import resume_point, start_afresh
 from pipeline.workflows.stage_inputs import generated_maps
@@ -239,7 +240,7 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
                "eval": {"mazes": len(mazes), "side_m": float(section["eval_side_m"]), "seed": int(section["eval_seed"])},
                "rounds": rows, "seconds": round(time.perf_counter() - started, 1)}
     atomic_write_json(REPORTS.distil, summary)
-    rounds_figure(rows, REPORTS.distil_figure)
+    dagger_rounds_figure(rows, REPORTS.distil_figure)
     log_rounds(section, rows)
     return summary
 
@@ -247,36 +248,6 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
 def _same_arrays(path: Path, arrays: dict[str, np.ndarray]) -> bool:
     kept, _ = load_observations(path)
     return all(np.array_equal(kept[k], arrays[k]) for k in arrays)
-
-
-def rounds_figure(rows: list[dict], path: Path) -> None:
-    """Agreement with the teacher and the closed-loop distance against greedy_utility, per round."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    labels = [str(r["round"]) for r in rows]
-    fig, (ax_agree, ax_dist) = plt.subplots(1, 2, figsize=(10, 3.6))
-    rounds = [r for r in rows if r["round"] != "start"]
-    ax_agree.plot([str(r["round"]) for r in rounds], [r["heldout_agreement"] for r in rounds], "o-", label="held-out states")
-    ax_agree.plot([str(r["round"]) for r in rounds], [r["driver_agreement"] for r in rounds], "s--", label="the driver's moves (round r: round r - 1's policy; 0: the teacher)")
-    ax_agree.set(xlabel="round", ylabel="first step = teacher's", ylim=(0, 1))
-    ax_agree.legend(fontsize=8)
-    ax_agree.grid(alpha=0.3)
-    values = [r["vs_greedy_pct"] for r in rows]
-    errors = [r["vs_greedy_ci95_pct"] or 0.0 for r in rows]
-    ax_dist.errorbar(labels, values, yerr=errors, fmt="o-", capsize=3, color="#c44e52")
-    ax_dist.axhline(0.0, color="grey", ls="--", lw=1)
-    ax_dist.set(xlabel="round (start: the expert-trained policy)", ylabel="guide:mode=policy vs greedy_utility (%)")
-    ax_dist.grid(alpha=0.3)
-    fig.suptitle(f"DAgger: the policy driving, labelled by the teacher ({rows[-1].get('mazes')} fresh mazes, paired, 95 %)",
-                 fontsize=9)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
 
 
 def log_rounds(section: dict, rows: list[dict]) -> None:

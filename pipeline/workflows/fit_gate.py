@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
@@ -21,6 +21,7 @@ from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
 from pipeline.models.defaults import PIPELINE_GATE
 from pipeline.models.sliver_gate import FEATURES, fit_sliver_gate, gate_inputs, roc_auc, save_gate
+from pipeline.reporting.gate_figures import gate_roc_curves
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 
@@ -48,26 +49,6 @@ def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int
         identity = {"tasks": tasks, "maps": files_digest(maps), "source": source_digest()}
         keep = KeptResults(keep_in, identity)
     return map_with_progress(_samples, tasks, workers, "gate samples", "maze", keep=keep)
-
-
-def roc_figure(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5, 4.5))
-    for name, (fpr, tpr, auc) in curves.items():
-        ax.plot(fpr, tpr, label=f"{name} (AUC {auc:.3f})", lw=2 if name.startswith("gate") else 1)
-    ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, ls="--")
-    ax.set(xlabel="slivers passed (false positive rate)", ylabel="big targets passed (true positive rate)",
-           title="Sliver gate on held-out training maps")
-    ax.legend(loc="lower right", fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=120)
-    plt.close(fig)
 
 
 def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path]:
@@ -127,7 +108,7 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
     metrics["seconds"] = round(time.perf_counter() - started, 1)  # in the report only: the gate file is a pure function of its inputs
     atomic_write_json(METRICS_PATH, metrics)
     if curves:
-        roc_figure(curves, FIGURE_PATH)
+        gate_roc_curves(curves, FIGURE_PATH)
     log_run(section, protocol, metrics)
     return metrics
 

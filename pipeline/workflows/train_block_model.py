@@ -13,12 +13,11 @@ from __future__ import annotations
 import json
 import tempfile
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
@@ -27,6 +26,7 @@ from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.defaults import PIPELINE_BLOCK_MODEL
 from pipeline.models.modeling_block_model import save_block_model
+from pipeline.reporting.training_figures import block_model_training_figure
 from pipeline.training.block_model import (
     BlockSamples,
     TrainingCheckpoint,
@@ -56,34 +56,6 @@ def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Pro
 def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarray]:
     path, protocol, block_m, every = task
     return block_snapshots(load_map(path), Protocol.from_dict(protocol), block_m, every)
-
-
-def figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarray, np.ndarray] | None, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 4, figsize=(14, 3.4))
-    epochs = [row["epoch"] for row in history]
-    axes[0].plot(epochs, [row["loss"] for row in history], "o-", label="training loss")
-    axes[0].plot(epochs, [row["held_out_error"] for row in history], "s-", label="held-out block error")
-    axes[0].set(xlabel="epoch", title="Block model")
-    axes[0].legend(fontsize=8)
-    if example is not None:
-        shares, probability, truth = example
-        seen = np.where(shares[2] > 0.5, 0.5, shares[0] > 0.5)
-        for ax, image, title in zip(axes[1:], (seen, probability, truth), ("seen (grey: unknown)", "P(free)", "true blocks")):
-            ax.imshow(image, cmap="gray", vmin=0, vmax=1)
-            ax.set(title=title, xticks=[], yticks=[])
-    else:
-        for ax in axes[1:]:
-            ax.axis("off")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
 
 
 def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol) -> dict[str, Any]:
@@ -126,7 +98,7 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
     if len(held_out):
         shares = held_out.shares[0][len(held_out.shares[0]) // 3]
         example = (shares, model.free_probability(shares), held_out.truth[0])
-    figure(history, example, FIGURE_PATH)
+    block_model_training_figure(history, example, FIGURE_PATH)
     log_run(section, config, protocol, metrics, history)
     return metrics
 

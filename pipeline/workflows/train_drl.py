@@ -32,6 +32,7 @@ from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.defaults import PIPELINE_DRL
 from pipeline.models.modeling_drl import load_drl_policy, save_drl_policy
 from pipeline.planners import make_planner
+from pipeline.reporting.training_figures import drl_training_curves
 from pipeline.training.drl import (
     EpisodeLog,
     PPOSettings,
@@ -175,7 +176,7 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
         "host": host,
     }
     write_json(METRICS_PATH, metrics)
-    curves_figure(log.rows, evaluation, FIGURE_PATH)
+    drl_training_curves(log.rows, evaluation, FIGURE_PATH)
     log_run(section, protocol, metrics)
     return metrics
 
@@ -235,31 +236,6 @@ def evaluate_on_fresh_mazes(policy, environment: TrainingEnvironment, policy_con
             "nearest_frontier_distance_m": round(float(nf.mean()), 1),
             "paired_vs_nearest_frontier": round(float(np.mean(drl / nf - 1.0)), 4),
             "episodes": [{k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]}
-
-
-def curves_figure(rows: list[dict[str, float]], evaluation: dict[str, Any], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
-    rows = [r for r in rows if "episode_return" in r]
-    steps = [r["timesteps"] for r in rows]
-    for ax, key, title in zip(axes, ("episode_return", "episode_distance_m", "explored_share"),
-                              ("episode return", "episode distance (m)", "explored share at episode end")):
-        ax.plot(steps, [r[key] for r in rows], ".-", lw=1)
-        ax.set(xlabel="environment steps", title=title)
-    if evaluation:
-        axes[1].axhline(evaluation["nearest_frontier_distance_m"], color="grey", ls="--",
-                        label=f"nearest_frontier on {evaluation['mazes']} fresh {evaluation['side_m']:g} m mazes")
-        axes[1].axhline(evaluation["distance_m"], color="tab:red", ls=":", label="drl (greedy) on the same mazes")
-        axes[1].legend(fontsize=7)
-    fig.suptitle("drl: MaskablePPO in guide/Explore-v0 (means over each rollout's finished episodes)", fontsize=9)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:

@@ -6,17 +6,17 @@ from __future__ import annotations
 
 import time
 import warnings
-from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
 
-from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, settings_digest
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, REPORTS
 from pipeline.data.shards import read_manifest
 from pipeline.models import InpainterConfig, TracedInpainter
 from pipeline.models.modeling_inpainter import load_inpainter, read_inpainter_export
+from pipeline.reporting.training_figures import inpainter_sample_predictions, inpainter_training_curves
 from pipeline.training.inpainter import TrainConfig, train_inpainter
 from pipeline.training.inpainter_data import split_pairs
 from pipeline.training.inpainter_losses import evaluate_inpainter
@@ -49,87 +49,6 @@ def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
             model(batch)
             times.append(time.perf_counter() - t0)
     return float(np.median(times) * 1e3)
-
-
-def plot_curves(history: list[dict[str, float]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    epochs = [h["epoch"] + 1 for h in history]
-    fig, (ax_loss, ax_val) = plt.subplots(1, 2, figsize=(10, 3.8))
-    ax_loss.plot(epochs, [h["train_loss"] for h in history], label="train loss")
-    ax_loss.plot(epochs, [h["val_loss"] for h in history], label="val loss")
-    ax_loss.set_xlabel("epoch")
-    ax_loss.set_ylabel("BCE (hole + weighted known)")
-    ax_loss.legend()
-    ax_loss.grid(alpha=0.3)
-    for key, label in (("val_f1", "F1"), ("val_precision", "precision"), ("val_recall", "recall")):
-        ax_val.plot(epochs, [h[key] for h in history], label=label, linewidth=2 if key == "val_f1" else 1)
-    ax_val.set_xlabel("epoch")
-    ax_val.set_ylabel("free nodes in unknown space (val)")
-    ax_val.set_ylim(0, 1)
-    ax_val.legend()
-    ax_val.grid(alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-
-
-def _node_rgb(image: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    rgb = np.zeros(image.shape + (3,), dtype=np.float32)
-    rgb[image >= 192] = (1.0, 1.0, 1.0)
-    rgb[(image > 63) & (image < 192)] = (0.55, 0.7, 0.9)  # unknown
-    rgb[~valid] = (0.35, 0.35, 0.35)  # padding
-    return rgb
-
-
-def plot_samples(model, val_pairs: dict, threshold: float, path: Path, count: int = 6) -> None:
-    """Rows of observed / predicted probability / hits at tau / ground truth for validation pairs."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    samples = [(size, i) for size, group in sorted(val_pairs.items()) for i in range(len(group["observed"]))]
-    picks = [samples[k] for k in np.linspace(0, len(samples) - 1, min(count, len(samples))).astype(int)]
-    fig, axes = plt.subplots(len(picks), 4, figsize=(10, 2.6 * len(picks)), squeeze=False)
-    cmap = plt.get_cmap("magma")
-    for row, (size, i) in enumerate(picks):
-        observed = val_pairs[size]["observed"][i]
-        target = val_pairs[size]["target"][i]
-        valid = val_pairs[size]["valid"][i]
-        prob = model.predict(observed)
-        hole = (observed > 63) & (observed < 192) & valid
-        predicted = _node_rgb(observed, valid)
-        predicted[hole] = cmap(prob[hole])[:, :3]
-        hits = _node_rgb(observed, valid)
-        hits[hole] = (0.1, 0.1, 0.1)
-        free = target >= 192
-        pred = (prob >= threshold) & hole
-        hits[pred & free] = (0.1, 0.8, 0.2)  # true positive
-        hits[pred & ~free] = (0.9, 0.1, 0.1)  # false positive
-        hits[~pred & free & hole] = (1.0, 0.65, 0.0)  # missed
-        truth = _node_rgb(np.where(free, 255, 0).astype(np.uint8), valid)
-        tp, fp = int((pred & free).sum()), int((pred & ~free).sum())
-        titles = ("observed", "predicted P(free) in unknown", f"at tau={threshold}: {tp} hit / {fp} false", "ground truth")
-        for col, (image, title) in enumerate(zip((_node_rgb(observed, valid), predicted, hits, truth), titles)):
-            ax = axes[row, col]
-            ax.imshow(image, interpolation="nearest")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if row == 0 or col == 2:
-                ax.set_title(title, fontsize=8)
-    fig.suptitle("validation pairs: white free, black obstacle, blue unknown, grey padding; "
-                 "green hit, red false, orange missed", fontsize=8)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=100)
-    plt.close(fig)
 
 
 def training_fingerprint(section: dict[str, Any], protocol: Protocol, accelerator: Any, devices: Any,
@@ -219,6 +138,6 @@ def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: O
         "resumed_after_epochs": resume_from[1] if resume_from else None,  # None: trained in one go
     }
     atomic_write_json(METRICS, metrics)
-    plot_curves(export["history"], CURVES)
-    plot_samples(model, val_pairs, tau, SAMPLES)
+    inpainter_training_curves(export["history"], CURVES)
+    inpainter_sample_predictions(model, val_pairs, tau, SAMPLES)
     return metrics

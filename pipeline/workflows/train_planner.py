@@ -5,43 +5,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, settings_digest
 from pipeline.common.paths import CHECKPOINTS, POLICIES
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import load_policy
+from pipeline.reporting.training_figures import planner_training_curves
 from pipeline.training.policy import PlannerTrainConfig, train_planner
 from pipeline.training.run_setup import resume_point, start_afresh
 
 CHECKPOINTS_OF = {variant: getattr(CHECKPOINTS, f"planner_{variant}") for variant in POLICIES}
-
-
-def plot_curves(history: list[dict], path: Path, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    epochs = [h["epoch"] + 1 for h in history]
-    fig, (ax_loss, ax_acc) = plt.subplots(1, 2, figsize=(10, 3.6))
-    ax_loss.plot(epochs, [h["train_loss"] for h in history], label="train")
-    ax_loss.plot(epochs, [h["val_loss"] for h in history], label="val (EMA)")
-    ax_loss.set_xlabel("epoch")
-    ax_loss.set_ylabel("DDPM loss (MSE)")
-    ax_loss.set_yscale("log")
-    ax_loss.legend()
-    ax_loss.grid(alpha=0.3)
-    ax_acc.plot(epochs, [h["val_first_step_accuracy"] for h in history], color="#c44e52")
-    ax_acc.set_xlabel("epoch")
-    ax_acc.set_ylabel("first sampled step = expert's (val)")
-    ax_acc.set_ylim(0, 1)
-    ax_acc.grid(alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
 
 
 def training_fingerprint(model: dict, train: dict, accelerator: str, devices: str, observations: Path) -> str:
@@ -104,5 +77,5 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
     }
     atomic_write_json(paths.metrics, metrics)
     if history:
-        plot_curves(history, paths.curves, f"{variant} diffusion planner")
+        planner_training_curves(history, paths.curves, f"{variant} diffusion planner")
     return metrics
