@@ -15,7 +15,6 @@ from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.collect_expert import collect_expert
 from pipeline.world.protocol import Protocol
 
-
 def check_options(options: object) -> None:
     """A mapping of option names to values (which the planner takes is checked in `main`)."""
     if not isinstance(options, dict):

@@ -12,19 +12,8 @@ and reports/distil_rounds.png. Unfinished work is kept in checkpoints/distil/.
 from __future__ import annotations
 
 from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import (
-    Fields,
-    Flag,
-    Maybe,
-    Real,
-    Satisfies,
-    Text,
-    Whole,
-    check_stage,
-    fraction,
-    keys_of,
-    positive,
-)
+from pipeline.common.settings import (Fields, Flag, Maybe, Real, Satisfies, Text, Whole, check_stage, fraction, keys_of,
+                                      positive)
 from pipeline.planners.registry import make_config
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.distil_policy import distil_policy

@@ -4,7 +4,7 @@ Reads only the `fit_gate` section (maps, holdout_maps, offices, office_holdout, 
 min_gain, wall_margin, threshold, workers) and the shared `protocol` section of params.yaml.
 Runs `greedy_utility` on the first `maps` training mazes and the first `offices` office
 floors, labels every reachable target at every decision by the cells its scan would truly
-reveal, fits the gate (`pipeline.models.sliver_gate`; `hidden` layers, none: logistic) on all but
+reveal, fits the gate (`pipeline.planners.extensions.sliver_gate`; `hidden` layers, none: logistic) on all but
 the last `holdout_maps` mazes and `office_holdout` floors and measures it on those, per family. Writes models/sliver_gate/sliver_gate.json,
 reports/sliver_gate.json (sample counts, held-out ROC AUC of the gate and of each count
 alone, held-out accuracy at the gate's threshold) and reports/sliver_gate.png (held-out ROC

@@ -21,17 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import (
-    Fields,
-    ListOf,
-    Real,
-    Whole,
-    check_stage,
-    config_mapping,
-    fraction,
-    keys_of,
-    positive,
-)
+from pipeline.common.settings import Fields, ListOf, Real, Whole, check_stage, config_mapping, fraction, keys_of, positive
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.train_block_model import maze_config, train_the_block_model

@@ -15,22 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import (
-    AnyOf,
-    Fields,
-    Flag,
-    ListOf,
-    Maybe,
-    Real,
-    Satisfies,
-    Text,
-    Whole,
-    check_stage,
-    config_mapping,
-    fraction,
-    keys_of,
-    positive,
-)
+from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Satisfies, Text, Whole, check_stage,
+                                      config_mapping, fraction, keys_of, positive)
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.planners import planner_config
 from pipeline.stage_runner import run_stage_main, stage_arguments

@@ -16,20 +16,8 @@ from typing import Any, Optional
 
 from pipeline.common.params import load_params, params_section
 from pipeline.common.paths import MODELS
-from pipeline.common.settings import (
-    AnyOf,
-    Fields,
-    Flag,
-    ListOf,
-    Maybe,
-    Real,
-    Text,
-    Whole,
-    check_stage,
-    config_mapping,
-    fraction,
-    positive,
-)
+from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Text, Whole, check_stage, config_mapping,
+                                      fraction, positive)
 from pipeline.models.configuration_inpainter import INPUT_ENCODINGS, InpainterConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.train_inpainter import train_and_report

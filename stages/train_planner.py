@@ -10,21 +10,8 @@ from __future__ import annotations
 
 from pipeline.common.params import complete_section, load_params
 from pipeline.common.paths import POLICIES
-from pipeline.common.settings import (
-    AnyOf,
-    Fields,
-    Flag,
-    ListOf,
-    Maybe,
-    Real,
-    Text,
-    Whole,
-    check_stage,
-    config_mapping,
-    fraction,
-    keys_of,
-    positive,
-)
+from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Text, Whole, check_stage, config_mapping,
+                                      fraction, keys_of, positive)
 from pipeline.models.configuration_diffusion import PREDICTION_TYPES, SAMPLERS, DiffusionPolicyConfig
 from pipeline.stage_runner import run_stage_main, stage_arguments
 from pipeline.workflows.train_planner import train_and_report
