@@ -170,7 +170,8 @@ def drl_training_curves(rows: list[dict[str, float]], evaluation: dict[str, Any]
     fig.suptitle("drl: MaskablePPO in guide/Explore-v0 (means over each rollout's finished episodes)", fontsize=9)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    with atomic_file(path) as tmp:  # a kill mid-write leaves the previous figure, as for every other figure
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 
