@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.lattice.graph import LatticeGraph
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -94,10 +94,10 @@ class TeacherLabelledDriver(Planner):
         self.labels: list[np.ndarray] = []
         self.agrees: list[bool] = []
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.teacher.reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        self.teacher.reset(frame, protocol, seed)
         if self.driver is not None:
-            self.driver.reset(ground_truth, protocol, seed + 1)  # the driver's draws apart from the teacher's
+            self.driver.reset(frame, protocol, seed + 1)  # the driver's draws apart from the teacher's
         self.labels, self.agrees = [], []
 
     def plan(self, observation: Observation) -> list[Waypoint]:

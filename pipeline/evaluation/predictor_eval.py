@@ -113,7 +113,7 @@ def explore_checkpoints(
     last = wanted[-1]
     planner = make_planner(EXPLORER)
     episode = Episode(ground_truth, protocol)
-    planner.reset(ground_truth, protocol, 0)
+    planner.reset(ground_truth.frame, protocol, 0)
     lattice = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
     visited = np.zeros(lattice.node_count, dtype=bool)
     visited[lattice.nearest_node(episode.position)] = True

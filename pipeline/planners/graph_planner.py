@@ -14,7 +14,7 @@ from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.models.sliver_gate import SliverGate, load_gate
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.options import check_int, require
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -77,8 +77,9 @@ class GraphPlanner(Planner):
         # verdict reads only the belief around its node, and most nodes are far from each scan.
         self._gate_known, self._gate_big = np.zeros(0, dtype=bool), np.zeros(0, dtype=bool)
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        frame = map_frame(frame)  # an oracle built on this planner passes its ground truth: only its frame is kept
+        self.graph = LatticeGraph(LatticeSpec.for_map(frame, protocol))
         self.visited = np.zeros(self.graph.node_count, dtype=bool)
         self.protocol = protocol
         self.rng = np.random.default_rng(seed)

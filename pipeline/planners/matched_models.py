@@ -17,7 +17,7 @@ from typing import Any
 
 from pipeline.models.defaults import pick_model
 from pipeline.planners.config import PlannerConfig
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol
 
@@ -63,9 +63,9 @@ class ProtocolMatchedModels(Planner):
             self.inner.name = self.name
             self.picked = picks
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.use_models_for(protocol)
-        self.inner.reset(ground_truth, protocol, seed)
+        self.inner.reset(frame, protocol, seed)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.inner.plan(observation)

@@ -26,7 +26,7 @@ from pipeline.prediction.node_predictor import (
     NodePredictor,
     NodePredictorConfig,
 )
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 
@@ -89,8 +89,8 @@ class PredictingPlanner(GraphPlanner):
         self.description = f"{self.base_description} [{source}; {self.gate_source}]"
         self.last_decision: dict = {}
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         self.check_protocol(protocol)
 
     def check_protocol(self, protocol: Protocol) -> None:
@@ -135,8 +135,8 @@ class GlobalGraphPlanner(PredictingPlanner):
         super().__init__(config, inpaint)
         self.global_config: GlobalGraphConfig = config.global_graph
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         self.global_graph = GlobalGraph(self.graph, self.global_config)
 
     def update_global_graph(self, observation: Observation) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -28,8 +28,8 @@ class PlannerWrapper(Planner):
     def __init__(self, inner: Planner):
         object.__setattr__(self, "inner", inner)
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.inner.reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        self.inner.reset(frame, protocol, seed)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.inner.plan(observation)

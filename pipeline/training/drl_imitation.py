@@ -23,6 +23,7 @@ from pipeline.common.params import dataclass_from_dict
 from pipeline.models.modeling_drl import MASKED_LOGIT, DRLPolicy
 from pipeline.planners import make_planner
 from pipeline.planners.registry import planner_names
+from pipeline.world.planner import reset_planner
 
 OBSERVATION_KEYS = ("features", "node_mask", "neighbors", "robot", "action_mask")
 
@@ -81,7 +82,7 @@ def teacher_decisions(make_env: Callable[[int], Any], teacher_name: str, episode
         env = envs[i % 4]
         observation, info = env.reset(seed=seed + i)
         teacher = make_planner(teacher_name)
-        teacher.reset(env.ground_truth, env.episode.protocol, seed + i)
+        reset_planner(teacher, env.ground_truth, env.episode.protocol, seed + i)
         rewards = []
         done = False
         while not done:

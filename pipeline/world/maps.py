@@ -48,6 +48,22 @@ class MapError(Exception):
 
 
 @dataclass(frozen=True)
+class MapFrame:
+    """What a robot knows of a map before exploring it: the grid's extent, its cell size and where
+    it starts. Every planner that does not see the ground truth is reset from this alone."""
+
+    shape: tuple[int, int]  # (rows, cols)
+    cell_size: float  # metres per cell
+    start_cell: tuple[int, int]  # (col, row)
+    name: str = "map"
+
+
+def map_frame(world: "MapFrame | GroundTruthMap") -> MapFrame:
+    """`world`'s frame: the frame itself, or the frame of a ground-truth map (none of its cells)."""
+    return world if isinstance(world, MapFrame) else world.frame
+
+
+@dataclass(frozen=True)
 class GroundTruthMap:
     """A ground-truth occupancy grid: `free[row, col]` is True where the cell is free."""
 
@@ -61,6 +77,11 @@ class GroundTruthMap:
     @property
     def shape(self) -> tuple[int, int]:
         return self.free.shape  # type: ignore[return-value]
+
+    @property
+    def frame(self) -> MapFrame:
+        """What a robot may know of this map (its extent, cell size and start), none of its cells."""
+        return MapFrame(tuple(self.free.shape), float(self.cell_size), tuple(self.start_cell), self.name)
 
     @cached_property
     def free_cell_count(self) -> int:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import GroundTruthMap, MapFrame
 from pipeline.world.protocol import Protocol
 
 Waypoint = tuple[float, float]
@@ -28,9 +28,10 @@ class Observation:
 class Planner(ABC):
     """Proposes the next waypoint(s); the simulator moves there in order, sensing after each.
 
-    `reset` is called once per episode with the ground truth, which only oracle planners
-    may look at (`uses_ground_truth = True`); every other planner must decide from the
-    observation alone.
+    `reset` is called once per episode with the map's frame (its extent, cell size and start),
+    what a robot knows before it explores: a planner decides from that and the observations
+    alone. Only an oracle (`OraclePlanner`, `uses_ground_truth = True`) is reset with the
+    ground-truth map.
     """
 
     name: str = ""
@@ -40,8 +41,8 @@ class Planner(ABC):
     needs_policy: bool = False  # True: needs a trained diffusion policy (models/ or the shipped default)
 
     @abstractmethod
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        """Prepare for a new episode."""
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        """Prepare for a new episode on a map of this frame."""
 
     @abstractmethod
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -50,3 +51,19 @@ class Planner(ABC):
     def check_protocol(self, protocol: Protocol) -> None:
         """Warn (`ProtocolMismatchWarning`) when a trained model of this planner was trained at other
         protocol values than `protocol`; planners without trained models have nothing to say."""
+
+
+class OraclePlanner(Planner):
+    """A planner that sees the ground truth (a reference or a bound): reset with the map itself."""
+
+    uses_ground_truth = True
+
+    @abstractmethod
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]
+        """Prepare for a new episode on `ground_truth`."""
+
+
+def reset_planner(planner: Planner, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    """Reset `planner` for an episode on `ground_truth`: an oracle gets the map, any other its frame only."""
+    oracle = bool(getattr(planner, "uses_ground_truth", False))
+    planner.reset(ground_truth if oracle else ground_truth.frame, protocol, seed)

@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
-from pipeline.world.planner import Observation, Planner
+from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, Belief, Lidar
 
@@ -220,7 +220,7 @@ def run_episode(
 ) -> EpisodeResult:
     """Run `planner` until the map is explored, it fails, or `protocol.max_steps` waypoints."""
     episode = Episode(ground_truth, protocol)
-    planner.reset(ground_truth, protocol, seed)
+    reset_planner(planner, ground_truth, protocol, seed)
     decision_ms: list[float] = []
     waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
     failure = ""

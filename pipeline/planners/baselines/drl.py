@@ -28,7 +28,7 @@ from pipeline.planners.options import check_int
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.global_graph import GlobalGraphConfig
 from pipeline.prediction.observed_graph import WindowTable, observe_lattice, window_moves
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 from pipeline.world.sensor import FREE
@@ -83,9 +83,9 @@ class DRLPlanner(Planner):
                           "graph means something else here; retrain with `dvc repro train_drl` at your maps' values",
                           ProtocolMismatchWarning)
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.check_protocol(protocol)
-        self.graph = LatticeGraph(LatticeSpec.for_map(ground_truth, protocol))
+        self.graph = LatticeGraph(LatticeSpec.for_map(map_frame(frame), protocol))
         self.table = WindowTable(self.graph)
         self.visited = np.zeros(self.graph.node_count, dtype=bool)
         self.free_cells, self.stalled, self.handovers = -1, 0, 0

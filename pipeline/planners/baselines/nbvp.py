@@ -49,7 +49,7 @@ from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.geometry import RayTable, ray_table
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN
@@ -170,12 +170,12 @@ class NBVPPlanner(GraphPlanner):
         self.last_decision: dict = {}
 
     # ----------------------------------------------------------------- episode setup
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         graph = self.graph
         assert graph is not None
         self.lam = LAM_TIMES_RANGE / protocol.sensor_range if self.lam_option is None else float(self.lam_option)
-        self.view_gain = ViewGain(ground_truth.shape, protocol.sensor_range_cells, self.ray_stride)
+        self.view_gain = ViewGain(frame.shape, protocol.sensor_range_cells, self.ray_stride)
         # edge_of[node, window slot] = id of the candidate edge to that neighbour, -1 if none.
         self._edge_of = np.full((graph.node_count, WINDOW * WINDOW), -1, dtype=np.int64)
         a, b = graph.edge_nodes[:, 0], graph.edge_nodes[:, 1]

@@ -62,7 +62,7 @@ from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
@@ -174,12 +174,12 @@ class TarePlanner(GraphPlanner):
         self.loop_guard = bool(loop_guard)
         self.last_decision: dict = {}
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         graph = self.graph
         assert graph is not None
         self._region_cols = graph.region_shape[1]
-        self._covered = np.zeros(ground_truth.shape[0] * ground_truth.shape[1], dtype=bool)
+        self._covered = np.zeros(frame.shape[0] * frame.shape[1], dtype=bool)
         self._views: dict[int, np.ndarray] = {}
         self._target = -1
         self._quiet: set[int] = set()

@@ -25,7 +25,7 @@ from pipeline.planners.extensions.rollout_worker import JobContext, RolloutWorke
 from pipeline.planners.graph_planner import GraphPlanner
 from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.block_maps import block_index, block_shares, drawn_world, exit_steps, imagined_free
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import GroundTruthMap, MapFrame, map_frame
 from pipeline.world.planner import Observation
 from pipeline.world.simulator import Episode
 
@@ -126,12 +126,13 @@ class BlockLookahead:
         """Copies and pickles leave the worker process behind (a copy forks its own when it needs one)."""
         return {**self.__dict__, "_worker": None}
 
-    def reset(self, ground_truth: GroundTruthMap) -> None:
-        """Only the map's size, start and cell size are read: the rollouts never see its cells."""
+    def reset(self, frame: MapFrame) -> None:
+        """The map's frame (size, start and cell size) is all the rollouts know of it."""
         self.close()  # a worker holds the last map's lattice
-        self.blocks, self.block_grid = block_index(ground_truth.shape, ground_truth.cell_size, self.model.config.block_m)
-        self.start_cell, self.cell_size = ground_truth.start_cell, ground_truth.cell_size
-        self.horizon_cells = int(round(self.horizon_m / ground_truth.cell_size))
+        frame = map_frame(frame)
+        self.blocks, self.block_grid = block_index(frame.shape, frame.cell_size, self.model.config.block_m)
+        self.start_cell, self.cell_size = frame.start_cell, frame.cell_size
+        self.horizon_cells = int(round(self.horizon_m / frame.cell_size))
 
     def close(self) -> None:
         """Stop the worker process, if one runs."""

@@ -43,7 +43,7 @@ from pipeline.planners.config import option
 from pipeline.planners.extensions.lookahead import BlockLookahead, check_lookahead_options
 from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -94,9 +94,9 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
         self.lookahead = BlockLookahead(model, samples, horizon_m, exit_weight, temperature, workers=workers)
         self.description = f"{type(self).description} [{self.model_source}; {self.gate_source}]"
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
-        self.lookahead.reset(ground_truth)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
+        self.lookahead.reset(frame)
         self.last_target: int | None = None
 
     def plan(self, observation: Observation) -> list[Waypoint]:

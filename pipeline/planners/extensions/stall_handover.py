@@ -17,7 +17,7 @@ from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.guide.guide import GuidePlanner
 from pipeline.planners.options import check_int
 from pipeline.planners.wrapper import PlannerWrapper
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
@@ -44,8 +44,8 @@ class StallHandover(PlannerWrapper):
         self.stall_steps = int(stall_steps)
         self.moves_without_news = 0
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         self.moves_without_news = 0
 
     def plan(self, observation: Observation) -> list[Waypoint]:

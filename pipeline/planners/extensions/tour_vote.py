@@ -38,7 +38,7 @@ from pipeline.planners.guide.guide_tsp import FrontierTour
 from pipeline.planners.options import check_number
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.prediction.global_graph import KNOWN
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -85,14 +85,14 @@ class TourVote(PlannerWrapper):
                             f"{paper.gate_source}; K={paper.num_inference_steps}{lookahead_source}]")
         self.last_decision: dict = {}
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.paper.reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        self.paper.reset(frame, protocol, seed)
         self.tour.reset(protocol)
         self.queue: list[int] = []  # the rest of the executed chunk, while it still heads for the target
         self.decisions = 0
         self.fallbacks = 0
         if self.lookahead is not None:
-            self.lookahead.reset(ground_truth)
+            self.lookahead.reset(frame)
             self.lookahead_rng = np.random.default_rng(seed)  # its own draws: the rest of the planner's are unchanged
         self.lookahead_choice: int | None = None
 

@@ -44,7 +44,7 @@ from pipeline.planners.options import check_int
 from pipeline.planners.predicting import GlobalGraphPlanner
 from pipeline.prediction.graph_observation import GraphObservation, observe
 from pipeline.prediction.node_predictor import InpaintFn
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -99,8 +99,8 @@ class GuidePlanner(GlobalGraphPlanner):
             policy = policy.with_sampler(config.sampler)
         return policy, source
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         self.history: deque[GraphObservation] = deque(maxlen=self.obs_steps)  # the last T_o observations
         self.encodings: deque = deque(maxlen=self.obs_steps)  # each one's encoding, made when first needed
         self.queue: deque[tuple[np.ndarray, np.ndarray]] = deque()  # (step, soft direction) of the T_a to execute

@@ -23,7 +23,7 @@ from pipeline.planners.predicting import GlobalGraphPlanner
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.global_graph import KNOWN, GlobalGraph
 from pipeline.prediction.node_predictor import InpaintFn
-from pipeline.world.maps import GroundTruthMap
+from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
@@ -209,8 +209,8 @@ class GuideTspPlanner(GlobalGraphPlanner):
         super().__init__(config, inpaint)
         self.tour = FrontierTour(config)
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        super().reset(frame, protocol, seed)
         self.tour.reset(protocol)
 
     def plan(self, observation: Observation) -> list[Waypoint]:

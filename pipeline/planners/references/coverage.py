@@ -36,7 +36,7 @@ import numpy as np
 
 from pipeline.lattice.tsp import EXACT_TSP_MAX_NODES, open_tsp_order
 from pipeline.world.maps import GroundTruthMap
-from pipeline.world.planner import Observation, Planner
+from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, EpisodeResult, replay, run_episode
 
@@ -478,13 +478,14 @@ class _OracleRule:
     """Wraps a planner so that the simulator applies the oracle motion rule to its moves."""
 
     ignores_motion_rule = True
+    uses_ground_truth = True  # it hands the ground truth on only to a planner that is an oracle itself
 
     def __init__(self, planner: Planner):
         self.planner = planner
         self.name = getattr(planner, "name", "") or type(planner).__name__
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.planner.reset(ground_truth, protocol, seed)
+        reset_planner(self.planner, ground_truth, protocol, seed)
 
     def plan(self, observation: Observation) -> list[tuple[float, float]]:
         return self.planner.plan(observation)

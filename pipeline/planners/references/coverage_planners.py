@@ -34,7 +34,7 @@ from pipeline.planners.references.coverage_model import CoverageModel, coverage_
 from pipeline.planners.registry import register_planner
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
-from pipeline.world.planner import Observation, Planner, Waypoint
+from pipeline.world.planner import Observation, OraclePlanner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
 
@@ -62,7 +62,7 @@ class OptimalConfig(PlannerConfig):
 
 
 @register_planner("optimal", OptimalConfig)
-class OptimalPlanner(Planner):
+class OptimalPlanner(OraclePlanner):
     """The ground-truth coverage tour, executed in one go (oracle motion rule)."""
 
     description = OptimalConfig.description

@@ -37,7 +37,7 @@ from pipeline.planners.options import check_int, require
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner
 from pipeline.world.maps import GroundTruthMap
-from pipeline.world.planner import Observation, Planner, Waypoint
+from pipeline.world.planner import Observation, OraclePlanner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
 from pipeline.world.simulator import Episode
@@ -77,7 +77,7 @@ class OracleWrapperConfig(PlannerConfig):
         return fields, objects, []
 
 
-class _OracleWrapper(Planner):
+class _OracleWrapper(OraclePlanner):
     """Delegates to `self.base`; subclasses add the ground truth where they need it."""
 
     uses_ground_truth = True
@@ -144,7 +144,7 @@ class OracleGatePlanner(_OracleWrapper):
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.base.reset(ground_truth, protocol, seed)
+        self.base.reset(ground_truth.frame, protocol, seed)
         self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -177,7 +177,7 @@ class OracleTailPlanner(_OracleWrapper):
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        self.base.reset(ground_truth, protocol, seed)
+        self.base.reset(ground_truth.frame, protocol, seed)
         self.expert.reset(ground_truth, protocol, seed)
         self.free_cells = int(ground_truth.free.sum())
         self.handed_over = False
