@@ -1,0 +1,181 @@
+"""A robot's SLAM map (`nav_msgs/OccupancyGrid`) as the belief a planner reads.
+
+An OccupancyGrid has `info.resolution` (metres per cell), `info.width` x `info.height` cells, the
+map-frame position of cell (0, 0)'s corner (`info.origin.position.x`, `.y`) and `data`, row-major
+from that corner with rows along +y: -1 unknown, 0..100 the probability (%) that a cell is
+occupied. Any object with those fields will do: rclpy's and rosbags' messages as they are, or
+`GridMessage` here.
+
+A cell of the protocol's size (`cell_size`, coarser than SLAM's 0.05 m as a rule) is judged
+conservatively from the message cells whose centres fall in it: occupied where any of them is,
+free only where all of them are, unknown otherwise. A message coarser than the protocol is first
+split into cells no larger than the protocol's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+
+FREE_MAX = 19  # a probability (%) at or below this is free: ROS map_server's free_thresh, 0.196
+OCCUPIED_MIN = 65  # at or above this, occupied: map_server's occupied_thresh, 0.65
+
+
+class BadMessage(ValueError):
+    """A map message the session cannot use (its reason in one line); the session logs and skips it."""
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A message's cells checked and read: `values[row, col]` (-1..100), rows along +y from `origin`."""
+
+    values: np.ndarray
+    resolution: float
+    origin: tuple[float, float]
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """(x0, y0, x1, y1) of the grid in the map frame, metres."""
+        rows, cols = self.values.shape
+        x0, y0 = self.origin
+        return x0, y0, x0 + cols * self.resolution, y0 + rows * self.resolution
+
+
+def read_grid(msg: Any) -> Grid:
+    """The message's grid, or BadMessage saying what is wrong with it."""
+    try:
+        info = msg.info
+        resolution = float(info.resolution)
+        width, height = int(info.width), int(info.height)
+        x0, y0 = float(info.origin.position.x), float(info.origin.position.y)
+        data = msg.data
+    except (AttributeError, TypeError, ValueError) as error:
+        raise BadMessage(f"not an OccupancyGrid ({type(error).__name__}: {error})") from None
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise BadMessage(f"resolution must be a positive number of metres, got {resolution!r}")
+    if not (math.isfinite(x0) and math.isfinite(y0)):
+        raise BadMessage(f"origin must be finite, got ({x0!r}, {y0!r})")
+    if width <= 0 or height <= 0:
+        raise BadMessage(f"the map is empty ({width} x {height} cells)")
+    try:
+        values = np.asarray(data, dtype=np.int64).reshape(-1)
+    except (TypeError, ValueError, OverflowError) as error:
+        raise BadMessage(f"data is not a list of integers ({error})") from None
+    if values.size != width * height:
+        raise BadMessage(f"data holds {values.size} values for {width} x {height} = {width * height} cells")
+    if values.size and (values.min() < -1 or values.max() > 100):
+        raise BadMessage(f"data values must lie in -1..100, got {int(values.min())}..{int(values.max())}")
+    return Grid(values.reshape(height, width), resolution, (x0, y0))
+
+
+@dataclass
+class Canvas:
+    """The belief on a grid of the protocol's cell size that only grows: the session's map.
+
+    Its lattice is anchored at `anchor` (the first pose): the canvas grows by whole lattice steps,
+    so a node keeps its place in the map frame when the canvas grows. `grow` says whether it did.
+    """
+
+    cell_size: float
+    step_cells: int  # lattice spacing in cells (node_resolution / cell_size)
+    anchor: tuple[float, float]  # map-frame metres of the start cell's centre
+    belief: np.ndarray = field(default_factory=lambda: np.full((1, 1), UNKNOWN, np.uint8))
+    start_cell: tuple[int, int] = (0, 0)  # (col, row) of the anchor
+
+    @property
+    def origin(self) -> tuple[float, float]:
+        """Map-frame metres of cell (0, 0)'s corner."""
+        return (self.anchor[0] - (self.start_cell[0] + 0.5) * self.cell_size,
+                self.anchor[1] - (self.start_cell[1] + 0.5) * self.cell_size)
+
+    def to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(col, row) of the canvas cell that holds map-frame point (x, y) (it may lie outside)."""
+        ox, oy = self.origin
+        return int(math.floor((x - ox) / self.cell_size)), int(math.floor((y - oy) / self.cell_size))
+
+    def to_map(self, world: tuple[float, float]) -> tuple[float, float]:
+        """A planner's position (metres from the start cell) in the map frame."""
+        return self.anchor[0] + float(world[0]), self.anchor[1] + float(world[1])
+
+    def to_world(self, x: float, y: float) -> tuple[float, float]:
+        """A map-frame point as a planner's position (metres from the start cell)."""
+        return x - self.anchor[0], y - self.anchor[1]
+
+    def cover(self, extent: tuple[float, float, float, float], margin_m: float = 0.0) -> bool:
+        """Grow (by whole lattice steps) until `extent` (x0, y0, x1, y1) plus `margin_m` lies inside;
+        True when the canvas grew."""
+        x0, y0, x1, y1 = extent
+        rows, cols = self.belief.shape
+        c0, r0 = self.to_cell(x0 - margin_m, y0 - margin_m)
+        c1, r1 = self.to_cell(x1 + margin_m, y1 + margin_m)
+        step = self.step_cells
+        left = _steps(-c0, step)
+        bottom = _steps(-r0, step)
+        right = _steps(c1 - (cols - 1), step)
+        top = _steps(r1 - (rows - 1), step)
+        if not (left or bottom or right or top):
+            return False
+        self.belief = np.pad(self.belief, ((bottom, top), (left, right)), constant_values=UNKNOWN)
+        self.start_cell = (self.start_cell[0] + left, self.start_cell[1] + bottom)
+        return True
+
+    def paint(self, grid: Grid) -> None:
+        """The message's cells, judged at the canvas's cell size, over the belief (cells it does not
+        cover keep what they were)."""
+        values, resolution = grid.values, grid.resolution
+        split = max(1, int(math.ceil(resolution / self.cell_size - 1e-9)))
+        if split > 1:  # a coarser map: each of its cells as split x split smaller ones
+            values = np.repeat(np.repeat(values, split, axis=0), split, axis=1)
+            resolution = resolution / split
+        rows, cols = values.shape
+        ox, oy = self.origin
+        col = np.floor((grid.origin[0] + (np.arange(cols) + 0.5) * resolution - ox) / self.cell_size).astype(np.int64)
+        row = np.floor((grid.origin[1] + (np.arange(rows) + 0.5) * resolution - oy) / self.cell_size).astype(np.int64)
+        height, width = self.belief.shape
+        inside_c, inside_r = (col >= 0) & (col < width), (row >= 0) & (row < height)
+        values = values[np.ix_(inside_r, inside_c)]
+        flat = (row[inside_r][:, None] * width + col[inside_c][None, :]).reshape(-1)
+        values = values.reshape(-1)
+        size = height * width
+        total = np.bincount(flat, minlength=size)
+        occupied = np.bincount(flat, weights=(values >= OCCUPIED_MIN), minlength=size)
+        free = np.bincount(flat, weights=((values >= 0) & (values <= FREE_MAX)), minlength=size)
+        covered = total > 0
+        judged = np.full(size, UNKNOWN, np.uint8)
+        judged[covered & (free == total)] = FREE
+        judged[occupied > 0] = OCCUPIED
+        belief = self.belief.reshape(-1)
+        belief[covered] = judged[covered]
+
+
+def _steps(cells: int, step: int) -> int:
+    """Cells to add on one side to reach `cells` beyond the edge, in whole lattice steps (0 if none)."""
+    return 0 if cells <= 0 else int(math.ceil(cells / step)) * step
+
+
+@dataclass
+class GridMessage:
+    """An OccupancyGrid's fields, for tests and for callers without ROS message types."""
+
+    data: list[int] | np.ndarray
+    width: int
+    height: int
+    resolution: float
+    origin_x: float = 0.0
+    origin_y: float = 0.0
+
+    @property
+    def info(self) -> Any:
+        position = _Namespace(x=self.origin_x, y=self.origin_y, z=0.0)
+        return _Namespace(resolution=self.resolution, width=self.width, height=self.height,
+                          origin=_Namespace(position=position))
+
+
+class _Namespace:
+    def __init__(self, **values: Any) -> None:
+        self.__dict__.update(values)

@@ -1,0 +1,290 @@
+"""An exploration session: any planner of ours on a robot's live SLAM map and pose.
+
+    session = ExplorationSession(planner="guide", protocol="real_robot")
+    session.update_map(msg)          # a nav_msgs/OccupancyGrid (rclpy's, rosbags', or anything with its fields)
+    session.update_pose(x, y, yaw)   # the robot in the map frame, metres (from tf: map -> base_link)
+    plan = session.plan()            # plan.waypoints: the next waypoints in the map frame; plan.done
+    session.goal_failed(x, y)        # the navigation stack could not reach that waypoint
+
+Inside, the belief lives on a grid of the protocol's cell size whose lattice is anchored at the
+first pose (`Canvas`); it grows by whole lattice steps as the SLAM map grows or its origin moves,
+and keeps what was seen where a later map says nothing. The planner is reset from that grid's
+frame (never a ground truth) and again whenever the grid grows. The robot, which stands anywhere,
+is snapped to the nearest known-free lattice node it can reach in a straight known-free line.
+A failed goal is marked occupied around its node so that no plan heads there again. `plan()`
+plans afresh when the robot has reached its waypoint, when the map has changed by
+`replan_changed_cells` cells, after `replan_after_s` seconds, or when asked (`force`); otherwise it
+returns the plan it made last. Bad input (a NaN pose, a pose off the map, an empty map, data of
+the wrong length, values outside -1..100) is logged and skipped: the session goes on.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from pipeline.planners import make_planner
+from pipeline.robot.occupancy_grid import BadMessage, Canvas, Grid, read_grid
+from pipeline.world.geometry import segment_is_known_free
+from pipeline.world.maps import MapFrame
+from pipeline.world.planner import Observation, Planner
+from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+from pipeline.world.sensor import FREE, OCCUPIED
+
+log = logging.getLogger("guide.robot")
+
+PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
+SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
+
+
+@dataclass(frozen=True)
+class Plan:
+    """One decision: `waypoints` (map frame, metres) to drive to in order, `done` when nothing
+    reachable is left to explore, the node the planner heads for (`target`, map frame; None when it
+    does not say), the time it took (`decision_ms`, conversion of the map included) and why it was
+    made or kept (`reason`)."""
+
+    waypoints: list[tuple[float, float]] = field(default_factory=list)
+    done: bool = False
+    target: tuple[float, float] | None = None
+    decision_ms: float = 0.0
+    reason: str = ""
+    replanned: bool = False
+
+
+@dataclass
+class SessionState:
+    """What the session holds, for logs and recordings."""
+
+    maps_used: int = 0
+    maps_skipped: int = 0
+    poses_skipped: int = 0
+    plans: int = 0
+    resets: int = 0
+    failed_goals: list[tuple[float, float]] = field(default_factory=list)
+    last_skip: str = ""
+
+
+class ExplorationSession:
+    """A planner (by its registered name, with options) exploring from live maps and poses."""
+
+    def __init__(self, planner: str | Planner = "guide", protocol: Protocol | str = "real_robot", *,
+                 planner_options: dict[str, Any] | None = None, seed: int = 0, goal_tolerance_m: float = 0.3,
+                 replan_changed_cells: int = 50, replan_after_s: float = 5.0, clock=time.monotonic) -> None:
+        self.protocol = resolve_protocol(protocol)
+        self.planner = planner if isinstance(planner, Planner) else make_planner(planner, **(planner_options or {}))
+        self.seed = int(seed)
+        self.goal_tolerance_m = float(goal_tolerance_m)
+        self.replan_changed_cells = int(replan_changed_cells)
+        self.replan_after_s = float(replan_after_s)
+        self.clock = clock
+        self.step_cells = lattice_step_cells(self.protocol)
+        self.canvas: Canvas | None = None
+        self.pending: Grid | None = None  # a map that came before the first pose
+        self.pose: tuple[float, float, float] | None = None
+        self.state = SessionState()
+        self.blocked: list[tuple[float, float]] = []  # failed goals, map frame
+        self._planned_belief: np.ndarray | None = None  # the belief the planner saw last
+        self._frame: MapFrame | None = None
+        self._last: Plan | None = None
+        self._last_time = -math.inf
+        self._changed_since = 0
+
+    # ------------------------------------------------------------------ input
+    def update_map(self, msg: Any) -> bool:
+        """Take a map message; False (logged) when it is skipped."""
+        try:
+            grid = read_grid(msg)
+        except BadMessage as error:
+            return self._skip_map(str(error))
+        if self.canvas is None:
+            self.pending = grid
+            return True
+        self.canvas.cover(grid.extent)
+        before = self.canvas.belief.copy() if self._planned_belief is not None else None
+        self.canvas.paint(grid)
+        if before is not None and before.shape == self.canvas.belief.shape:
+            self._changed_since += int(np.count_nonzero(before != self.canvas.belief))
+        else:
+            self._changed_since += self.replan_changed_cells
+        self.state.maps_used += 1
+        return True
+
+    def update_pose(self, x: float, y: float, yaw: float = 0.0) -> bool:
+        """Take the robot's pose in the map frame (metres, radians); False (logged) when skipped."""
+        try:
+            x, y, yaw = float(x), float(y), float(yaw)
+        except (TypeError, ValueError):
+            return self._skip_pose(f"pose must be numbers, got ({x!r}, {y!r}, {yaw!r})")
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
+            return self._skip_pose(f"pose must be finite, got ({x}, {y}, {yaw})")
+        if self.canvas is None:
+            self.canvas = Canvas(self.protocol.cell_size, self.step_cells, (x, y))
+            # At least a lidar's reach around the start: the first scans fit, and the predictor sees a whole image.
+            self.canvas.cover((x, y, x, y), margin_m=self.protocol.sensor_range + self.protocol.node_resolution)
+            if self.pending is not None:
+                grid, self.pending = self.pending, None
+                self.canvas.cover(grid.extent)
+                self.canvas.paint(grid)
+                self.state.maps_used += 1
+        else:
+            col, row = self.canvas.to_cell(x, y)
+            rows, cols = self.canvas.belief.shape
+            if not (0 <= col < cols and 0 <= row < rows):
+                return self._skip_pose(f"pose ({x:.2f}, {y:.2f}) lies outside the map")
+        self.pose = (x, y, yaw)
+        return True
+
+    def goal_failed(self, x: float, y: float) -> None:
+        """The navigation stack could not reach (x, y): its lattice node is marked and avoided."""
+        if self.canvas is None or not (math.isfinite(float(x)) and math.isfinite(float(y))):
+            return
+        self.blocked.append((float(x), float(y)))
+        self.state.failed_goals.append((float(x), float(y)))
+        log.info("goal (%.2f, %.2f) failed: its node is avoided from now on", x, y)
+        self._changed_since += self.replan_changed_cells  # plan afresh
+
+    # ------------------------------------------------------------------ decisions
+    def plan(self, force: bool = False) -> Plan:
+        """The next waypoints: planned afresh when due (see the module's docstring), else the last plan."""
+        started = time.perf_counter()
+        if self.canvas is None or self.pose is None or self.state.maps_used == 0:
+            return Plan(reason="waiting for a map and a pose")
+        reason = self._replan_reason(force)
+        if reason is None:
+            return replace(self._last, replanned=False, reason="kept")
+        belief = self._belief()
+        robot = self._snap(belief)
+        if robot is None:
+            return self._keep(Plan(reason="the robot is not near known free space", decision_ms=_ms(started)))
+        frame = MapFrame(belief.shape, self.protocol.cell_size, self.canvas.start_cell, "robot")
+        changed = None
+        if frame != self._frame:
+            self.planner.reset(frame, self.protocol, self.seed)
+            self._frame = frame
+            self.state.resets += 1
+        elif self._planned_belief is not None:
+            changed = np.flatnonzero(self._planned_belief.reshape(-1) != belief.reshape(-1))
+        world, cell = robot
+        observation = Observation(belief=belief, position=world, cell=cell, changed=changed, step=self.state.plans)
+        waypoints = self.planner.plan(observation)
+        self._planned_belief = belief
+        self._changed_since = 0
+        self._last_time = self.clock()
+        self.state.plans += 1
+        decision = getattr(self.planner, "last_decision", {}) or {}
+        target = self._target(decision.get("target"), waypoints)
+        plan = Plan([self.canvas.to_map(w) for w in waypoints], done=not waypoints, target=target,
+                    decision_ms=_ms(started), reason=reason, replanned=True)
+        return self._keep(plan)
+
+    def _replan_reason(self, force: bool) -> str | None:
+        last = self._last
+        if force:
+            return "asked"
+        if last is None or not last.replanned:
+            return "first plan" if last is None else "no plan yet"
+        if last.done:
+            return "map changed" if self._changed_since else None
+        if last.waypoints and math.dist(self.pose[:2], last.waypoints[0]) <= self.goal_tolerance_m:
+            return "waypoint reached"
+        if self._changed_since >= self.replan_changed_cells:
+            return "map changed"
+        if self.clock() - self._last_time >= self.replan_after_s:
+            return "timeout"
+        return None
+
+    def _keep(self, plan: Plan) -> Plan:
+        self._last = plan
+        return plan
+
+    def _belief(self) -> np.ndarray:
+        """The canvas's belief with every failed goal's node marked occupied."""
+        belief = self.canvas.belief.copy()
+        radius = max(1, self.step_cells // 2)
+        for x, y in self.blocked:
+            col, row = self._node_cell(self.canvas.to_world(x, y))
+            belief[max(0, row - radius + 1): max(0, row + radius), max(0, col - radius + 1): max(0, col + radius)] = OCCUPIED
+        return belief
+
+    def _node_cell(self, world: tuple[float, float]) -> tuple[int, int]:
+        """The canvas cell of the lattice node nearest a planner position."""
+        d = self.protocol.node_resolution
+        i, j = round(world[0] / d), round(world[1] / d)
+        return (self.canvas.start_cell[0] + int(round(i * self.step_cells)),
+                self.canvas.start_cell[1] + int(round(j * self.step_cells)))
+
+    def _snap(self, belief: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
+        """(planner position, cell) of the nearest known-free lattice node the robot reaches in a
+        straight known-free line (else the nearest known-free one); None when none is near."""
+        world = self.canvas.to_world(*self.pose[:2])
+        d = self.protocol.node_resolution
+        here = self.canvas.to_cell(*self.pose[:2])
+        free = belief == FREE
+        rows, cols = belief.shape
+        i0, j0 = round(world[0] / d), round(world[1] / d)
+        candidates = []
+        for di in range(-SNAP_NODES, SNAP_NODES + 1):
+            for dj in range(-SNAP_NODES, SNAP_NODES + 1):
+                col = self.canvas.start_cell[0] + (i0 + di) * self.step_cells
+                row = self.canvas.start_cell[1] + (j0 + dj) * self.step_cells
+                if 0 <= col < cols and 0 <= row < rows and free[row, col]:
+                    node = ((i0 + di) * d, (j0 + dj) * d)
+                    candidates.append((math.dist(node, world), node, (col, row)))
+        if not candidates:
+            return None
+        candidates.sort()
+        inside = 0 <= here[0] < cols and 0 <= here[1] < rows
+        for _, node, cell in candidates:
+            if inside and segment_is_known_free(free, here, cell):
+                return node, cell
+        return candidates[0][1], candidates[0][2]
+
+    def _target(self, node: Any, waypoints: list) -> tuple[float, float] | None:
+        graph = getattr(self.planner, "graph", None)
+        if node is not None and graph is not None:
+            try:
+                return self.canvas.to_map(tuple(graph.node_world[int(node)]))
+            except (IndexError, TypeError, ValueError):
+                pass
+        return self.canvas.to_map(waypoints[-1]) if waypoints else None
+
+    def _skip_map(self, why: str) -> bool:
+        self.state.maps_skipped += 1
+        self.state.last_skip = f"map skipped: {why}"
+        log.warning("map skipped: %s", why)
+        return False
+
+    def _skip_pose(self, why: str) -> bool:
+        self.state.poses_skipped += 1
+        self.state.last_skip = f"pose skipped: {why}"
+        log.warning("pose skipped: %s", why)
+        return False
+
+
+def resolve_protocol(protocol: Protocol | str) -> Protocol:
+    """A Protocol, or the name of a shipped profile's ("maze", "real_robot")."""
+    if isinstance(protocol, Protocol):
+        return protocol
+    if isinstance(protocol, str) and protocol in PROTOCOLS:
+        return PROTOCOLS[protocol]
+    raise ValueError(f"protocol must be a Protocol or one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+
+
+def lattice_step_cells(protocol: Protocol) -> int:
+    """The lattice spacing in cells; ValueError when the node spacing is not a whole number of cells
+    (the lattice could not keep its place as the map grows)."""
+    step = protocol.node_resolution / protocol.cell_size
+    if abs(step - round(step)) > 1e-6 or round(step) < 1:
+        raise ValueError(f"node_resolution ({protocol.node_resolution:g} m) must be a whole number of cells "
+                         f"({protocol.cell_size:g} m) for a robot session")
+    return int(round(step))
+
+
+def _ms(started: float) -> float:
+    return (time.perf_counter() - started) * 1e3

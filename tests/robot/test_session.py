@@ -1,0 +1,156 @@
+"""`pipeline.robot.ExplorationSession`: a planner on a live SLAM map (OccupancyGrid) and pose."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pipeline.robot import ExplorationSession, GridMessage
+from pipeline.robot.occupancy_grid import Canvas, read_grid
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.simulator import Episode
+
+PROTOCOL = Protocol()  # the maze benchmark's: 0.4 m cells, 4 m lattice
+
+
+def occupancy_message(episode: Episode, fine: int = 4, crop: bool = True, rng=None) -> GridMessage:
+    """The simulator's belief as a SLAM map: `fine` x finer cells, occupancy probabilities (not three
+    values), cropped to the known area (so it grows and its origin moves as the robot explores)."""
+    grid = episode.belief.grid
+    rng = rng or np.random.default_rng(0)
+    values = np.where(grid == FREE, rng.integers(0, 15, grid.shape), np.where(grid == OCCUPIED,
+                      rng.integers(70, 101, grid.shape), -1))
+    rows, cols = np.nonzero(grid != UNKNOWN)
+    r0, r1, c0, c1 = (rows.min(), rows.max() + 1, cols.min(), cols.max() + 1) if crop else (0, grid.shape[0], 0, grid.shape[1])
+    values = values[r0:r1, c0:c1]
+    values = np.repeat(np.repeat(values, fine, axis=0), fine, axis=1)
+    c = episode.protocol.cell_size
+    start_col, start_row = episode.map.start_cell
+    return GridMessage(values.reshape(-1).tolist(), values.shape[1], values.shape[0], c / fine,
+                       origin_x=(c0 - start_col - 0.5) * c, origin_y=(r0 - start_row - 0.5) * c)
+
+
+def test_a_cell_is_free_only_where_every_finer_cell_is_and_occupied_where_any_is():
+    canvas = Canvas(cell_size=0.4, step_cells=10, anchor=(0.2, 0.2))
+    canvas.cover((0.0, 0.0, 0.8, 0.4))
+    values = np.array([[0, 0, 0, 0, 0, 0, 0, 0],
+                       [0, 0, 0, 0, 0, -1, 0, 0],
+                       [0, 0, 0, 0, 0, 0, 0, 90],
+                       [0, 0, 0, 0, 0, 0, 0, 0]])  # 0.1 m cells: two 0.4 m cells side by side
+    grid = read_grid(GridMessage(values.reshape(-1).tolist(), 8, 4, 0.1, 0.0, 0.0))
+    canvas.paint(grid)
+    first, second = canvas.to_cell(0.2, 0.2), canvas.to_cell(0.6, 0.2)
+    assert canvas.belief[first[1], first[0]] == FREE
+    assert canvas.belief[second[1], second[0]] == OCCUPIED  # one occupied fine cell is enough
+    values[2, 7] = 30  # neither free nor occupied: the cell is unknown, not free
+    canvas.paint(read_grid(GridMessage(values.reshape(-1).tolist(), 8, 4, 0.1, 0.0, 0.0)))
+    assert canvas.belief[second[1], second[0]] == UNKNOWN
+
+
+def test_a_growing_map_whose_origin_moves_keeps_what_was_seen_and_the_lattice_in_place():
+    canvas = Canvas(cell_size=0.4, step_cells=10, anchor=(1.0, 1.0))
+    canvas.cover((1.0, 1.0, 1.0, 1.0), margin_m=4.0)
+    canvas.paint(read_grid(GridMessage([0] * 25, 5, 5, 0.4, 0.0, 0.0)))
+    seen = canvas.to_cell(0.5, 0.5)
+    node = canvas.to_map((4.0, 0.0))
+    grew = canvas.cover((-20.0, -20.0, 2.0, 2.0))
+    canvas.paint(read_grid(GridMessage([-1] * 4, 2, 2, 0.4, -20.0, -20.0)))  # says nothing about the first cells
+    assert grew and canvas.belief[canvas.to_cell(0.5, 0.5)[::-1]] == FREE
+    assert canvas.to_map((4.0, 0.0)) == pytest.approx(node)
+    assert canvas.to_cell(0.5, 0.5) != seen  # the cells moved in the grown grid, the map-frame point did not
+
+
+@pytest.mark.parametrize("planner", ["greedy_utility", "guide_tsp", "guide"])
+def test_the_session_explores_a_maze_in_closed_loop(small_maze, planner):
+    """The simulator plays robot and SLAM: finer cropped maps with probabilities, a noisy pose
+    (0.1 m, any heading); the session's waypoints are driven on the simulator's lattice (the first
+    pose anchors the session's at the simulator's start); exploration completes."""
+    rng = np.random.default_rng(1)
+    episode = Episode(small_maze, PROTOCOL)
+    session = ExplorationSession(planner, PROTOCOL, planner_options={"candidates": 2} if planner == "guide" else None)
+    session.update_pose(*episode.position)  # the lattice is anchored at the first pose: the simulator's start
+    for _ in range(300):
+        assert session.update_map(occupancy_message(episode, rng=rng))
+        x, y = episode.position
+        assert session.update_pose(x + rng.normal(0, 0.1), y + rng.normal(0, 0.1), rng.uniform(-math.pi, math.pi))
+        plan = session.plan(force=True)
+        if plan.done:
+            break
+        assert plan.waypoints and plan.decision_ms > 0 and plan.target is not None
+        episode.move(plan.waypoints[0])
+    assert episode.completion_distance is not None, f"{planner}: {episode.explored_share:.2f} explored"
+    assert session.state.maps_skipped == 0 and session.state.resets >= 2  # the map grew past its first frame
+
+
+def test_plans_are_kept_until_a_waypoint_is_reached_the_map_changes_or_time_passes(small_maze):
+    now = [0.0]
+    episode = Episode(small_maze, PROTOCOL)
+    session = ExplorationSession("greedy_utility", PROTOCOL, replan_after_s=10.0, clock=lambda: now[0])
+    assert session.plan().reason == "waiting for a map and a pose"
+    session.update_map(occupancy_message(episode))
+    session.update_pose(*episode.position)
+    first = session.plan()
+    assert first.replanned and first.waypoints
+    again = session.plan()
+    assert not again.replanned and again.waypoints == first.waypoints and again.reason == "kept"
+    now[0] = 11.0
+    assert session.plan().reason == "timeout"
+    session.update_pose(*first.waypoints[0])
+    assert session.plan().reason == "waypoint reached"
+
+
+def test_a_failed_goal_is_avoided(small_maze):
+    episode = Episode(small_maze, PROTOCOL)
+    session = ExplorationSession("greedy_utility", PROTOCOL)
+    session.update_map(occupancy_message(episode))
+    session.update_pose(*episode.position)
+    first = session.plan()
+    session.goal_failed(*first.waypoints[0])
+    second = session.plan()
+    assert second.replanned and first.waypoints[0] not in second.waypoints
+    assert session.state.failed_goals == [first.waypoints[0]]
+
+
+BAD_MAPS = [
+    ("an empty map", GridMessage([], 0, 0, 0.05)),
+    ("data of the wrong length", GridMessage([0] * 5, 3, 3, 0.05)),
+    ("values outside -1..100", GridMessage([0, 101, 0, 0], 2, 2, 0.05)),
+    ("a NaN resolution", GridMessage([0] * 4, 2, 2, float("nan"))),
+    ("a zero resolution", GridMessage([0] * 4, 2, 2, 0.0)),
+    ("an infinite origin", GridMessage([0] * 4, 2, 2, 0.05, float("inf"), 0.0)),
+    ("not a message", object()),
+]
+
+
+@pytest.mark.parametrize("what,message", BAD_MAPS, ids=[w for w, _ in BAD_MAPS])
+def test_a_bad_map_is_logged_and_skipped_and_the_next_good_one_plans(what, message, small_maze, caplog):
+    episode = Episode(small_maze, PROTOCOL)
+    session = ExplorationSession("greedy_utility", PROTOCOL)
+    session.update_pose(*episode.position)
+    assert session.update_map(message) is False
+    assert session.state.maps_skipped == 1 and "map skipped" in caplog.text
+    assert session.update_map(occupancy_message(episode))
+    assert session.plan().waypoints
+
+
+@pytest.mark.parametrize("pose", [(float("nan"), 0.0, 0.0), (0.0, float("inf"), 0.0), ("a", 0.0, 0.0), (1e6, 1e6, 0.0)])
+def test_a_bad_pose_is_logged_and_skipped(pose, small_maze):
+    episode = Episode(small_maze, PROTOCOL)
+    session = ExplorationSession("greedy_utility", PROTOCOL)
+    session.update_map(occupancy_message(episode))
+    session.update_pose(*episode.position)
+    assert session.update_pose(*pose) is False
+    assert session.state.poses_skipped == 1
+    assert session.plan().waypoints  # planned from the last good pose
+
+
+def test_protocols_by_name_and_a_clear_error_for_others():
+    assert ExplorationSession("greedy_utility", "maze").protocol == Protocol()
+    assert ExplorationSession("greedy_utility", "real_robot").protocol.node_resolution == 1.0
+    with pytest.raises(ValueError, match="protocol must be a Protocol or one of maze, real_robot"):
+        ExplorationSession("greedy_utility", "mars")
+    with pytest.raises(ValueError, match="whole number of cells"):
+        ExplorationSession("greedy_utility", Protocol(cell_size=0.3, node_resolution=1.0, sensor_range=10.0))
