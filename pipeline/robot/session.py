@@ -40,6 +40,7 @@ log = logging.getLogger("guide.robot")
 
 PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
 SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
+MAX_CANVAS_CELLS = 16_000_000  # the belief grid's largest size (800 m x 800 m at 0.2 m): a larger map is refused
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,12 @@ class ExplorationSession:
             return self._skip_map(str(error))
         if self.canvas is None:
             self.pending = grid
+            if self.pose is not None:
+                self._anchor(self.pose)
             return True
+        if not self._fits(grid):
+            return self._skip_map(f"its extent {_extent_text(grid.extent)} would grow the belief past "
+                                  f"{MAX_CANVAS_CELLS:,} cells")
         self.canvas.cover(grid.extent)
         before = self.canvas.belief.copy() if self._planned_belief is not None else None
         self.canvas.paint(grid)
@@ -124,14 +130,12 @@ class ExplorationSession:
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(yaw)):
             return self._skip_pose(f"pose must be finite, got ({x}, {y}, {yaw})")
         if self.canvas is None:
-            self.canvas = Canvas(self.protocol.cell_size, self.step_cells, (x, y))
-            # At least a lidar's reach around the start: the first scans fit, and the predictor sees a whole image.
-            self.canvas.cover((x, y, x, y), margin_m=self.protocol.sensor_range + self.protocol.node_resolution)
+            if self.pending is not None and not _inside(self.pending.extent, x, y):
+                return self._skip_pose(f"pose ({x:.2f}, {y:.2f}) lies outside the map {_extent_text(self.pending.extent)}")
+            self.pose = (x, y, yaw)
             if self.pending is not None:
-                grid, self.pending = self.pending, None
-                self.canvas.cover(grid.extent)
-                self.canvas.paint(grid)
-                self.state.maps_used += 1
+                self._anchor(self.pose)
+            return True
         else:
             col, row = self.canvas.to_cell(x, y)
             rows, cols = self.canvas.belief.shape
@@ -139,6 +143,37 @@ class ExplorationSession:
                 return self._skip_pose(f"pose ({x:.2f}, {y:.2f}) lies outside the map")
         self.pose = (x, y, yaw)
         return True
+
+    def _anchor(self, pose: tuple[float, float, float]) -> None:
+        """The belief grid, its lattice anchored at `pose`, with the map that came first painted on."""
+        grid = self.pending
+        x, y = pose[:2]
+        if not _inside(grid.extent, x, y):
+            self.pose = None  # a pose is only kept once it lies on a map
+            return
+        canvas = Canvas(self.protocol.cell_size, self.step_cells, (x, y))
+        # At least a lidar's reach around the start: the first scans fit, and the predictor sees a whole image.
+        canvas.cover((x, y, x, y), margin_m=self.protocol.sensor_range + self.protocol.node_resolution)
+        self.canvas = canvas
+        if not self._fits(grid):
+            self.canvas, self.pending = None, None
+            self._skip_map(f"its extent {_extent_text(grid.extent)} would make the belief larger than "
+                           f"{MAX_CANVAS_CELLS:,} cells")
+            return
+        self.pending = None
+        canvas.cover(grid.extent)
+        canvas.paint(grid)
+        self.state.maps_used += 1
+
+    def _fits(self, grid: Grid) -> bool:
+        """Whether the belief grid, grown to cover `grid`, stays within MAX_CANVAS_CELLS."""
+        x0, y0, x1, y1 = grid.extent
+        ox, oy = self.canvas.origin
+        rows, cols = self.canvas.belief.shape
+        c = self.protocol.cell_size
+        width = (max(x1, ox + cols * c) - min(x0, ox)) / c
+        height = (max(y1, oy + rows * c) - min(y0, oy)) / c
+        return width * height <= MAX_CANVAS_CELLS
 
     def goal_failed(self, x: float, y: float) -> None:
         """The navigation stack could not reach (x, y): its lattice node is marked and avoided."""
@@ -265,6 +300,14 @@ class ExplorationSession:
         self.state.last_skip = f"pose skipped: {why}"
         log.warning("pose skipped: %s", why)
         return False
+
+
+def _inside(extent: tuple[float, float, float, float], x: float, y: float) -> bool:
+    return extent[0] <= x <= extent[2] and extent[1] <= y <= extent[3]
+
+
+def _extent_text(extent: tuple[float, float, float, float]) -> str:
+    return f"({extent[0]:.1f}, {extent[1]:.1f})-({extent[2]:.1f}, {extent[3]:.1f}) m"
 
 
 def resolve_protocol(protocol: Protocol | str) -> Protocol:

@@ -154,3 +154,41 @@ def test_protocols_by_name_and_a_clear_error_for_others():
         ExplorationSession("greedy_utility", "mars")
     with pytest.raises(ValueError, match="whole number of cells"):
         ExplorationSession("greedy_utility", Protocol(cell_size=0.3, node_resolution=1.0, sensor_range=10.0))
+
+
+def fuzzed_message(rng: np.random.Generator):
+    """A message that may be anything an OccupancyGrid topic could carry, good or bad."""
+    kind = rng.integers(0, 8)
+    if kind == 0:
+        return object()
+    width, height = int(rng.integers(-2, 40)), int(rng.integers(-2, 40))
+    resolution = float(rng.choice([0.05, 0.1, 0.4, 1.0, 0.0, -0.05, np.nan, np.inf, 1e-9, 500.0]))
+    origin = [float(rng.choice([0.0, -3.0, 7.5, 1e7, -1e9, np.nan, np.inf])) for _ in range(2)]
+    count = max(0, width * height) + int(rng.choice([0, 0, 0, 1, -1]))
+    values = rng.integers(-3, 105, max(0, count)) if kind < 6 else rng.choice([-1, 0, 100], max(0, count))
+    data = values.tolist() if kind != 7 else ["x"] * max(0, count)
+    return GridMessage(data, width, height, resolution, origin[0], origin[1])
+
+
+def fuzzed_pose(rng: np.random.Generator):
+    return tuple(rng.choice([0.0, 1.3, -2.0, 40.0, 1e9, -1e9, np.nan, np.inf, -np.inf]) for _ in range(3))
+
+
+@pytest.mark.parametrize("planner", ["greedy_utility", "guide"])
+def test_a_thousand_fuzzed_messages_and_poses_end_no_session(planner, small_maze, caplog):
+    """Every fuzzed message and pose is taken or skipped, never a traceback, and the next good
+    message and pose give a valid plan."""
+    rng = np.random.default_rng(7)
+    episode = Episode(small_maze, PROTOCOL)
+    good = occupancy_message(episode)
+    session = ExplorationSession(planner, PROTOCOL, planner_options={"candidates": 1} if planner == "guide" else None)
+    fuzzed = 1000 if planner == "greedy_utility" else 200
+    for _ in range(fuzzed):
+        session.update_map(fuzzed_message(rng))
+        session.update_pose(*fuzzed_pose(rng))
+        session.plan()
+        session.update_map(good)
+        session.update_pose(*episode.position)
+        plan = session.plan(force=True)
+        assert plan.waypoints or plan.done, plan.reason
+    assert session.state.maps_skipped > fuzzed // 2 and session.state.poses_skipped > fuzzed // 4
