@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pipeline.evaluation.benchmark import parse_option_value
+from pipeline.planners.specs import parse_option_value
 from pipeline.world.maps import list_maps, load_map
 from pipeline.planners import make_planner
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
