@@ -11,7 +11,8 @@ first pose (`Canvas`); it grows by whole lattice steps as the SLAM map grows or 
 and keeps what was seen where a later map says nothing. The planner is reset from that grid's
 frame (never a ground truth) and again whenever the grid grows. The robot, which stands anywhere,
 is snapped to the nearest known-free lattice node it can reach in a straight known-free line.
-A failed goal is marked occupied around its node so that no plan heads there again. `plan()`
+A failed goal's node is marked occupied (its own cell only) for the next AVOID_PLANS plans, so that
+no plan stands on it meanwhile; then it is tried again, as a navigation stack's failures often pass. `plan()`
 plans afresh when the robot has reached its waypoint, when the map has changed by
 `replan_changed_cells` cells, after `replan_after_s` seconds, or when asked (`force`); otherwise it
 returns the plan it made last. Bad input (a NaN pose, a pose off the map, an empty map, data of
@@ -40,6 +41,7 @@ log = logging.getLogger("guide.robot")
 
 PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
 SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
+AVOID_PLANS = 10  # a failed goal's node is avoided for this many plans, then tried again (failures pass)
 MAX_CANVAS_CELLS = 16_000_000  # the belief grid's largest size (800 m x 800 m at 0.2 m): a larger map is refused
 
 
@@ -75,7 +77,7 @@ class ExplorationSession:
     """A planner (by its registered name, with options) exploring from live maps and poses."""
 
     def __init__(self, planner: str | Planner = "guide", protocol: Protocol | str = "real_robot", *,
-                 planner_options: dict[str, Any] | None = None, seed: int = 0, goal_tolerance_m: float = 0.3,
+                 planner_options: dict[str, Any] | None = None, seed: int = 0, goal_tolerance_m: float = 0.5,
                  replan_changed_cells: int = 50, replan_after_s: float = 5.0, clock=time.monotonic) -> None:
         self.protocol = resolve_protocol(protocol)
         self.planner = planner if isinstance(planner, Planner) else make_planner(planner, **(planner_options or {}))
@@ -89,7 +91,7 @@ class ExplorationSession:
         self.pending: Grid | None = None  # a map that came before the first pose
         self.pose: tuple[float, float, float] | None = None
         self.state = SessionState()
-        self.blocked: list[tuple[float, float]] = []  # failed goals, map frame
+        self.blocked: list[tuple[float, float, int]] = []  # failed goals (map frame) and the plan they are avoided until
         self._planned_belief: np.ndarray | None = None  # the belief the planner saw last
         self._frame: MapFrame | None = None
         self._last: Plan | None = None
@@ -179,9 +181,9 @@ class ExplorationSession:
         """The navigation stack could not reach (x, y): its lattice node is marked and avoided."""
         if self.canvas is None or not (math.isfinite(float(x)) and math.isfinite(float(y))):
             return
-        self.blocked.append((float(x), float(y)))
+        self.blocked.append((float(x), float(y), self.state.plans + AVOID_PLANS))
         self.state.failed_goals.append((float(x), float(y)))
-        log.info("goal (%.2f, %.2f) failed: its node is avoided from now on", x, y)
+        log.info("goal (%.2f, %.2f) failed: its node is avoided for %d plans", x, y, AVOID_PLANS)
         self._changed_since += self.replan_changed_cells  # plan afresh
 
     # ------------------------------------------------------------------ decisions
@@ -199,15 +201,26 @@ class ExplorationSession:
             return self._keep(Plan(reason="the robot is not near known free space", decision_ms=_ms(started)))
         frame = MapFrame(belief.shape, self.protocol.cell_size, self.canvas.start_cell, "robot")
         changed = None
-        if frame != self._frame:
+        if frame == self._frame and self._planned_belief is not None:
+            before = self._planned_belief.reshape(-1)
+            changed = np.flatnonzero(before != belief.reshape(-1))
+            if np.any(before[changed] == FREE):
+                changed = None  # a known-free cell is free no longer (SLAM revised it, a goal failed): start afresh
+        if changed is None:
+            # The planners' lattice graphs only ever gain known-free edges, as a simulated belief only
+            # ever gains known cells: a grown grid or a lost free cell needs a graph built anew.
             self.planner.reset(frame, self.protocol, self.seed)
             self._frame = frame
             self.state.resets += 1
-        elif self._planned_belief is not None:
-            changed = np.flatnonzero(self._planned_belief.reshape(-1) != belief.reshape(-1))
         world, cell = robot
         observation = Observation(belief=belief, position=world, cell=cell, changed=changed, step=self.state.plans)
         waypoints = self.planner.plan(observation)
+        if not waypoints and self.blocked:  # done only if nothing is left with every failed goal allowed again
+            self.blocked = []
+            belief = self._belief()
+            self.planner.reset(frame, self.protocol, self.seed)
+            self.state.resets += 1
+            waypoints = self.planner.plan(replace(observation, belief=belief, changed=None))
         self._planned_belief = belief
         self._changed_since = 0
         self._last_time = self.clock()
@@ -241,10 +254,12 @@ class ExplorationSession:
     def _belief(self) -> np.ndarray:
         """The canvas's belief with every failed goal's node marked occupied."""
         belief = self.canvas.belief.copy()
-        radius = max(1, self.step_cells // 2)
-        for x, y in self.blocked:
+        rows, cols = belief.shape
+        self.blocked = [goal for goal in self.blocked if goal[2] > self.state.plans]
+        for x, y, _ in self.blocked:  # the node's own cell: no plan stands on it, the corridor around stays open
             col, row = self._node_cell(self.canvas.to_world(x, y))
-            belief[max(0, row - radius + 1): max(0, row + radius), max(0, col - radius + 1): max(0, col + radius)] = OCCUPIED
+            if 0 <= col < cols and 0 <= row < rows:
+                belief[row, col] = OCCUPIED
         return belief
 
     def _node_cell(self, world: tuple[float, float]) -> tuple[int, int]:
