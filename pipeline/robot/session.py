@@ -209,17 +209,14 @@ class ExplorationSession:
         if changed is None:
             # The planners' lattice graphs only ever gain known-free edges, as a simulated belief only
             # ever gains known cells: a grown grid or a lost free cell needs a graph built anew.
-            self.planner.reset(frame, self.protocol, self.seed)
-            self._frame = frame
-            self.state.resets += 1
+            self._reset_planner(frame)
         world, cell = robot
         observation = Observation(belief=belief, position=world, cell=cell, changed=changed, step=self.state.plans)
         waypoints = self.planner.plan(observation)
         if not waypoints and self.blocked:  # done only if nothing is left with every failed goal allowed again
             self.blocked = []
             belief = self._belief()
-            self.planner.reset(frame, self.protocol, self.seed)
-            self.state.resets += 1
+            self._reset_planner(frame)
             waypoints = self.planner.plan(replace(observation, belief=belief, changed=None))
         self._planned_belief = belief
         self._changed_since = 0
@@ -230,6 +227,30 @@ class ExplorationSession:
         plan = Plan([self.canvas.to_map(w) for w in waypoints], done=not waypoints, target=target,
                     decision_ms=_ms(started), reason=reason, replanned=True)
         return self._keep(plan)
+
+    def _reset_planner(self, frame: MapFrame) -> None:
+        """Reset the planner on `frame`, keeping the nodes it had visited (in the map frame): a
+        planner does not go back to see again what it saw from there."""
+        visited = self._visited_points()
+        self.planner.reset(frame, self.protocol, self.seed)
+        self._frame = frame
+        self.state.resets += 1
+        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        if graph is not None and marks is not None and len(visited):
+            d = self.protocol.node_resolution
+            for x, y in visited:
+                i, j = round(x / d), round(y / d)
+                node = graph.node_id(i, j)
+                if node >= 0:
+                    marks[node] = True
+
+    def _visited_points(self) -> list[tuple[float, float]]:
+        """The planner's visited nodes as planner positions of the current frame's anchor (which
+        every frame keeps)."""
+        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        if graph is None or marks is None or self._frame is None:
+            return []
+        return [tuple(xy) for xy in graph.node_world[np.flatnonzero(marks)]]
 
     def _replan_reason(self, force: bool) -> str | None:
         last = self._last
