@@ -106,6 +106,13 @@ class Canvas:
         """A map-frame point as a planner's position (metres from the start cell)."""
         return x - self.anchor[0], y - self.anchor[1]
 
+    def contains(self, extent: tuple[float, float, float, float]) -> bool:
+        """Whether map-frame `extent` (x0, y0, x1, y1) lies inside the canvas."""
+        rows, cols = self.belief.shape
+        c0, r0 = self.to_cell(extent[0], extent[1])
+        c1, r1 = self.to_cell(extent[2], extent[3])
+        return c0 >= 0 and r0 >= 0 and c1 < cols and r1 < rows
+
     def cover(self, extent: tuple[float, float, float, float], margin_m: float = 0.0) -> bool:
         """Grow (by whole lattice steps) until `extent` (x0, y0, x1, y1) plus `margin_m` lies inside;
         True when the canvas grew."""

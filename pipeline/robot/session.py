@@ -11,8 +11,9 @@ first pose (`Canvas`); it grows by whole lattice steps as the SLAM map grows or 
 and keeps what was seen where a later map says nothing. The planner is reset from that grid's
 frame (never a ground truth) and again whenever the grid grows. The robot, which stands anywhere,
 is snapped to the nearest known-free lattice node it can reach in a straight known-free line.
-A failed goal's node is marked occupied (its own cell only) for the next AVOID_PLANS plans, so that
-no plan stands on it meanwhile; then it is tried again, as a navigation stack's failures often pass. `plan()`
+A failed goal's node is no longer a target (it counts as visited); failed again soon after, it is
+marked occupied (its own cell only) for the next AVOID_PLANS plans, so that no plan stands on it
+meanwhile, then tried again, as a navigation stack's failures often pass. `plan()`
 plans afresh when the robot has reached its waypoint, when the map has changed by
 `replan_changed_cells` cells, after `replan_after_s` seconds, or when asked (`force`); otherwise it
 returns the plan it made last. Bad input (a NaN pose, a pose off the map, an empty map, data of
@@ -41,7 +42,8 @@ log = logging.getLogger("guide.robot")
 
 PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
 SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
-AVOID_PLANS = 10  # a failed goal's node is avoided for this many plans, then tried again (failures pass)
+AVOID_PLANS = 10  # a goal failed twice is blocked for this many plans, then tried again (failures pass)
+GROWTH_MARGIN_RANGES = 2.0  # the belief grows this many lidar ranges past a map that leaves it
 MAX_CANVAS_CELLS = 16_000_000  # the belief grid's largest size (800 m x 800 m at 0.2 m): a larger map is refused
 
 
@@ -91,7 +93,9 @@ class ExplorationSession:
         self.pending: Grid | None = None  # a map that came before the first pose
         self.pose: tuple[float, float, float] | None = None
         self.state = SessionState()
-        self.blocked: list[tuple[float, float, int]] = []  # failed goals (map frame) and the plan they are avoided until
+        self.blocked: list[tuple[float, float, int]] = []  # goals failed twice (map frame), blocked until that plan
+        self.avoided: list[tuple[float, float]] = []  # failed goals (map frame): no longer targets
+        self.recent_failures: list[tuple[float, float, int]] = []  # (x, y, the plan count when it failed)
         self._planned_belief: np.ndarray | None = None  # the belief the planner saw last
         self._frame: MapFrame | None = None
         self._last: Plan | None = None
@@ -113,7 +117,8 @@ class ExplorationSession:
         if not self._fits(grid):
             return self._skip_map(f"its extent {_extent_text(grid.extent)} would grow the belief past "
                                   f"{MAX_CANVAS_CELLS:,} cells")
-        self.canvas.cover(grid.extent)
+        if not self.canvas.contains(grid.extent):  # grown with room to spare: each growth rebuilds the planner
+            self.canvas.cover(grid.extent, margin_m=GROWTH_MARGIN_RANGES * self.protocol.sensor_range)
         before = self.canvas.belief.copy() if self._planned_belief is not None else None
         self.canvas.paint(grid)
         if before is not None and before.shape == self.canvas.belief.shape:
@@ -178,12 +183,21 @@ class ExplorationSession:
         return width * height <= MAX_CANVAS_CELLS
 
     def goal_failed(self, x: float, y: float) -> None:
-        """The navigation stack could not reach (x, y): its lattice node is marked and avoided."""
+        """The navigation stack could not reach (x, y): its lattice node is no longer a target; failed
+        again soon after, the node is blocked for AVOID_PLANS plans."""
         if self.canvas is None or not (math.isfinite(float(x)) and math.isfinite(float(y))):
             return
-        self.blocked.append((float(x), float(y), self.state.plans + AVOID_PLANS))
-        self.state.failed_goals.append((float(x), float(y)))
-        log.info("goal (%.2f, %.2f) failed: its node is avoided for %d plans", x, y, AVOID_PLANS)
+        x, y = float(x), float(y)
+        node = self._node_cell(self.canvas.to_world(x, y))
+        recent = [(fx, fy) for fx, fy, plan in self.recent_failures if plan > self.state.plans - AVOID_PLANS]
+        if any(self._node_cell(self.canvas.to_world(fx, fy)) == node for fx, fy in recent):
+            self.blocked.append((x, y, self.state.plans + AVOID_PLANS))
+            log.info("goal (%.2f, %.2f) failed again: its node is blocked for %d plans", x, y, AVOID_PLANS)
+        else:
+            self.avoided.append((x, y))
+            log.info("goal (%.2f, %.2f) failed: its node is no longer a target", x, y)
+        self.recent_failures.append((x, y, self.state.plans))
+        self.state.failed_goals.append((x, y))
         self._changed_since += self.replan_changed_cells  # plan afresh
 
     # ------------------------------------------------------------------ decisions
@@ -211,12 +225,17 @@ class ExplorationSession:
             # ever gains known cells: a grown grid or a lost free cell needs a graph built anew.
             self._reset_planner(frame)
         world, cell = robot
+        self._mark_avoided()
         observation = Observation(belief=belief, position=world, cell=cell, changed=changed, step=self.state.plans)
         waypoints = self.planner.plan(observation)
-        if not waypoints and self.blocked:  # done only if nothing is left with every failed goal allowed again
-            self.blocked = []
+        if not waypoints and (self.blocked or self.avoided):  # done only if nothing is left with every goal allowed
+            avoided = self.avoided
+            self.blocked, self.avoided = [], []
             belief = self._belief()
             self._reset_planner(frame)
+            graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+            for x, y in avoided if graph is not None and marks is not None else ():
+                marks[graph.nearest_node(self.canvas.to_world(x, y))] = False  # targets again
             waypoints = self.planner.plan(replace(observation, belief=belief, changed=None))
         self._planned_belief = belief
         self._changed_since = 0
@@ -243,6 +262,14 @@ class ExplorationSession:
                 node = graph.node_id(i, j)
                 if node >= 0:
                     marks[node] = True
+
+    def _mark_avoided(self) -> None:
+        """The failed goals' nodes marked visited: a planner heads for no visited node."""
+        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        if graph is None or marks is None:
+            return
+        for x, y in self.avoided:
+            marks[graph.nearest_node(self.canvas.to_world(x, y))] = True
 
     def _visited_points(self) -> list[tuple[float, float]]:
         """The planner's visited nodes as planner positions of the current frame's anchor (which
