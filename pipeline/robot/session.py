@@ -233,7 +233,7 @@ class ExplorationSession:
             self.blocked, self.avoided = [], []
             belief = self._belief()
             self._reset_planner(frame)
-            graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+            graph, marks = self._graph_and_visits()
             for x, y in avoided if graph is not None and marks is not None else ():
                 marks[graph.nearest_node(self.canvas.to_world(x, y))] = False  # targets again
             waypoints = self.planner.plan(replace(observation, belief=belief, changed=None))
@@ -254,7 +254,7 @@ class ExplorationSession:
         self.planner.reset(frame, self.protocol, self.seed)
         self._frame = frame
         self.state.resets += 1
-        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        graph, marks = self._graph_and_visits()
         if graph is not None and marks is not None and len(visited):
             d = self.protocol.node_resolution
             for x, y in visited:
@@ -263,9 +263,14 @@ class ExplorationSession:
                 if node >= 0:
                     marks[node] = True
 
+    def _graph_and_visits(self) -> tuple[Any, Any]:
+        """The planner's lattice graph and its visited marks (None, None for a planner without them)."""
+        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        return (graph, marks) if graph is not None and marks is not None else (None, None)
+
     def _mark_avoided(self) -> None:
         """The failed goals' nodes marked visited: a planner heads for no visited node."""
-        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        graph, marks = self._graph_and_visits()
         if graph is None or marks is None:
             return
         for x, y in self.avoided:
@@ -274,7 +279,7 @@ class ExplorationSession:
     def _visited_points(self) -> list[tuple[float, float]]:
         """The planner's visited nodes as planner positions of the current frame's anchor (which
         every frame keeps)."""
-        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        graph, marks = self._graph_and_visits()
         if graph is None or marks is None or self._frame is None:
             return []
         return [tuple(xy) for xy in graph.node_world[np.flatnonzero(marks)]]
