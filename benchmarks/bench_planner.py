@@ -29,9 +29,8 @@ import torch
 from pipeline.planners.specs import parse_option_value
 from pipeline.world.maps import list_maps, load_map
 from pipeline.planners import make_planner
-from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+from pipeline.world.protocol import PROTOCOLS
 
-PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}
 from pipeline.world.simulator import run_episode
 
 

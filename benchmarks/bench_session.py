@@ -21,27 +21,12 @@ import numpy as np
 import torch
 
 from pipeline.planners import make_planner
-from pipeline.robot import ExplorationSession, GridMessage
+from pipeline.robot import ExplorationSession
+from pipeline.robot.closed_loop import grid_message, slam_map
 from pipeline.robot.session import resolve_protocol
 from pipeline.world.maps import load_map
 from pipeline.world.offices import OfficeConfig, generate_office_set
-from pipeline.world.sensor import FREE, OCCUPIED
 from pipeline.world.simulator import Episode
-
-
-def slam_message(episode: Episode, resolution: float, rng: np.random.Generator) -> GridMessage:
-    """The episode's belief as a SLAM map of `resolution` cells, cropped to the known area."""
-    grid = episode.belief.grid
-    c = episode.protocol.cell_size
-    fine = int(round(c / resolution))
-    values = np.where(grid == FREE, rng.integers(0, 15, grid.shape),
-                      np.where(grid == OCCUPIED, rng.integers(70, 101, grid.shape), -1))
-    rows, cols = np.nonzero(grid != 128)
-    r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-    values = np.repeat(np.repeat(values[r0:r1, c0:c1], fine, axis=0), fine, axis=1)
-    start_col, start_row = episode.map.start_cell
-    return GridMessage(values.reshape(-1).astype(np.int8), values.shape[1], values.shape[0], c / fine,
-                       (c0 - start_col - 0.5) * c, (r0 - start_row - 0.5) * c)
 
 
 def main() -> None:
@@ -71,7 +56,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     moments = []  # (message, pose) after each further greedy waypoint: every decision sees a grown map
     for _ in range(args.repeats + 1):
-        moments.append((slam_message(episode, args.resolution, rng), episode.position))
+        moments.append((grid_message(slam_map(episode, args.resolution, rng)), episode.position))
         waypoints = greedy.plan(episode.observe())
         if waypoints:
             episode.move(waypoints[0])

@@ -19,10 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.robot.occupancy_grid import GridMessage
 from pipeline.robot.session import ExplorationSession
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, Lidar
+from pipeline.world.simulator import Episode
 
 
 DECISION_S = 0.5  # simulated seconds between decisions (2 Hz)
@@ -128,8 +130,9 @@ def free_path(free: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -
     return None
 
 
-def slam_map(robot: SimulatedRobot, resolution: float, rng: np.random.Generator) -> dict[str, Any]:
-    """The robot's belief as a SLAM map would give it: the fields of an OccupancyGrid."""
+def slam_map(robot: SimulatedRobot | Episode, resolution: float, rng: np.random.Generator) -> dict[str, Any]:
+    """The robot's (or a simulator episode's) belief as a SLAM map would give it: the fields of an
+    OccupancyGrid, cropped to the known area, with occupancy probabilities."""
     grid = robot.belief.grid
     c = robot.protocol.cell_size
     fine = max(1, int(round(c / resolution)))
@@ -142,6 +145,11 @@ def slam_map(robot: SimulatedRobot, resolution: float, rng: np.random.Generator)
     start_col, start_row = robot.map.start_cell
     return {"data": values.reshape(-1), "width": values.shape[1], "height": values.shape[0], "resolution": c / fine,
             "x": (c0 - start_col - 0.5) * c, "y": (r0 - start_row - 0.5) * c}
+
+
+def grid_message(fields: dict[str, Any]) -> GridMessage:
+    """`slam_map`'s fields as a message with OccupancyGrid's fields, without ROS types."""
+    return GridMessage(fields["data"], fields["width"], fields["height"], fields["resolution"], fields["x"], fields["y"])
 
 
 def as_ros_message(fields: dict[str, Any], stamp_s: float, cdr: bool = True) -> Any:

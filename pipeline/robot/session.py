@@ -35,12 +35,11 @@ from pipeline.robot.occupancy_grid import BadMessage, Canvas, Grid, read_grid
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner
-from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
+from pipeline.world.protocol import PROTOCOLS, Protocol
 from pipeline.world.sensor import FREE, OCCUPIED
 
 log = logging.getLogger("guide.robot")
 
-PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
 SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
 AVOID_PLANS = 10  # a goal failed twice is blocked for this many plans, then tried again (failures pass)
 GROWTH_MARGIN_RANGES = 2.0  # the belief grows this many lidar ranges past a map that leaves it

@@ -82,6 +82,8 @@ PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.
 """The paper's real-robot setting (0.2 m cells, 1 m nodes, 10 m sensor) as profiles/real_robot.yaml
 runs it: regions as wide as the sensor reaches, done at 40 m^2 unseen."""
 
+PROTOCOLS = {"maze": Protocol(), "real_robot": PAPER_REAL_ROBOT}  # the shipped profiles' protocols, by name
+
 
 def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: str | Path | None = None) -> Protocol:
     """A ROS map carries its own cell size; every other protocol value stays.

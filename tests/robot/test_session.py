@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from pipeline.robot import ExplorationSession, GridMessage
+from pipeline.robot.closed_loop import grid_message, slam_map
 from pipeline.robot.occupancy_grid import Canvas, read_grid
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
@@ -16,21 +17,10 @@ from pipeline.world.simulator import Episode
 PROTOCOL = Protocol()  # the maze benchmark's: 0.4 m cells, 4 m lattice
 
 
-def occupancy_message(episode: Episode, fine: int = 4, crop: bool = True, rng=None) -> GridMessage:
-    """The simulator's belief as a SLAM map: `fine` x finer cells, occupancy probabilities (not three
+def occupancy_message(episode: Episode, rng=None) -> GridMessage:
+    """The simulator's belief as a SLAM map: 4 x finer cells, occupancy probabilities (not three
     values), cropped to the known area (so it grows and its origin moves as the robot explores)."""
-    grid = episode.belief.grid
-    rng = rng or np.random.default_rng(0)
-    values = np.where(grid == FREE, rng.integers(0, 15, grid.shape), np.where(grid == OCCUPIED,
-                      rng.integers(70, 101, grid.shape), -1))
-    rows, cols = np.nonzero(grid != UNKNOWN)
-    r0, r1, c0, c1 = (rows.min(), rows.max() + 1, cols.min(), cols.max() + 1) if crop else (0, grid.shape[0], 0, grid.shape[1])
-    values = values[r0:r1, c0:c1]
-    values = np.repeat(np.repeat(values, fine, axis=0), fine, axis=1)
-    c = episode.protocol.cell_size
-    start_col, start_row = episode.map.start_cell
-    return GridMessage(values.reshape(-1).tolist(), values.shape[1], values.shape[0], c / fine,
-                       origin_x=(c0 - start_col - 0.5) * c, origin_y=(r0 - start_row - 0.5) * c)
+    return grid_message(slam_map(episode, episode.protocol.cell_size / 4, rng or np.random.default_rng(0)))
 
 
 def test_a_cell_is_free_only_where_every_finer_cell_is_and_occupied_where_any_is():
