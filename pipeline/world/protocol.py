@@ -3,37 +3,31 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, positive, validate, whole
 from pipeline.world.maps import GroundTruthMap, MapError
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class Protocol:
-    """Every protocol value is a parameter; the defaults are the maze benchmark's."""
+    """Every protocol value is a parameter; the defaults are the maze benchmark's. NaN and
+    infinities are refused here, not deep in a ray table."""
 
-    cell_size: float = 0.4
-    node_resolution: float = 4.0
-    sensor_range: float = 20.0
-    utility_range: float = 10.0
-    region_size: float = 20.0
-    done_unknown_cells: int = 250
-    max_steps: int = 500
+    cell_size: positive("metres per grid cell") = 0.4
+    node_resolution: positive("lattice spacing in metres") = 4.0
+    sensor_range: positive("metres") = 20.0
+    utility_range: positive("metres") = 10.0
+    region_size: positive("metres") = 20.0
+    done_unknown_cells: whole(0, note="cells") = 250
+    max_steps: whole(1, note="waypoints") = 500
 
     def __post_init__(self) -> None:
-        for name in ("cell_size", "node_resolution", "sensor_range", "utility_range", "region_size"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):  # NaN and inf fail here, not deep in a ray table
-                raise ValueError(f"protocol.{name} must be a positive finite number, got {value}")
         if self.node_resolution < self.cell_size:
-            raise ValueError("protocol.node_resolution must be at least one cell")
-        if self.max_steps < 1:
-            raise ValueError("protocol.max_steps must be at least 1")
-        if self.done_unknown_cells < 0:
-            raise ValueError("protocol.done_unknown_cells must be >= 0")
+            raise ValueError(f"node_resolution ({self.node_resolution:g} m) must be at least one cell "
+                             f"({self.cell_size:g} m)")
 
     @property
     def sensor_range_cells(self) -> float:
@@ -48,7 +42,9 @@ class Protocol:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> "Protocol":
-        return dataclass_from_dict(cls, values, "protocol parameter(s):")
+        """The protocol a mapping names (a params.yaml `protocol` section, a model's record); a refused
+        value is a ValueError naming it as `protocol.key`."""
+        return validate(cls, values, "protocol")
 
 
 class ProtocolMismatchWarning(UserWarning):

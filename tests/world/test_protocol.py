@@ -8,10 +8,16 @@ from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol, model_input_di
 
 
 def test_bad_values_are_refused_with_the_parameter_named():
-    with pytest.raises(ValueError, match=r"protocol\.sensor_range must be a positive finite number, got nan"):
+    with pytest.raises(ValueError, match=r"sensor_range\s+must be a finite number > 0 \(metres\)"):
         Protocol(sensor_range=float("nan"))
-    with pytest.raises(ValueError, match=r"unknown protocol parameter\(s\): \['lidar'\]"):
+    with pytest.raises(ValueError, match=r"^protocol\.sensor_range: must be a finite number > 0 \(metres\), got nan$"):
+        Protocol.from_dict({"sensor_range": float("nan")})
+    with pytest.raises(ValueError, match=r"^protocol\.lidar: unknown setting, got 20$"):
         Protocol.from_dict({"lidar": 20})
+    with pytest.raises(ValueError, match=r"^protocol\.max_steps: must be a whole number >= 1 \(waypoints\), got True$"):
+        Protocol.from_dict({"max_steps": True})
+    with pytest.raises(ValueError, match=r"^protocol: node_resolution \(0\.1 m\) must be at least one cell"):
+        Protocol.from_dict({"node_resolution": 0.1})
 
 
 def test_model_input_differences_name_each_changed_value():

@@ -1,0 +1,255 @@
+"""Typed, validated configs on pydantic: one vocabulary for every setting the project reads.
+
+A params.yaml section, a planner's options, a model's config, the protocol and the training
+run's settings are all pydantic classes (a `Section` model or a `config_dataclass`) whose fields
+are typed with the constrained types below. The library checks types, ranges, unknown and
+missing keys, lists and nested mappings; these types only add the words: a refused value is one
+error whose message says what the value must be,
+
+    <dotted.key>: must be <what>, got <value!r>
+
+which `explain` turns a `ValidationError` into (a missing or unknown key says so instead), and
+the stage runner and the command line print as one `error:` line with exit status 2.
+
+Two rules hold for every type here: a bool is never a number (YAML's `true` is a typo, not a
+count), and NaN and infinities are never real numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import numbers
+import typing
+from typing import Annotated, Any, Callable, Literal, Mapping, Optional, TypeVar, Union
+
+import annotated_types as at
+import pydantic
+from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError, WrapValidator, model_validator
+from pydantic_core import ArgsKwargs, PydanticCustomError
+
+__all__ = [
+    "Section", "ValidationError", "any_of", "config_dataclass", "explain", "flag", "fraction", "identifier", "list_of",
+    "maybe", "pair", "positive", "real", "satisfies", "text", "validate", "whole",
+]
+
+T = TypeVar("T")
+REFUSED = "refused"
+
+
+def _refusing(what: str, deeper: bool = True) -> WrapValidator:
+    """A wrapper that says `what` a value must be when the type underneath refuses it; with
+    `deeper`, a refusal inside the value (an item of a list, a key of a mapping) keeps its own,
+    deeper message."""
+
+    def validate(value: Any, handler: Callable[[Any], Any]) -> Any:
+        try:
+            return handler(value)
+        except ValidationError as error:
+            if deeper and any(detail["loc"] for detail in error.errors()):
+                raise
+            raise PydanticCustomError(REFUSED, "must be {what}", {"what": what}) from None
+        except (ValueError, AssertionError) as error:  # a rule of the type's own validators
+            raise PydanticCustomError(REFUSED, "must be {what} ({reason})", {"what": what, "reason": str(error)}) from None
+
+    validate.what = what  # type: ignore[attr-defined]  # what the types that hold this one say of it
+    return WrapValidator(validate)
+
+
+def _noted(rule: str, note: str) -> str:
+    return rule + (f" ({note})" if note else "")
+
+
+def whole(minimum: int = 0, maximum: int | None = None, note: str = "") -> Any:
+    """A whole number (an int, not a bool, not 3.0) in minimum..maximum (no upper bound when None)."""
+    rule = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
+    bounds = [at.Ge(minimum)] + ([at.Le(maximum)] if maximum is not None else [])
+    return Annotated[int, Strict(), *bounds, _refusing(_noted(f"a whole number {rule}", note)),
+                     pydantic.BeforeValidator(_plain_int)]
+
+
+def _plain_int(value: Any) -> Any:
+    """numpy's integers as Python ints (a count computed with numpy is still a count)."""
+    return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
+
+
+def real(low: float | None = None, high: float | None = None, *, low_open: bool = False, high_open: bool = False,
+         note: str = "") -> Any:
+    """A finite number (an int or a float, never a bool, NaN or +-inf) between `low` and `high`
+    (closed ends unless `low_open` / `high_open`; None: unbounded on that side). Kept as a float."""
+    if low is not None and high is not None:
+        rule = f"a number in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+    else:
+        rule = "a finite number"
+        if low is not None:
+            rule += f" {'>' if low_open else '>='} {low:g}"
+        if high is not None:
+            rule += f" {'<' if high_open else '<='} {high:g}"
+    bounds: list[Any] = []
+    if low is not None:
+        bounds.append(at.Gt(low) if low_open else at.Ge(low))
+    if high is not None:
+        bounds.append(at.Lt(high) if high_open else at.Le(high))
+    return Annotated[float, Strict(), AllowInfNan(False), *bounds, _refusing(_noted(rule, note))]
+
+
+def positive(note: str = "") -> Any:
+    """A finite number > 0 (a length, a rate, a learning rate)."""
+    return real(0.0, low_open=True, note=note)
+
+
+def fraction(note: str = "") -> Any:
+    """A finite number in [0, 1] (a share, a probability threshold)."""
+    return real(0.0, 1.0, note=note)
+
+
+def flag() -> Any:
+    """true or false (not 0 / 1, not "yes")."""
+    return Annotated[bool, Strict(), _refusing("true or false")]
+
+
+def text(choices: tuple[str, ...] = (), note: str = "") -> Any:
+    """A non-empty string; with `choices`, one of them."""
+    if choices:
+        return Annotated[Literal[choices], _refusing(_noted("one of " + ", ".join(map(repr, choices)), note))]
+    return Annotated[str, Strict(), at.Predicate(lambda value: bool(value.strip())),
+                     _refusing(_noted("a non-empty string", note))]
+
+
+def identifier(note: str = "") -> Any:
+    """A Python identifier (letters, digits, '_'): a name that becomes a key or a file name."""
+    return Annotated[str, Strict(), at.Predicate(str.isidentifier),
+                     _refusing(_noted("an identifier (letters, digits, '_')", note))]
+
+
+def maybe(inner: Any, meaning: str = "") -> Any:
+    """null (None), meaning `meaning`, or a value of type `inner`."""
+    return Annotated[Optional[inner], _refusing(_noted(f"{_what(inner)}, or null", meaning))]
+
+
+def list_of(item: Any, min_length: int = 1, description: str = "") -> Any:
+    """A list (a tuple from Python) of at least `min_length` items of type `item` (paths key[i])."""
+    if not description:
+        size = {0: "a list (maybe empty)", 1: "a non-empty list"}.get(min_length, f"a list of at least {min_length} items")
+        description = f"{size} of {_what(item)}"
+    return Annotated[list[item], at.MinLen(min_length), _refusing(description)]
+
+
+def pair(item: Any) -> Any:
+    """An inclusive range [low, high]: two values of type `item`, low <= high."""
+    return Annotated[list[item], at.Len(2, 2), at.Predicate(lambda value: value[0] <= value[1]),
+                     _refusing(f"a range [low, high] of {_what(item)}, low <= high")]
+
+
+def any_of(*options: Any, description: str = "") -> Any:
+    """A value one of `options` takes (e.g. a number of devices or "auto"), tried left to right."""
+    return Annotated[Union[options], pydantic.Field(union_mode="left_to_right"),
+                     _refusing(description or " or ".join(_what(option) for option in options), deeper=False)]
+
+
+def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any) -> Any:
+    """A value `test` takes without a ValueError, TypeError or KeyError (a registered planner's
+    name, by the registry's own lookup); the refusal carries the test's own message."""
+
+    def check(value: Any) -> Any:
+        try:
+            test(value)
+        except (ValueError, TypeError, KeyError) as error:
+            reason = str(error.args[0]) if isinstance(error, KeyError) and error.args else str(error)
+            raise PydanticCustomError(REFUSED, "must be {what} ({reason})", {"what": description, "reason": reason}) from None
+        return value
+
+    return Annotated[kind, pydantic.AfterValidator(check)]
+
+
+def _what(kind: Any) -> str:
+    """The words a constrained type says it must be ("a whole number >= 1"), for the types that
+    hold others (a list of them, a null or one)."""
+    if typing.get_origin(kind) is Annotated:
+        for meta in reversed(kind.__metadata__):
+            if isinstance(meta, WrapValidator) and hasattr(meta.func, "what"):
+                return meta.func.what
+    if isinstance(kind, type) and issubclass(kind, BaseModel):
+        return f"a mapping of {kind.__name__} settings"
+    return getattr(kind, "__name__", str(kind))
+
+
+class Section(BaseModel):
+    """A mapping of settings with exactly these keys: a params.yaml section or a part of one.
+
+    A field with a default may be left out (the code that reads it has the same default); any
+    other missing key, and any key the class does not name, is refused by name. The model checks
+    values; the stage still passes its section on as the plain mapping the file holds.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _known_keys_only(cls, values: Any) -> Any:
+        if isinstance(values, Mapping):
+            for key in values:
+                if key not in cls.model_fields:
+                    raise PydanticCustomError("unknown_key", "unknown setting {key!r} (known: {known})",
+                                              {"key": key, "known": ", ".join(cls.model_fields)})
+        return values
+
+
+def config_dataclass(cls: type[T]) -> type[T]:
+    """A frozen dataclass whose fields are validated when it is made (a planner's or a model's
+    config): `dataclasses.fields`, `replace` and pickling work as on any dataclass, and an
+    unknown keyword is refused."""
+    return pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(cls)
+
+
+def _path(loc: tuple[Any, ...]) -> str:
+    path = ""
+    for part in loc:
+        path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
+    return path
+
+
+def explain(error: ValidationError, root: str = "") -> str:
+    """The first refusal of a ValidationError as one line: `root.key.sub: must be ..., got value`."""
+    detail = error.errors(include_url=False)[0]
+    loc = tuple(detail["loc"])
+    kind, message, value = detail["type"], detail["msg"], detail.get("input")
+    if kind == "unknown_key":
+        key = detail["ctx"]["key"]
+        loc, value = loc + (key,), value.get(key) if isinstance(value, Mapping) else None
+        message = f"unknown setting (known: {detail['ctx']['known']})"
+    elif kind in ("extra_forbidden", "unexpected_keyword_argument"):
+        message = "unknown setting"
+    elif kind in ("missing", "missing_argument"):
+        message = "missing (the params file names every setting)" if root else "missing"
+        value = dataclasses.MISSING
+    elif kind in ("value_error", "assertion_error"):
+        message = message.split(", ", 1)[1] if message.startswith(("Value error, ", "Assertion failed, ")) else message
+        value = dataclasses.MISSING  # its message says what was wrong with which values
+    elif kind in ("model_type", "dataclass_type", "model_attributes_type", "dict_type"):
+        message = "must be a mapping of settings"
+    elif kind != REFUSED:
+        message = message[:1].lower() + message[1:]
+    if isinstance(value, ArgsKwargs):  # a dataclass's arguments as a whole: not a value to show
+        value = dataclasses.MISSING
+    path = _path(((root,) if root else ()) + loc)
+    shown = "" if value is dataclasses.MISSING else f", got {value!r}"
+    return f"{path}: {message}{shown}" if path else f"{message}{shown}"
+
+
+def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") -> T:
+    """`kind` made from a mapping (a Section model or a config dataclass); a refusal is a ValueError
+    with `explain`'s one line."""
+    try:
+        if isinstance(kind, type) and issubclass(kind, BaseModel):
+            return kind.model_validate({} if values is None else values)
+        if values is not None and not isinstance(values, Mapping):
+            raise ValueError(f"{root + ': ' if root else ''}must be a mapping of settings, got {values!r}")
+        values = dict(values or {})
+        known = [field.name for field in dataclasses.fields(kind)]
+        for key in values:
+            if key not in known:
+                raise ValueError(f"{_path(((root,) if root else ()) + (key,))}: unknown setting "
+                                 f"(known: {', '.join(known)}), got {values[key]!r}")
+        return kind(**values)
+    except ValidationError as error:
+        raise ValueError(explain(error, root)) from None
