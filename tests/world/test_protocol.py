@@ -12,7 +12,7 @@ def test_bad_values_are_refused_with_the_parameter_named():
         Protocol(sensor_range=float("nan"))
     with pytest.raises(ValueError, match=r"^protocol\.sensor_range: must be a finite number > 0 \(metres\), got nan$"):
         Protocol.from_dict({"sensor_range": float("nan")})
-    with pytest.raises(ValueError, match=r"^protocol\.lidar: unknown setting, got 20$"):
+    with pytest.raises(ValueError, match=r"^protocol\.lidar: unknown setting \(known: cell_size, .*\), got 20$"):
         Protocol.from_dict({"lidar": 20})
     with pytest.raises(ValueError, match=r"^protocol\.max_steps: must be a whole number >= 1 \(waypoints\), got True$"):
         Protocol.from_dict({"max_steps": True})
