@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any, Callable
 
+from pipeline.common.config import Section, validate
+from pipeline.common.params import load_params, params_section
 from pipeline.world.maps import MapError
+from pipeline.world.protocol import Protocol
 
 UPSTREAM_HINT = " (run the upstream stages first: `dvc repro`)"
 
@@ -39,6 +43,29 @@ def run_stage_main(main: Callable[..., Any], *args: Any) -> Any:
             raise
         print(f"error: {message}", file=sys.stderr)
         raise SystemExit(2) from None
+
+
+def read_stage(params_path: str | Path, section: str, settings: type[Section]) -> dict[str, Any]:
+    """A stage's section of the params file, checked against its `Settings` model before the stage
+    reads, writes or deletes anything: the mapping as the file holds it (the workflows take plain
+    values), or a ValueError `<file>: <section.key>: must be ..., got ...` for the first value refused.
+    A missing file or bad YAML is `load_params`'s one-line error."""
+    params = load_params(params_path)
+    values = params_section(params, section, params_path)
+    try:
+        validate(settings, values, section)
+    except ValueError as error:
+        raise ValueError(f"{params_path}: {error}") from None
+    return dict(values)
+
+
+def read_protocol(params_path: str | Path) -> Protocol:
+    """The params file's shared `protocol` section (it may be left out: the maze benchmark's values)."""
+    values = load_params(params_path).get("protocol")
+    try:
+        return Protocol.from_dict(values)
+    except ValueError as error:
+        raise ValueError(f"{params_path}: {error}") from None
 
 
 def stage_arguments(doc: str | None) -> argparse.ArgumentParser:

@@ -11,30 +11,25 @@ Its own stage, so retraining the planner never re-runs the predictor.
 
 from __future__ import annotations
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import Fields, Maybe, Text, Whole, check_stage, fraction, keys_of
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.common.config import Section, fraction, maybe, text, whole
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.build_observations import build_observations
-from pipeline.world.protocol import Protocol
 
-SETTINGS = Fields({
-    "max_nodes": Whole(1),
-    "max_neighbors": Whole(1),
-    "threshold": fraction("tau of the graph's predicted nodes"),
-    "count_threshold": fraction("tau of the nodes the utility boost counts"),
-    "min_component": Whole(0, note="0 or 1: keep every predicted node"),
-    "inpainter": Maybe(Text(note="an inpainter export"), "models/inpainter/inpainter.pt"),
-    "workers": Whole(0, note="0 or 1: in this process"),
-})
-KEYS = keys_of(SETTINGS)
+
+class Settings(Section):
+    """The `build_observations` section of params.yaml."""
+
+    max_nodes: whole(1)
+    max_neighbors: whole(1)
+    threshold: fraction("tau of the graph's predicted nodes")
+    count_threshold: fraction("tau of the nodes the utility boost counts")
+    min_component: whole(0, note="0 or 1: keep every predicted node")
+    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
+    workers: whole(0, note="0 or 1: in this process")
 
 
 def main(params_path: str = "params.yaml") -> dict:
-    check_stage(params_path, "build_observations", SETTINGS)
-    params = load_params(params_path)
-    section = complete_section(params, "build_observations", params_path, KEYS)
-    protocol = Protocol.from_dict(params.get("protocol") or {})
-    return build_observations(section, protocol)
+    return build_observations(read_stage(params_path, "build_observations", Settings), read_protocol(params_path))
 
 
 if __name__ == "__main__":

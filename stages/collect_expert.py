@@ -7,50 +7,47 @@ reports/expert_episode.png (rebuilt from the shard, so it also checks the round 
 
 from __future__ import annotations
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import Fields, Flag, Satisfies, Text, Whole, check_stage, keys_of
+from typing import Any
+
+from pydantic import ValidationInfo, field_validator
+
+from pipeline.common.config import Section, flag, satisfies, text, whole
 from pipeline.planners import planner_config
 from pipeline.planners.registry import accepted_options, make_config
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.collect_expert import collect_expert
-from pipeline.world.protocol import Protocol
-
-def check_options(options: object) -> None:
-    """A mapping of option names to values (which the planner takes is checked in `main`)."""
-    if not isinstance(options, dict):
-        raise TypeError("not a mapping")
 
 
-SETTINGS = Fields({
-    "seed": Whole(0),
-    "episodes": Whole(1),
-    "episodes_per_shard": Whole(1),
-    "planner": Satisfies(planner_config, "a registered planner name"),
-    "planner_options": Satisfies(check_options, "a mapping of the planner's options"),
-    "horizon": Whole(1, note="future waypoints per step"),
-    "random_starts": Flag(),
-    "workers": Whole(0, note="0 or 1: in this process"),
-    "backend": Text(("process", "ray")),
-})
-KEYS = keys_of(SETTINGS)
+class Settings(Section):
+    """The `collect_expert` section of params.yaml."""
+
+    seed: whole(0)
+    episodes: whole(1)
+    episodes_per_shard: whole(1)
+    planner: satisfies(planner_config, "a registered planner name", str)
+    planner_options: dict[str, Any]
+    horizon: whole(1, note="future waypoints per step")
+    random_starts: flag()
+    workers: whole(0, note="0 or 1: in this process")
+    backend: text(("process", "ray"))
+
+    @field_validator("planner_options")
+    @classmethod
+    def _options_the_planner_takes(cls, options: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        """An option the planner does not take fails here, by its key, not in the first worker."""
+        planner = info.data.get("planner")
+        if planner is None:  # the planner itself was refused
+            return options
+        accepted = accepted_options(planner, options)
+        for key in options:
+            if key not in accepted:
+                raise ValueError(f"{planner} has no option {key!r}; it accepts: {', '.join(accepted)}")
+        make_config(planner, **options)
+        return options
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
-    check_stage(params_path, "collect_expert", SETTINGS)
-    params = load_params(params_path)
-    section = complete_section(params, "collect_expert", params_path, KEYS)
-    options = section["planner_options"]
-    accepted = accepted_options(section["planner"], options)
-    for key in options:  # an option the planner does not take fails here, by its key, not in the first worker
-        if key not in accepted:
-            raise ValueError(f"{params_path}: collect_expert.planner_options.{key}: {section['planner']} has no such "
-                             f"option; it accepts: {', '.join(accepted)}")
-    try:
-        make_config(section["planner"], **options)
-    except ValueError as error:
-        raise ValueError(f"{params_path}: collect_expert.planner_options: {error}") from None
-    protocol = Protocol.from_dict(params.get("protocol") or {})
-    return collect_expert(section, protocol, backend)
+    return collect_expert(read_stage(params_path, "collect_expert", Settings), read_protocol(params_path), backend)
 
 
 if __name__ == "__main__":

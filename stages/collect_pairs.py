@@ -6,32 +6,27 @@ manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.pn
 
 from __future__ import annotations
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import Fields, ListOf, Pair, Satisfies, Text, Whole, check_stage, keys_of
+from pipeline.common.config import Section, list_of, pair, satisfies, text, whole
 from pipeline.planners import planner_config
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.collect_pairs import collect_pairs
-from pipeline.world.protocol import Protocol
 
-SETTINGS = Fields({
-    "seed": Whole(0),
-    "pairs": Whole(1),
-    "pairs_per_shard": Whole(1),
-    "planners": ListOf(Satisfies(planner_config, "a registered planner name")),  # each rollout builds one by name
-    "snapshot_every": Whole(1, note="steps"),
-    "stop_steps": Pair(Whole(1, note="steps")),
-    "workers": Whole(0, note="0 or 1: in this process"),
-    "backend": Text(("process", "ray")),
-})
-KEYS = keys_of(SETTINGS)
+
+class Settings(Section):
+    """The `collect_pairs` section of params.yaml."""
+
+    seed: whole(0)
+    pairs: whole(1)
+    pairs_per_shard: whole(1)
+    planners: list_of(satisfies(planner_config, "a registered planner name", str))  # each rollout builds one by name
+    snapshot_every: whole(1, note="steps")
+    stop_steps: pair(whole(1, note="steps"))
+    workers: whole(0, note="0 or 1: in this process")
+    backend: text(("process", "ray"))
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
-    check_stage(params_path, "collect_pairs", SETTINGS)
-    params = load_params(params_path)
-    section = complete_section(params, "collect_pairs", params_path, KEYS)
-    protocol = Protocol.from_dict(params.get("protocol") or {})
-    return collect_pairs(section, protocol, backend)
+    return collect_pairs(read_stage(params_path, "collect_pairs", Settings), read_protocol(params_path), backend)
 
 
 if __name__ == "__main__":

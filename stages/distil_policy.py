@@ -11,58 +11,56 @@ and reports/distil_rounds.png. Unfinished work is kept in checkpoints/distil/.
 
 from __future__ import annotations
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import (Fields, Flag, Maybe, Real, Satisfies, Text, Whole, check_stage, fraction, keys_of,
-                                      positive)
+from typing import Any
+
+from pydantic import field_validator
+
+from pipeline.common.config import Section, flag, maybe, positive, text, whole
 from pipeline.planners.registry import make_config
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
+from pipeline.training.policy import PlannerTrainConfig
 from pipeline.workflows.distil_policy import distil_policy
-from pipeline.world.protocol import Protocol
 
 
-def check_teacher(teacher: dict) -> None:
-    """A registered planner and options it accepts; the planner must report its target (run time says so)."""
-    if not isinstance(teacher, dict) or set(teacher) - {"planner", "options"} or "planner" not in teacher:
-        raise ValueError("a mapping {planner: NAME, options: {KEY: VALUE}}")
-    options = teacher.get("options") or {}
-    if not isinstance(options, dict):
-        raise ValueError("options must be a mapping of planner options")
-    make_config(str(teacher["planner"]), **options)
+class Teacher(Section):
+    """The planner DAgger imitates: a registered planner and options it accepts (it must report its
+    target: the run says so when it does not)."""
+
+    planner: text(note="a registered planner name")
+    options: dict[str, Any] = {}
+
+    @field_validator("options")
+    @classmethod
+    def _options_the_planner_takes(cls, options: dict[str, Any], info: Any) -> dict[str, Any]:
+        if info.data.get("planner") is not None:
+            make_config(info.data["planner"], **options)
+        return options
 
 
-SETTINGS = Fields({
-    "teacher": Satisfies(check_teacher, "a teacher planner with its options"),
-    "start_policy": Maybe(Text(note="a guide policy export"), "models/planner_guide/policy.pt"),
-    "inpainter": Maybe(Text(note="an inpainter export"), "models/inpainter/inpainter.pt"),
-    "rounds": Whole(0, note="DAgger rounds after round 0"),
-    "teacher_episodes": Whole(1),
-    "episodes": Whole(1),
-    "episodes_per_shard": Whole(1),
-    "random_starts": Flag(),
-    "seed": Whole(0),
-    "train": Fields({
-        "max_epochs": Whole(1), "batch_size": Whole(1), "lr": positive(), "weight_decay": Real(0.0),
-        "warmup_steps": Whole(0), "ema_decay": fraction(), "val_fraction": Real(0.0, 1.0, high_open=True),
-        "augment": Flag(), "seed": Whole(0), "max_minutes": Maybe(positive("minutes"), "no cap"),
-        "val_accuracy_samples": Whole(1),
-    }),
-    "eval_mazes": Whole(2, note="paired comparison needs at least 2"),
-    "eval_side_m": positive("metres"),
-    "eval_seed": Whole(0),
-    "workers": Whole(0, note="0 or 1: in this process"),
-    "threads": Maybe(Whole(0, note="0: torch's default"), "torch's default"),
-    "accelerator": Text(note="Lightning's accelerator: cpu, gpu, auto"),
-    "experiment": Text(note="an MLflow experiment"),
-})
-KEYS = keys_of(SETTINGS)
+class Settings(Section):
+    """The `distil_policy` section of params.yaml."""
+
+    teacher: Teacher
+    start_policy: maybe(text(note="a guide policy export"), "models/planner_guide/policy.pt")
+    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
+    rounds: whole(0, note="DAgger rounds after round 0")
+    teacher_episodes: whole(1)
+    episodes: whole(1)
+    episodes_per_shard: whole(1)
+    random_starts: flag()
+    seed: whole(0)
+    train: PlannerTrainConfig
+    eval_mazes: whole(2, note="paired comparison needs at least 2")
+    eval_side_m: positive("metres")
+    eval_seed: whole(0)
+    workers: whole(0, note="0 or 1: in this process")
+    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
+    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
+    experiment: text(note="an MLflow experiment")
 
 
 def main(params_path: str = "params.yaml") -> dict:
-    check_stage(params_path, "distil_policy", SETTINGS)
-    params = load_params(params_path)
-    section = complete_section(params, "distil_policy", params_path, KEYS)
-    protocol = Protocol.from_dict(params.get("protocol") or {})
-    return distil_policy(section, protocol)
+    return distil_policy(read_stage(params_path, "distil_policy", Settings), read_protocol(params_path))
 
 
 if __name__ == "__main__":

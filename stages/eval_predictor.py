@@ -20,44 +20,37 @@ from typing import Any
 
 import pandas as pd
 
-from pipeline.common.params import complete_section, load_params
+from pipeline.common.config import Section, fraction, list_of, maybe, real, text, whole
 from pipeline.common.paths import DATA, REPORTS
-from pipeline.common.settings import Fields, ListOf, Maybe, Real, Text, Whole, check_stage, fraction, keys_of
 from pipeline.prediction.node_predictor import NodePredictorConfig
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.table1 import log_run, predictor_folder, table1_graph_config
 from pipeline.world.protocol import Protocol
 
 TEST_MAZES = DATA.mazes_test
 OUT_DIR = REPORTS.predictor
-SETTINGS = Fields({
-    "steps": ListOf(Whole(0, note="exploration steps")),
-    "threshold": fraction("tau of V_u"),
-    "min_component": Whole(0, note="0 or 1: keep every predicted node"),
-    "keep_share": Real(0.0, 1.0, low_open=True, note="share of scored regions"),
-    "sweep_thresholds": Maybe(ListOf(fraction(), min_length=0), "no sweep"),
-    "checkpoint": Maybe(Text(note="an inpainter export"), "models/inpainter/inpainter.pt"),
-    "compare_checkpoint": Maybe(Text(note="an inpainter export"), "no comparison"),
-})
-SECTION_KEYS = set(keys_of(SETTINGS))
+
+
+class Settings(Section):
+    """The `eval_predictor` section of params.yaml."""
+
+    steps: list_of(whole(0, note="exploration steps"))
+    threshold: fraction("tau of V_u")
+    min_component: whole(0, note="0 or 1: keep every predicted node")
+    keep_share: real(0.0, 1.0, low_open=True, note="share of scored regions")
+    sweep_thresholds: maybe(list_of(fraction(), min_length=0), "no sweep")
+    checkpoint: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
+    compare_checkpoint: maybe(text(note="an inpainter export"), "no comparison")
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
-    params = load_params(params_path)
-    section = complete_section(params, "eval_predictor", params_path, SECTION_KEYS)
-    sweep = section["sweep_thresholds"]
-    if sweep is None:
-        section["sweep_thresholds"] = []
-    elif not isinstance(sweep, list) or any(isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 <= t <= 1
-                                            for t in sweep):
-        raise ValueError(f"{params_path}: eval_predictor.sweep_thresholds must be a list of numbers in [0, 1], got {sweep!r}")
-    if not section["steps"]:
-        raise ValueError(f"{params_path}: eval_predictor.steps must list at least one step")
-    return section, Protocol.from_dict(params.get("protocol") or {})
+    """The section (no sweep: an empty list of thresholds) and the protocol."""
+    section = read_stage(params_path, "eval_predictor", Settings)
+    section["sweep_thresholds"] = section["sweep_thresholds"] or []
+    return section, read_protocol(params_path)
 
 
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
-    check_stage(params_path, "eval_predictor", SETTINGS)
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
     graph_config = table1_graph_config(float(section["keep_share"]))

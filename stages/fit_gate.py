@@ -17,48 +17,37 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import Fields, ListOf, Whole, check_stage, fraction, keys_of
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pydantic import model_validator
+
+from pipeline.common.config import Section, fraction, list_of, whole
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.fit_gate import fit_gate
-from pipeline.world.protocol import Protocol
 
-SETTINGS = Fields({
-    "maps": Whole(1),
-    "holdout_maps": Whole(0),
-    "offices": Whole(0),
-    "office_holdout": Whole(0),
-    "hidden": ListOf(Whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)"),
-    "min_gain": Whole(0, note="cells"),
-    "wall_margin": Whole(0, note="cells"),
-    "threshold": fraction("P(big)"),
-    "workers": Whole(1),
-})
-KEYS = keys_of(SETTINGS)
+class Settings(Section):
+    """The `fit_gate` section of params.yaml."""
 
+    maps: whole(1)
+    holdout_maps: whole(0)
+    offices: whole(0)
+    office_holdout: whole(0)
+    hidden: list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)")
+    min_gain: whole(0, note="cells")
+    wall_margin: whole(0, note="cells")
+    threshold: fraction("P(big)")
+    workers: whole(1)
 
-def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
-    params = load_params(params_path)
-    section = complete_section(params, "fit_gate", params_path, KEYS)
-    for key in ("maps", "holdout_maps", "offices", "office_holdout", "min_gain", "wall_margin", "workers"):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, int) or value < (1 if key in ("maps", "workers") else 0):
-            raise ValueError(f"{params_path}: fit_gate.{key} must be a whole number, got {value!r}")
-    if not section["holdout_maps"] < section["maps"]:
-        raise ValueError(f"{params_path}: fit_gate.holdout_maps must be below fit_gate.maps")
-    if section["offices"] and not section["office_holdout"] < section["offices"]:
-        raise ValueError(f"{params_path}: fit_gate.office_holdout must be below fit_gate.offices")
-    hidden = section["hidden"]
-    if not isinstance(hidden, list) or not all(isinstance(h, int) and not isinstance(h, bool) and h > 0 for h in hidden):
-        raise ValueError(f"{params_path}: fit_gate.hidden must be a list of layer widths (whole numbers > 0), got {hidden!r}")
-    return section, Protocol.from_dict(params.get("protocol") or {})
+    @model_validator(mode="after")
+    def _holdouts_leave_maps_to_fit(self) -> "Settings":
+        if not self.holdout_maps < self.maps:
+            raise ValueError(f"holdout_maps ({self.holdout_maps}) must be below maps ({self.maps})")
+        if self.offices and not self.office_holdout < self.offices:
+            raise ValueError(f"office_holdout ({self.office_holdout}) must be below offices ({self.offices})")
+        return self
 
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Fit, measure and write the gate; returns the metrics written to reports/sliver_gate.json."""
-    check_stage(params_path, "fit_gate", SETTINGS)
-    section, protocol = read_params(params_path)
-    metrics = fit_gate(section, protocol)
+    metrics = fit_gate(read_stage(params_path, "fit_gate", Settings), read_protocol(params_path))
     print(json.dumps(metrics, indent=2))
     return metrics
 

@@ -24,13 +24,11 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_folder
-from pipeline.common.params import load_params, params_section
+from pipeline.common.config import Section, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
-from pipeline.common.settings import Fields, Pair, Text, Whole, check_stage, positive
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
-from pipeline.world.protocol import Protocol
 
 PREVIEW_PATH = REPORTS.mazes_preview
 OFFICE_PREVIEW_PATH = REPORTS.offices_preview
@@ -43,67 +41,52 @@ PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
 PREVIEW_GAP = 10
 MAP_KINDS = ("maze", "office")
-SPLIT = Fields({"count": Whole(0), "side_m": Pair(positive("metres")), "kind": Text(MAP_KINDS)}, frozenset({"kind"}))
-# block_m, rooms, room_blocks, extra_loops, offices and office_scale may be left out: MazeConfig's defaults,
-# no office floors, maze-scale floors; a split's kind may be left out: mazes.
-SETTINGS = Fields({
-    "seed": Whole(0),
-    "block_m": positive("metres"),
-    "rooms": Pair(Whole(0, note="rooms per 100 m x 100 m")),
-    "room_blocks": Pair(Whole(1, note="blocks")),
-    "extra_loops": Whole(0),
-    "train": SPLIT,
-    "test": SPLIT,
-    "offices": Fields({"count": Whole(0)}),
-    "office_scale": Text(OFFICE_SCALES),
-}, frozenset({"block_m", "rooms", "room_blocks", "extra_loops", "offices", "office_scale"}))
 
 
-def _load_params(params_path: str | Path) -> tuple[dict, float]:
-    """The `mazes` section and the cell size; a clear error if the section is missing."""
-    params = load_params(params_path)
-    mazes = params_section(params, "mazes", params_path)
-    protocol = params.get("protocol") if isinstance(params.get("protocol"), dict) else {}
-    cell_size = float(Protocol.from_dict(protocol).cell_size)
-    return mazes, cell_size
+class Split(Section):
+    """One set of maps: how many, their sides, and whether mazes or office floors."""
+
+    count: whole(0)
+    side_m: pair(positive("metres"))
+    kind: text(MAP_KINDS) = "maze"
+
+
+class Offices(Section):
+    """The office floors the sliver gate is fitted on beside the mazes."""
+
+    count: whole(0)
+
+
+class Settings(Section):
+    """The `mazes` section of params.yaml. block_m, rooms, room_blocks, extra_loops, offices and
+    office_scale may be left out: MazeConfig's defaults, no office floors, maze-scale floors."""
+
+    seed: whole(0)
+    block_m: positive("metres") = None
+    rooms: pair(whole(0, note="rooms per 100 m x 100 m")) = None
+    room_blocks: pair(whole(1, note="blocks")) = None
+    extra_loops: whole(0) = None
+    train: Split
+    test: Split
+    offices: Offices = Offices(count=0)
+    office_scale: text(OFFICE_SCALES) = "maze"
 
 
 def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig | OfficeConfig, int]:
     """The MazeConfig (OfficeConfig for `kind: office`) and count of one split; shared keys come
     from the section's top level."""
-    if not isinstance(mazes.get(split), dict):
-        raise ValueError(f"params 'mazes' section is missing the '{split}' subsection")
     section = mazes[split]
     shared = {key: mazes[key] for key in ("block_m", "rooms", "room_blocks", "extra_loops") if key in mazes}
-    if "side_m" not in section or "count" not in section:
-        raise ValueError(f"params 'mazes.{split}' needs 'count' and 'side_m'")
     if section.get("kind", "maze") == "office":
         low, high = (float(v) for v in section["side_m"])
         config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size)
         if low < 20:
             raise ValueError(f"params 'mazes.{split}.side_m': office floors need sides of 20 m or more, got {low:g}")
-        return config, _count(section["count"], split)
+        return config, section["count"]
     config = MazeConfig(side_m=tuple(section["side_m"]), cell_size=cell_size, **{
         key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()
     })
-    return config, _count(section["count"], split)
-
-
-def _count(count: object, split: str) -> int:
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise ValueError(f"params 'mazes.{split}.count' must be a non-negative integer, got {count!r}")
-    return count
-
-
-def _office_count(mazes: dict) -> int:
-    section = mazes.get("offices", {"count": 0})
-    count = section.get("count") if isinstance(section, dict) else None
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise ValueError(f"params 'mazes.offices.count' must be a non-negative integer, got {count!r}")
-    unknown = sorted(set(section) - {"count"})
-    if unknown:
-        raise ValueError(f"params 'mazes.offices' has unknown key(s) {unknown}; known: ['count']")
-    return count
+    return config, section["count"]
 
 
 def _draw_split(config: MazeConfig | OfficeConfig, count: int, folder: Path, seed: tuple[int, int],
@@ -157,14 +140,12 @@ def preview_image(paths: list[Path]) -> np.ndarray:
 
 def main(params_path: str = "params.yaml") -> None:
     """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and the previews in reports/."""
-    check_stage(params_path, "mazes", SETTINGS)
-    mazes, cell_size = _load_params(params_path)
-    seed = mazes.get("seed")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"params 'mazes.seed' must be a non-negative integer, got {seed!r}")
+    mazes = read_stage(params_path, "mazes", Settings)
+    cell_size = read_protocol(params_path).cell_size
+    seed = mazes["seed"]
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
-    offices = _office_count(mazes)
+    offices = mazes.get("offices", {"count": 0})["count"]
     office_config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), cell_size=cell_size)
     sides = {split: tuple(float(v) for v in mazes[split]["side_m"]) for split in SPLITS}
     written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed)

@@ -20,51 +20,43 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import Fields, ListOf, Real, Whole, check_stage, config_mapping, fraction, keys_of, positive
+from pydantic import model_validator
+
+from pipeline.common.config import Section, fraction, positive, real, whole
 from pipeline.models.configuration_block_model import BlockModelConfig
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.train_block_model import maze_config, train_the_block_model
 from pipeline.world.protocol import Protocol
 
-SETTINGS = Fields({
-    "mazes": Whole(1),
-    "holdout_mazes": Whole(0),
-    "side_m": positive("metres"),
-    "maze_seed": Whole(0),
-    "snapshot_every": Whole(1, note="steps"),
-    "epochs": Whole(1),
-    "batch_size": Whole(1),
-    "lr": Real(0.0),
-    "reveal_share": fraction(),
-    "model": config_mapping(BlockModelConfig, {"width": Whole(1), "dilations": ListOf(Whole(1)), "groups": Whole(1),
-                                               "block_m": positive("metres")}),
-    "workers": Whole(1),
-    "seed": Whole(0),
-})
-KEYS = keys_of(SETTINGS)
+class Settings(Section):
+    """The `train_block_model` section of params.yaml."""
+
+    mazes: whole(1)
+    holdout_mazes: whole(0)
+    side_m: positive("metres")
+    maze_seed: whole(0)
+    snapshot_every: whole(1, note="steps")
+    epochs: whole(1)
+    batch_size: whole(1)
+    lr: real(0.0)
+    reveal_share: fraction()
+    model: BlockModelConfig
+    workers: whole(1)
+    seed: whole(0)
+
+    @model_validator(mode="after")
+    def _holdout_leaves_mazes_to_fit(self) -> "Settings":
+        if not self.holdout_mazes < self.mazes:
+            raise ValueError(f"holdout_mazes ({self.holdout_mazes}) must be below mazes ({self.mazes})")
+        return self
 
 
 def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
-    params = load_params(params_path)
-    section = complete_section(params, "train_block_model", params_path, KEYS)
-    for key in ("mazes", "holdout_mazes", "maze_seed", "snapshot_every", "epochs", "batch_size", "workers", "seed"):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, int) or value < (0 if key in ("holdout_mazes", "maze_seed", "seed") else 1):
-            raise ValueError(f"{params_path}: train_block_model.{key} must be a whole number, got {value!r}")
-    if not section["holdout_mazes"] < section["mazes"]:
-        raise ValueError(f"{params_path}: train_block_model.holdout_mazes must be below train_block_model.mazes")
-    for key, high in (("lr", None), ("reveal_share", 1.0)):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0 or (high is not None and value > high):
-            raise ValueError(f"{params_path}: train_block_model.{key} must be a number in [0, {high or 'inf'}], got {value!r}")
-    if not isinstance(section["model"], dict):
-        raise ValueError(f"{params_path}: train_block_model.model must be a mapping of BlockModelConfig fields")
-    try:
-        config = BlockModelConfig.from_dict(section["model"])
-    except (TypeError, ValueError) as error:
-        raise ValueError(f"{params_path}: train_block_model.model: {error}") from None
-    protocol = Protocol.from_dict(params.get("protocol") or {})
+    """The section, its model config and the protocol; a maze size the protocol cannot draw is
+    refused by `side_m` before any episode runs."""
+    section = read_stage(params_path, "train_block_model", Settings)
+    config = BlockModelConfig.from_dict(section["model"])
+    protocol = read_protocol(params_path)
     try:
         maze_config(section, config, protocol)
     except (TypeError, ValueError) as error:
@@ -74,7 +66,6 @@ def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConf
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
-    check_stage(params_path, "train_block_model", SETTINGS)
     section, config, protocol = read_params(params_path)
     metrics = train_the_block_model(section, config, protocol)
     print(json.dumps({k: v for k, v in metrics.items() if k != "history"}, indent=2))

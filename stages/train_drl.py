@@ -14,77 +14,43 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.params import complete_section, load_params
-from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Satisfies, Text, Whole, check_stage,
-                                      config_mapping, fraction, keys_of, positive)
+from pipeline.common.config import Section, check_value, maybe, positive, text, whole
 from pipeline.models.configuration_drl import DRLPolicyConfig
-from pipeline.planners import planner_config
-from pipeline.stage_runner import run_stage_main, stage_arguments
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.training.drl import PPOSettings, TrainingEnvironment
 from pipeline.training.drl_imitation import ImitationSettings
 from pipeline.workflows.train_drl import train_the_drl_policy
 from pipeline.world.protocol import Protocol
 
-SETTINGS = Fields({
-    "model": config_mapping(DRLPolicyConfig, {"max_nodes": Whole(1), "d_model": Whole(1), "heads": Whole(1),
-                                              "encoder_layers": Whole(1), "guidepost_prior": Real(0.0)}),
-    "env": Fields({
-        "maze_sides_m": AnyOf((ListOf(positive()), positive()), "a non-empty list of maze sides (m), each > 0"),
-        "max_steps": Whole(1),
-        "area_weight": Real(0.0),
-        "distance_weight": Real(0.0),
-        "completion_bonus": Real(0.0),
-    }),
-    "ppo": Fields({
-        **{key: Whole(1) for key in ("n_envs", "n_steps", "batch_size", "n_epochs")},
-        "learning_rate": positive(), "gamma": fraction(), "gae_lambda": fraction(), "clip_range": positive(),
-        "ent_coef": Real(), "vf_coef": Real(), "max_grad_norm": positive(), "subprocess": Flag(),
-    }),
-    "imitation": Fields({
-        "planner": Satisfies(planner_config, "a registered planner name"),
-        "episodes": Whole(0, note="0: no warm start"), "epochs": Whole(1), "dagger_rounds": Whole(0),
-        "dagger_episodes": Whole(1), "dagger_epochs": Whole(1), "batch_size": Whole(1),
-        "learning_rate": positive(), "value_weight": Real(0.0),
-    }),
-    "init_checkpoint": Maybe(Text(note="a drl export"), "the warm start"),
-    "timesteps": Whole(1),
-    "checkpoint_every": Whole(1),
-    "eval_mazes": Whole(0),
-    "eval_side_m": positive("metres"),
-    "eval_seed": Whole(0),
-    "seed": Whole(0),
-    "threads": Whole(0, note="0: torch's default"),
-    "device": Text(("cpu", "cuda", "auto")),
-    "experiment": Text(note="an MLflow experiment"),
-})
-KEYS = keys_of(SETTINGS)
+class Settings(Section):
+    """The `train_drl` section of params.yaml."""
+
+    model: DRLPolicyConfig
+    env: TrainingEnvironment
+    ppo: PPOSettings
+    imitation: ImitationSettings
+    init_checkpoint: maybe(text(note="a drl export"), "the warm start")
+    timesteps: whole(1)
+    checkpoint_every: whole(1)
+    eval_mazes: whole(0)
+    eval_side_m: positive("metres")
+    eval_seed: whole(0)
+    seed: whole(0)
+    threads: whole(0, note="0: torch's default")
+    device: text(("cpu", "cuda", "auto"))
+    experiment: text(note="an MLflow experiment")
 
 
 def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[dict[str, Any], Protocol]:
-    params = load_params(params_path)
-    section = complete_section(params, "train_drl", params_path, KEYS)
+    """The section (with `timesteps` from the command line when given) and the protocol; an
+    environment the protocol cannot make (a maze side, a reward weight) is refused by its key
+    before any training."""
+    section = read_stage(params_path, "train_drl", Settings)
     if timesteps is not None:
-        section["timesteps"] = timesteps
-    for key, low in (("timesteps", 1), ("checkpoint_every", 1), ("eval_mazes", 0), ("eval_seed", 0), ("seed", 0),
-                     ("threads", 0)):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"{params_path}: train_drl.{key} must be a whole number >= {low}, got {value!r}")
-    for group, cls in (("model", DRLPolicyConfig), ("env", TrainingEnvironment), ("ppo", PPOSettings),
-                       ("imitation", ImitationSettings)):
-        if not isinstance(section[group], dict):
-            raise ValueError(f"{params_path}: train_drl.{group} must be a mapping of {cls.__name__} fields")
-        try:
-            cls.from_dict(section[group])
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"{params_path}: train_drl.{group}: {error}") from None
-    if section["device"] not in ("cpu", "cuda", "auto"):
-        raise ValueError(f"{params_path}: train_drl.device must be cpu, cuda or auto, got {section['device']!r}")
-    if not isinstance(section["experiment"], str) or not section["experiment"]:
-        raise ValueError(f"{params_path}: train_drl.experiment must be an MLflow experiment name")
-    protocol = Protocol.from_dict(params.get("protocol") or {})
+        section["timesteps"] = check_value(whole(1), timesteps, "--timesteps")
+    protocol = read_protocol(params_path)
     init = section["init_checkpoint"]
-    if init is not None and (not isinstance(init, str) or not Path(init).is_file()):
+    if init is not None and not Path(init).is_file():
         raise ValueError(f"{params_path}: train_drl.init_checkpoint must be null or a drl export file, got {init!r}")
     env = TrainingEnvironment.from_dict(section["env"])
     model = DRLPolicyConfig.from_dict(section["model"])
@@ -101,7 +67,6 @@ def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[
 
 def main(params_path: str = "params.yaml", timesteps: int | None = None) -> dict[str, Any]:
     """Train (or continue), export and evaluate the drl policy; returns the metrics written."""
-    check_stage(params_path, "train_drl", SETTINGS)
     section, protocol = read_params(params_path, timesteps)
     metrics = train_the_drl_policy(section, protocol)
     print(json.dumps({k: v for k, v in metrics.items() if k not in ("history", "evaluation", "host")}, indent=2))

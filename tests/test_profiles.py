@@ -65,7 +65,7 @@ def test_every_profile_uses_the_planners_tau():
 def test_real_robot_profile_has_the_default_keys_the_papers_scale_and_passes_every_stages_checks():
     import importlib
 
-    from pipeline.common.settings import check_stage
+    from pipeline.stage_runner import read_protocol, read_stage
     from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 
     default = yaml.safe_load((ROOT / "params.yaml").read_text())
@@ -84,4 +84,5 @@ def test_real_robot_profile_has_the_default_keys_the_papers_scale_and_passes_eve
               "train_block_model": "train_block_model", "train_drl": "train_drl", "train_inpainter": "train_inpainter",
               "train_planner": "train_planner"}
     for module, section in stages.items():
-        check_stage(path, section, importlib.import_module(f"stages.{module}").SETTINGS)
+        read_stage(path, section, importlib.import_module(f"stages.{module}").Settings)
+    read_protocol(path)

@@ -28,7 +28,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
-    "Section", "ValidationError", "any_of", "config_dataclass", "explain", "flag", "fraction", "identifier", "list_of",
+    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "explain", "flag", "fraction", "identifier", "list_of",
     "maybe", "pair", "positive", "real", "satisfies", "text", "validate", "whole",
 ]
 
@@ -234,6 +234,15 @@ def explain(error: ValidationError, root: str = "") -> str:
     path = _path(((root,) if root else ()) + loc)
     shown = "" if value is dataclasses.MISSING else f", got {value!r}"
     return f"{path}: {message}{shown}" if path else f"{message}{shown}"
+
+
+def check_value(kind: Any, value: Any, path: str) -> Any:
+    """`value` as type `kind` takes it (a command-line override of one setting), or a ValueError
+    `path: must be ..., got ...`."""
+    try:
+        return pydantic.TypeAdapter(kind).validate_python(value)
+    except ValidationError as error:
+        raise ValueError(explain(error, path)) from None
 
 
 def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") -> T:
