@@ -1,4 +1,4 @@
-"""The `guide` command line: exploration, benchmarks, maps and the predictor's Table I.
+"""The `guide` command line: exploration, benchmarks, maps, recorded bags and the predictor's Table I.
 
 Each command lives in a module of this package and is imported when it runs (`COMMANDS`), so
 a command that needs no model (`guide mazes`, `guide replay`) never loads torch. The pipeline's
@@ -23,6 +23,7 @@ COMMANDS = {
     "replay": "pipeline.cli.maps",
     "resample-map": "pipeline.cli.maps",
     "eval-predictor": "pipeline.cli.predictor",
+    "bag": "pipeline.cli.bag",
 }
 
 

@@ -17,6 +17,7 @@ from pipeline.cli.options import (
     SensorRange,
     Start,
     UtilityRange,
+    check_bag_out,
     check_out_dir,
     fail,
     given,
@@ -38,6 +39,9 @@ def explore(
         "nearest_frontier", help="Planner name (see `guide planners`) or labelled variant label=name:key=value,..."),
     out: Optional[Path] = typer.Option(None, help="Output folder [default: runs/explore/<planner label>]."),
     gif: bool = typer.Option(False, "--gif", help="Also write an animation of the episode."),
+    bag: Optional[Path] = typer.Option(
+        None, "--bag", help="Also record the episode as MCAP (belief as /map, pose as /tf, plans, graph markers) "
+                            "for Foxglove or `ros2 bag play` (pip install '.[robot]')."),
     start: Optional[tuple[float, float]] = Start,
     seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = Checkpoint,
@@ -56,6 +60,8 @@ def explore(
     if exploration.is_ros_map(map_path) and given(ctx, "cell_size") and abs(cell_size - ground_truth.cell_size) > 1e-12:
         warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
     check_out_dir(run.out)  # before the episode: a long run is not lost to an unwritable folder
+    if bag is not None:
+        check_bag_out(bag)
     for problem in run.problems:
         warn(problem)
     run.planner.check_protocol(run.protocol)  # before the progress bar, which a warning from inside the episode would cut
@@ -63,7 +69,7 @@ def explore(
     files = model_files(run.planner)
     if files:
         typer.echo(f"models: {', '.join(files)}")
-    result, written = exploration.run(run, seed=seed, gif=gif, progress=progress, start=start)
+    result, written = exploration.run(run, seed=seed, gif=gif, progress=progress, start=start, bag=bag)
     typer.echo(exploration.summary_line(run, result))
     typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:

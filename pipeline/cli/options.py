@@ -10,6 +10,7 @@ from typing import NoReturn, Optional
 import click
 import typer
 
+from pipeline.common.config import validate
 from pipeline.world.protocol import Protocol
 
 
@@ -35,6 +36,25 @@ def check_out_dir(out: Path) -> None:
         fail(f"{out}: cannot create or write the output folder ({error.strerror or error})")
 
 
+def check_bag_out(path: Path) -> None:
+    """Fail before any work when an MCAP output cannot be written: not a .mcap name, a folder in the
+    way, a folder that cannot be made, or the robot extra missing."""
+    if path.suffix.lower() != ".mcap":
+        fail(f"{path}: an MCAP recording's name ends in .mcap")
+    if path.is_dir():
+        fail(f"{path}: is a folder; give the MCAP file's name")
+    try:
+        import mcap  # noqa: F401
+        import rosbags  # noqa: F401
+    except ImportError:
+        fail("recording MCAP needs rosbags and mcap: pip install '.[robot]'")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path.parent).close()
+    except OSError as error:
+        fail(f"{path.parent}: cannot create or write the folder ({error.strerror or error})")
+
+
 def given(ctx: Optional[typer.Context], name: str) -> bool:
     """Whether the user set option `name` on the command line (not its default)."""
     return ctx is not None and ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
@@ -45,16 +65,17 @@ def protocol(
     region_size: Optional[float], done_unknown_cells: int, max_steps: int,
 ) -> Protocol:
     """The protocol the options name; a refused value is an error naming its option."""
+    values = dict(
+        cell_size=cell_size,
+        node_resolution=node_resolution,
+        sensor_range=sensor_range,
+        utility_range=utility_range if utility_range is not None else sensor_range / 2,
+        region_size=region_size if region_size is not None else sensor_range,
+        done_unknown_cells=done_unknown_cells,
+        max_steps=max_steps,
+    )
     try:
-        return Protocol(
-            cell_size=cell_size,
-            node_resolution=node_resolution,
-            sensor_range=sensor_range,
-            utility_range=utility_range if utility_range is not None else sensor_range / 2,
-            region_size=region_size if region_size is not None else sensor_range,
-            done_unknown_cells=done_unknown_cells,
-            max_steps=max_steps,
-        )
+        return validate(Protocol, values, "protocol")
     except ValueError as error:  # named by the options: "protocol.sensor_range" -> "--sensor-range"
         fail(re.sub(r"protocol\.(\w+)", lambda m: "--" + m.group(1).replace("_", "-"), str(error)))
 

@@ -14,6 +14,7 @@ from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
 from pipeline.planners.specs import build_planner, resolve_planner_specs
 from pipeline.reporting.render import EpisodeRecorder, render_final
+from pipeline.robot.recording import EpisodeRecording
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, final_belief, run_episode
@@ -55,9 +56,11 @@ def is_ros_map(path: Path) -> bool:
 
 
 def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bool = True,
-        start: tuple[float, float] | None = None) -> tuple[EpisodeResult, list[Path]]:
-    """Run the episode with a progress bar and write its files; (the result, the files written)."""
+        start: tuple[float, float] | None = None, bag: Path | None = None) -> tuple[EpisodeResult, list[Path]]:
+    """Run the episode with a progress bar and write its files; (the result, the files written).
+    With `bag`, also an MCAP recording of the episode (belief, pose, plans, graph) for Foxglove."""
     ground_truth, protocol, agent, out = exploration.ground_truth, exploration.protocol, exploration.planner, exploration.out
+    recording = EpisodeRecording(bag, agent) if bag is not None else None
     y_up = is_ros_map(exploration.map_path)
     recorder = EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=exploration.label,
                                y_up=y_up) if gif else None
@@ -70,8 +73,15 @@ def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bo
                                     refresh=True)
             if recorder is not None:
                 recorder(episode)
+            if recording is not None:
+                recording.on_step(episode)
 
-        result = run_episode(ground_truth, agent, protocol, seed=seed, on_step=on_step)
+        try:
+            result = run_episode(ground_truth, recording.planner if recording is not None else agent, protocol,
+                                 seed=seed, on_step=on_step)
+        finally:
+            if recording is not None:
+                recording.close()
     result.planner = exploration.label
     written = [write_trajectory_csv(out / f"{ground_truth.name}.csv", result.trajectory)]
     written.append(write_steps_csv(steps_path(written[0]), result.step_rows()))
@@ -82,6 +92,8 @@ def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bo
     written.append(out / f"{ground_truth.name}.png")
     if recorder is not None:
         written.append(recorder.save_gif(out / f"{ground_truth.name}.gif"))
+    if recording is not None:
+        written.append(recording.recording.path)
     record = {"map": str(exploration.map_path), "start": list(start) if start is not None else None, "seed": seed,
               "planner": {"label": exploration.label, "name": exploration.name, "options": exploration.options,
                           "description": agent.description},
