@@ -1,0 +1,1 @@
+"""GUIDE on a ROS 2 robot: `explorer` wraps `pipeline.robot.ExplorationSession` in a node."""
