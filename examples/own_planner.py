@@ -8,10 +8,10 @@ before exploring) and then sees only observations. This one keeps the lattice gr
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.common.config import config_dataclass
 from pipeline.planners import register_planner
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.world.maps import load_map
@@ -19,7 +19,7 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class BestRatioConfig(LatticePlannerConfig):
     description = "the useful node with the most frontier cells per metre of path, one step at a time"
 

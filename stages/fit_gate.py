@@ -14,7 +14,6 @@ curves). Logs one MLflow run in experiment "sliver_gate".
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 from pydantic import model_validator

@@ -18,7 +18,6 @@ and reports/trajectories.png, and logs one MLflow experiment per table.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from pipeline.common.config import Section, identifier, list_of, maybe, satisfies, text, whole

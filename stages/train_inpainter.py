@@ -14,35 +14,28 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
-from pipeline.common.params import load_params, params_section
-from pipeline.common.paths import MODELS
-from pipeline.common.settings import (AnyOf, Fields, Flag, ListOf, Maybe, Real, Text, Whole, check_stage, config_mapping,
-                                      fraction, positive)
-from pipeline.models.configuration_inpainter import INPUT_ENCODINGS, InpainterConfig
-from pipeline.stage_runner import run_stage_main, stage_arguments
-from pipeline.workflows.train_inpainter import train_and_report
-from pipeline.world.protocol import Protocol
+import pydantic
 
-# Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults for those.
-SETTINGS_KEYS = {
-    "model": config_mapping(InpainterConfig, {
-        "ngf": Whole(1), "n_downsampling": Whole(0), "n_blocks": Whole(0), "ratio_gin": fraction(), "ratio_gout": fraction(),
-        "input_encoding": Text(tuple(INPUT_ENCODINGS)),
-    }, extra={"big_lama": Flag()}),
-    "max_epochs": Whole(1), "batch_size": Whole(1), "lr": positive(), "lr_min_factor": fraction(),
-    "weight_decay": Real(0.0), "known_weight": Real(0.0), "hole_pos_weight": Real(0.0), "adversarial_weight": Real(0.0),
-    "discriminator_lr": positive(), "discriminator_width": Whole(1), "r1_weight": Real(0.0),
-    "threshold": fraction("P(free)"), "val_fraction": Real(0.0, 1.0, low_open=True, high_open=True),
-    "split": Text(("maze", "rollout")), "augment": Flag(), "hide_prob": fraction(), "seed": Whole(0),
-    "max_minutes": Maybe(positive("minutes"), "no cap"),
-    "accelerator": Maybe(Text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"),
-    "devices": Maybe(AnyOf((Whole(1), Whole(-1, -1), ListOf(Whole(0)), Text(("auto",))),
-                           "a number of devices >= 1, -1 (all), a list of device indices or 'auto'"), "1"),
-    "threads": Maybe(Whole(0, note="0: torch's default"), "torch's default"),
-    "init_checkpoint": Maybe(Text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"),
-    "experiment": Maybe(Text(note="an MLflow experiment"), "inpainter"),
-}
-SETTINGS = Fields(SETTINGS_KEYS, frozenset(SETTINGS_KEYS))
+from pipeline.common.config import Section, fields_of, maybe, satisfies, text, whole
+from pipeline.common.paths import MODELS
+from pipeline.models.configuration_inpainter import InpainterConfig
+from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
+from pipeline.training.inpainter import TrainConfig
+from pipeline.training.run_setup import DEVICES
+from pipeline.workflows.train_inpainter import train_and_report
+
+# The `train_inpainter` section: TrainConfig's fields and the run's own settings side by side.
+# Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults.
+Settings = pydantic.create_model(
+    "Settings", __base__=Section, __module__=__name__, __doc__="The `train_inpainter` section of params.yaml.",
+    **fields_of(TrainConfig),
+    model=(satisfies(InpainterConfig.from_dict, "InpainterConfig fields (or big_lama: true and overrides)", dict), {}),
+    accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
+    devices=(maybe(DEVICES, "1"), None),
+    threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
+    init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
+    experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),
+)
 
 
 def main(
@@ -55,10 +48,8 @@ def main(
     progress: bool = False,
     artifact_location: Optional[str] = None,
 ) -> dict[str, Any]:
-    check_stage(params_path, "train_inpainter", SETTINGS)
-    params = load_params(params_path)
-    section = params_section(params, "train_inpainter", params_path)
-    metrics = train_and_report(section, Protocol.from_dict(params.get("protocol") or {}), accelerator, devices, afresh,
+    section = read_stage(params_path, "train_inpainter", Settings)
+    metrics = train_and_report(section, read_protocol(params_path), accelerator, devices, afresh,
                                init_checkpoint, tracking_uri, progress, artifact_location)
     if metrics:
         print(f"inpainter: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "

@@ -8,17 +8,15 @@ and observations are the same), metrics and curves: the paths of `policies` in p
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, any_of, list_of, maybe, text, whole
+from pipeline.common.config import Section, maybe, text, whole
 from pipeline.common.paths import POLICIES
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.stage_runner import read_stage, run_stage_main, stage_arguments
 from pipeline.training.policy import PlannerTrainConfig
+from pipeline.training.run_setup import DEVICES
 from pipeline.workflows.train_planner import train_and_report
 
 VARIANTS = tuple(POLICIES)  # guide, dare
-# Lightning's devices: a count, a list of device indices, or a word such as "auto".
-DEVICES = any_of(whole(1), whole(-1, -1), list_of(whole(0)), text(("auto",)),
-                 description="a number of devices >= 1, -1 (all), a list of device indices or 'auto'")
 
 
 class Settings(Section):

@@ -18,7 +18,9 @@ count), and NaN and infinities are never real numbers.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import numbers
+import types
 import typing
 from typing import Annotated, Any, Callable, Literal, Mapping, Optional, TypeVar, Union
 
@@ -28,7 +30,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
-    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "explain", "flag", "fraction", "identifier", "list_of",
+    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "explain", "fields_of", "flag", "fraction", "identifier", "list_of",
     "maybe", "pair", "positive", "real", "satisfies", "text", "validate", "whole",
 ]
 
@@ -59,12 +61,15 @@ def _noted(rule: str, note: str) -> str:
     return rule + (f" ({note})" if note else "")
 
 
-def whole(minimum: int = 0, maximum: int | None = None, note: str = "") -> Any:
-    """A whole number (an int, not a bool, not 3.0) in minimum..maximum (no upper bound when None)."""
-    rule = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
-    bounds = [at.Ge(minimum)] + ([at.Le(maximum)] if maximum is not None else [])
-    return Annotated[int, Strict(), *bounds, _refusing(_noted(f"a whole number {rule}", note)),
-                     pydantic.BeforeValidator(_plain_int)]
+def whole(minimum: int | None = 0, maximum: int | None = None, note: str = "") -> Any:
+    """A whole number (an int, not a bool, not 3.0) in minimum..maximum (None: no bound on that side)."""
+    if minimum is None:
+        rule = "" if maximum is None else f"<= {maximum}"
+    else:
+        rule = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
+    bounds = ([at.Ge(minimum)] if minimum is not None else []) + ([at.Le(maximum)] if maximum is not None else [])
+    return Annotated[(int, Strict(), *bounds, _refusing(_noted(f"a whole number {rule}".rstrip(), note)),
+                      pydantic.BeforeValidator(_plain_int))]
 
 
 def _plain_int(value: Any) -> Any:
@@ -89,7 +94,7 @@ def real(low: float | None = None, high: float | None = None, *, low_open: bool 
         bounds.append(at.Gt(low) if low_open else at.Ge(low))
     if high is not None:
         bounds.append(at.Lt(high) if high_open else at.Le(high))
-    return Annotated[float, Strict(), AllowInfNan(False), *bounds, _refusing(_noted(rule, note))]
+    return Annotated[(float, Strict(), AllowInfNan(False), *bounds, _refusing(_noted(rule, note)))]
 
 
 def positive(note: str = "") -> Any:
@@ -142,8 +147,10 @@ def pair(item: Any) -> Any:
 
 def any_of(*options: Any, description: str = "") -> Any:
     """A value one of `options` takes (e.g. a number of devices or "auto"), tried left to right."""
-    return Annotated[Union[options], pydantic.Field(union_mode="left_to_right"),
-                     _refusing(description or " or ".join(_what(option) for option in options), deeper=False)]
+    what = description or " or ".join(_what(option) for option in options)
+    if len(options) == 1:
+        return Annotated[options[0], _refusing(what, deeper=False)]
+    return Annotated[Union[options], pydantic.Field(union_mode="left_to_right"), _refusing(what, deeper=False)]
 
 
 def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any) -> Any:
@@ -194,11 +201,29 @@ class Section(BaseModel):
         return values
 
 
+def fields_of(config: type) -> dict[str, tuple[Any, Any]]:
+    """The fields of a `config_dataclass` as `pydantic.create_model` takes them (type, field), so
+    that a flat params section holding a config's fields beside others checks them by the
+    config's own types, written once."""
+    return {name: (info.annotation, info) for name, info in config.__pydantic_fields__.items()}
+
+
 def config_dataclass(cls: type[T]) -> type[T]:
     """A frozen dataclass whose fields are validated when it is made (a planner's or a model's
-    config): `dataclasses.fields`, `replace` and pickling work as on any dataclass, and an
-    unknown keyword is refused."""
-    return pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(cls)
+    config): `dataclasses.fields`, `replace` and pickling work as on any dataclass, an unknown
+    keyword is refused, and a refused value is a ValueError of one line, `Name: key: must be ...`."""
+    made = pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(cls)
+    validating_init = made.__init__
+
+    @functools.wraps(validating_init)
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        try:
+            validating_init(self, *args, **kwargs)
+        except ValidationError as error:
+            raise ValueError(f"{type(self).__name__}: {explain(error)}") from None
+
+    made.__init__ = __init__
+    return made
 
 
 def _path(loc: tuple[Any, ...]) -> str:
@@ -208,8 +233,40 @@ def _path(loc: tuple[Any, ...]) -> str:
     return path
 
 
-def explain(error: ValidationError, root: str = "") -> str:
-    """The first refusal of a ValidationError as one line: `root.key.sub: must be ..., got value`."""
+def _field_types(kind: Any) -> dict[str, Any]:
+    """Field name -> annotation of a Section model or a config dataclass ({} for anything else)."""
+    if isinstance(kind, type) and issubclass(kind, BaseModel):
+        return {name: info.annotation for name, info in kind.model_fields.items()}
+    if hasattr(kind, "__pydantic_fields__"):
+        return {name: info.annotation for name, info in kind.__pydantic_fields__.items()}
+    return {}
+
+
+def _config_at(kind: Any, loc: tuple[Any, ...]) -> Any:
+    """The Section model or config dataclass found at `loc` inside `kind` (None when there is none):
+    through nested configs, null-or types and lists."""
+    for part in loc:
+        while typing.get_origin(kind) is Annotated:
+            kind = kind.__origin__
+        if typing.get_origin(kind) in (Union, getattr(types, "UnionType", Union)):
+            kind = next((arg for arg in typing.get_args(kind) if arg is not type(None)), None)
+        if isinstance(part, int) and typing.get_origin(kind) in (list, tuple):
+            kind = typing.get_args(kind)[0]
+            continue
+        kind = _field_types(kind).get(part)
+        if kind is None:
+            return None
+    while typing.get_origin(kind) is Annotated:
+        kind = kind.__origin__
+    if typing.get_origin(kind) in (Union, getattr(types, "UnionType", Union)):
+        kind = next((arg for arg in typing.get_args(kind) if _field_types(arg)), None)
+    return kind if _field_types(kind) else None
+
+
+def explain(error: ValidationError, root: str = "", kind_checked: Any = None) -> str:
+    """The first refusal of a ValidationError as one line: `root.key.sub: must be ..., got value`.
+    With `kind_checked` (the type validated), an unknown key names the known ones at any depth and a
+    value that is not a mapping names the settings it should hold."""
     detail = error.errors(include_url=False)[0]
     loc = tuple(detail["loc"])
     kind, message, value = detail["type"], detail["msg"], detail.get("input")
@@ -218,15 +275,18 @@ def explain(error: ValidationError, root: str = "") -> str:
         loc, value = loc + (key,), value.get(key) if isinstance(value, Mapping) else None
         message = f"unknown setting (known: {detail['ctx']['known']})"
     elif kind in ("extra_forbidden", "unexpected_keyword_argument"):
-        message = "unknown setting"
+        config = _config_at(kind_checked, loc[:-1])
+        known = f" (known: {', '.join(_field_types(config))})" if config is not None else ""
+        message = f"unknown setting{known}"
     elif kind in ("missing", "missing_argument"):
         message = "missing (the params file names every setting)" if root else "missing"
         value = dataclasses.MISSING
     elif kind in ("value_error", "assertion_error"):
         message = message.split(", ", 1)[1] if message.startswith(("Value error, ", "Assertion failed, ")) else message
         value = dataclasses.MISSING  # its message says what was wrong with which values
-    elif kind in ("model_type", "dataclass_type", "model_attributes_type", "dict_type"):
-        message = "must be a mapping of settings"
+    elif kind in ("model_type", "dataclass_type", "model_attributes_type", "dict_type", "dataclass_args_type"):
+        config = _config_at(kind_checked, loc)
+        message = f"must be a mapping of {config.__name__} settings" if config is not None else "must be a mapping of settings"
     elif kind != REFUSED:
         message = message[:1].lower() + message[1:]
     if isinstance(value, ArgsKwargs):  # a dataclass's arguments as a whole: not a value to show
@@ -240,9 +300,23 @@ def check_value(kind: Any, value: Any, path: str) -> Any:
     """`value` as type `kind` takes it (a command-line override of one setting), or a ValueError
     `path: must be ..., got ...`."""
     try:
-        return pydantic.TypeAdapter(kind).validate_python(value)
+        return _adapter(kind).validate_python(value)
     except ValidationError as error:
-        raise ValueError(explain(error, path)) from None
+        raise ValueError(explain(error, path, kind)) from None
+
+
+def _adapter(kind: Any) -> pydantic.TypeAdapter:
+    """A TypeAdapter for `kind`, made once per type (making one compiles its validator)."""
+    try:
+        return _ADAPTERS[kind]
+    except KeyError:
+        adapter = _ADAPTERS[kind] = pydantic.TypeAdapter(kind)
+        return adapter
+    except TypeError:  # a type that cannot be a key
+        return pydantic.TypeAdapter(kind)
+
+
+_ADAPTERS: dict[Any, pydantic.TypeAdapter] = {}
 
 
 def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") -> T:
@@ -259,6 +333,6 @@ def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") ->
             if key not in known:
                 raise ValueError(f"{_path(((root,) if root else ()) + (key,))}: unknown setting "
                                  f"(known: {', '.join(known)}), got {values[key]!r}")
-        return kind(**values)
+        return _adapter(kind).validate_python(values)
     except ValidationError as error:
-        raise ValueError(explain(error, root)) from None
+        raise ValueError(explain(error, root, kind)) from None

@@ -8,14 +8,10 @@ a missing section is a `ValueError` / `FileNotFoundError` naming the file; the s
 
 from __future__ import annotations
 
-from dataclasses import fields
 from pathlib import Path
-from typing import Any, Iterable, TypeVar
+from typing import Any
 
 import yaml
-
-T = TypeVar("T")
-
 
 def yaml_problem(error: yaml.YAMLError) -> str:
     """What a YAML parser refused, with its line and column when it knows them (one line)."""
@@ -55,35 +51,3 @@ def params_section(params: dict[str, Any], name: str, path: str | Path) -> dict[
     if not isinstance(section, dict):
         raise ValueError(f"{path}: the '{name}' section must be a mapping of settings, got {section!r}")
     return section
-
-
-def complete_section(params: dict[str, Any], name: str, path: str | Path, keys: Iterable[str]) -> dict[str, Any]:
-    """The `name` section, which must name every one of `keys` and nothing else.
-
-    A stage's settings live in the params file and nowhere else, so a missing key is an error
-    naming it (not a default that could drift from the file's), and a key the stage does not
-    know is refused by name as a likely typo (a silently ignored setting is worse than an error).
-    """
-    section = params_section(params, name, path)
-    keys = sorted(keys)
-    unknown = sorted(set(section) - set(keys))
-    if unknown:
-        raise ValueError(f"{path}: unknown {name} parameter(s) {unknown}; known: {keys}")
-    missing = sorted(set(keys) - set(section))
-    if missing:
-        raise ValueError(f"{path}: the '{name}' section misses {missing} (params.yaml names every setting)")
-    return dict(section)
-
-
-def dataclass_from_dict(cls: type[T], values: dict[str, Any] | None, what: str) -> T:
-    """`cls(**values)` where an unknown key is a ValueError naming it and the known ones.
-
-    A params section or a saved model's config becomes its dataclass here, so that a typo
-    (`max_epoch:`) is refused instead of silently falling back to a default.
-    """
-    values = dict(values or {})
-    known = {f.name for f in fields(cls)}
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ValueError(f"unknown {what} {unknown}; known: {sorted(known)}")
-    return cls(**values)

@@ -1,19 +1,34 @@
 """The settings of the exploration environment (`ExploreEnv`): one frozen object, checked once.
 
-Every value a user can pass to `gymnasium.make("guide/Explore-v0", ...)` is a field here, so
-that a bad value fails when the environment is made, with a ValueError naming the parameter,
-rather than deep inside an episode.
+Every value a user can pass to `gymnasium.make("guide/Explore-v0", ...)` is a field here, typed with
+`pipeline.common.config`'s constrained types, so that a bad value fails when the environment is
+made, with a one-line ValueError naming the parameter (`max_steps: must be a whole number >= 1,
+got 0`), rather than deep inside an episode.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, fields
-from os import PathLike
-from typing import Any
+import os
+from collections.abc import Mapping
+from dataclasses import fields
+from typing import Annotated, Any
 
-import numpy as np
+from pydantic import AfterValidator, BeforeValidator
 
+from pipeline.common.config import (
+    ValidationError,
+    config_dataclass,
+    explain,
+    flag,
+    list_of,
+    maybe,
+    positive,
+    real,
+    satisfies,
+    text,
+    validate,
+    whole,
+)
 from pipeline.world.mazes import MazeConfig
 from pipeline.world.protocol import Protocol
 
@@ -23,62 +38,65 @@ PROTOCOL_FIELDS = tuple(f.name for f in fields(Protocol))
 MAX_PADDED_NODES = 32767  # neighbour lists are int16 row indices
 
 
-@dataclass(frozen=True)
+def _path_text(value: Any) -> Any:
+    """A path object as its text (a `pathlib.Path` names a map as well as a string does)."""
+    return os.fspath(value) if isinstance(value, os.PathLike) else value
+
+
+def _as_tuple(value: Any) -> Any:
+    """Any sequence (a list, a numpy array) as a tuple, for the pairs below."""
+    if hasattr(value, "__len__") and not isinstance(value, (str, bytes, Mapping)):
+        return tuple(value)
+    return value
+
+
+def _two(values: list) -> None:
+    if len(values) != 2:
+        raise ValueError(f"{len(values)} values")
+
+
+def _pair_of(item: Any, what: str) -> Any:
+    """Two values of type `item` (a tuple, a list or an array of them), kept as a tuple."""
+    return Annotated[satisfies(_two, what, list_of(item, 2, description=what)), BeforeValidator(_as_tuple),
+                     AfterValidator(tuple)]
+
+
+MapName = Annotated[text(note=f"a map file, a folder of maps or {GENERATED_MAZE!r}"), BeforeValidator(_path_text)]
+
+
+@config_dataclass
 class ExploreEnvConfig:
     """What `ExploreEnv` runs: which maps, under which protocol, with which actions, observations
     and reward weights. Defaults are the maze benchmark's protocol and ARiADNE-style weights."""
 
     # --- maps
-    map: str = GENERATED_MAZE  # a map file (maze .png, ROS .yaml, .npy), a folder of maps, or "maze": a new maze each reset
-    start: tuple[float, float] | None = None  # start override as load_map takes it: (col, row) for .png/.npy, (x, y) m for ROS
-    maze_side_m: float = 100.0  # metres: side of the generated mazes (map="maze"), a whole number of 5 m blocks
+    map: MapName = GENERATED_MAZE  # a map file (maze .png, ROS .yaml, .npy), a folder of maps, or "maze": a new maze each reset
+    # start override as load_map takes it: (col, row) for .png/.npy, (x, y) m for ROS
+    start: maybe(_pair_of(real(), "a pair of finite numbers"), "the map's") = None
+    maze_side_m: positive("metres") = 100.0  # side of the generated mazes (map="maze"), a whole number of 5 m blocks
     # --- the protocol (docs/protocol.md); max_steps also bounds the environment's steps
-    cell_size: float = 0.4  # metres: side of a grid cell (a ROS map brings its own)
-    node_resolution: float = 4.0  # metres: spacing of the waypoint lattice
-    sensor_range: float = 20.0  # metres: lidar range
-    utility_range: float = 10.0  # metres: a node's frontier utility counts frontier cells this close
-    region_size: float = 20.0  # metres: side of the fixed regions (kept for the protocol; the observed graph ignores it)
-    done_unknown_cells: int = 250  # cells: the episode is complete when at most this many free cells are unseen
-    max_steps: int = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
+    cell_size: positive("metres") = 0.4  # side of a grid cell (a ROS map brings its own)
+    node_resolution: positive("metres") = 4.0  # spacing of the waypoint lattice
+    sensor_range: positive("metres") = 20.0  # lidar range
+    utility_range: positive("metres") = 10.0  # a node's frontier utility counts frontier cells this close
+    region_size: positive("metres") = 20.0  # side of the fixed regions (kept for the protocol; the observed graph ignores it)
+    done_unknown_cells: whole(0, note="cells") = 250  # the episode is complete when at most this many free cells are unseen
+    max_steps: whole(1) = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
     # --- actions and observations
-    action: str = "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
-    max_nodes: int = 320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
-    max_neighbors: int = 25  # neighbour slots per row (-1 padded); a lattice node has at most 24
-    belief_image: bool = False  # add the belief as a uint8 image ("belief") and the robot's cell ("robot_cell")
-    belief_shape: tuple[int, int] | None = None  # cells (rows, cols) of the padded belief; None: the largest map's
+    action: text(ACTION_MODES) = "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
+    max_nodes: whole(1, MAX_PADDED_NODES) = 320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
+    max_neighbors: whole(1) = 25  # neighbour slots per row (-1 padded); a lattice node has at most 24
+    belief_image: flag() = False  # add the belief as a uint8 image ("belief") and the robot's cell ("robot_cell")
+    belief_shape: maybe(_pair_of(whole(1), "two cell counts (rows, cols)"), "the largest map's") = None  # cells (rows, cols) of the padded belief
     # --- reward (ARiADNE-style): area_weight * new free area - distance_weight * distance + completion_bonus
-    area_weight: float = 0.02  # reward per m^2 of newly observed free area (50 m^2 -> 1)
-    distance_weight: float = 0.1  # penalty per metre travelled (one 4 m lattice step -> 0.4)
-    completion_bonus: float = 20.0  # reward once, on the step that completes the episode
-    invalid_action_penalty: float = 1.0  # penalty for a masked action (the robot stays)
+    area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area (50 m^2 -> 1)
+    distance_weight: real(0.0) = 0.1  # penalty per metre travelled (one 4 m lattice step -> 0.4)
+    completion_bonus: real(0.0) = 20.0  # reward once, on the step that completes the episode
+    invalid_action_penalty: real(0.0) = 1.0  # penalty for a masked action (the robot stays)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.map, (str, PathLike)) or not str(self.map):
-            raise ValueError(f"map must be a map file, a folder of maps or {GENERATED_MAZE!r}, got {self.map!r}")
-        object.__setattr__(self, "map", str(self.map))
-        if self.start is not None:
-            object.__setattr__(self, "start", _pair(self.start, "start", float))
-        if self.action not in ACTION_MODES:
-            raise ValueError(f"action must be one of {', '.join(ACTION_MODES)}, got {self.action!r}")
-        _check_int("max_steps", self.max_steps, 1)
-        _check_int("max_nodes", self.max_nodes, 1, MAX_PADDED_NODES)
-        _check_int("max_neighbors", self.max_neighbors, 1)
-        _check_int("done_unknown_cells", self.done_unknown_cells, 0)
-        for name in ("area_weight", "distance_weight", "completion_bonus", "invalid_action_penalty"):
-            _check_number(name, getattr(self, name), 0.0)
-        for name in ("cell_size", "node_resolution", "sensor_range", "utility_range", "region_size", "maze_side_m"):
-            _check_number(name, getattr(self, name), 0.0, positive=True)
-        if not isinstance(self.belief_image, bool):
-            raise ValueError(f"belief_image must be true or false, got {self.belief_image!r}")
-        if self.belief_shape is not None:
-            shape = _pair(self.belief_shape, "belief_shape", int)
-            if min(shape) < 1:
-                raise ValueError(f"belief_shape must be two positive cell counts (rows, cols), got {self.belief_shape!r}")
-            object.__setattr__(self, "belief_shape", shape)
-        try:
-            self.protocol()
-        except ValueError as error:
-            raise ValueError(str(error).replace("protocol.", "", 1)) from None
+        # Each value alone is checked by its type; these are the rules between values.
+        validate(Protocol, {name: getattr(self, name) for name in PROTOCOL_FIELDS})
         if self.belief_shape is not None and not self.belief_image:
             raise ValueError("belief_shape is given but belief_image is off; add belief_image=True")
         if self.generates_mazes and self.start is not None:
@@ -86,8 +104,9 @@ class ExploreEnvConfig:
         if self.generates_mazes:
             try:
                 self.maze_config()
-            except ValueError as error:
-                raise ValueError(f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {error}") from None
+            except ValueError as error:  # the generator's own refusal (in one line, should it be pydantic's)
+                reason = explain(error) if isinstance(error, ValidationError) else str(error)
+                raise ValueError(f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {reason}") from None
 
     @property
     def generates_mazes(self) -> bool:
@@ -116,30 +135,8 @@ class ExploreEnvConfig:
             if not isinstance(protocol, Protocol):
                 raise ValueError(f"protocol must be a Protocol or a dict of its fields, got {protocol!r}")
             values = {**protocol.to_dict(), **values}
-        return cls(**values)
+        try:
+            return cls(**values)
+        except ValidationError as error:  # several lines of pydantic's: the first refusal, in one line
+            raise ValueError(explain(error)) from None
 
-
-def _check_int(name: str, value: Any, low: int, high: int | None = None) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (high is not None and value > high):
-        bound = f"an integer >= {low}" if high is None else f"an integer in {low}..{high}"
-        raise ValueError(f"{name} must be {bound}, got {value!r}")
-
-
-def _check_number(name: str, value: Any, low: float, positive: bool = False) -> None:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) and math.isfinite(value)
-    if not ok or value < low or (positive and value <= low):
-        raise ValueError(f"{name} must be a {'positive' if positive else 'non-negative'} finite number, got {value!r}")
-
-
-def _pair(value: Any, name: str, kind: type) -> tuple:
-    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
-        raise ValueError(f"{name} must be a pair of numbers, got {value!r}")
-    try:
-        items = tuple(kind(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a pair of numbers, got {value!r}") from None
-    if any(isinstance(v, bool) for v in value) or not all(math.isfinite(float(v)) for v in items):
-        raise ValueError(f"{name} must be a pair of finite numbers, got {value!r}")
-    if kind is int and any(float(v) != int(v) for v in value):
-        raise ValueError(f"{name} must be a pair of whole numbers, got {value!r}")
-    return items

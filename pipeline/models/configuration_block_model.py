@@ -7,33 +7,27 @@ dilations, enough for a 100 m maze in one pass; 4 epochs on 10,000 snapshots tak
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, list_of, positive, validate, whole
 
 INPUT_CHANNELS = 4  # known-free share, known-wall share, unknown share, outer ring
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class BlockModelConfig:
     """Widths of the block model and the block size it was trained at (a prior of the maps)."""
 
-    width: int = 48
-    dilations: tuple[int, ...] = (1, 2, 4, 8, 1, 2, 4, 1)
-    groups: int = 8  # GroupNorm groups; must divide width
-    block_m: float = 5.0
+    width: whole(1) = 48
+    dilations: list_of(whole(1)) = (1, 2, 4, 8, 1, 2, 4, 1)  # a tuple once made: YAML and JSON give lists
+    groups: whole(1) = 8  # GroupNorm groups; must divide width
+    block_m: positive("metres") = 5.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "dilations", tuple(int(d) for d in self.dilations))
-        if isinstance(self.width, bool) or not isinstance(self.width, int) or self.width < 1:
-            raise ValueError(f"BlockModelConfig.width must be a whole number >= 1, got {self.width!r}")
-        if isinstance(self.groups, bool) or not isinstance(self.groups, int) or self.groups < 1 or self.width % self.groups:
-            raise ValueError(f"BlockModelConfig.groups must divide width {self.width}, got {self.groups!r}")
-        if not self.dilations or min(self.dilations) < 1:
-            raise ValueError(f"BlockModelConfig.dilations must be whole numbers >= 1, got {self.dilations!r}")
-        if not self.block_m > 0:
-            raise ValueError(f"BlockModelConfig.block_m must be positive, got {self.block_m!r}")
+        object.__setattr__(self, "dilations", tuple(self.dilations))  # hashable and comparable
+        if self.width % self.groups:
+            raise ValueError(f"groups ({self.groups}) must divide width ({self.width})")
 
     def to_dict(self) -> dict[str, Any]:
         values = asdict(self)
@@ -41,5 +35,7 @@ class BlockModelConfig:
         return values
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | None) -> "BlockModelConfig":
-        return dataclass_from_dict(cls, values, "block model config key(s)")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "model") -> "BlockModelConfig":
+        """Build from a dict (params.yaml's `train_block_model.model`, a saved model); a refused
+        value or an unknown key is a one-line ValueError naming it as `root.key`."""
+        return validate(cls, values, root)

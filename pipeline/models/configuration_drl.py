@@ -9,44 +9,37 @@ mapping of params.yaml's `train_drl` section.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, positive, real, validate, whole
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class DRLPolicyConfig:
     """Sizes of the attention-pointer policy and the observation it reads."""
 
-    feature_dim: int = 7  # features per node (FEATURE_NAMES)
-    max_nodes: int = 128  # nodes per observation, nearest the robot first (the environment's max_nodes)
-    max_neighbors: int = 25  # neighbour list width (the 5 x 5 window)
-    d_model: int = 64  # width of the node embeddings
-    heads: int = 4  # attention heads; must divide d_model
-    encoder_layers: int = 4  # edge-masked self-attention layers: each widens a node's view by one graph hop
-    window_scale: float = 10.0  # node spacings per unit of the dx, dy features (GlobalGraphConfig.position_scale_nodes)
-    logit_clip: float = 10.0  # pointer logits are logit_clip * tanh(score), as in the attention-model pointers
-    guidepost_prior: float = 3.0  # initial weight of the guidepost feature added to a slot's logit (learned; 0: none)
+    feature_dim: whole(1) = 7  # features per node (FEATURE_NAMES)
+    max_nodes: whole(1) = 128  # nodes per observation, nearest the robot first (the environment's max_nodes)
+    max_neighbors: whole(1) = 25  # neighbour list width (the 5 x 5 window)
+    d_model: whole(1) = 64  # width of the node embeddings
+    heads: whole(1) = 4  # attention heads; must divide d_model
+    encoder_layers: whole(1) = 4  # edge-masked self-attention layers: each widens a node's view by one graph hop
+    # Node spacings per unit of the dx, dy features (GlobalGraphConfig.position_scale_nodes).
+    window_scale: positive() = 10.0
+    logit_clip: positive() = 10.0  # pointer logits are logit_clip * tanh(score), as in the attention-model pointers
+    # Initial weight of the guidepost feature added to a slot's logit (learned; 0: none).
+    guidepost_prior: real(0.0) = 3.0
 
     def __post_init__(self) -> None:
-        for name in ("feature_dim", "max_nodes", "max_neighbors", "d_model", "heads", "encoder_layers"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"DRLPolicyConfig.{name} must be a whole number >= 1, got {value!r}")
         if self.d_model % self.heads:
-            raise ValueError(f"DRLPolicyConfig.heads ({self.heads}) must divide d_model ({self.d_model})")
-        prior = self.guidepost_prior
-        if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not prior >= 0 or prior == float("inf"):
-            raise ValueError(f"DRLPolicyConfig.guidepost_prior must be a finite number >= 0, got {prior!r}")
-        for name in ("window_scale", "logit_clip"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-                raise ValueError(f"DRLPolicyConfig.{name} must be a positive number, got {value!r}")
+            raise ValueError(f"heads ({self.heads}) must divide d_model ({self.d_model})")
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | None) -> "DRLPolicyConfig":
-        return dataclass_from_dict(cls, values, "drl policy config key(s)")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "model") -> "DRLPolicyConfig":
+        """Build from a dict (params.yaml's `train_drl.model`, an export); a refused value or an
+        unknown key is a one-line ValueError naming it as `root.key`."""
+        return validate(cls, values, root)

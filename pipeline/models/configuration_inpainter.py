@@ -10,10 +10,13 @@ sigmoid output), so its published weights can initialise training.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
+from dataclasses import asdict
 from typing import Any
 
-from pipeline.common.params import dataclass_from_dict
+from pydantic import model_validator
+
+from pipeline.common.config import check_value, config_dataclass, flag, fraction, satisfies, text, validate, whole
 
 # How a node image (255 free, 0 obstacle, 128 unknown) becomes the network's input channels.
 #   signed: [+1 free / -1 obstacle / 0 unknown, unknown mask]                   -> 2 channels
@@ -22,52 +25,56 @@ from pipeline.common.params import dataclass_from_dict
 #           the grey image is repeated as RGB, exactly the official input)      -> 2 or 4 channels
 #   onehot: [free, obstacle, unknown]                                           -> 3 channels
 INPUT_ENCODINGS = {"signed": (2,), "lama": (2, 4), "onehot": (3,)}
+PADDING_TYPES = ("reflect", "zeros", "replicate", "circular")  # torch's Conv2d padding modes
+FFT_NORMS = ("backward", "forward", "ortho")  # torch.fft's normalisations
 
 
-@dataclass
+def _odd(size: int) -> None:
+    if size % 2 != 1:
+        raise ValueError("a convolution pads half of it on each side")
+
+
+KERNEL = satisfies(_odd, "an odd kernel size", kind=whole(1))
+
+
+@config_dataclass
 class InpainterConfig:
     """Layout of an FFC ResNet generator (LaMa's `ffc_resnet`), with LaMa's argument names."""
 
-    in_channels: int = 2
-    out_channels: int = 1
-    ngf: int = 16  # width of the first convolution; doubled by every downsampling
-    n_downsampling: int = 3  # stride-2 convolutions (image side must be a multiple of 2**n)
-    n_blocks: int = 3  # FFC residual blocks at the bottleneck
-    max_features: int = 1024  # channel cap (LaMa's default; Big-LaMa never reaches it)
-    init_ratio_g: float = 0.0  # global share of the first 7x7 convolution (in and out)
-    downsample_ratio_g: float = 0.0  # global share inside the downsamplings
-    ratio_gin: float = 0.75  # global share of the residual blocks' input channels
-    ratio_gout: float = 0.75  # ... and of their output channels
-    enable_lfu: bool = False  # LaMa's local Fourier unit (off in Big-LaMa)
-    init_kernel_size: int = 7
-    downsample_kernel_size: int = 3
-    block_kernel_size: int = 3
-    upsample_kernel_size: int = 3
-    out_kernel_size: int = 7
-    padding_type: str = "reflect"
-    fft_norm: str = "ortho"
-    input_encoding: str = "signed"
+    in_channels: whole(1) = 2
+    out_channels: whole(1) = 1
+    ngf: whole(1) = 16  # width of the first convolution; doubled by every downsampling
+    n_downsampling: whole(0) = 3  # stride-2 convolutions (image side must be a multiple of 2**n)
+    n_blocks: whole(0) = 3  # FFC residual blocks at the bottleneck
+    max_features: whole(1) = 1024  # channel cap (LaMa's default; Big-LaMa never reaches it)
+    init_ratio_g: fraction() = 0.0  # global share of the first 7x7 convolution (in and out)
+    downsample_ratio_g: fraction() = 0.0  # global share inside the downsamplings
+    ratio_gin: fraction() = 0.75  # global share of the residual blocks' input channels
+    ratio_gout: fraction() = 0.75  # ... and of their output channels
+    enable_lfu: flag() = False  # LaMa's local Fourier unit (off in Big-LaMa)
+    init_kernel_size: KERNEL = 7
+    downsample_kernel_size: KERNEL = 3
+    block_kernel_size: KERNEL = 3
+    upsample_kernel_size: KERNEL = 3
+    out_kernel_size: KERNEL = 7
+    padding_type: text(PADDING_TYPES) = "reflect"
+    fft_norm: text(FFT_NORMS) = "ortho"
+    input_encoding: text(tuple(INPUT_ENCODINGS)) = "signed"
+
+    @model_validator(mode="before")
+    @classmethod
+    def _big_lama_mapping(cls, values: Any) -> Any:
+        """A mapping (a `model:` in a stage's settings) may say `big_lama: true` (see `from_dict`)."""
+        return cls.with_big_lama(values, "big_lama") if isinstance(values, Mapping) else values
 
     def __post_init__(self) -> None:
-        if self.input_encoding not in INPUT_ENCODINGS:
-            raise ValueError(f"input_encoding {self.input_encoding!r}: use one of {sorted(INPUT_ENCODINGS)}")
         if self.in_channels not in INPUT_ENCODINGS[self.input_encoding]:
             raise ValueError(
                 f"input_encoding {self.input_encoding!r} makes {INPUT_ENCODINGS[self.input_encoding]} input "
                 f"channels, not in_channels={self.in_channels}"
             )
-        if self.out_channels < 1 or self.ngf < 1 or self.n_downsampling < 0 or self.n_blocks < 0:
-            raise ValueError("out_channels and ngf must be >= 1, n_downsampling and n_blocks >= 0")
-        for name in ("init_ratio_g", "downsample_ratio_g", "ratio_gin", "ratio_gout"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name} must lie in [0, 1]")
-        for name in ("init_kernel_size", "downsample_kernel_size", "block_kernel_size", "upsample_kernel_size", "out_kernel_size"):
-            if getattr(self, name) % 2 != 1:
-                raise ValueError(f"{name} must be odd")
         if self.ratio_gin != self.ratio_gout:
             raise ValueError("ratio_gin and ratio_gout must be equal (the residual blocks add input and output)")
-        if self.padding_type not in ("reflect", "zeros", "replicate", "circular"):
-            raise ValueError(f"padding_type {self.padding_type!r}")
 
     @property
     def size_multiple(self) -> int:
@@ -82,22 +89,25 @@ class InpainterConfig:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "InpainterConfig":
-        """Build from a dict (params.yaml, an exported model); unknown keys are an error."""
-        values = dict(values or {})
-        if values.pop("big_lama", False):
-            return cls.big_lama(**values)
-        return dataclass_from_dict(cls, values, "inpainter config keys")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "model") -> "InpainterConfig":
+        """Build from a dict (params.yaml, an exported model); `big_lama: true` starts from the
+        Big-LaMa layout, which the other keys override. A refused value or an unknown key is a
+        one-line ValueError naming it as `root.key`."""
+        return validate(cls, cls.with_big_lama(values or {}, f"{root}.big_lama"), root)
 
     @classmethod
-    def big_lama(cls, in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama", **overrides: Any) -> "InpainterConfig":
-        """The official Big-LaMa generator layout (51 M parameters with 4 in / 3 out channels).
+    def with_big_lama(cls, values: Mapping[str, Any], key: str) -> dict[str, Any]:
+        """`values` without their `big_lama` flag: under the Big-LaMa layout when it is true. A flag
+        that is not true or false is a ValueError naming it as `key`."""
+        values = dict(values)
+        if check_value(flag(), values.pop("big_lama", False), key):
+            values = {**cls.big_lama_layout(), **values}
+        return values
 
-        The official model takes 4 channels (masked RGB + mask) and returns 3 (RGB); ours
-        defaults to 2 in (masked grey node image + mask) and 1 out (free-node probability);
-        `load_big_lama_generator` adapts the first and last convolutions.
-        """
-        values: dict[str, Any] = dict(
+    @staticmethod
+    def big_lama_layout(in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama") -> dict[str, Any]:
+        """The official Big-LaMa generator layout as config values (see `big_lama`)."""
+        return dict(
             in_channels=in_channels,
             out_channels=out_channels,
             ngf=64,
@@ -118,5 +128,14 @@ class InpainterConfig:
             fft_norm="ortho",
             input_encoding=input_encoding,
         )
-        values.update(overrides)
-        return cls(**values)
+
+    @classmethod
+    def big_lama(cls, in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama",
+                 **overrides: Any) -> "InpainterConfig":
+        """The official Big-LaMa generator layout (51 M parameters with 4 in / 3 out channels).
+
+        The official model takes 4 channels (masked RGB + mask) and returns 3 (RGB); ours
+        defaults to 2 in (masked grey node image + mask) and 1 out (free-node probability);
+        `load_big_lama_generator` adapts the first and last convolutions.
+        """
+        return cls(**{**cls.big_lama_layout(in_channels, out_channels, input_encoding), **overrides})

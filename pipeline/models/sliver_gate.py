@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_write_text
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import validate
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import nested_visible_counts
 from pipeline.world.maps import GroundTruthMap
@@ -222,6 +222,6 @@ def load_gate(path: str | Path) -> tuple[SliverGate, dict | None]:
         values = dict(body["gate"])
         if "coef" in values:  # a logistic gate written before the gate had layers
             values["layers"] = (([(c,) for c in values.pop("coef")], (values.pop("intercept"),)),)
-        return dataclass_from_dict(SliverGate, values, "sliver gate"), body.get("protocol")
+        return validate(SliverGate, values, "gate"), body.get("protocol")
     except (OSError, json.JSONDecodeError, KeyError, TypeError, AttributeError, ValueError) as error:
         raise ValueError(f"{path}: not a sliver gate file ({error})") from None

@@ -11,8 +11,7 @@ The sliver gate is a fitted model any lattice planner's target rule consults
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from pipeline.common.config import config_dataclass, flag, text
 from pipeline.planners.config import OptionInfo, option
 from pipeline.planners.extensions.lookahead import LookaheadConfig
 from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig
@@ -28,7 +27,7 @@ from pipeline.world.planner import Planner
 MODES = ("tour", "policy")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig):
     """Every option of the registered `guide`: the paper's (`GuideConfig`) and each addition's."""
 
@@ -36,8 +35,8 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
                    "ranked plans and the stall hand-over (extensions/) around it")
     renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file", "block_model": "block_model_file"}
 
-    mode: str = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
-                               "policy: the sampled plans are driven (the paper's)")
+    mode: text(MODES) = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
+                                       "policy: the sampled plans are driven (the paper's)")
 
     @classmethod
     def options(cls) -> list[OptionInfo]:
@@ -47,22 +46,20 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
         return [i for i in every if i.name in paper] + [i for i in every if i.name not in paper]
 
     def check(self) -> None:
-        if self.mode not in MODES:
-            raise ValueError(f"mode must be tour or policy, got {self.mode!r}")
         if self.lookahead and self.mode != "tour":
             raise ValueError(f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode {self.mode}")
         super().check()
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GuideNoRegionOptions(GuideOptions, GuideNoRegionConfig):
     pass
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class DareOptions(GuideOptions, DareConfig):
-    sliver_gate: bool = option(False, "consider first only the targets the sliver gate calls big (off: DARE as "
-                                      "published)")
+    sliver_gate: flag() = option(False, "consider first only the targets the sliver gate calls big (off: DARE as "
+                                        "published)")
 
 
 def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=None) -> Planner:

@@ -1,20 +1,26 @@
 """Planner configs: every option of a planner, with its default, its check and one line of why.
 
-Each registered planner has a frozen dataclass of options beside it (as lerobot's
-`configuration_x.py` sits beside `modeling_x.py`). The same keys are the command line's
-`label=name:key=value`, `params.yaml`'s planner specs and Python's `make_planner(name, key=value)`;
-`guide planners --options NAME` prints them. Values are checked when the config is made, before
-any model is loaded. Python objects that are not options (an injected inpainter or policy, a
-block model) go beside the config, as keyword arguments of the planner (`objects`).
+Each registered planner has a frozen config dataclass of options beside it (as lerobot's
+`configuration_x.py` sits beside `modeling_x.py`), a `config_dataclass` whose fields are typed
+with `pipeline.common.config`'s constrained types (`whole`, `real`, `maybe(text(...))`, ...). The
+same keys are the command line's `label=name:key=value`, `params.yaml`'s planner specs and
+Python's `make_planner(name, key=value)`; `guide planners --options NAME` prints them. Values are
+checked by pydantic when the config is made, before any model is loaded; a rule between options
+is plain Python in `check` (run after the fields are validated). Python objects that are not
+options (an injected inpainter or policy, a block model) go beside the config, as keyword
+arguments of the planner (`objects`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import re
+import types
+import typing
 import warnings
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal, Union
+
+from pipeline.common.config import config_dataclass
 
 SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
 
@@ -32,9 +38,10 @@ class OptionInfo:
     help: str
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class PlannerConfig:
-    """The options of one registered planner; subclasses add fields and `check` them."""
+    """The options of one registered planner; subclasses add typed fields (checked by pydantic)
+    and `check` the rules between them."""
 
     name: ClassVar[str] = ""  # the registered name (set by `register_planner`)
     description: ClassVar[str] = ""
@@ -51,7 +58,8 @@ class PlannerConfig:
         self.check()
 
     def check(self) -> None:
-        """ValueError naming the option, the value and the valid range for a value that makes no sense."""
+        """ValueError naming the options for values that make no sense together (each value on its
+        own is checked by its field's type, before this runs)."""
 
     def model_slots(self) -> dict[str, str]:
         """Option name -> model kind (`pipeline.models.defaults.MODEL_FILES`) of each trained model
@@ -62,7 +70,8 @@ class PlannerConfig:
     def options(cls) -> list[OptionInfo]:
         """Every option: name, default, the spec kinds it takes, help (those of the configs it
         extends first)."""
-        return [OptionInfo(f.name, f.default, option_kinds(f.type), f.metadata.get("help", ""))
+        hints = _field_annotations(cls)
+        return [OptionInfo(f.name, f.default, option_kinds(hints.get(f.name, f.type)), f.metadata.get("help", ""))
                 for f in dataclasses.fields(cls)]
 
     @classmethod
@@ -95,8 +104,48 @@ class PlannerConfig:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
 
 
+def _field_annotations(cls: type) -> dict[str, Any]:
+    """Each field's annotation as an object (`from __future__ import annotations` leaves strings)."""
+    try:
+        return typing.get_type_hints(cls, include_extras=True)
+    except (NameError, TypeError):  # a name only a type checker sees: pydantic's resolved types instead
+        return {name: info.annotation for name, info in getattr(cls, "__pydantic_fields__", {}).items()}
+
+
 def option_kinds(annotation: Any) -> frozenset[str] | None:
     """The kinds ('bool', 'int', 'float', 'str') an option's annotation allows; None for an option
-    that takes Python objects (a config object), which no spec sets."""
-    names = set(re.findall(r"[A-Za-z_]\w*", str(annotation))) - {"None", "Optional"}
-    return frozenset(names) if names and names <= set(SPEC_KINDS) else None
+    that takes Python objects (a config object), which no spec sets.
+
+    Constrained types are unwrapped (`Annotated`), so are `Optional` and unions (None is not a
+    kind: a spec has no null), and a `Literal` takes the kinds of its values (choices of strings:
+    'str')."""
+    kinds = _kinds(annotation)
+    return frozenset(kinds) if kinds and kinds <= set(SPEC_KINDS) else None
+
+
+def _kinds(annotation: Any) -> set[str] | None:
+    """The spec kinds of `annotation`; None where any part of it is not one (a Python object)."""
+    if annotation is None or annotation is type(None):
+        return set()
+    origin = typing.get_origin(annotation)
+    if origin is Annotated:
+        return _kinds(typing.get_args(annotation)[0])
+    if origin is Union or origin is types.UnionType:
+        kinds: set[str] = set()
+        for member in typing.get_args(annotation):
+            inner = _kinds(member)
+            if inner is None:
+                return None
+            kinds |= inner
+        return kinds
+    if origin is Literal:
+        kinds = set()
+        for value in typing.get_args(annotation):
+            inner = _kinds(type(value))
+            if inner is None:
+                return None
+            kinds |= inner
+        return kinds
+    if isinstance(annotation, type) and annotation.__name__ in SPEC_KINDS and annotation.__module__ == "builtins":
+        return {annotation.__name__}
+    return None

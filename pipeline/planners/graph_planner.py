@@ -2,47 +2,41 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from pipeline.common.config import config_dataclass, flag, maybe, text, whole
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.models.sliver_gate import SliverGate, load_gate
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.options import check_int, require
 from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class LatticePlannerConfig(PlannerConfig):
     """The options every lattice-graph planner has."""
 
-    min_utility: int = option(2, "a node is a target when it sees at least this many frontier cells (below 1, nodes "
-                                 "that see nothing would be targets too and the robot would tour every node)")
-
-    def check(self) -> None:
-        super().check()
-        check_int("min_utility", self.min_utility, 1)
+    min_utility: whole(1) = option(2, "a node is a target when it sees at least this many frontier cells (below 1, "
+                                      "nodes that see nothing would be targets too and the robot would tour every node)")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GatedPlannerConfig(LatticePlannerConfig):
     """A lattice-graph planner that can leave slivers for later (`pipeline.models.sliver_gate`)."""
 
-    sliver_gate: bool = option(False, "consider first only the targets the sliver gate calls big (their scan would "
-                                      "reveal much); the rest only when none is")
-    gate_file: str | None = option(None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, "
-                                         "else the shipped one]")
+    sliver_gate: flag() = option(False, "consider first only the targets the sliver gate calls big (their scan would "
+                                        "reveal much); the rest only when none is")
+    gate_file: maybe(text()) = option(None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, "
+                                            "else the shipped one]")
 
     def check(self) -> None:
         super().check()
-        require(isinstance(self.sliver_gate, bool), f"sliver_gate must be true or false, got {self.sliver_gate!r}")
         if self.gate_file is not None and not self.sliver_gate:
             raise ValueError("gate_file is given but the sliver gate is off; add sliver_gate=true")
 

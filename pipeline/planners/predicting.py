@@ -9,15 +9,15 @@ its frontier-only version (the instance's `description` says which predictor is 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
+from pydantic import InstanceOf
 
+from pipeline.common.config import config_dataclass, fraction, maybe, text, whole
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.models.defaults import inpainter_protocol, resolve_inpainter
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
-from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.prediction.node_predictor import (
     DEFAULT_COUNT_THRESHOLD,
@@ -31,41 +31,32 @@ from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class PredictorOptions(LatticePlannerConfig):
     """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
 
     objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
     renamed = {"checkpoint": "inpainter_file"}
 
-    inpainter_file: str | None = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, else the "
-                                         "shipped one]")
-    threshold: float = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
-    min_component: int = option(3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)")
-
-    def check(self) -> None:
-        super().check()
-        # Checked before the predictor is loaded: a node is predicted free at probability >= threshold.
-        check_number("threshold", self.threshold, 0.0, 1.0)
-        check_int("min_component", self.min_component, 0, note="0 or 1 = keep every prediction")
+    inpainter_file: maybe(text()) = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, "
+                                                 "else the shipped one]")
+    threshold: fraction() = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
+    min_component: whole(0, note="0 or 1 = keep every prediction") = option(
+        3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)")
 
     def model_slots(self) -> dict[str, str]:
         predicts = getattr(self, "predicts", True)  # dare's observed graph loads no inpainter
         return {**super().model_slots(), **({"inpainter_file": "inpainter"} if predicts else {})}
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GlobalGraphOptions(PredictorOptions):
     """The options of a planner that builds the global graph of Sec. IV-B from its predictions."""
 
-    count_threshold: float | None = option(DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost "
-                                                                    "counts [None: threshold]")
-    global_graph: GlobalGraphConfig = option(GlobalGraphConfig(), "the global graph's settings: region size and "
-                                                                  "score (r(g)), node window (a Python object)")
-
-    def check(self) -> None:
-        super().check()
-        check_number("count_threshold", self.count_threshold, 0.0, 1.0, none="threshold")
+    count_threshold: maybe(fraction(), "threshold") = option(DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the "
+                                                                                      "utility boost counts [None: threshold]")
+    global_graph: InstanceOf[GlobalGraphConfig] = option(GlobalGraphConfig(), "the global graph's settings: region size "
+                                                                              "and score (r(g)), node window (a Python object)")
 
 
 class PredictingPlanner(GraphPlanner):

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable, TypeVar
 
+from pipeline.common.config import validate
 from pipeline.planners.config import OptionInfo, PlannerConfig
 from pipeline.planners.matched_models import ProtocolMatchedModels, default_slots
 from pipeline.world.planner import Planner
@@ -88,14 +89,15 @@ def accepted_options(name: str, options: dict[str, Any] | None = None) -> dict[s
 
 def make_config(name: str, **options: Any) -> tuple[PlannerConfig, dict[str, Any]]:
     """(the planner's config from `options`, the Python objects among them); ValueError for an
-    option it does not take or a value its config refuses."""
+    option it does not take or a value its config refuses, in one line (`option: must be ..., got
+    value`), never pydantic's multi-line ValidationError."""
     config = planner_config(name)
     fields, objects, unknown = config.split(options)
     if unknown:
         settable = [n for n, info in accepted_options(name, options).items()
                     if info.kinds is not None and n not in config.renamed]
         raise ValueError(f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}")
-    return config(**fields), objects
+    return validate(config, fields), objects
 
 
 def make_planner(name: str, **options: Any) -> Planner:

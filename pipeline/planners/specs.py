@@ -12,6 +12,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+from pipeline.common.config import ValidationError, explain
 from pipeline.planners.config import SPEC_KINDS, OptionInfo
 from pipeline.planners.registry import accepted_options, make_planner, planner_config
 from pipeline.world.planner import Planner
@@ -138,18 +139,14 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec], reserved: Seque
 
 
 def build_planner(spec: PlannerSpec) -> Planner:
-    """The planner a resolved spec names; a value its constructor refuses is a ValueError naming the label."""
+    """The planner a resolved spec names; a value its constructor refuses is a one-line ValueError
+    naming the label (a pydantic ValidationError, whose text is several lines, is explained)."""
     try:
         return make_planner(spec.name, **spec.options)
+    except ValidationError as error:  # a config made while building, past `make_config`'s explanation
+        raise ValueError(_option_error(spec, explain(error))) from None
     except (TypeError, ValueError) as error:
         raise ValueError(_option_error(spec, error)) from None
-
-
-def _option_error(spec: PlannerSpec, error: Exception) -> str:
-    message = f"planner {spec.label!r}: {error}"
-    if any(isinstance(v, str) and ":" in v and "=" in v for v in spec.options.values()):
-        message += " (options are separated by ',', e.g. 'label=name:a=1,b=2')"
-    return message
 
 
 def _option_error(spec: PlannerSpec, error: Exception) -> str:

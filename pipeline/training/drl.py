@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Callable
 
@@ -27,7 +27,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 from torch import nn
 
 from pipeline.common.atomic import atomic_write_text
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import any_of, config_dataclass, flag, fraction, list_of, positive, real, validate, whole
 from pipeline.envs.explore_env import ExploreEnv
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.modeling_drl import SLOTS, DRLPolicy
@@ -86,42 +86,28 @@ class DRLActorCritic(MaskableActorCriticPolicy):
 
 
 # ----------------------------------------------------------------------------- settings
-@dataclass(frozen=True)
+@config_dataclass
 class PPOSettings:
     """MaskablePPO's settings (stable-baselines3's names and meanings)."""
 
-    n_envs: int = 4  # environments stepped together; their maze sides cycle through maze_sides_m
-    n_steps: int = 256  # steps per environment between updates
-    batch_size: int = 128
-    n_epochs: int = 4  # passes over each rollout
-    learning_rate: float = 3e-4
-    gamma: float = 0.99
-    gae_lambda: float = 0.95
-    clip_range: float = 0.2
-    ent_coef: float = 0.01
-    vf_coef: float = 0.5
-    max_grad_norm: float = 0.5
-    subprocess: bool = False  # step the environments in worker processes (machines with cores to spare)
-
-    def __post_init__(self) -> None:
-        for name in ("n_envs", "n_steps", "batch_size", "n_epochs"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"ppo.{name} must be a whole number >= 1, got {value!r}")
-        for name, low, high in (("learning_rate", 0.0, None), ("gamma", 0.0, 1.0), ("gae_lambda", 0.0, 1.0),
-                                ("clip_range", 0.0, None), ("ent_coef", None, None), ("vf_coef", None, None),
-                                ("max_grad_norm", 0.0, None)):
-            value = getattr(self, name)
-            bad = isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value)
-            if bad or (low is not None and value < low) or (high is not None and value > high) or \
-                    (name in ("learning_rate", "clip_range", "max_grad_norm") and value <= 0):
-                raise ValueError(f"ppo.{name} must be a finite number{f' in [{low}, {high}]' if high else ''}, got {value!r}")
-        if not isinstance(self.subprocess, bool):
-            raise ValueError(f"ppo.subprocess must be true or false, got {self.subprocess!r}")
+    n_envs: whole(1) = 4  # environments stepped together; their maze sides cycle through maze_sides_m
+    n_steps: whole(1) = 256  # steps per environment between updates
+    batch_size: whole(1) = 128
+    n_epochs: whole(1) = 4  # passes over each rollout
+    learning_rate: positive() = 3e-4
+    gamma: fraction() = 0.99
+    gae_lambda: fraction() = 0.95
+    clip_range: positive() = 0.2
+    ent_coef: real() = 0.01
+    vf_coef: real() = 0.5
+    max_grad_norm: positive() = 0.5
+    subprocess: flag() = False  # step the environments in worker processes (machines with cores to spare)
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | None) -> "PPOSettings":
-        return dataclass_from_dict(cls, values, "ppo setting(s)")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "ppo") -> "PPOSettings":
+        """Build from params.yaml's `train_drl.ppo`; a refused value or an unknown key is a one-line
+        ValueError naming it as `root.key`."""
+        return validate(cls, values, root)
 
     def algorithm_kwargs(self) -> dict[str, Any]:
         values = asdict(self)
@@ -133,30 +119,28 @@ class PPOSettings:
         return asdict(self)
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TrainingEnvironment:
-    """The environments the agent learns in: generated mazes at the protocol, ARiADNE-style reward."""
+    """The environments the agent learns in: generated mazes at the protocol, ARiADNE-style reward.
+    Whether the protocol can make a maze of a side is the environment's (`ExploreEnv`) question."""
 
-    maze_sides_m: tuple[float, ...] = (60.0, 80.0, 100.0)  # one per environment, round robin
-    max_steps: int = 200  # actions before an episode is truncated
-    area_weight: float = 0.02  # reward per m^2 of newly observed free area
-    distance_weight: float = 0.1  # penalty per metre travelled
-    completion_bonus: float = 20.0  # reward on the step that completes the episode
+    # One per environment, round robin; one side alone may be given as a number. A tuple once made.
+    maze_sides_m: any_of(list_of(positive("metres")), positive("metres"),
+                          description="a non-empty list of maze sides (m), each > 0") = (60.0, 80.0, 100.0)
+    max_steps: whole(1) = 200  # actions before an episode is truncated
+    area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area
+    distance_weight: real(0.0) = 0.1  # penalty per metre travelled
+    completion_bonus: real(0.0) = 20.0  # reward on the step that completes the episode
 
     def __post_init__(self) -> None:
-        sides = self.maze_sides_m
-        if isinstance(sides, (int, float)) and not isinstance(sides, bool):
-            sides = (sides,)
-        if not isinstance(sides, (list, tuple)) or not sides or any(
-                isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0 for v in sides):
-            raise ValueError(f"env.maze_sides_m must be a list of positive side lengths (m), got {self.maze_sides_m!r}")
-        object.__setattr__(self, "maze_sides_m", tuple(float(v) for v in sides))
-        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < 1:
-            raise ValueError(f"env.max_steps must be a whole number >= 1, got {self.max_steps!r}")
+        sides = self.maze_sides_m if isinstance(self.maze_sides_m, (list, tuple)) else (self.maze_sides_m,)
+        object.__setattr__(self, "maze_sides_m", tuple(float(side) for side in sides))
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | None) -> "TrainingEnvironment":
-        return dataclass_from_dict(cls, values, "env setting(s)")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "env") -> "TrainingEnvironment":
+        """Build from params.yaml's `train_drl.env`; a refused value or an unknown key is a one-line
+        ValueError naming it as `root.key`."""
+        return validate(cls, values, root)
 
     def to_dict(self) -> dict[str, Any]:
         return {**asdict(self), "maze_sides_m": list(self.maze_sides_m)}

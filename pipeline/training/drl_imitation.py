@@ -11,7 +11,7 @@ random would make PPO's first advantages noise and undo the actor. `episodes: 0`
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any, Callable
 
 import numpy as np
@@ -19,47 +19,35 @@ import torch
 import torch.nn.functional as F
 from tqdm.auto import tqdm
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, positive, real, satisfies, text, validate, whole
 from pipeline.models.modeling_drl import MASKED_LOGIT, DRLPolicy
-from pipeline.planners import make_planner
-from pipeline.planners.registry import planner_names
+from pipeline.planners import make_planner, planner_config
 from pipeline.world.planner import reset_planner
 
 OBSERVATION_KEYS = ("features", "node_mask", "neighbors", "robot", "action_mask")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class ImitationSettings:
     """The warm start's teacher and its training."""
 
-    planner: str = "greedy_utility"  # the teacher: a registered planner that moves one window step per decision
-    episodes: int = 0  # teacher episodes to learn from (0: no warm start, PPO from the guidepost prior)
-    epochs: int = 4  # passes over the teacher's decisions
-    batch_size: int = 128
-    learning_rate: float = 0.001  # Adam
-    dagger_rounds: int = 2  # rounds in which the policy drives and the teacher labels every state it visits
-    dagger_episodes: int = 100  # episodes per round
-    dagger_epochs: int = 4  # passes over all decisions gathered so far after each round
-    value_weight: float = 0.02  # weight of the value regression (squared error of returns of tens) beside the cross-entropy
-
-    def __post_init__(self) -> None:
-        if self.planner not in planner_names():
-            raise ValueError(f"imitation.planner: unknown planner {self.planner!r}; choose from {', '.join(planner_names())}")
-        for name, low in (("episodes", 0), ("epochs", 1), ("batch_size", 1), ("dagger_rounds", 0),
-                          ("dagger_episodes", 1), ("dagger_epochs", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"imitation.{name} must be a whole number >= {low}, got {value!r}")
-        for name in ("learning_rate", "value_weight"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
-                raise ValueError(f"imitation.{name} must be a finite number >= 0, got {value!r}")
-        if not self.learning_rate > 0:
-            raise ValueError(f"imitation.learning_rate must be positive, got {self.learning_rate!r}")
+    # The teacher: a registered planner that moves one window step per decision.
+    planner: satisfies(planner_config, "a registered planner", kind=text()) = "greedy_utility"
+    episodes: whole(0) = 0  # teacher episodes to learn from (0: no warm start, PPO from the guidepost prior)
+    epochs: whole(1) = 4  # passes over the teacher's decisions
+    batch_size: whole(1) = 128
+    learning_rate: positive() = 0.001  # Adam
+    dagger_rounds: whole(0) = 2  # rounds in which the policy drives and the teacher labels every state it visits
+    dagger_episodes: whole(1) = 100  # episodes per round
+    dagger_epochs: whole(1) = 4  # passes over all decisions gathered so far after each round
+    # Weight of the value regression (squared error of returns of tens) beside the cross-entropy.
+    value_weight: real(0.0) = 0.02
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any] | None) -> "ImitationSettings":
-        return dataclass_from_dict(cls, values, "imitation setting(s)")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "imitation") -> "ImitationSettings":
+        """Build from params.yaml's `train_drl.imitation`; a refused value or an unknown key is a
+        one-line ValueError naming it as `root.key`."""
+        return validate(cls, values, root)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -32,7 +32,7 @@ import pickle
 import time
 import warnings
 import zipfile
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Optional
 
@@ -40,7 +40,7 @@ import lightning as L
 import torch
 import torch.nn.functional as F
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, flag, fraction, maybe, positive, real, text, validate, whole
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.models.exports import export_kind
 from pipeline.models.modeling_inpainter import (
@@ -51,6 +51,7 @@ from pipeline.models.modeling_inpainter import (
     load_big_lama_generator,
 )
 from pipeline.training.inpainter_data import (
+    SPLITS,
     InpainterDataModule,
     maze_count,
     pair_count,
@@ -64,8 +65,6 @@ from pipeline.training.inpainter_losses import (
 )
 from pipeline.training.lightning_run import RunOptions, export, fit, start
 from pipeline.training.run_setup import (
-    check_max_minutes,
-    check_positive_int,
     one_line,
     random_states,
     restore_random_states,
@@ -75,37 +74,36 @@ from pipeline.training.run_setup import (
 EXPORT_NAME = "inpainter.pt"
 
 
-@dataclass
+@config_dataclass
 class TrainConfig:
-    """Training hyperparameters (the `train_inpainter` section of params.yaml, minus the model)."""
+    """Training hyperparameters (the `train_inpainter` section of params.yaml, minus the model and
+    the run's settings)."""
 
-    max_epochs: int = 40
-    batch_size: int = 16
-    lr: float = 1e-3  # Adam (LaMa's generator learning rate)
-    weight_decay: float = 0.0
-    lr_min_factor: float = 0.05  # cosine decay to lr * this at the last epoch
-    known_weight: float = 0.1  # weight of the BCE on known pixels, relative to the hole BCE
-    hole_pos_weight: float = 1.0  # BCE weight of free hole pixels (>1 favours recall, <1 precision)
-    adversarial_weight: float = 0.0  # > 0 trains a PatchGAN discriminator alongside
-    discriminator_lr: float = 1e-4
-    discriminator_width: int = 32
-    r1_weight: float = 0.001  # R1 gradient penalty on real images (LaMa's gp_coef)
-    threshold: float = 0.5  # tau: probability at or above which a node is predicted free
-    val_fraction: float = 0.2
-    split: str = "maze"  # hold out whole mazes ("maze") or the last pairs of each rollout group ("rollout")
-    augment: bool = True  # random flips and 90-degree rotations (the lattice is symmetric)
-    hide_prob: float = 0.0  # chance per training pair of hiding the observations in a random box
-    seed: int = 0
-    max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
-
-    def __post_init__(self) -> None:
-        check_positive_int("max_epochs", self.max_epochs)
-        check_positive_int("batch_size", self.batch_size)
-        check_max_minutes(self.max_minutes)
+    max_epochs: whole(1) = 40  # >= 1: 0 epochs would export an untrained model over a trained one
+    batch_size: whole(1) = 16
+    lr: positive() = 1e-3  # Adam (LaMa's generator learning rate)
+    weight_decay: real(0.0) = 0.0
+    lr_min_factor: fraction() = 0.05  # cosine decay to lr * this at the last epoch
+    known_weight: real(0.0) = 0.1  # weight of the BCE on known pixels, relative to the hole BCE
+    hole_pos_weight: real(0.0) = 1.0  # BCE weight of free hole pixels (>1 favours recall, <1 precision)
+    adversarial_weight: real(0.0) = 0.0  # > 0 trains a PatchGAN discriminator alongside
+    discriminator_lr: positive() = 1e-4
+    discriminator_width: whole(1) = 32
+    r1_weight: real(0.0) = 0.001  # R1 gradient penalty on real images (LaMa's gp_coef)
+    threshold: fraction("P(free)") = 0.5  # tau: probability at or above which a node is predicted free
+    val_fraction: real(0.0, 1.0, low_open=True, high_open=True) = 0.2
+    split: text(SPLITS) = "maze"  # hold out whole mazes ("maze") or the last pairs of each rollout group ("rollout")
+    augment: flag() = True  # random flips and 90-degree rotations (the lattice is symmetric)
+    hide_prob: fraction() = 0.0  # chance per training pair of hiding the observations in a random box
+    seed: whole(0) = 0
+    # Wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs.
+    max_minutes: maybe(positive("minutes"), "no cap") = None
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
-        return dataclass_from_dict(cls, values, "training keys")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "train_inpainter") -> "TrainConfig":
+        """Build from a dict (params.yaml's `train_inpainter` section without the model and the
+        run's settings); a refused value or an unknown key is a one-line ValueError naming it as `root.key`."""
+        return validate(cls, values, root)
 
 
 # ----------------------------------------------------------------------------- Lightning module
@@ -341,11 +339,13 @@ def train_inpainter(
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
     (MLflow's default: ./mlruns).
     """
-    run = RunOptions(Path(out_dir), None if checkpoint_dir is None else Path(checkpoint_dir), accelerator, devices,
-                     resume, mlflow, tracking_uri, experiment_name, run_name, artifact_location, progress)
+    run = RunOptions.from_dict(dict(
+        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, resume=resume,
+        mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
+        artifact_location=artifact_location, progress=progress))
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
     overrides = {k: v for k, v in (("max_epochs", max_epochs), ("batch_size", batch_size), ("lr", lr)) if v is not None}
-    tc = TrainConfig(**{**asdict(tc), **overrides})
+    tc = TrainConfig.from_dict({**asdict(tc), **overrides})
     if isinstance(model_config, dict):
         model_config = InpainterConfig.from_dict(model_config)
     with torch_threads(num_threads):

@@ -20,7 +20,9 @@ from typing import Any, Optional
 import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
 
+from pipeline.common.config import config_dataclass, flag, text, validate
 from pipeline.training.run_setup import (
+    DEVICES,
     LAST_CKPT,
     atomic_checkpoint_io,
     check_accelerator,
@@ -36,33 +38,39 @@ from pipeline.training.run_setup import (
 BEST_NAME = "best"
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class RunOptions:
     """Where and how a training runs, apart from what it learns.
 
     `checkpoint_dir` holds Lightning's `last.ckpt` and `best.ckpt` (default: `out_dir`, where the
     export goes); `resume` continues from `last.ckpt` when there is one. MLflow logs to
     `tracking_uri` (default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db) in `experiment`;
-    `artifact_location` is where a newly made experiment keeps its artifacts.
+    `artifact_location` is where a newly made experiment keeps its artifacts. Whether this
+    machine has the accelerator and devices is checked when the options are made, before any
+    file is touched or an MLflow run is made.
     """
 
     out_dir: Path
     checkpoint_dir: Optional[Path] = None
-    accelerator: str = "cpu"
-    devices: int | str = 1
-    resume: bool = False
-    mlflow: bool = True
+    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto") = "cpu"
+    devices: DEVICES = 1
+    resume: flag() = False
+    mlflow: flag() = True
     tracking_uri: Optional[str] = None
-    experiment: str = "training"
+    experiment: text(note="an MLflow experiment") = "training"
     run_name: Optional[str] = None
     artifact_location: Optional[str] = None
-    progress: bool = False
+    progress: flag() = False
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "out_dir", Path(self.out_dir))
-        folder = self.out_dir if self.checkpoint_dir is None else Path(self.checkpoint_dir)
-        object.__setattr__(self, "checkpoint_dir", folder)
-        check_accelerator(self.accelerator, self.devices)  # before any file is touched or an MLflow run is made
+        if self.checkpoint_dir is None:
+            object.__setattr__(self, "checkpoint_dir", self.out_dir)
+        check_accelerator(self.accelerator, self.devices)
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "RunOptions":
+        """The options a training function's arguments name; a refused one is a one-line ValueError."""
+        return validate(cls, values)
 
     @property
     def last(self) -> Path:

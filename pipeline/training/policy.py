@@ -10,7 +10,7 @@ loss and how often the first sampled step equals the expert's.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Optional
 
@@ -19,44 +19,38 @@ import numpy as np
 import torch
 from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
-from pipeline.common.params import dataclass_from_dict
+from pipeline.common.config import config_dataclass, flag, fraction, maybe, positive, real, validate, whole
 from pipeline.data.observations import PlannerDataset, crop_observations, load_observations
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import DiffusionPolicy, export_policy, load_policy
 from pipeline.training.lightning_run import RunOptions, export, fit, start
-from pipeline.training.run_setup import (
-    check_max_minutes,
-    check_positive_int,
-    random_states,
-    restore_random_states,
-    torch_threads,
-)
+from pipeline.training.run_setup import random_states, restore_random_states, torch_threads
 
 EXPORT_NAME = "policy.pt"
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class PlannerTrainConfig:
-    max_epochs: int = 30
-    batch_size: int = 64
-    lr: float = 3e-4  # AdamW (DARE: 1e-4 at 256 wide; the small default model takes a larger step)
-    weight_decay: float = 1e-4
-    warmup_steps: int = 100
-    ema_decay: float = 0.995
-    val_fraction: float = 0.15  # share of episodes held out
-    augment: bool = True  # random dihedral transforms of positions and actions
-    seed: int = 0
-    val_accuracy_samples: int = 64  # validation samples whose first step is sampled (K from the model config)
-    max_minutes: Optional[float] = None  # wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs
+    """Training hyperparameters (the `train` mapping of params.yaml's `train_planner` section)."""
 
-    def __post_init__(self) -> None:
-        check_positive_int("max_epochs", self.max_epochs)
-        check_positive_int("batch_size", self.batch_size)
-        check_max_minutes(self.max_minutes)
+    max_epochs: whole(1) = 30  # >= 1: 0 epochs would export an untrained model over a trained one
+    batch_size: whole(1) = 64
+    lr: positive() = 3e-4  # AdamW (DARE: 1e-4 at 256 wide; the small default model takes a larger step)
+    weight_decay: real(0.0) = 1e-4
+    warmup_steps: whole(0) = 100
+    ema_decay: fraction() = 0.995
+    val_fraction: real(0.0, 1.0, high_open=True) = 0.15  # share of episodes held out
+    augment: flag() = True  # random dihedral transforms of positions and actions
+    seed: whole(0) = 0
+    val_accuracy_samples: whole(0) = 64  # validation samples whose first step is sampled (K from the model config)
+    # Wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs.
+    max_minutes: maybe(positive("minutes"), "no cap") = None
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "PlannerTrainConfig":
-        return dataclass_from_dict(cls, values, "planner training keys")
+    def from_dict(cls, values: dict[str, Any] | None, root: str = "train") -> "PlannerTrainConfig":
+        """Build from a dict (params.yaml's `train_planner.train`, a checkpoint's hyperparameters);
+        a refused value or an unknown key is a one-line ValueError naming it as `root.key`."""
+        return validate(cls, values, root)
 
 
 def split_episodes(episode: np.ndarray, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -209,8 +203,10 @@ def train_planner(
     """
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
-    run = RunOptions(Path(out_dir), None if checkpoint_dir is None else Path(checkpoint_dir), accelerator, devices, resume,
-                     mlflow, tracking_uri, experiment_name, run_name, None, progress)
+    run = RunOptions.from_dict(dict(
+        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, resume=resume,
+        mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
+        progress=progress))
     arrays, meta = load_observations(observations)
     n_max = arrays["features"].shape[1]
     if n_max < mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:

@@ -1,6 +1,6 @@
-"""What every training run shares: settings checks, the Lightning trainer, old checkpoints set
-aside, checkpoints written atomically and resumed only for the same settings and data, torch's
-CPU threads and the MLflow logger.
+"""What every training run shares: the shape of its devices and the accelerators this machine has,
+the Lightning trainer, old checkpoints set aside, checkpoints written atomically and resumed only
+for the same settings and data, torch's CPU threads and the MLflow logger.
 
 The inpainter (Stage I) and the diffusion planner (Stage II) train the same way: settings
 are checked before a file is touched or an MLflow run is made, Lightning's refusals become
@@ -26,23 +26,11 @@ import numpy as np
 import torch
 
 from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.config import any_of, check_value, list_of, satisfies, text, whole
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
 
 LAST_CKPT = "last.ckpt"
 RUN_RECORD = "run.json"
-
-
-def check_max_minutes(value: Any) -> None:
-    """`max_minutes` is null or a positive number of minutes."""
-    if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0):
-        raise ValueError(f"max_minutes must be null or a positive number of minutes, got {value!r}")
-
-
-def check_positive_int(name: str, value: Any) -> None:
-    """A count such as `max_epochs` or `batch_size` is a whole number >= 1: 0 epochs would export
-    an untrained model over a trained one, and a negative count fails deep inside Lightning."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be a whole number >= 1, got {value!r}")
 
 
 def max_time(max_minutes: Optional[float]) -> Optional[timedelta]:
@@ -57,30 +45,49 @@ def one_line(error: BaseException, limit: int = 200) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def _read_devices_text(value: str) -> int | list[int] | str:
+    """A command line's devices ('2', '-1', '0,1', 'auto') as the value it stands for; the text
+    itself when it reads as none (the shapes of DEVICES refuse it then)."""
+    value = value.strip()
+    if value == "auto":
+        return value
+    try:
+        return int(value)
+    except ValueError:
+        pass
+    try:
+        return [int(part) for part in value.split(",") if part.strip()] or value
+    except ValueError:
+        return value
+
+
+_DEVICE_SHAPES = (whole(1), whole(-1, -1), list_of(whole(0)), text(("auto",)))
+_DEVICE_VALUE = any_of(*_DEVICE_SHAPES)
+
+
+def _devices_text(value: str) -> None:
+    check_value(_DEVICE_VALUE, _read_devices_text(value), "devices")
+
+
+# Lightning's `devices`: a number of devices, -1 (all), a list of device indices or "auto", or the
+# same as the text a command line gives ("2", "0,1"). Whether this machine has them is
+# `check_accelerator`'s question.
+DEVICES = any_of(*_DEVICE_SHAPES, satisfies(_devices_text, "devices as text", kind=str),
+                 description="a number of devices >= 1, -1 (all), a list of device indices, 'auto', "
+                             "or one of those as text such as '0,1'")
+
+
 def _parse_devices(devices: Any) -> int | list[int] | str:
-    """Lightning's `devices` as a count, a list of indices or "auto"; ValueError for anything else."""
-    if isinstance(devices, str):
-        text = devices.strip()
-        if text == "auto":
-            return text
-        try:
-            return int(text)
-        except ValueError:
-            pass
-        try:
-            return [int(part) for part in text.split(",") if part.strip()] or devices
-        except ValueError:
-            pass
-    elif isinstance(devices, int) and not isinstance(devices, bool):
-        return devices
-    elif isinstance(devices, (list, tuple)) and all(isinstance(d, int) and not isinstance(d, bool) for d in devices):
-        return list(devices)
-    raise ValueError(f"devices {devices!r}: use a number of devices (1, 2, ...), 'auto', or device indices such as '0,1'")
+    """Lightning's `devices` as a count, a list of indices or "auto" (text read); a ValueError
+    `devices: must be ..., got ...` for a value of no DEVICES shape."""
+    devices = check_value(DEVICES, devices, "devices")
+    return _read_devices_text(devices) if isinstance(devices, str) else devices
 
 
 def check_accelerator(accelerator: Any, devices: Any) -> None:
     """ValueError (one line, naming the option and what is available) for training settings
-    Lightning would refuse: an unknown accelerator or one this machine lacks, or no devices."""
+    Lightning would refuse: an unknown accelerator or one this machine lacks, devices of no DEVICES
+    shape, -1 devices, device indices for the cpu, or more CUDA GPUs than torch sees."""
     from lightning.pytorch.accelerators import Accelerator, AcceleratorRegistry
 
     names = sorted({"auto", "gpu", *AcceleratorRegistry.available_accelerators()})
@@ -108,14 +115,11 @@ def check_accelerator(accelerator: Any, devices: Any) -> None:
     if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
         kind = "cpu"  # what Lightning picks here
     wanted = _parse_devices(devices)
-    if isinstance(wanted, int) and wanted <= 0:
+    if wanted == -1:
         raise ValueError(f"devices {devices!r}: need at least one device; use a positive number, 'auto', "
                          "or device indices such as '0,1'")
-    if isinstance(wanted, list):
-        if not wanted or min(wanted) < 0:
-            raise ValueError(f"devices {devices!r}: device indices must be non-negative (such as '0,1')")
-        if kind == "cpu":
-            raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
+    if isinstance(wanted, list) and kind == "cpu":
+        raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
     if kind == "cuda":
         count = torch.cuda.device_count()
         asked = wanted if isinstance(wanted, int) else (max(wanted) + 1 if isinstance(wanted, list) else 0)

@@ -132,9 +132,9 @@ def previous_checkpoint(fingerprint: str, total: int, folder: Path = CHECKPOINT_
 
 def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
     """Train (or continue), export, evaluate and report the drl policy from the `train_drl` settings."""
-    policy_config = DRLPolicyConfig.from_dict(section["model"])
-    environment = TrainingEnvironment.from_dict(section["env"])
-    settings = PPOSettings.from_dict(section["ppo"])
+    policy_config = DRLPolicyConfig.from_dict(section["model"], "train_drl.model")
+    environment = TrainingEnvironment.from_dict(section["env"], "train_drl.env")
+    settings = PPOSettings.from_dict(section["ppo"], "train_drl.ppo")
     total, seed = section["timesteps"], section["seed"]
     fingerprint = settings_fingerprint(section, protocol)
     started = time.perf_counter()
@@ -192,7 +192,7 @@ def start_policy(policy, section: dict[str, Any], environment: TrainingEnvironme
                              f"differs from train_drl.model {policy_config.to_dict()}")
         policy.load_state_dict(initial.state_dict())
         return {"init_checkpoint": str(section["init_checkpoint"]), "its_training": trained_on.get("warm_start")}
-    imitation = ImitationSettings.from_dict(section["imitation"])
+    imitation = ImitationSettings.from_dict(section["imitation"], "train_drl.imitation")
     if imitation.episodes == 0:
         return None
     result = warm_start(policy, lambda i: environment.make(i, protocol, policy_config), imitation, gamma, seed + 10_000)

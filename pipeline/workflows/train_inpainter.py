@@ -78,8 +78,8 @@ def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: O
     read_manifest(DATA_DIR)  # a finished data set, before any checkpoint is decided on
     fingerprint = training_fingerprint(section, protocol, accelerator, devices, init_checkpoint)
     run = {key: section.pop(key, None) for key in RUN_KEYS}
-    train_config = TrainConfig.from_dict(section)
-    model_config = InpainterConfig.from_dict(run["model"] or {})
+    train_config = TrainConfig.from_dict(section, "train_inpainter")
+    model_config = InpainterConfig.from_dict(run["model"] or {}, "train_inpainter.model")
     resume_from = None if afresh else resume_point(CHECKPOINT_DIR, fingerprint, "train_inpainter")
     if resume_from is None:
         start_afresh(CHECKPOINT_DIR, fingerprint)

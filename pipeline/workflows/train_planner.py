@@ -39,7 +39,9 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
     accelerator = accelerator or section["accelerator"]
     devices = devices or section["devices"]
     checkpoint_dir = CHECKPOINTS_OF[variant]
-    PlannerTrainConfig.from_dict(train), DiffusionPolicyConfig.from_dict(model)  # the settings first: one-line errors
+    # The settings first, as one-line errors (a --max-epochs override included).
+    PlannerTrainConfig.from_dict(train, "train_planner.train")
+    DiffusionPolicyConfig.from_dict(model, "train_planner.model")
     if not Path(paths.observations).is_file():  # before any checkpoint is decided on
         raise FileNotFoundError(f"{paths.observations}: no observations; run the build_observations stage first")
     fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations)

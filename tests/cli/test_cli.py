@@ -226,11 +226,15 @@ def test_explore_records_the_run_and_defaults_to_a_folder_per_planner(small_maze
 @pytest.mark.parametrize(
     "extra, message",
     [
-        (["--sensor-range", "nan"], "error: --sensor-range must be a positive finite number"),
-        (["--node-resolution", "inf"], "error: --node-resolution must be a positive finite number"),
-        (["--done-unknown-cells", "-3"], "error: --done-unknown-cells must be >= 0"),
+        (["--sensor-range", "nan"], "error: --sensor-range: must be a finite number > 0 (metres), got nan"),
+        (["--node-resolution", "inf"],
+         "error: --node-resolution: must be a finite number > 0 (lattice spacing in metres), got inf"),
+        (["--done-unknown-cells", "-3"], "error: --done-unknown-cells: must be a whole number >= 0 (cells), got -3"),
+        (["--node-resolution", "0.1"], "error: protocol: node_resolution (0.1 m) must be at least one cell (0.4 m)"),
         (["--sensor-range", "1000"], "more than twice the map's diagonal"),
         (["--planner", "x=greedy_utility:min_utility=nan"], "must be a finite number"),
+        (["--planner", "g=guide:min_utility=-1"], "error: planner 'g': min_utility: must be a whole number >= 1, got -1"),
+        (["--planner", "g=guide:sampler=euler"], "error: planner 'g': sampler: must be one of 'ddpm', 'ddim', or null"),
     ],
 )
 def test_explore_refuses_values_that_make_no_sense(small_maze_path, tmp_path, extra, message):

@@ -143,6 +143,8 @@ def test_a_config_dataclass_checks_its_fields_its_rules_and_unknown_keys_where_i
     assert refusal(WithModel, {"model": {"width": 10}}) == "s.model: groups (4) must divide width (10)"
     assert refusal(WithModel, {"model": {"width": 128}}) == "s: model.width above 64 does not fit"
     assert refusal(Widths, {"depth": 3}) == "s.depth: unknown setting (known: width, groups), got 3"
+    with pytest.raises(ValueError, match=r"^Widths: width: must be a whole number >= 1, got 0$"):
+        Widths(width=0)  # made directly: one line too
     config = Widths(width=16)
     assert dataclasses.replace(config, groups=8) == Widths(16, 8)
     with pytest.raises(ValueError):

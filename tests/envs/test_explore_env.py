@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import subprocess
@@ -378,6 +379,23 @@ def test_protocol_fields_are_parameters(small_maze_path):
 def test_bad_parameters_fail_naming_the_parameter(values, parameter):
     with pytest.raises(ValueError, match=re.escape(parameter)):
         ExploreEnv(**values)
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"max_steps": 0}, "max_steps: must be a whole number >= 1, got 0"),
+    ({"max_steps": 3.0}, "max_steps: must be a whole number >= 1, got 3.0"),
+    ({"area_weight": -1.0}, "area_weight: must be a finite number >= 0, got -1.0"),
+    ({"action": "teleport"}, "action: must be one of 'neighbour', 'node', got 'teleport'"),
+    ({"belief_image": 1}, "belief_image: must be true or false, got 1"),
+    ({"map": "x.png", "start": (1.0, math.nan)}, "start[1]: must be a finite number, got nan"),
+    ({"belief_image": True, "belief_shape": (10, 10, 3)}, "belief_shape: must be two cell counts (rows, cols)"),
+    ({"node_resolution": 0.2}, "node_resolution (0.2 m) must be at least one cell (0.4 m)"),
+])
+def test_a_bad_parameter_is_one_line_naming_it(values, message):
+    with pytest.raises(ValueError) as error:
+        ExploreEnvConfig.from_kwargs(**values)
+    assert str(error.value).startswith(message) and "\n" not in str(error.value), str(error.value)
+    assert ExploreEnvConfig.from_kwargs(map="x.png", start=np.array([1, 2])).start == (1.0, 2.0)
 
 
 def test_bad_map_files_and_folders(tmp_path, small_maze_path):

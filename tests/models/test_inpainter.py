@@ -79,6 +79,39 @@ def test_input_encodings():
         InpainterConfig(input_encoding="signed", in_channels=3)
 
 
+@pytest.mark.parametrize("values, message", [
+    ({"input_encoding": "signed", "in_channels": 3}, "model: input_encoding 'signed' makes (2,) input channels, "
+                                                     "not in_channels=3"),
+    ({"input_encoding": "rgb"}, "model.input_encoding: must be one of 'signed', 'lama', 'onehot', got 'rgb'"),
+    ({"ngf": 0}, "model.ngf: must be a whole number >= 1, got 0"),
+    ({"n_blocks": -1}, "model.n_blocks: must be a whole number >= 0, got -1"),
+    ({"ratio_gin": 1.5, "ratio_gout": 1.5}, "model.ratio_gin: must be a number in [0, 1], got 1.5"),
+    ({"ratio_gin": 0.5}, "model: ratio_gin and ratio_gout must be equal (the residual blocks add input and output)"),
+    ({"block_kernel_size": 4}, "model.block_kernel_size: must be an odd kernel size (a convolution pads half of it "
+                               "on each side), got 4"),
+    ({"padding_type": "mirror"}, "model.padding_type: must be one of 'reflect', 'zeros', 'replicate', 'circular', "
+                                 "got 'mirror'"),
+    ({"enable_lfu": 1}, "model.enable_lfu: must be true or false, got 1"),
+    ({"big_lama": "yes"}, "model.big_lama: must be true or false, got 'yes'"),
+    ({"ngf_": 8}, "model.ngf_: unknown setting (known: in_channels, out_channels, ngf, n_downsampling, n_blocks, "
+                  "max_features, init_ratio_g, downsample_ratio_g, ratio_gin, ratio_gout, enable_lfu, init_kernel_size, "
+                  "downsample_kernel_size, block_kernel_size, upsample_kernel_size, out_kernel_size, padding_type, "
+                  "fft_norm, input_encoding), got 8"),
+])
+def test_a_bad_config_value_is_one_line_naming_its_key(values, message):
+    with pytest.raises(ValueError) as refused:
+        InpainterConfig.from_dict(values)
+    assert str(refused.value) == message
+
+
+def test_config_round_trips_through_its_dict():
+    config = InpainterConfig.from_dict({"ngf": 8, "n_blocks": 1, "ratio_gin": 0, "ratio_gout": 0})
+    assert config.ratio_gin == 0.0 and InpainterConfig.from_dict(config.to_dict()) == config
+    assert InpainterConfig.from_dict(None) == InpainterConfig()
+    big = InpainterConfig.from_dict({"big_lama": True, "in_channels": 4})  # the Big-LaMa layout, overridden
+    assert big == InpainterConfig.big_lama(in_channels=4) and InpainterConfig.from_dict(big.to_dict()) == big
+
+
 def test_spectral_branch_reaches_the_whole_image():
     """One pixel changed in a corner changes a residual block's output far away only through
     the global (Fourier) branch; a purely local block's 3x3 convolutions cannot reach there."""

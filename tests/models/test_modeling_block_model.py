@@ -43,12 +43,25 @@ def test_save_and_load_round_trip(tmp_path):
 
 
 @pytest.mark.parametrize(("values", "message"), [
-    ({"width": 0}, "width must be a whole number"),
-    ({"width": 12, "groups": 5}, "groups must divide width 12"),
-    ({"dilations": [1, 0]}, "dilations must be whole numbers >= 1"),
-    ({"block_m": -5.0}, "block_m must be positive"),
-    ({"widht": 8}, r"unknown block model config key\(s\) \['widht'\]"),
+    ({"width": 0}, "model.width: must be a whole number >= 1, got 0"),
+    ({"width": 12, "groups": 5}, "model: groups (5) must divide width (12)"),
+    ({"dilations": [1, 0]}, "model.dilations[1]: must be a whole number >= 1, got 0"),
+    ({"dilations": []}, "model.dilations: must be a non-empty list of a whole number >= 1, got []"),
+    ({"dilations": [1, 2.0]}, "model.dilations[1]: must be a whole number >= 1, got 2.0"),
+    ({"block_m": -5.0}, "model.block_m: must be a finite number > 0 (metres), got -5.0"),
+    ({"widht": 8}, "model.widht: unknown setting (known: width, dilations, groups, block_m), got 8"),
 ])
 def test_config_refuses_bad_values(values, message):
-    with pytest.raises(ValueError, match=message):
+    """One line naming the key and what it must be."""
+    with pytest.raises(ValueError) as refused:
         BlockModelConfig.from_dict(values)
+    assert str(refused.value) == message
+
+
+def test_config_round_trips_through_its_dict():
+    config = BlockModelConfig.from_dict({"width": 8, "dilations": [1, 2, 4], "groups": 2, "block_m": 4})
+    assert config.dilations == (1, 2, 4) and config.block_m == 4.0  # a tuple and a float once made: hashable
+    assert hash(config) == hash(BlockModelConfig.from_dict(config.to_dict()))
+    assert config.to_dict() == {"width": 8, "dilations": [1, 2, 4], "groups": 2, "block_m": 4.0}
+    assert BlockModelConfig.from_dict(config.to_dict()) == config
+    assert BlockModelConfig.from_dict(None) == BlockModelConfig()

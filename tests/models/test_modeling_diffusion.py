@@ -6,6 +6,7 @@ import dataclasses
 import itertools
 import json
 
+import numpy as np
 import pytest
 import torch
 
@@ -285,7 +286,8 @@ def test_overfit_policy_reproduces_its_action_sequence(overfit):
         (dict(action_steps=0), "action_steps"),
         (dict(step_values=(0,)), "at least 2"),
         (dict(step_values=(-1, 0, 0)), "distinct"),
-        (dict(step_values=(-1.5, 0, 1.5)), "integers"),
+        (dict(step_values=(-1.5, 0, 1.5)), "step_values"),
+        (dict(clip_sample=1), "clip_sample"),
         (dict(beta_schedule="cosine"), "beta_schedule"),
         (dict(prediction_type="noise"), "prediction_type"),
         (dict(num_inference_steps=200), "num_inference_steps"),
@@ -303,10 +305,46 @@ def test_config_round_trip_and_unknown_keys():
     assert config.action_dim == 6
     values = json.loads(json.dumps(config.to_dict()))  # lists, as YAML or JSON give them back
     assert DiffusionPolicyConfig.from_dict(values) == config
-    with pytest.raises(ValueError, match=r"\['colour', 'depth'\]"):
+    assert DiffusionPolicyConfig.from_dict(values).step_values == (-4, 0, 4)  # a tuple again: hashable
+    assert hash(DiffusionPolicyConfig.from_dict(values)) == hash(config)
+    with pytest.raises(ValueError, match=r"^model\.depth: unknown setting \(known: feature_dim, .*\), got 3$"):
         DiffusionPolicyConfig.from_dict(values | {"depth": 3, "colour": "red"})
     with pytest.raises(dataclasses.FrozenInstanceError):
         config.d_model = 8  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"heads": 0}, "model.heads: must be a whole number >= 1, got 0"),
+        ({"max_nodes": 3.0}, "model.max_nodes: must be a whole number >= 1 (nodes per padded graph), got 3.0"),
+        ({"d_model": True}, "model.d_model: must be a whole number >= 1, got True"),
+        ({"dropout": 1.0}, "model.dropout: must be a number in [0, 1), got 1.0"),
+        ({"window_scale": float("nan")}, "model.window_scale: must be a finite number > 0, got nan"),
+        ({"sampler": "euler"}, "model.sampler: must be one of 'ddpm', 'ddim', got 'euler'"),
+        ({"clip_sample": "yes"}, "model.clip_sample: must be true or false, got 'yes'"),
+        ({"step_values": [0]}, "model.step_values: must be a list of at least 2 items of a whole number in "
+                               "-1000..1000 (lattice steps), got [0]"),
+        ({"step_values": [-1, 0.5]},
+         "model.step_values[1]: must be a whole number in -1000..1000 (lattice steps), got 0.5"),
+        ({"step_values": [1, 1]}, "model: step_values must be distinct, got [1, 1]"),
+        ({"d_model": 30, "heads": 4}, "model: d_model (30) must be divisible by heads (4)"),
+        ({"horizon": 1, "action_steps": 2}, "model: need horizon >= action_steps, got horizon=1, action_steps=2"),
+        ({"num_inference_steps": 101},
+         "model: num_inference_steps (101) must not exceed num_train_timesteps (100)"),
+    ],
+)
+def test_a_bad_value_from_a_mapping_is_one_line_naming_its_key(values, message):
+    with pytest.raises(ValueError) as refused:
+        DiffusionPolicyConfig.from_dict(values)
+    assert str(refused.value) == message
+
+
+def test_numpy_counts_are_counts_and_defaults_round_trip():
+    config = DiffusionPolicyConfig.from_dict({"max_nodes": np.int64(96), "window_scale": 10})
+    assert type(config.max_nodes) is int and type(config.window_scale) is float
+    assert DiffusionPolicyConfig.from_dict(DiffusionPolicyConfig().to_dict()) == DiffusionPolicyConfig()
+    assert DiffusionPolicyConfig().to_dict()["step_values"] == [-2, -1, 0, 1, 2]
 
 
 def test_paper_config():

@@ -116,7 +116,7 @@ def test_train_planner_refuses_zero_epochs_before_touching_its_checkpoints(tmp_p
     (tmp_path / "params.yaml").write_text((ROOT / "params.yaml").read_text())
     for epochs in (0, -1):  # 0 would export an untrained policy over a trained one
         line = stage_error(capsys, train_planner, "params.yaml", "guide", None, None, False, epochs)
-        assert line == f"error: max_epochs must be a whole number >= 1, got {epochs}"
+        assert line == f"error: train_planner.train.max_epochs: must be a whole number >= 1, got {epochs}"
 
 
 def test_every_stage_takes_params_and_says_what_it_does():

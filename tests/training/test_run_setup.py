@@ -4,10 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
+from pipeline.common.config import check_value
+from pipeline.training.lightning_run import RunOptions
 from pipeline.training.run_setup import (
+    DEVICES,
     PREVIOUS_CHECKPOINTS,
     check_accelerator,
     cpu_model,
@@ -54,15 +58,43 @@ def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_pa
 @pytest.mark.parametrize("accelerator, devices, message", [
     ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
     ("CPU", 1, r"accelerator 'CPU': unknown"),
-    ("cpu", 0, r"devices 0: need at least one device"),
+    ("cpu", 0, r"^devices: must be a number of devices >= 1, -1 \(all\), a list of device indices, 'auto', "
+               r"or one of those as text such as '0,1', got 0$"),
+    ("cpu", "0", r"^devices: must be .*, got '0'$"),
+    ("cpu", [], r"^devices: must be .*, got \[\]$"),
+    ("cpu", "1,-1", r"^devices: must be .*, got '1,-1'$"),
     ("auto", -1, r"devices -1: need at least one device"),
-    ("cpu", "two", r"devices 'two': use a number of devices"),
-    ("cpu", True, r"devices True: use a number of devices"),
+    ("cpu", "two", r"^devices: must be .*, got 'two'$"),
+    ("cpu", True, r"^devices: must be .*, got True$"),
     ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
 ])
 def test_training_settings_are_checked(accelerator, devices, message):
     with pytest.raises(ValueError, match=message):
         check_accelerator(accelerator, devices)
+
+
+@pytest.mark.parametrize("devices, kept", [
+    (1, 1), (np.int64(2), 2), (-1, -1), ([0, 1], [0, 1]), ((0,), [0]), ("auto", "auto"), ("0,1", "0,1"), ("2", "2"),
+])
+def test_devices_take_every_shape_lightning_reads(devices, kept):
+    """A count, -1 (all), device indices or "auto", or one of those as the command line's text (kept as given:
+    Lightning reads it)."""
+    assert check_value(DEVICES, devices, "train_planner.devices") == kept
+
+
+def test_run_options_are_checked_once_with_one_line_errors(tmp_path):
+    run = RunOptions.from_dict({"out_dir": str(tmp_path), "devices": "1"})
+    assert run.out_dir == tmp_path and run.checkpoint_dir == tmp_path and run.devices == "1" and run.mlflow
+    other = RunOptions.from_dict({"out_dir": tmp_path, "checkpoint_dir": tmp_path / "c"})
+    assert other.checkpoint_dir == tmp_path / "c"
+    for values, message in (({"devices": 1.5}, "devices: must be a number of devices >= 1, "),
+                            ({"resume": "yes"}, "resume: must be true or false, got 'yes'"),
+                            ({"experiment": ""}, "experiment: must be a non-empty string (an MLflow experiment)"),
+                            ({"accelerator": "foo"}, "accelerator 'foo': unknown; use one of "),
+                            ({"epochs": 3}, "epochs: unknown setting (known: out_dir, checkpoint_dir, ")):
+        with pytest.raises(ValueError) as refused:
+            RunOptions.from_dict({"out_dir": tmp_path, **values})
+        assert str(refused.value).startswith(message) and "\n" not in str(refused.value), str(refused.value)
 
 
 def test_unavailable_accelerators_are_named():

@@ -297,9 +297,10 @@ def test_a_failed_run_keeps_the_previous_checkpoints(pairs_dir, tmp_path):
     corrupt.write_bytes(np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8).tobytes())
     failures = [
         ({"accelerator": "foo"}, ValueError, r"accelerator 'foo': unknown; use one of auto, cpu, .*available here: "),
-        ({"devices": 0}, ValueError, r"devices 0: need at least one device"),
-        ({"devices": -2}, ValueError, r"devices -2: need at least one device"),
-        ({"devices": "0"}, ValueError, r"devices '0': need at least one device"),
+        ({"devices": 0}, ValueError, r"^devices: must be a number of devices >= 1, .*, got 0$"),
+        ({"devices": -2}, ValueError, r"^devices: must be a number of devices >= 1, .*, got -2$"),
+        ({"devices": "0"}, ValueError, r"^devices: must be a number of devices >= 1, .*, got '0'$"),
+        ({"devices": -1}, ValueError, r"devices -1: need at least one device"),
         ({"init_checkpoint": tmp_path / "missing.ckpt"}, FileNotFoundError, r"init checkpoint .*missing\.ckpt not found"),
         ({"init_checkpoint": corrupt}, ValueError, r"corrupt\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"),
         ({"data_dir": tmp_path / "no-data"}, FileNotFoundError, r"no manifest"),
@@ -465,8 +466,26 @@ def test_max_minutes_caps_the_wall_clock(pairs_dir, tmp_path):
     assert 1 <= export["epochs"] < 200
     assert load_inpainter(path)[0] is not None
     for bad in (0, -1.0, "ten", True):
-        with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
+        with pytest.raises(ValueError) as refused:
             TrainConfig.from_dict({"max_minutes": bad})
+        assert str(refused.value) == (f"train_inpainter.max_minutes: must be a finite number > 0 (minutes), or null "
+                                      f"(no cap), got {bad!r}")
+
+
+def test_training_settings_round_trip_and_name_a_bad_key():
+    import dataclasses
+
+    config = TrainConfig.from_dict({"max_epochs": 3, "weight_decay": 0, "split": "rollout"})
+    assert config.weight_decay == 0.0 and TrainConfig.from_dict(dataclasses.asdict(config)) == config
+    for values, message in (
+        ({"val_fraction": 0.0}, "train_inpainter.val_fraction: must be a number in (0, 1), got 0.0"),
+        ({"split": "random"}, "train_inpainter.split: must be one of 'maze', 'rollout', got 'random'"),
+        ({"threshold": 2}, "train_inpainter.threshold: must be a number in [0, 1] (P(free)), got 2"),
+        ({"batch_size": 4.0}, "train_inpainter.batch_size: must be a whole number >= 1, got 4.0"),
+    ):
+        with pytest.raises(ValueError) as refused:
+            TrainConfig.from_dict(values)
+        assert str(refused.value) == message
 
 
 def test_stage_killed_mid_training_resumes_from_its_last_epoch(pairs_dir, tmp_path):

@@ -1,5 +1,6 @@
 """Stage II training on a few real expert episodes, and the diffusion planners driving with the result."""
 
+import dataclasses
 import shutil
 import warnings
 
@@ -92,8 +93,8 @@ def test_bad_settings_fail_before_checkpoints_files_or_mlflow_change(trained, tm
     before = {p.name: p.read_bytes() for p in sorted(out_dir.iterdir()) if p.is_file()}
     assert {"best.ckpt", "last.ckpt", "policy.pt"} <= set(before)
     failures = [({"accelerator": "foo"}, r"accelerator 'foo': unknown; use one of auto, cpu, "),
-                ({"devices": 0}, r"devices 0: need at least one device"),
-                ({"devices": "0"}, r"devices '0': need at least one device"),  # the CLI passes a string
+                ({"devices": 0}, r"^devices: must be a number of devices >= 1, .*, got 0$"),
+                ({"devices": "0"}, r"^devices: must be a number of devices >= 1, .*, got '0'$"),  # the CLI passes a string
                 ({"devices": -1}, r"devices -1: need at least one device")]
     if not torch.cuda.is_available():  # Lightning's "No supported gpu backend found!" came after the clean-up
         failures.append(({"accelerator": "gpu"}, r"accelerator 'gpu': no GPU is visible to torch .*use cpu or auto"))
@@ -116,11 +117,26 @@ def test_max_minutes_caps_the_wall_clock(trained, tmp_path):
     assert 1 <= read_policy_export(path)["epochs"] < 200
     assert load_policy(path)[0] is not None
     for bad in (0, -2, "soon", False):
-        with pytest.raises(ValueError, match="max_minutes must be null or a positive number"):
+        with pytest.raises(ValueError) as refused:
             PlannerTrainConfig.from_dict({"max_minutes": bad})
+        assert str(refused.value) == (f"train.max_minutes: must be a finite number > 0 (minutes), or null (no cap), "
+                                      f"got {bad!r}")
     for key, bad in (("max_epochs", 0), ("max_epochs", -1), ("max_epochs", 2.5), ("batch_size", 0)):
-        with pytest.raises(ValueError, match=f"{key} must be a whole number >= 1"):  # 0 epochs: an untrained export
+        with pytest.raises(ValueError) as refused:  # 0 epochs: an untrained export
             PlannerTrainConfig.from_dict({key: bad})
+        assert str(refused.value) == f"train.{key}: must be a whole number >= 1, got {bad!r}"
+
+
+def test_training_settings_round_trip_and_name_a_bad_key():
+    config = PlannerTrainConfig.from_dict({"max_epochs": 3, "lr": 1, "max_minutes": 2})
+    assert config.lr == 1.0 and config.max_minutes == 2.0  # numbers kept as floats: the same values as before
+    assert PlannerTrainConfig.from_dict(dataclasses.asdict(config)) == config
+    for values, message in (({"val_fraction": 1.0}, "train.val_fraction: must be a number in [0, 1), got 1.0"),
+                            ({"augment": "yes"}, "train.augment: must be true or false, got 'yes'"),
+                            ({"max_epoch": 3}, "train.max_epoch: unknown setting (known: max_epochs, ")):
+        with pytest.raises(ValueError) as refused:
+            PlannerTrainConfig.from_dict(values)
+        assert str(refused.value).startswith(message), str(refused.value)
 
 
 def test_episode_split_holds_out_whole_episodes():

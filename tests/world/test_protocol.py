@@ -8,7 +8,7 @@ from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol, model_input_di
 
 
 def test_bad_values_are_refused_with_the_parameter_named():
-    with pytest.raises(ValueError, match=r"sensor_range\s+must be a finite number > 0 \(metres\)"):
+    with pytest.raises(ValueError, match=r"^Protocol: sensor_range: must be a finite number > 0 \(metres\), got nan$"):
         Protocol(sensor_range=float("nan"))
     with pytest.raises(ValueError, match=r"^protocol\.sensor_range: must be a finite number > 0 \(metres\), got nan$"):
         Protocol.from_dict({"sensor_range": float("nan")})

@@ -16,15 +16,14 @@ never hands over, and then the planner decides exactly as the environment's agen
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.common.config import config_dataclass, maybe, text, whole
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.models.defaults import SHIPPED_DRL, cached_drl_policy, resolve_drl_path
 from pipeline.models.modeling_drl import DRLPolicy
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.options import check_int
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.global_graph import GlobalGraphConfig
 from pipeline.prediction.observed_graph import WindowTable, observe_lattice, window_moves
@@ -36,18 +35,17 @@ from pipeline.world.sensor import FREE
 OBSERVED_GRAPH_INPUTS = ("cell_size", "node_resolution", "sensor_range", "utility_range")  # region_size: unused
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class DRLConfig(PlannerConfig):
     description = "DRL (Cao et al. 2024): graph attention + pointer over the robot's window, trained by PPO"
     objects = ("policy",)
     renamed = {"checkpoint": "policy_file"}
 
-    policy_file: str | None = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped one]")
-    stall_steps: int = option(4, "decisions in a row that reveal no free cell before the nearest-frontier hand-over "
-                                 "breaks a cycle (0: never; the policy alone, as in the environment)")
-
-    def check(self) -> None:
-        check_int("stall_steps", self.stall_steps, 0, note="0 = never hand over")
+    policy_file: maybe(text()) = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped "
+                                              "one]")
+    stall_steps: whole(0, note="0 = never hand over") = option(
+        4, "decisions in a row that reveal no free cell before the nearest-frontier hand-over breaks a cycle (0: "
+           "never; the policy alone, as in the environment)")
 
     def model_slots(self) -> dict[str, str]:
         return {"policy_file": "drl"}

@@ -2,22 +2,21 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from pipeline.common.config import config_dataclass
 from pipeline.planners.graph_planner import GatedPlannerConfig, GraphPlanner
 from pipeline.planners.registry import register_planner
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.simulator import Episode
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class NearestFrontierConfig(GatedPlannerConfig):
     description = "Yamauchi: shortest path to the nearest node that sees frontier cells"
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GreedyUtilityConfig(GatedPlannerConfig):
     description = "greedy: frontier utility divided by shortest-path cost"
 

@@ -15,14 +15,12 @@ the gain is unweighted.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 
+from pipeline.common.config import config_dataclass, fraction, whole
 from pipeline.lattice.graph import visible_counts
 from pipeline.planners.config import option
-from pipeline.planners.options import check_int
 from pipeline.planners.predicting import PredictingPlanner, PredictorOptions
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn
@@ -30,20 +28,16 @@ from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class MapExConfig(PredictorOptions):
     description = ("MapEx (Ho 2024): frontier viewpoints scored by gain on the predicted map (predicted-free "
                    "unknown cells in the ray fan, unweighted: no ensemble variance) over path cost")
 
     # Its predicted map is a count of likely-free space, not graph nodes: the utility count's tau.
-    threshold: float = option(DEFAULT_COUNT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau "
-                                                       "(the broad tau of the utility count, not the graph's)")
-    wall_margin: int = option(2, "cells: predicted-free unknown this close to a known obstacle is the inside of a "
-                                 "seen wall, not counted (0 = off)")
-
-    def check(self) -> None:
-        super().check()
-        check_int("wall_margin", self.wall_margin, 0, note="0 = off")
+    threshold: fraction() = option(DEFAULT_COUNT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= "
+                                                            "tau (the broad tau of the utility count, not the graph's)")
+    wall_margin: whole(0, note="0 = off") = option(2, "cells: predicted-free unknown this close to a known obstacle is "
+                                                      "the inside of a seen wall, not counted (0 = off)")
 
 
 @register_planner("mapex", MapExConfig)

@@ -39,14 +39,16 @@ Adaptation to the lattice and the protocol:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from typing import Annotated
 
 import numpy as np
+from pydantic import Strict
 
+from pipeline.common.config import any_of, config_dataclass, flag, maybe, positive, real, satisfies, whole
 from pipeline.lattice.graph import NODE_FREE, WINDOW_RADIUS
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
-from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.geometry import RayTable, ray_table
 from pipeline.world.maps import MapFrame
@@ -119,31 +121,31 @@ def view_gains(belief: np.ndarray, cells: np.ndarray, range_cells: float, ray_st
     return gain.gains(cells)
 
 
-@dataclass(frozen=True)
+def _infinite(value: float) -> None:
+    """ValueError unless `value` is +inf (a gain threshold that always falls back)."""
+    if value != math.inf:
+        raise ValueError(f"{value!r} is not inf")
+
+
+@config_dataclass
 class NBVPConfig(LatticePlannerConfig):
     description = ("Bircher 2016 receding-horizon NBVP: lattice RRT in known free space, first edge of the "
                    "best-gain branch; nearest-frontier fallback when the local tree sees nothing")
 
-    tree_size: int = option(40, "tree vertices N per decision, the robot's node included")
-    lam: float | None = option(None, f"lambda (1/m) discounting a view by its path length [default: {LAM_TIMES_RANGE:g} / "
-                                     "sensor range, so a view one range away counts exp(-2.5) under any protocol]")
-    gain_threshold: float = option(20.0, "cells: a best branch worth less falls back to the nearest frontier "
-                                         "(inf = always)")
-    sample_radius_factor: float = option(2.0, "samples are drawn within this many sensor ranges of the robot")
-    ray_stride: int = option(4, "gains from every n-th of the lidar's 720 rays")
-    max_attempts_factor: int = option(15, "at most this many x tree_size samples per decision (a small known area "
-                                          "holds fewer nodes)")
-    reuse_best_branch: bool = option(True, "the rest of the executed branch seeds the next tree, as Bircher does")
-
-    def check(self) -> None:
-        super().check()
-        check_int("tree_size", self.tree_size, 2, note="the robot's node and at least one more")
-        check_number("lam", self.lam, 0.0, none=f"{LAM_TIMES_RANGE:g} / sensor range")
-        # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
-        check_number("gain_threshold", self.gain_threshold, 0.0, allow_inf=True, note="inf = always the frontier fallback")
-        check_number("sample_radius_factor", self.sample_radius_factor, 0.0, low_open=True)
-        check_int("ray_stride", self.ray_stride, 1)
-        check_int("max_attempts_factor", self.max_attempts_factor, 1)
+    tree_size: whole(2, note="the robot's node and at least one more") = option(
+        40, "tree vertices N per decision, the robot's node included")
+    lam: maybe(real(0.0), f"{LAM_TIMES_RANGE:g} / sensor range") = option(
+        None, f"lambda (1/m) discounting a view by its path length [default: {LAM_TIMES_RANGE:g} / sensor range, so a "
+              "view one range away counts exp(-2.5) under any protocol]")
+    # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
+    gain_threshold: any_of(real(0.0), satisfies(_infinite, "inf", Annotated[float, Strict()]),
+                           description="a number >= 0 (inf = always the frontier fallback)") = option(
+        20.0, "cells: a best branch worth less falls back to the nearest frontier (inf = always)")
+    sample_radius_factor: positive() = option(2.0, "samples are drawn within this many sensor ranges of the robot")
+    ray_stride: whole(1) = option(4, "gains from every n-th of the lidar's 720 rays")
+    max_attempts_factor: whole(1) = option(15, "at most this many x tree_size samples per decision (a small known "
+                                               "area holds fewer nodes)")
+    reuse_best_branch: flag() = option(True, "the rest of the executed branch seeds the next tree, as Bircher does")
 
 
 @register_planner("nbvp", NBVPConfig)

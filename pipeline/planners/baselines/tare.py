@@ -51,16 +51,14 @@ Adaptation to the lattice graph and the protocol:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
+from pipeline.common.config import config_dataclass, flag, maybe, real, whole
 from pipeline.lattice.graph import utility_fan
 from pipeline.lattice.tsp import tsp_path
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
-from pipeline.planners.options import check_int, check_number
 from pipeline.planners.registry import register_planner
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
@@ -133,26 +131,21 @@ def greedy_set_cover(cover: list[np.ndarray], tie_cost: np.ndarray, min_cover: i
     return chosen
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TareConfig(LatticePlannerConfig):
     description = ("Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
                    "the 3x3-region local horizon ordered by a TSP path that joins the global tour")
 
-    horizon_radius: int = option(1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)")
-    min_cover: int = option(2, "frontier cells a viewpoint (or an exploring region) must add to count")
-    cover_range: float | None = option(None, "metres: frontier seen from this close to where the robot was counts as "
-                                             "covered (0 = off) [default: the utility range]")
-    exact_max: int = option(10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
-    max_moves: int = option(200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)")
-    loop_guard: bool = option(True, "back at a node with nothing new seen, keep the target chosen there")
-
-    def check(self) -> None:
-        super().check()
-        check_int("horizon_radius", self.horizon_radius, 0, note="0 = the robot's region only")
-        check_int("min_cover", self.min_cover, 1)
-        check_number("cover_range", self.cover_range, 0.0, note="0 = off", none="the utility range")
-        check_int("exact_max", self.exact_max, 1, 14)
-        check_int("max_moves", self.max_moves, 0, note="0 = no 2-opt / Or-opt moves")
+    horizon_radius: whole(0, note="0 = the robot's region only") = option(
+        1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)")
+    min_cover: whole(1) = option(2, "frontier cells a viewpoint (or an exploring region) must add to count")
+    cover_range: maybe(real(0.0, note="0 = off"), "the utility range") = option(
+        None, "metres: frontier seen from this close to where the robot was counts as covered (0 = off) [default: the "
+              "utility range]")
+    exact_max: whole(1, 14) = option(10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
+    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(
+        200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)")
+    loop_guard: flag() = option(True, "back at a node with nothing new seen, keep the target chosen there")
 
 
 @register_planner("tare", TareConfig)

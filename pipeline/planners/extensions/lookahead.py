@@ -18,62 +18,61 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.common.config import any_of, config_dataclass, flag, maybe, positive, real, text, validate, whole
 from pipeline.models.modeling_block_model import BlockModel
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.extensions.rollout_worker import JobContext, RolloutWorker
 from pipeline.planners.graph_planner import GraphPlanner
-from pipeline.planners.options import check_int, check_number
 from pipeline.prediction.block_maps import block_index, block_shares, drawn_world, exit_steps, imagined_free
 from pipeline.world.maps import GroundTruthMap, MapFrame, map_frame
 from pipeline.world.planner import Observation
 from pipeline.world.simulator import Episode
 
 
-def check_lookahead_options(samples: int, horizon_m: float, exit_weight: float, temperature: float, workers: int = 1) -> None:
-    """ValueError naming the first lookahead option that makes no sense."""
-    check_int("samples", samples, 1)
-    check_number("horizon_m", horizon_m, 0.0)
-    check_number("exit_weight", exit_weight, 0.0)
-    check_number("temperature", temperature, 0.0, low_open=True)
-    check_int("workers", workers, 1, 2, note="2: the rollouts shared with a second process")
-
-
 LOOKAHEAD_TARGETS = ("greedy", "tour")
 LOOKAHEAD_ROLLOUTS = ("full", "fast")
+WORKERS_NOTE = "2: the rollouts shared with a second process"
 
 
-@dataclass(frozen=True)
+@config_dataclass
+class RolloutSettings:
+    """How `BlockLookahead` draws its maps and shares its rollouts (its constructor's numbers, from
+    Python as well as from a planner's options)."""
+
+    samples: whole(1) = 4
+    horizon_m: real(0.0, note="metres") = 20.0
+    exit_weight: real(0.0) = 0.0
+    temperature: positive() = 1.0
+    workers: whole(1, 2, note=WORKERS_NOTE) = 1
+
+
+@config_dataclass
 class LookaheadConfig(PlannerConfig):
     """The block-model lookahead of a planner that chooses among targets (the tour vote)."""
 
     renamed = {"block_model": "block_model_file"}
 
-    lookahead: int = option(0, "mode tour: roll out this many candidate targets on maps drawn from the block model "
-                               "and head for the shortest (0 = off)")
-    lookahead_samples: int = option(4, "maps drawn per lookahead decision")
-    lookahead_targets: str = option("greedy", "greedy: guide's choice and gated greedy's best targets are rolled "
-                                              "out; tour: guide's best tour options")
-    lookahead_commit: bool | None = option(None, "keep the lookahead's target until reached or no longer a target, "
-                                                 "as the rollouts assumed [None: on]")
-    lookahead_rollout: str | None = option(None, "full (gated greedy, a choice at every node) or fast (greedy "
-                                                 "walking each target's whole path) [None: full]")
-    lookahead_workers: int | None = option(None, "2: the rollouts shared with a forked second process, the same "
-                                                 "routes [None: 1]")
-    block_model_file: str | None = option(None, "the block model [default: models/block_model/block_model.pt, else "
-                                                "the shipped one]")
+    lookahead: any_of(whole(0, 0), whole(2), description="0 (off) or a whole number >= 2 (the best tour options "
+                                                          "rolled out)") = option(
+        0, "mode tour: roll out this many candidate targets on maps drawn from the block model and head for the "
+           "shortest (0 = off)")
+    lookahead_samples: whole(1) = option(4, "maps drawn per lookahead decision")
+    lookahead_targets: text(LOOKAHEAD_TARGETS) = option("greedy", "greedy: guide's choice and gated greedy's best "
+                                                                  "targets are rolled out; tour: guide's best tour "
+                                                                  "options")
+    lookahead_commit: maybe(flag(), "on") = option(None, "keep the lookahead's target until reached or no longer a "
+                                                         "target, as the rollouts assumed [None: on]")
+    lookahead_rollout: maybe(text(LOOKAHEAD_ROLLOUTS), "full") = option(
+        None, "full (gated greedy, a choice at every node) or fast (greedy walking each target's whole path) "
+              "[None: full]")
+    lookahead_workers: maybe(whole(1, 2, note=WORKERS_NOTE), "1") = option(
+        None, "2: the rollouts shared with a forked second process, the same routes [None: 1]")
+    block_model_file: maybe(text()) = option(None, "the block model [default: models/block_model/block_model.pt, "
+                                                   "else the shipped one]")
 
     def check(self) -> None:
         super().check()
-        check_int("lookahead", self.lookahead, 0, note="0 = off; the number of best tour options rolled out")
-        if self.lookahead == 1:
-            raise ValueError(f"lookahead must be 0 (off) or at least 2, got {self.lookahead!r}")
-        check_lookahead_options(self.lookahead_samples, 20.0, 0.0, 1.0,
-                                1 if self.lookahead_workers is None else self.lookahead_workers)
-        if self.lookahead_targets not in LOOKAHEAD_TARGETS:
-            raise ValueError(f"lookahead_targets must be greedy or tour, got {self.lookahead_targets!r}")
-        if self.lookahead_rollout not in (None, *LOOKAHEAD_ROLLOUTS):
-            raise ValueError(f"lookahead_rollout must be fast or full, got {self.lookahead_rollout!r}")
         lookahead_only = (self.block_model_file, self.lookahead_commit, self.lookahead_rollout, self.lookahead_workers)
         if any(value is not None for value in lookahead_only) and not self.lookahead:
             raise ValueError("block_model_file, lookahead_commit, lookahead_rollout or lookahead_workers is given but "
@@ -113,7 +112,8 @@ class BlockLookahead:
 
     def __init__(self, model: BlockModel, samples: int = 4, horizon_m: float = 20.0, exit_weight: float = 0.0,
                  temperature: float = 1.0, per_target: bool = False, workers: int = 1):
-        check_lookahead_options(samples, horizon_m, exit_weight, temperature, workers)
+        validate(RolloutSettings, {"samples": samples, "horizon_m": horizon_m, "exit_weight": exit_weight,
+                                   "temperature": temperature, "workers": workers})
         self.model, self.samples, self.horizon_m = model, int(samples), float(horizon_m)
         self.exit_weight, self.temperature = float(exit_weight), float(temperature)
         self.per_target = bool(per_target)

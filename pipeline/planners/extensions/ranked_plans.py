@@ -8,30 +8,24 @@ often heads into explored space; ranking several hides most of that.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
+from pipeline.common.config import config_dataclass, whole
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.guide.guide import GuidePlanner, drive
-from pipeline.planners.options import check_int
 from pipeline.planners.wrapper import PlannerWrapper, innermost
 from pipeline.prediction.global_graph import KNOWN
 
 LATER_STEP_WEIGHT = 0.8  # a plan's k-th step counts 0.8^k of its utility: near gains are surer
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class SampledPlansConfig(PlannerConfig):
     """How many plans the policy samples per decision (the ranked plans and the tour vote read it)."""
 
-    candidates: int = option(8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's "
-                                "single sample)")
-
-    def check(self) -> None:
-        super().check()
-        check_int("candidates", self.candidates, 1)
+    candidates: whole(1) = option(8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's "
+                                     "single sample)")
 
 
 class RankedPlans(PlannerWrapper):

@@ -32,46 +32,41 @@ the same maps. Both options stay off (docs/findings.md, "A lookahead on sampled 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from pipeline.common.config import config_dataclass, flag, maybe, positive, real, text, whole
 from pipeline.models.defaults import block_model_for
 from pipeline.models.modeling_block_model import BlockModel
 from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import option
-from pipeline.planners.extensions.lookahead import BlockLookahead, check_lookahead_options
-from pipeline.planners.options import check_int, check_number
+from pipeline.planners.extensions.lookahead import WORKERS_NOTE, BlockLookahead
 from pipeline.planners.registry import register_planner
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class SampledLookaheadConfig(GreedyUtilityConfig):
     description = ("gated greedy whose k best targets are each run to completion on maps drawn from the learned "
                    "block model; one step toward the one whose rollouts are shortest")
     objects = ("model",)  # an injected block model
     renamed = {"checkpoint": "block_model_file"}
 
-    sliver_gate: bool = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
-    k: int = option(3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself")
-    samples: int = option(4, "block maps drawn from the block model per decision; each target is rolled out on each")
-    horizon_m: float = option(20.0, "metres: the drawn maps are cut this far beyond the known free space")
-    block_model_file: str | None = option(None, "the block model [default: models/block_model/block_model.pt, "
-                                                "else the shipped one]")
-    switch_margin_m: float | None = option(None, "metres: leave the last target only for one whose mean rollout is "
-                                                 "shorter by more (None: off)")
-    exit_weight: float = option(0.0, "weight of each rollout's way back to the horizon cut (0 = off)")
-    temperature: float = option(1.0, "maps are drawn from sigmoid(logit / temperature)")
-    workers: int = option(1, "2: the rollouts shared with a forked second process (the same costs and routes)")
-
-    def check(self) -> None:
-        super().check()
-        check_int("k", self.k, 1)
-        check_number("switch_margin_m", self.switch_margin_m, 0.0, none="off")
-        check_lookahead_options(self.samples, self.horizon_m, self.exit_weight, self.temperature, self.workers)
+    sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
+    k: whole(1) = option(3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself")
+    samples: whole(1) = option(4, "block maps drawn from the block model per decision; each target is rolled out on "
+                                  "each")
+    horizon_m: real(0.0, note="metres") = option(20.0, "metres: the drawn maps are cut this far beyond the known free "
+                                                       "space")
+    block_model_file: maybe(text()) = option(None, "the block model [default: models/block_model/block_model.pt, "
+                                                   "else the shipped one]")
+    switch_margin_m: maybe(real(0.0, note="metres"), "off") = option(
+        None, "metres: leave the last target only for one whose mean rollout is shorter by more (None: off)")
+    exit_weight: real(0.0) = option(0.0, "weight of each rollout's way back to the horizon cut (0 = off)")
+    temperature: positive() = option(1.0, "maps are drawn from sigmoid(logit / temperature)")
+    workers: whole(1, 2, note=WORKERS_NOTE) = option(1, "2: the rollouts shared with a forked second process (the "
+                                                        "same costs and routes)")
 
     def model_slots(self) -> dict[str, str]:
         return {**super().model_slots(), "block_model_file": "block_model"}

@@ -9,13 +9,11 @@ rule (one step along the shortest known path to the nearest useful node) until n
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from pipeline.common.config import config_dataclass, whole
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.guide.guide import GuidePlanner
-from pipeline.planners.options import check_int
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
@@ -23,14 +21,10 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class StallHandoverConfig(PlannerConfig):
-    stall_steps: int = option(3, "mode policy: after this many moves that reveal nothing, one step toward the "
-                                 "nearest useful node instead")
-
-    def check(self) -> None:
-        super().check()
-        check_int("stall_steps", self.stall_steps, 1)
+    stall_steps: whole(1) = option(3, "mode policy: after this many moves that reveal nothing, one step toward the "
+                                      "nearest useful node instead")
 
 
 class StallHandover(PlannerWrapper):

@@ -24,10 +24,9 @@ The robot moves only along known-free lattice edges.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from pipeline.common.config import config_dataclass, real
 from pipeline.models.defaults import block_model_for
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
@@ -35,7 +34,6 @@ from pipeline.planners.extensions.lookahead import BlockLookahead, LookaheadConf
 from pipeline.planners.guide.configuration_guide_tsp import TourOptions
 from pipeline.planners.guide.guide import GuidePlanner, drive
 from pipeline.planners.guide.guide_tsp import FrontierTour
-from pipeline.planners.options import check_number
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.prediction.global_graph import KNOWN
 from pipeline.world.maps import MapFrame
@@ -43,14 +41,11 @@ from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class TourVoteConfig(PlannerConfig):
-    prior_weight: float = option(1.0, "mode tour: an option's score is multiplied by 1 + prior_weight x the share "
-                                      "of samples heading for it (0: the policy does not vote)")
-
-    def check(self) -> None:
-        super().check()
-        check_number("prior_weight", self.prior_weight, 0.0, note="0 = the policy does not vote")
+    prior_weight: real(0.0, note="0 = the policy does not vote") = option(
+        1.0, "mode tour: an option's score is multiplied by 1 + prior_weight x the share of samples heading for it "
+             "(0: the policy does not vote)")
 
 
 class TourVote(PlannerWrapper):

@@ -10,17 +10,16 @@ the stall hand-over, the tour vote, the lookahead, the sliver gate) has its own 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import ClassVar
 
+from pipeline.common.config import config_dataclass, maybe, text, whole
 from pipeline.planners.config import option
-from pipeline.planners.options import check_int
 from pipeline.planners.predicting import GlobalGraphOptions
 
 SAMPLERS = ("ddpm", "ddim")
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GuideConfig(GlobalGraphOptions):
     description = "GUIDE: diffusion policy conditioned on the region-evaluated global graph (predicted nodes)"
     needs_policy = True
@@ -30,34 +29,28 @@ class GuideConfig(GlobalGraphOptions):
     predicts: ClassVar[bool] = True  # predicted nodes enter the global graph (Sec. IV-B)
     region_evaluation: ClassVar[bool] = True  # ... filtered by region score r(g); False: every prediction
 
-    policy_file: str | None = option(None, "the policy export [default: models/planner_guide/policy.pt "
-                                      "(models/planner_dare/ for dare), else the shipped one]")
-    action_steps: int | None = option(None, "T_a of the T_p sampled steps executed before sampling again "
-                                            "[default: the policy's own]")
-    num_inference_steps: int | None = option(None, "K denoising steps per sample [default: the policy's own]")
-    sampler: str | None = option(None, "ddpm or ddim [default: the policy's own]")
-    seed: int | None = option(None, "the sampling seed [default: the episode's seed]")
-
-    def check(self) -> None:
-        super().check()
-        # action_steps and num_inference_steps are bounded by the policy (its T_p, its training
-        # timesteps): `GuidePlanner` checks them when it loads it.
-        if self.seed is not None:
-            check_int("seed", self.seed, 0)
-        if self.sampler is not None and self.sampler not in SAMPLERS:
-            raise ValueError(f"sampler must be ddpm or ddim, got {self.sampler!r}")
+    # action_steps and num_inference_steps are bounded above by the policy (its T_p, its training
+    # timesteps): `GuidePlanner` checks those bounds when it loads it.
+    policy_file: maybe(text()) = option(None, "the policy export [default: models/planner_guide/policy.pt "
+                                              "(models/planner_dare/ for dare), else the shipped one]")
+    action_steps: maybe(whole(1), "the policy's own") = option(None, "T_a of the T_p sampled steps executed before "
+                                                                     "sampling again [default: the policy's own]")
+    num_inference_steps: maybe(whole(1), "the policy's own") = option(None, "K denoising steps per sample [default: "
+                                                                            "the policy's own]")
+    sampler: maybe(text(SAMPLERS), "the policy's own") = option(None, "ddpm or ddim [default: the policy's own]")
+    seed: maybe(whole(0), "the episode's seed") = option(None, "the sampling seed [default: the episode's seed]")
 
     def model_slots(self) -> dict[str, str]:
         return {**super().model_slots(), "policy_file": f"policy_{self.variant}"}
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class GuideNoRegionConfig(GuideConfig):
     description = "GUIDE w/o region evaluation: the guide policy on a graph with every predicted node"
     region_evaluation = False
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class DareConfig(GuideConfig):
     description = "DARE: diffusion policy on the observed graph only (no prediction, no region evaluation)"
     variant = "dare"

@@ -40,7 +40,6 @@ import torch
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.models.defaults import cached_policy, resolve_policy_path
 from pipeline.planners.guide.configuration_guide import GuideConfig
-from pipeline.planners.options import check_int
 from pipeline.planners.predicting import GlobalGraphPlanner
 from pipeline.prediction.graph_observation import GraphObservation, observe
 from pipeline.prediction.node_predictor import InpaintFn
@@ -49,6 +48,13 @@ from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
 PlanRanker = Callable[[np.ndarray, np.ndarray], int]  # (C, T_p, 2) steps and directions -> the plan to drive
+
+
+def within_policy(name: str, value: int, most: int, what: str) -> None:
+    """ValueError unless the option `name` is in 1..`most`, a bound of the loaded policy (`what`):
+    the config checks the option alone, this its fit to the policy."""
+    if not 1 <= value <= most:
+        raise ValueError(f"{name}: must be a whole number in 1..{most} ({what}), got {value}")
 
 
 class GuidePlanner(GlobalGraphPlanner):
@@ -65,9 +71,9 @@ class GuidePlanner(GlobalGraphPlanner):
         model = self.policy.config
         self.obs_steps, self.horizon = int(model.obs_steps), int(model.horizon)  # T_o, T_p
         self.action_steps = int(model.action_steps if config.action_steps is None else config.action_steps)  # T_a
-        check_int("action_steps", self.action_steps, 1, self.horizon, note="the policy's horizon")
+        within_policy("action_steps", self.action_steps, self.horizon, "the policy's horizon")
         steps = model.num_inference_steps if config.num_inference_steps is None else config.num_inference_steps
-        check_int("num_inference_steps", steps, 1, model.num_train_timesteps, note="the policy's num_train_timesteps")
+        within_policy("num_inference_steps", steps, model.num_train_timesteps, "the policy's num_train_timesteps")
         self.num_inference_steps = int(steps)  # K
         self.seed = config.seed
         self.candidates = 1

@@ -16,13 +16,11 @@ Both are oracles (`uses_ground_truth = True`) built on `pipeline.planners.refere
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from pipeline.common.config import config_dataclass, flag, maybe, positive, whole
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
-from pipeline.planners.options import check_int, check_number
 from pipeline.planners.references.coverage import (
     DEFAULT_LNS_ITERATIONS,
     DEFAULT_RESTARTS,
@@ -41,24 +39,20 @@ from pipeline.world.sensor import FREE
 _RESTARTS_HELP = "randomised cover constructions of the first plan (the best wins)"
 _LNS_HELP = "ruin-and-recreate rounds that polish the first plan (0 = none)"
 _TIME_HELP = "seconds the first plan may take (None: no limit)"
+_NO_LNS = "0 = no ruin-and-recreate rounds"
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class OptimalConfig(PlannerConfig):
     description = "oracle: ground-truth coverage tour (viewpoints + open TSP), the protocol's reference"
     uses_ground_truth = True
     ignores_motion_rule = True
     lattice_planner = False
 
-    restarts: int = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
-    lns_iterations: int = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
-    time_limit_s: float | None = option(60.0, _TIME_HELP)
-
-    def check(self) -> None:
-        # With no warm start, 0 restarts would construct no plan at all: the episode would end at once.
-        check_int("restarts", self.restarts, 1)
-        check_int("lns_iterations", self.lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_number("time_limit_s", self.time_limit_s, 0.0, low_open=True, none="no limit")
+    # With no warm start, 0 restarts would construct no plan at all: the episode would end at once.
+    restarts: whole(1) = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: whole(0, note=_NO_LNS) = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    time_limit_s: maybe(positive(), "no limit") = option(60.0, _TIME_HELP)
 
 
 @register_planner("optimal", OptimalConfig)
@@ -95,30 +89,21 @@ class OptimalPlanner(OraclePlanner):
         return list(self.tour[1:])
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class ExpertConfig(LatticePlannerConfig):
     description = "oracle expert (DARE): ground-truth coverage TSP replanned on change, moves through known space"
     uses_ground_truth = True
 
-    restarts: int = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
-    lns_iterations: int = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
-    replan_restarts: int = option(2, "fresh constructions that compete with the refined previous tour at a replan "
-                                     "(0 = only refine it)")
-    replan_lns_iterations: int = option(0, "ruin-and-recreate rounds at a replan (0 = none)")
-    time_limit_s: float | None = option(60.0, _TIME_HELP)
-    replan_time_limit_s: float | None = option(5.0, "seconds a replan may take (None: no limit)")
-    replan_on_change: bool = option(True, "replan whenever the belief changed (false: only the first plan)")
-
-    def check(self) -> None:
-        super().check()
-        # The first plan has no warm start, so it needs a fresh construction; replans refine the
-        # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
-        check_int("restarts", self.restarts, 1)
-        check_int("lns_iterations", self.lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_int("replan_restarts", self.replan_restarts, 0, note="0 = only refine the previous tour")
-        check_int("replan_lns_iterations", self.replan_lns_iterations, 0, note="0 = no ruin-and-recreate rounds")
-        check_number("time_limit_s", self.time_limit_s, 0.0, low_open=True, none="no limit")
-        check_number("replan_time_limit_s", self.replan_time_limit_s, 0.0, low_open=True, none="no limit")
+    # The first plan has no warm start, so it needs a fresh construction; replans refine the
+    # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
+    restarts: whole(1) = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: whole(0, note=_NO_LNS) = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    replan_restarts: whole(0, note="0 = only refine the previous tour") = option(
+        2, "fresh constructions that compete with the refined previous tour at a replan (0 = only refine it)")
+    replan_lns_iterations: whole(0, note=_NO_LNS) = option(0, "ruin-and-recreate rounds at a replan (0 = none)")
+    time_limit_s: maybe(positive(), "no limit") = option(60.0, _TIME_HELP)
+    replan_time_limit_s: maybe(positive(), "no limit") = option(5.0, "seconds a replan may take (None: no limit)")
+    replan_on_change: flag() = option(True, "replan whenever the belief changed (false: only the first plan)")
 
 
 @register_planner("expert", ExpertConfig)

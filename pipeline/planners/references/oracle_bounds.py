@@ -26,14 +26,13 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.common.config import config_dataclass, flag, satisfies, text, whole
 from pipeline.models.sliver_gate import TrueGain
 from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
-from pipeline.planners.options import check_int, require
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner
 from pipeline.world.maps import GroundTruthMap
@@ -45,7 +44,17 @@ from pipeline.world.simulator import Episode
 DEFAULT_BASE = "greedy_utility"
 
 
-@dataclass(frozen=True)
+def _lattice_base(name: str) -> None:
+    """UnknownPlannerError (a KeyError) for a name not registered, ValueError for an oracle or a
+    planner without the lattice graph: what an oracle bound cannot wrap."""
+    base = planner_config(name)
+    if not base.lattice_planner:
+        raise ValueError(f"{name} keeps no lattice graph")
+    if base.uses_ground_truth:
+        raise ValueError(f"{name} sees the ground truth")
+
+
+@config_dataclass
 class OracleWrapperConfig(PlannerConfig):
     """A bound that wraps a base planner: its own options, and the base's (passed on to it)."""
 
@@ -53,16 +62,8 @@ class OracleWrapperConfig(PlannerConfig):
     lattice_planner = False
     objects = ("base_options",)  # the base planner's options, as given beside this config's
 
-    base: str = option(DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)")
-
-    def check(self) -> None:
-        require(isinstance(self.base, str), f"base must be a planner name, got {self.base!r}")
-        try:
-            base = planner_config(self.base)
-        except KeyError as error:  # an unknown name: the one-line option error, as for any other option
-            raise ValueError(f"base: {error}") from None
-        require(base.lattice_planner and not base.uses_ground_truth,
-                f"base must be a lattice planner that does not see the ground truth (e.g. greedy_utility, guide), got {self.base!r}")
+    base: satisfies(_lattice_base, "a lattice planner that does not see the ground truth", text()) = option(
+        DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)")
 
     @classmethod
     def base_planner(cls, options: dict) -> str:
@@ -112,19 +113,15 @@ class TrueGainGate:
         return big
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class OracleGateConfig(OracleWrapperConfig):
     description = ("oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; "
                    "veto=true: vetoes the learned gate's slivers)")
 
-    min_gain: int = option(50, "cells: a target passes when its scan on the ground truth would reveal this many the "
-                               "belief lacks (the label the learned gate is fitted to)")
-    veto: bool = option(False, "the learned gate still decides, and the truth only vetoes the slivers it passes")
-
-    def check(self) -> None:
-        check_int("min_gain", self.min_gain, 1)
-        require(isinstance(self.veto, bool), f"veto must be true or false, got {self.veto!r}")
-        super().check()
+    min_gain: whole(1, note="cells") = option(50, "cells: a target passes when its scan on the ground truth would "
+                                                  "reveal this many the belief lacks (the label the learned gate is "
+                                                  "fitted to)")
+    veto: flag() = option(False, "the learned gate still decides, and the truth only vetoes the slivers it passes")
 
 
 @register_planner("oracle_gate", OracleGateConfig)
@@ -136,7 +133,8 @@ class OracleGatePlanner(_OracleWrapper):
     def __init__(self, config: OracleGateConfig = OracleGateConfig(), base_options: dict | None = None):
         options, base, min_gain, veto = dict(base_options or {}), config.base, config.min_gain, config.veto
         if veto:
-            require(options.get("sliver_gate", True) is True, "veto=true vetoes the learned gate's slivers: drop sliver_gate=false")
+            if options.get("sliver_gate", True) is not True:  # an option of the base planner, beside this config
+                raise ValueError("veto=true vetoes the learned gate's slivers: drop sliver_gate=false")
             options = {**options, "sliver_gate": True}
         super().__init__(config, options)
         self.min_gain, self.veto = int(min_gain), veto
@@ -151,16 +149,12 @@ class OracleGatePlanner(_OracleWrapper):
         return self.base.plan(observation)
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class OracleTailConfig(OracleWrapperConfig):
     description = ("oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, "
                    "then the ground-truth expert")
 
-    handover_cells: int = option(8000, "ground-truth free cells still unknown when the expert takes over")
-
-    def check(self) -> None:
-        check_int("handover_cells", self.handover_cells, 0)
-        super().check()
+    handover_cells: whole(0) = option(8000, "ground-truth free cells still unknown when the expert takes over")
 
 
 @register_planner("oracle_tail", OracleTailConfig)
@@ -192,18 +186,14 @@ class OracleTailPlanner(_OracleWrapper):
         return self.base.plan(observation)
 
 
-@dataclass(frozen=True)
+@config_dataclass
 class OracleLookaheadConfig(GreedyUtilityConfig):
     description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
                    "episode on the ground truth; one step toward the one that completes soonest")
     uses_ground_truth = True
 
-    sliver_gate: bool = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
-    k: int = option(3, "gated greedy's best targets tried on the ground truth; 1 = gated greedy itself")
-
-    def check(self) -> None:
-        check_int("k", self.k, 1)
-        super().check()
+    sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
+    k: whole(1) = option(3, "gated greedy's best targets tried on the ground truth; 1 = gated greedy itself")
 
 
 @register_planner("oracle_lookahead", OracleLookaheadConfig)

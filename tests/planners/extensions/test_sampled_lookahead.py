@@ -192,7 +192,7 @@ def test_guide_lookahead_explores_a_maze(small_maze):
 
 
 def test_guide_lookahead_options_are_checked():
-    with pytest.raises(ValueError, match="lookahead must be 0"):
+    with pytest.raises(ValueError, match="lookahead: must be 0"):
         _guide(lookahead=1)
     with pytest.raises(ValueError, match="in mode policy"):
         _guide(lookahead=3, mode="policy")
@@ -202,7 +202,7 @@ def test_guide_lookahead_options_are_checked():
         _guide(lookahead_commit=False)
     with pytest.raises(ValueError, match="samples"):
         _guide(lookahead=3, lookahead_samples=0)
-    with pytest.raises(ValueError, match="lookahead_targets must be greedy or tour"):
+    with pytest.raises(ValueError, match="lookahead_targets: must be one of 'greedy', 'tour'"):
         _guide(lookahead=3, lookahead_targets="best")
     assert "lookahead 3 x 4 maps, full rollouts, block model (shipped)" in _guide(lookahead=3).description
 
@@ -290,7 +290,7 @@ def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
 
 
 def test_guide_lookahead_rollout_option_is_checked():
-    with pytest.raises(ValueError, match="lookahead_rollout must be fast or full"):
+    with pytest.raises(ValueError, match="lookahead_rollout: must be one of 'full', 'fast'"):
         _guide(lookahead=3, lookahead_rollout="quick")
     with pytest.raises(ValueError, match="lookahead is off"):
         _guide(lookahead_rollout="fast")
@@ -369,12 +369,12 @@ def test_guide_with_two_lookahead_processes_takes_the_same_route(small_maze):
     routes = [run_episode(small_maze, _guide(lookahead=2, lookahead_samples=2, lookahead_workers=workers), Protocol(), 0)
               for workers in (1, 2)]
     assert routes[0].trajectory == routes[1].trajectory and routes[1].complete
-    with pytest.raises(ValueError, match="workers must be in 1..2"):
+    with pytest.raises(ValueError, match=r"workers: must be a whole number in 1\.\.2"):
         _guide(lookahead=3, lookahead_workers=3)
     with pytest.raises(ValueError, match="lookahead is off"):
         _guide(lookahead_workers=2)
     assert "full rollouts in 2 processes" in _guide(lookahead=3, lookahead_workers=2).description
-    with pytest.raises(ValueError, match="workers must be in 1..2"):
+    with pytest.raises(ValueError, match=r"workers: must be a whole number in 1\.\.2"):
         make_planner("sampled_lookahead", workers=0, model=KnownBlocks(_truth(small_maze)))
 
 
