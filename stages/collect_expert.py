@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from pydantic import ValidationInfo, field_validator
+from pydantic_core import PydanticCustomError
 
 from pipeline.common.config import Section, flag, satisfies, text, whole
 from pipeline.planners import planner_config
@@ -41,7 +42,8 @@ class Settings(Section):
         accepted = accepted_options(planner, options)
         for key in options:
             if key not in accepted:
-                raise ValueError(f"{planner} has no option {key!r}; it accepts: {', '.join(accepted)}")
+                raise PydanticCustomError("unknown_key", "{planner} has no option {key}",
+                                          {"key": key, "known": ", ".join(accepted), "planner": planner})
         make_config(planner, **options)
         return options
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from pydantic import field_validator
 
-from pipeline.common.config import Section, flag, maybe, positive, text, whole
+from pipeline.common.config import Section, every_key, flag, maybe, positive, text, whole
 from pipeline.planners.registry import make_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.training.policy import PlannerTrainConfig
@@ -49,7 +49,7 @@ class Settings(Section):
     episodes_per_shard: whole(1)
     random_starts: flag()
     seed: whole(0)
-    train: PlannerTrainConfig
+    train: every_key(PlannerTrainConfig)
     eval_mazes: whole(2, note="paired comparison needs at least 2")
     eval_side_m: positive("metres")
     eval_seed: whole(0)

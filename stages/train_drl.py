@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.config import Section, check_value, maybe, positive, text, whole
+from pipeline.common.config import Section, check_value, every_key, maybe, positive, text, whole
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.training.drl import PPOSettings, TrainingEnvironment
@@ -26,9 +26,9 @@ class Settings(Section):
     """The `train_drl` section of params.yaml."""
 
     model: DRLPolicyConfig
-    env: TrainingEnvironment
-    ppo: PPOSettings
-    imitation: ImitationSettings
+    env: every_key(TrainingEnvironment)
+    ppo: every_key(PPOSettings)
+    imitation: every_key(ImitationSettings)
     init_checkpoint: maybe(text(note="a drl export"), "the warm start")
     timesteps: whole(1)
     checkpoint_every: whole(1)

@@ -16,7 +16,7 @@ from typing import Any, Optional
 
 import pydantic
 
-from pipeline.common.config import Section, fields_of, maybe, satisfies, text, whole
+from pipeline.common.config import Section, fields_of, maybe, text, whole
 from pipeline.common.paths import MODELS
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
@@ -29,7 +29,7 @@ from pipeline.workflows.train_inpainter import train_and_report
 Settings = pydantic.create_model(
     "Settings", __base__=Section, __module__=__name__, __doc__="The `train_inpainter` section of params.yaml.",
     **fields_of(TrainConfig),
-    model=(satisfies(InpainterConfig.from_dict, "InpainterConfig fields (or big_lama: true and overrides)", dict), {}),
+    model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
     accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
     devices=(maybe(DEVICES, "1"), None),
     threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),

@@ -8,7 +8,7 @@ and observations are the same), metrics and curves: the paths of `policies` in p
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, maybe, text, whole
+from pipeline.common.config import Section, every_key, maybe, text, whole
 from pipeline.common.paths import POLICIES
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.stage_runner import read_stage, run_stage_main, stage_arguments
@@ -23,7 +23,7 @@ class Settings(Section):
     """The `train_planner` section of params.yaml."""
 
     model: DiffusionPolicyConfig
-    train: PlannerTrainConfig
+    train: every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))  # its default unless set
     accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
     devices: DEVICES
     threads: maybe(whole(0, note="0: torch's default"), "torch's default")

@@ -30,7 +30,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
-    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "explain", "fields_of", "flag", "fraction", "identifier", "list_of",
+    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "every_key", "explain", "fields_of", "flag", "fraction", "identifier", "list_of",
     "maybe", "pair", "positive", "real", "satisfies", "text", "validate", "whole",
 ]
 
@@ -168,6 +168,21 @@ def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any) -> 
     return Annotated[kind, pydantic.AfterValidator(check)]
 
 
+def every_key(kind: Any, optional: tuple[str, ...] = ()) -> Any:
+    """A config (a config dataclass or Section model) whose mapping must name every field but
+    `optional`: a params section names every setting, so a default cannot drift from the file."""
+    names = list(_field_types(kind))
+
+    def complete(values: Any) -> Any:
+        if isinstance(values, Mapping):
+            for name in names:
+                if name not in values and name not in optional:
+                    raise PydanticCustomError("missing_key", "missing {key}", {"key": name})
+        return values
+
+    return Annotated[kind, pydantic.BeforeValidator(complete)]
+
+
 def _what(kind: Any) -> str:
     """The words a constrained type says it must be ("a whole number >= 1"), for the types that
     hold others (a list of them, a null or one)."""
@@ -273,11 +288,15 @@ def explain(error: ValidationError, root: str = "", kind_checked: Any = None) ->
     if kind == "unknown_key":
         key = detail["ctx"]["key"]
         loc, value = loc + (key,), value.get(key) if isinstance(value, Mapping) else None
-        message = f"unknown setting (known: {detail['ctx']['known']})"
+        owner = f"{detail['ctx']['planner']} has no such option; " if "planner" in detail["ctx"] else ""
+        message = f"unknown setting ({owner}known: {detail['ctx']['known']})"
     elif kind in ("extra_forbidden", "unexpected_keyword_argument"):
         config = _config_at(kind_checked, loc[:-1])
         known = f" (known: {', '.join(_field_types(config))})" if config is not None else ""
         message = f"unknown setting{known}"
+    elif kind == "missing_key":
+        loc, value = loc + (detail["ctx"]["key"],), dataclasses.MISSING
+        message = "missing (the params file names every setting)"
     elif kind in ("missing", "missing_argument"):
         message = "missing (the params file names every setting)" if root else "missing"
         value = dataclasses.MISSING

@@ -135,8 +135,5 @@ class ExploreEnvConfig:
             if not isinstance(protocol, Protocol):
                 raise ValueError(f"protocol must be a Protocol or a dict of its fields, got {protocol!r}")
             values = {**protocol.to_dict(), **values}
-        try:
-            return cls(**values)
-        except ValidationError as error:  # several lines of pydantic's: the first refusal, in one line
-            raise ValueError(explain(error)) from None
+        return validate(cls, values)
 

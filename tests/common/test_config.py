@@ -90,8 +90,8 @@ def test_missing_and_unknown_keys_are_named_at_any_depth():
     assert refusal(Training, {"ppo": {"lr": 0.1, "steps": 2, "lrr": 3}}) == \
         "s.ppo.lrr: unknown setting (known: lr, steps), got 3"
     assert refusal(Training, {}) == "s.ppo: missing (the params file names every setting)"
-    assert refusal(Training, {"ppo": [1]}) == "s.ppo: must be a mapping of settings, got [1]"
-    assert refusal(Training, [1]) == "s: must be a mapping of settings, got [1]"
+    assert refusal(Training, {"ppo": [1]}) == "s.ppo: must be a mapping of Ppo settings, got [1]"
+    assert refusal(Training, [1]) == "s: must be a mapping of Training settings, got [1]"
     validate(Training, {"ppo": {"lr": 1, "steps": 1}}, "s")  # the keys with defaults may be left out
 
 

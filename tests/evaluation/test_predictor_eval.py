@@ -209,7 +209,7 @@ def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch)
     assert len(pd.read_csv(tmp_path / "swept" / "precision_by_threshold.csv")) == 5 * len(STEPS)
     with pytest.raises(ValueError, match=r"must lie in \[0, 1\], got 1.5"):
         table1.table1_for_folder(maze_dir, tmp_path / "bad_tau", None, threshold=1.5)
-    with pytest.raises(ValueError, match="unknown eval_predictor"):
+    with pytest.raises(ValueError, match=r"eval_predictor\.stepz: unknown setting \(known: steps, "):
         (tmp_path / "bad.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "stepz": [1]}}))
         stage.read_params(tmp_path / "bad.yaml")
 
@@ -272,7 +272,7 @@ def test_stage_refuses_a_bad_sweep(tmp_path):
     import stages.eval_predictor as stage
 
     (tmp_path / "p.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "sweep_thresholds": [0.5, 2]}}))
-    with pytest.raises(ValueError, match="sweep_thresholds must be a list of numbers in"):
+    with pytest.raises(ValueError, match=r"eval_predictor\.sweep_thresholds\[1\]: must be a number in \[0, 1\], got 2"):
         stage.read_params(tmp_path / "p.yaml")
     (tmp_path / "q.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "sweep_thresholds": None}}))
     assert stage.read_params(tmp_path / "q.yaml")[0]["sweep_thresholds"] == []

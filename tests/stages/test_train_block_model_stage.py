@@ -40,13 +40,13 @@ def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, m
 
 
 @pytest.mark.parametrize(("section", "message"), [
-    ({"mazes": 3, "holdout_mazes": 3}, "holdout_mazes must be below train_block_model.mazes"),
+    ({"mazes": 3, "holdout_mazes": 3}, r"train_block_model: holdout_mazes \(3\) must be below mazes \(3\)"),
     ({"epochs": 0}, r"train_block_model\.epochs: must be a whole number >= 1"),
     ({"reveal_share": 1.5}, r"train_block_model\.reveal_share: must be a number in \[0, 1\]"),
     ({"epoch": 3}, r"train_block_model\.epoch: unknown setting \(known: mazes, holdout_mazes, side_m, maze_seed, snapshot_every, epochs, batch_size, lr, reveal_share, model, workers, seed\)"),
     ({"side_m": 52.0}, r"train_block_model.side_m: MazeConfig.side_m \(52.0, 52.0\) holds no whole number"),
     ({"side_m": "big"}, r"train_block_model\.side_m: must be a finite number > 0 \(metres\)"),
-    ({"model": {"width": 10, "groups": 4}}, r"train_block_model\.model: must be valid BlockModelConfig fields \(BlockModelConfig\.groups must divide width 10, got 4\)"),
+    ({"model": {"width": 10, "groups": 4}}, r"train_block_model\.model: groups \(4\) must divide width \(10\)"),
     ({"lr": None}, r"train_block_model\.lr: missing \(the params file names every setting\)"),
 ])
 def test_stage_refuses_bad_settings(tmp_path, monkeypatch, section, message):

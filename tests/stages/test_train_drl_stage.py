@@ -136,7 +136,7 @@ def test_a_checkpoint_at_another_protocol_or_past_the_steps_asked_is_not_continu
     ({"eval_mazes": -1}, r"train_drl\.eval_mazes: must be a whole number >= 0"),
     ({"model": {"max_nodes": 32, "d_model": 16, "heads": 3}}, r"train_drl.model: .*heads \(3\) must divide d_model \(16\)"),
     ({"model": {"layers": 2}}, r"train_drl\.model\.layers: unknown setting \(known: feature_dim, max_nodes, max_neighbors, d_model, heads, encoder_layers, window_scale, logit_clip, guidepost_prior\)"),
-    ({"model": [16]}, r"train_drl\.model: must be a mapping of DRLPolicyConfig fields \(feature_dim, max_nodes, max_neighbors, d_model, heads, encoder_layers, window_scale, logit_clip, guidepost_prior\)"),
+    ({"model": [16]}, r"train_drl\.model: must be a mapping of DRLPolicyConfig settings, got \[16\]"),
     ({"env": {"maze_sides_m": [52]}}, r"train_drl.env.maze_sides_m: maze_side_m 52"),
     ({"env": {"max_steps": 0}}, r"train_drl\.env\.max_steps: must be a whole number >= 1"),
     ({"env": {"area_weight": -1.0}}, r"train_drl\.env\.area_weight: must be a finite number >= 0"),
@@ -167,7 +167,7 @@ def test_the_stage_refuses_bad_settings(tmp_path, monkeypatch, change, message):
 def test_a_bad_timesteps_argument_is_refused(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     write_params(tmp_path, tiny_section())
-    with pytest.raises(ValueError, match=r"train_drl.timesteps must be a whole number >= 1, got -5"):
+    with pytest.raises(ValueError, match=r"--timesteps: must be a whole number >= 1, got -5"):
         train_drl.main("params.yaml", timesteps=-5)
 
 
