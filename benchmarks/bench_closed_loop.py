@@ -2,6 +2,7 @@
 
 Usage: python benchmarks/bench_closed_loop.py [--family maze|office] [--count 20] [--seed 9100]
                                               [--planner greedy_utility --planner guide_tsp --planner guide]
+                                              [--workers 2]
 
 Draws `--count` fresh maps (100 m mazes at the maze benchmark's protocol, or real-robot office
 floors of 40 m at the real-robot protocol), then per planner runs each map twice: in the
@@ -18,6 +19,7 @@ import argparse
 import math
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import torch
@@ -44,12 +46,21 @@ def draw_maps(family: str, count: int, seed: int, folder: str) -> tuple[list, Pr
     return [load_map(path, cell_size=protocol.cell_size) for path in paths], protocol
 
 
+def paired_episode(name: str, world, protocol: Protocol, index: int) -> tuple[float, float, bool]:
+    """(simulator distance, closed-loop distance, closed loop complete) of one planner on one map."""
+    torch.set_num_threads(1)
+    simulated = run_episode(world, make_planner(name), protocol, seed=index).distance_m
+    result = run_closed_loop(world, ExplorationSession(name, protocol, seed=index), seed=index)
+    return simulated, result.distance_m, bool(result.complete)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--family", choices=("maze", "office"), default="maze")
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--seed", type=int, default=9100)
     parser.add_argument("--planner", action="append", default=None)
+    parser.add_argument("--workers", type=int, default=1, help="maps run in parallel processes")
     args = parser.parse_args()
     torch.set_num_threads(1)
     with tempfile.TemporaryDirectory() as folder:
@@ -57,12 +68,10 @@ def main() -> None:
     print(f"{len(maps)} fresh {args.family} maps (seed {args.seed})")
     for name in args.planner or ["greedy_utility", "guide_tsp", "guide"]:
         started = time.perf_counter()
-        simulated, looped, complete = [], [], 0
-        for index, world in enumerate(maps):
-            simulated.append(run_episode(world, make_planner(name), protocol, seed=index).distance_m)
-            result = run_closed_loop(world, ExplorationSession(name, protocol, seed=index), seed=index)
-            looped.append(result.distance_m)
-            complete += result.complete
+        with ProcessPoolExecutor(args.workers) as pool:
+            results = list(pool.map(paired_episode, [name] * len(maps), maps, [protocol] * len(maps), range(len(maps))))
+        simulated, looped, completed = zip(*results)
+        complete = sum(completed)
         sim, loop = np.asarray(simulated), np.asarray(looped)
         diff = (loop - sim) / sim.mean()
         half = student_t_975(len(diff) - 1) * diff.std(ddof=1) / math.sqrt(len(diff)) if len(diff) > 1 else float("nan")
