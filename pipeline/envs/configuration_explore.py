@@ -16,9 +16,7 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, BeforeValidator
 
 from pipeline.common.config import (
-    ValidationError,
     config_dataclass,
-    explain,
     flag,
     list_of,
     maybe,
@@ -104,9 +102,8 @@ class ExploreEnvConfig:
         if self.generates_mazes:
             try:
                 self.maze_config()
-            except ValueError as error:  # the generator's own refusal (in one line, should it be pydantic's)
-                reason = explain(error) if isinstance(error, ValidationError) else str(error)
-                raise ValueError(f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {reason}") from None
+            except ValueError as error:  # the generator's own refusal
+                raise ValueError(f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {error}") from None
 
     @property
     def generates_mazes(self) -> bool:

@@ -12,7 +12,6 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
-from pipeline.common.config import ValidationError, explain
 from pipeline.planners.config import SPEC_KINDS, OptionInfo
 from pipeline.planners.registry import accepted_options, make_planner, planner_config
 from pipeline.world.planner import Planner
@@ -140,11 +139,9 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec], reserved: Seque
 
 def build_planner(spec: PlannerSpec) -> Planner:
     """The planner a resolved spec names; a value its constructor refuses is a one-line ValueError
-    naming the label (a pydantic ValidationError, whose text is several lines, is explained)."""
+    naming the label."""
     try:
         return make_planner(spec.name, **spec.options)
-    except ValidationError as error:  # a config made while building, past `make_config`'s explanation
-        raise ValueError(_option_error(spec, explain(error))) from None
     except (TypeError, ValueError) as error:
         raise ValueError(_option_error(spec, error)) from None
 
