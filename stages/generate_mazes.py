@@ -11,7 +11,9 @@ gate is fitted on them beside the mazes, so that it holds on maps unlike the maz
 
 A split's `kind: office` draws office floors instead of mazes (a side per floor from its
 `side_m` range), and `office_scale` sets their sizes: `maze` (doors a 4 m lattice passes) or
-`real_robot` (building sizes, doors from 0.8 m: profiles/real_robot.yaml trains on these).
+`real_robot` (building sizes, doors from 0.8 m). `kind: building` draws floors like real plans
+(`pipeline.world.buildings`: walls at any phase of the 1 m lattice, corridors, furniture) at
+`protocol.cell_size`: profiles/real_robot.yaml trains on these.
 The files keep the maze sets' names and folders, so every later stage reads them as it reads mazes.
 """
 
@@ -27,6 +29,7 @@ from pipeline.common.atomic import atomic_folder
 from pipeline.common.config import Section, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
+from pipeline.world.buildings import BuildingConfig, generate_building_set
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 
@@ -40,11 +43,11 @@ PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
 PREVIEW_TILE = 500  # pixels per preview tile side (a 100 m maze at its native size)
 PREVIEW_GAP = 10
-MAP_KINDS = ("maze", "office")
+MAP_KINDS = ("maze", "office", "building")
 
 
 class Split(Section):
-    """One set of maps: how many, their sides, and whether mazes or office floors."""
+    """One set of maps: how many, their sides, and whether mazes, office floors or building floors."""
 
     count: whole(0)
     side_m: pair(positive("metres"))
@@ -72,32 +75,39 @@ class Settings(Section):
     office_scale: text(OFFICE_SCALES) = "maze"
 
 
-def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[MazeConfig | OfficeConfig, int]:
-    """The MazeConfig (OfficeConfig for `kind: office`) and count of one split; shared keys come
-    from the section's top level."""
+SplitConfig = MazeConfig | OfficeConfig | BuildingConfig
+
+
+def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[SplitConfig, int]:
+    """The MazeConfig (OfficeConfig for `kind: office`, BuildingConfig for `kind: building`) and
+    count of one split; shared keys come from the section's top level."""
     section = mazes[split]
     shared = {key: mazes[key] for key in ("block_m", "rooms", "room_blocks", "extra_loops") if key in mazes}
-    if section.get("kind", "maze") == "office":
+    kind = section.get("kind", "maze")
+    if kind in ("office", "building"):
         low, high = (float(v) for v in section["side_m"])
-        config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size)
         if low < 20:
-            raise ValueError(f"params 'mazes.{split}.side_m': office floors need sides of 20 m or more, got {low:g}")
-        return config, section["count"]
+            raise ValueError(f"params 'mazes.{split}.side_m': {kind} floors need sides of 20 m or more, got {low:g}")
+        if kind == "building":
+            return BuildingConfig(side_m=high, cell_size=cell_size), section["count"]
+        return OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size), section["count"]
     config = MazeConfig(side_m=tuple(section["side_m"]), cell_size=cell_size, **{
         key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()
     })
     return config, section["count"]
 
 
-def _draw_split(config: MazeConfig | OfficeConfig, count: int, folder: Path, seed: tuple[int, int],
+def _draw_split(config: SplitConfig, count: int, folder: Path, seed: tuple[int, int],
                 side_m: tuple[float, float]) -> list[Path]:
-    """One split's maps: mazes, or office floors with a side per floor from `side_m`."""
+    """One split's maps: mazes, or office or building floors with a side per floor from `side_m`."""
+    if isinstance(config, BuildingConfig):
+        return generate_building_set(config, count, folder, seed=seed, side_m=side_m)
     if isinstance(config, OfficeConfig):
         return generate_office_set(config, count, folder, seed=seed, side_m=side_m)
     return generate_maze_set(config, count, folder, seed=seed)
 
 
-def _write_map_sets(splits: dict[str, tuple[MazeConfig | OfficeConfig, int]], sides: dict[str, tuple[float, float]],
+def _write_map_sets(splits: dict[str, tuple[SplitConfig, int]], sides: dict[str, tuple[float, float]],
                     offices: int, office_config: OfficeConfig, seed: int) -> tuple[dict[str, list[Path]], list[Path]]:
     """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
 
@@ -150,7 +160,7 @@ def main(params_path: str = "params.yaml") -> None:
     sides = {split: tuple(float(v) for v in mazes[split]["side_m"]) for split in SPLITS}
     written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed)
     for split, paths in written.items():
-        what = "office floors" if isinstance(splits[split][0], OfficeConfig) else "mazes"
+        what = {OfficeConfig: "office floors", BuildingConfig: "building floors"}.get(type(splits[split][0]), "mazes")
         print(f"{split}: {len(paths)} {what} in {SPLIT_DIRS[split]}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
     print(f"previews: {PREVIEW_PATH}, {OFFICE_PREVIEW_PATH}")

@@ -11,6 +11,7 @@ from typing import Optional
 import typer
 
 from pipeline.cli.options import CellSize, DoneCells, NodeRes, SensorRange, check_out_dir, fail, protocol, warn
+from pipeline.world.buildings import BuildingConfig, generate_building_set
 from pipeline.world.caves import CaveConfig, generate_cave_set
 from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
@@ -25,13 +26,15 @@ app = typer.Typer(rich_markup_mode=None)
 
 @app.command()
 def mazes(
-    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_NNNN.png, cave_NNNN.png) into (created if missing)."),
+    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_, building_, cave_NNNN.png) into (created if missing)."),
     count: int = typer.Option(..., min=1, help="How many mazes."),
     seed: int = typer.Option(0, min=0, help="Maze i is drawn from seed sequence [seed, i]."),
     side: float = typer.Option(100.0, help="Side length in metres (for mazes, a multiple of the block size)."),
     kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
                                           "wide rooms, clutter), a family the sliver gate is also fitted on; "
-                                          "cave: rough-walled caves, a family no model is fitted on."),
+                                          "building: floors drawn like real plans at the real-robot scale (walls at "
+                                          "any phase of the 1 m lattice, doors 0.8-1.2 m, corridors, furniture; "
+                                          "--cell-size 0.2); cave: rough-walled caves, a family no model is fitted on."),
     scale: str = typer.Option("maze", help="Office floor sizes: maze (doors wider than the 4 m lattice) or "
                                            "real_robot (building sizes for 0.2 m cells and a 1 m lattice: "
                                            "doors from 0.8 m, walls 0.1-0.3 m, rooms from 3 m)."),
@@ -42,8 +45,8 @@ def mazes(
     More maps than the 12 test mazes make a benchmark comparison resolve smaller differences:
     `guide mazes --out runs/mazes --count 50 --seed 7 && guide benchmark --maps runs/mazes ...`.
     """
-    if kind not in ("maze", "office", "cave"):
-        fail(f"--kind must be maze, office or cave, got {kind!r}")
+    if kind not in ("maze", "office", "building", "cave"):
+        fail(f"--kind must be maze, office, building or cave, got {kind!r}")
     if scale not in OFFICE_SCALES:
         fail(f"--scale must be {' or '.join(OFFICE_SCALES)}, got {scale!r}")
     if scale != "maze" and kind != "office":
@@ -52,13 +55,15 @@ def mazes(
         fail(f"--side must be a positive number of metres, got {side:g}")
     if kind != "maze":
         config_class, write_set, what = {"office": (OfficeConfig, generate_office_set, "office floor"),
+                                         "building": (BuildingConfig, generate_building_set, "building floor"),
                                          "cave": (CaveConfig, generate_cave_set, "cave")}[kind]
         try:
             family = (OfficeConfig.for_scale(scale, side, cell_size) if kind == "office"
                       else config_class(side_m=side, cell_size=cell_size))
         except ValueError as error:  # named by this command's words, not the config's fields
             message = str(error).replace(f"{config_class.__name__} needs", f"{what}s need")
-            fail(message.replace("CaveConfig.block_m", "the 4 m block"))
+            message = message.replace("BuildingConfig.lattice_m (1 m)", "the 1 m lattice of building floors")
+            fail(message.replace("CaveConfig.block_m", "the 4 m block").replace("cells (", "cells of --cell-size ("))
         check_out_dir(out)
         if out.is_dir() and any(out.glob(f"{kind}_*.png")):
             fail(f"{out} already holds {kind} PNGs: pick an empty folder, so no old {what} mixes into a set")
