@@ -53,7 +53,7 @@ class SpeedModel:
 def step_record(rows: Iterable[Mapping[str, float | None]]) -> dict[str, np.ndarray]:
     """`EpisodeResult.step_rows()` as read_steps_csv's columns (None decision times become NaN)."""
     rows = list(rows)
-    record = {name: np.array([np.nan if row[name] is None else row[name] for row in rows], dtype=np.float64)
+    record = {name: np.array([np.nan if row.get(name) is None else row[name] for row in rows], dtype=np.float64)
               for name in STEP_COLUMNS}
     record["step"] = record["step"].astype(np.int64)
     return record

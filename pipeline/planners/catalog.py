@@ -1,25 +1,31 @@
-"""The registered `guide`, `guide_noregion` and `dare`: GUIDE's policy (`pipeline.planners.guide`)
-with our additions around it (`pipeline.planners.extensions`).
+"""The registered `guide`, `guide_noregion`, `dare`, `guide_tsp` and `mapex`: GUIDE's policy
+(`pipeline.planners.guide`), its tour ablation and MapEx, with our additions around them
+(`pipeline.planners.extensions`).
 
 This module sits above both: the paper's planner knows nothing of the additions, and each
 addition only of what it wraps. `mode=tour` (the default) is the tour vote around the paper's
 policy; `mode=policy` is the paper's policy driving, with several ranked samples and the stall
 hand-over around it (`candidates=1` and a large `stall_steps` leave the paper's own planner).
 The sliver gate is a fitted model any lattice planner's target rule consults
-(`pipeline.models.sliver_gate`), on by default here as for `guide_tsp`.
+(`pipeline.models.sliver_gate`), on by default here as for `guide_tsp`. Every predicting planner
+here comes wrapped in the trust in its predictions (`extensions/prediction_trust.py`), unless
+`trust=false`.
 """
 
 from __future__ import annotations
 
 from pipeline.common.config import config_dataclass, flag, text
 from pipeline.planners.config import OptionInfo, option
+from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
 from pipeline.planners.extensions.lookahead import LookaheadConfig
+from pipeline.planners.extensions.prediction_trust import PredictionTrustOptions, with_trust
 from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig
 from pipeline.planners.extensions.stall_handover import StallHandover, StallHandoverConfig
 from pipeline.planners.extensions.tour_vote import TourVote, TourVoteConfig
 from pipeline.planners.guide.configuration_guide import DareConfig, GuideConfig, GuideNoRegionConfig
-from pipeline.planners.guide.configuration_guide_tsp import TourOptions
+from pipeline.planners.guide.configuration_guide_tsp import GuideTspConfig, TourOptions
 from pipeline.planners.guide.guide import GuidePlanner
+from pipeline.planners.guide.guide_tsp import GuideTspPlanner
 from pipeline.planners.registry import register_planner
 from pipeline.prediction.node_predictor import InpaintFn
 from pipeline.world.planner import Planner
@@ -28,7 +34,8 @@ MODES = ("tour", "policy")
 
 
 @config_dataclass
-class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig):
+class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig,
+                   PredictionTrustOptions):
     """Every option of the registered `guide`: the paper's (`GuideConfig`) and each addition's."""
 
     composition = ("the tour vote (extensions/tour_vote.py) around GUIDE's policy (guide/guide.py); mode=policy: "
@@ -67,14 +74,36 @@ def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=
     policy (mode policy), around the paper's `GuidePlanner`."""
     paper = GuidePlanner(options, inpaint=inpaint, policy=policy)
     if options.mode == "tour":
-        return TourVote(paper, options, options, options, options.candidates, options.description)
+        return with_trust(TourVote(paper, options, options, options, options.candidates, options.description), options)
     planner = StallHandover(RankedPlans(paper, options.candidates), options.stall_steps)
     planner.description = (f"{options.description} [mode policy; {options.candidates} ranked samples, stall hand-over "
                            f"after {options.stall_steps}; policy {paper.policy_source}; {paper.predictor_source}; "
                            f"{paper.gate_source}; K={paper.num_inference_steps}]")
-    return planner
+    return with_trust(planner, options)
+
+
+@config_dataclass
+class GuideTspOptions(GuideTspConfig, PredictionTrustOptions):
+    pass
+
+
+@config_dataclass
+class MapExOptions(MapExConfig, PredictionTrustOptions):
+    pass
+
+
+def build_guide_tsp(options: GuideTspOptions, inpaint: InpaintFn | None = None) -> Planner:
+    """The global graph's frontier tour (guide/guide_tsp.py), trusting its predictions as far as they hold."""
+    return with_trust(GuideTspPlanner(options, inpaint=inpaint), options)
+
+
+def build_mapex(options: MapExOptions, inpaint: InpaintFn | None = None) -> Planner:
+    """MapEx (baselines/mapex.py), trusting its predicted map as far as it holds."""
+    return with_trust(MapExPlanner(options, inpaint=inpaint), options)
 
 
 register_planner("guide", GuideOptions)(build_guide)
 register_planner("guide_noregion", GuideNoRegionOptions)(build_guide)
 register_planner("dare", DareOptions)(build_guide)
+register_planner("guide_tsp", GuideTspOptions)(build_guide_tsp)
+register_planner("mapex", MapExOptions)(build_mapex)

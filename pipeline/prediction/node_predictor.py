@@ -86,19 +86,19 @@ class NodePredictor:
     def predict(self, graph: LatticeGraph) -> np.ndarray:
         """Ids of the predicted free nodes V_p (all currently unknown lattice nodes)."""
         states = observed_node_states(graph.belief, graph)
-        return self._above(graph, states, self.probabilities(graph, states), self.config.threshold)
+        return self.above(graph, states, self.probabilities(graph, states), self.config.threshold)
 
     def predict_with_counted(self, graph: LatticeGraph) -> tuple[np.ndarray, np.ndarray]:
         """(V_p at threshold, the nodes the utility boost counts: V_p at count_threshold), one inpainting."""
         states = observed_node_states(graph.belief, graph)
         probability = self.probabilities(graph, states)
-        predicted = self._above(graph, states, probability, self.config.threshold)
+        predicted = self.above(graph, states, probability, self.config.threshold)
         count_tau = self.config.count_threshold
         if count_tau is None or count_tau == self.config.threshold:
             return predicted, predicted
-        return predicted, self._above(graph, states, probability, count_tau)
+        return predicted, self.above(graph, states, probability, count_tau)
 
-    def _above(self, graph: LatticeGraph, states: np.ndarray, probability: np.ndarray, tau: float) -> np.ndarray:
+    def above(self, graph: LatticeGraph, states: np.ndarray, probability: np.ndarray, tau: float) -> np.ndarray:
         """Unknown nodes at P(free) >= tau, less those in small components."""
         shape = graph.lattice_shape
         predicted = (states == NODE_UNKNOWN) & (probability >= tau)

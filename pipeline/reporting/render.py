@@ -466,9 +466,37 @@ def render_final(
     min_unknown = graph.spec.frontier_min_unknown_neighbours if graph is not None else 2
     image = render_frame(ground_truth, belief, result.trajectory, graph, scale, title,
                          frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend, y_up=y_up)
+    trust = [t for t in result.waypoint_trust if t is not None]
+    if trust:  # a predicting planner's trust in its predictions, along the episode
+        image = np.vstack([image, trust_strip(result.distances[-len(trust):], trust, image.shape[1])])
     if path is not None:
         save_png(image, path)
     return image
+
+
+TRUST_STRIP_HEIGHT = 90
+TRUST_LINE_RGB = (40, 120, 200)
+
+
+def trust_strip(distances: Sequence[float], trust: Sequence[float], width: int) -> np.ndarray:
+    """A strip under an episode's figure: the planner's prediction trust (0-1) against the
+    distance travelled, so a reader sees where the predictions stopped being believed."""
+    strip = np.full((TRUST_STRIP_HEIGHT, width, 3), 255, dtype=np.uint8)
+    left, right, top, bottom = 8, width - 8, 24, TRUST_STRIP_HEIGHT - 10
+    d = np.asarray(distances, dtype=np.float64)
+    t = np.clip(np.asarray(trust, dtype=np.float64), 0.0, 1.0)
+    span = max(d[-1] - d[0], 1e-9) if len(d) else 1.0
+    xs = left + (d - (d[0] if len(d) else 0.0)) / span * (right - left)
+    ys = bottom - t * (bottom - top)
+    for level in (0.0, 1.0):
+        y = int(round(bottom - level * (bottom - top)))
+        cv2.line(strip, (left, y), (right, y), (210, 210, 210), 1)
+    points = np.stack([xs, ys], axis=1).round().astype(np.int32).reshape(-1, 1, 2)
+    cv2.polylines(strip, [points], False, TRUST_LINE_RGB, 2, cv2.LINE_AA)
+    text = (f"prediction trust (0-1) against distance: {t[-1]:.2f} at the end, {t.min():.2f} lowest, "
+            f"{t.mean():.2f} mean")
+    cv2.putText(strip, text, (left, 16), FONT, 0.45, (60, 60, 60), 1, cv2.LINE_AA)
+    return strip
 
 
 def _ground_truth_belief(ground_truth: GroundTruthMap) -> np.ndarray:

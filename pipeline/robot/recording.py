@@ -182,4 +182,8 @@ class EpisodeRecording:
 def _decision_fields(planner: Any) -> dict[str, Any]:
     """What a planner says of its last decision (`last_decision`), as plain values."""
     decision = getattr(planner, "last_decision", None) or {}
-    return {key: value for key, value in decision.items() if isinstance(value, (int, float, str, bool, type(None)))}
+    fields = {key: value for key, value in decision.items() if isinstance(value, (int, float, str, bool, type(None)))}
+    trust = getattr(planner, "trust_state", None)
+    if trust is not None:
+        fields["prediction_trust"] = trust.as_dict()
+    return fields

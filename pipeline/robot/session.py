@@ -72,6 +72,9 @@ class SessionState:
     resets: int = 0
     failed_goals: list[tuple[float, float]] = field(default_factory=list)
     last_skip: str = ""
+    # The planner's record of its checked predictions after the last plan (right, wrong, base,
+    # lift, trust: prediction/prediction_trust.py); None for a planner that keeps none.
+    prediction_trust: dict[str, float | int] | None = None
 
 
 class ExplorationSession:
@@ -240,6 +243,8 @@ class ExplorationSession:
         self._changed_since = 0
         self._last_time = self.clock()
         self.state.plans += 1
+        trust = getattr(self.planner, "trust_state", None)
+        self.state.prediction_trust = trust.as_dict() if trust is not None else None
         decision = getattr(self.planner, "last_decision", {}) or {}
         target = self._target(decision.get("target"), waypoints)
         plan = Plan([self.canvas.to_map(w) for w in waypoints], done=not waypoints, target=target,
@@ -250,7 +255,10 @@ class ExplorationSession:
         """Reset the planner on `frame`, keeping the nodes it had visited (in the map frame): a
         planner does not go back to see again what it saw from there."""
         visited = self._visited_points()
+        trust = getattr(self.planner, "trust_state", None)  # the same building: what was learnt of the predictions holds
         self.planner.reset(frame, self.protocol, self.seed)
+        if trust is not None:
+            self.planner.restore_trust(trust)
         self._frame = frame
         self.state.resets += 1
         graph, marks = self._graph_and_visits()

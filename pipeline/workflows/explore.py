@@ -98,6 +98,9 @@ def run(exploration: Exploration, seed: int = 0, gif: bool = False, progress: bo
               "planner": {"label": exploration.label, "name": exploration.name, "options": exploration.options,
                           "description": agent.description},
               "protocol": protocol.to_dict()}
+    trust = getattr(agent, "trust_state", None)
+    if trust is not None:  # the record of the predictions the robot checked, as the episode ended
+        record["prediction_trust"] = trust.as_dict()
     atomic_write_text(out / "run.json", json.dumps(record, indent=2) + "\n")
     written.append(out / "run.json")
     return result, written

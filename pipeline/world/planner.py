@@ -39,6 +39,9 @@ class Planner(ABC):
     uses_ground_truth: bool = False
     ignores_motion_rule: bool = False  # only the ground-truth "Optimal" reference may set this
     needs_policy: bool = False  # True: needs a trained diffusion policy (models/ or the shipped default)
+    # How far a predicting planner leans on its predictions at its last decision (0-1, from the
+    # record of its checked predictions); None for a planner that keeps no such record.
+    prediction_trust: float | None = None
 
     @abstractmethod
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:

@@ -45,6 +45,7 @@ class EpisodeResult:
     distances: list[float] = field(default_factory=list)
     explored_cells: list[int] = field(default_factory=list)
     waypoint_decision_ms: list[float] = field(default_factory=list)
+    waypoint_trust: list[float | None] = field(default_factory=list)  # the planner's prediction trust per row
     free_cell_count: int = 0  # ground-truth free cells: the explored share's denominator
     cell_size: float = 0.0  # metres: a cell's area is cell_size ** 2
 
@@ -53,6 +54,7 @@ class EpisodeResult:
         completion; `decision_ms` is None where the run measured none (a replay)."""
         area = self.cell_size**2
         timed = len(self.waypoint_decision_ms) == len(self.trajectory)
+        trusted = len(self.waypoint_trust) == len(self.trajectory)
         return [
             {
                 "step": step,
@@ -60,6 +62,7 @@ class EpisodeResult:
                 "explored_m2": self.explored_cells[step] * area,
                 "explored_share": self.explored_cells[step] / max(1, self.free_cell_count),
                 "decision_ms": self.waypoint_decision_ms[step] if timed else None,
+                "prediction_trust": self.waypoint_trust[step] if trusted else None,
             }
             for step in range(len(self.trajectory))
         ]
@@ -223,6 +226,7 @@ def run_episode(
     reset_planner(planner, ground_truth, protocol, seed)
     decision_ms: list[float] = []
     waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
+    waypoint_trust: list[float | None] = [None]
     failure = ""
     violations = 0
     oracle = bool(getattr(planner, "ignores_motion_rule", False))
@@ -233,6 +237,7 @@ def run_episode(
         t0 = time.perf_counter()
         waypoints = planner.plan(observation)
         decision_ms.append((time.perf_counter() - t0) * 1e3)
+        trust = getattr(planner, "prediction_trust", None)
         if not waypoints:
             failure = "no reachable target left"
             break
@@ -240,6 +245,7 @@ def run_episode(
             for k, waypoint in enumerate(waypoints):
                 episode.move(waypoint, oracle=oracle)
                 waypoint_ms.append(decision_ms[-1] if k == 0 else 0.0)
+                waypoint_trust.append(trust)
                 if on_step is not None:
                     on_step(episode)
                 if episode.complete or episode.steps >= protocol.max_steps:
@@ -252,6 +258,7 @@ def run_episode(
         failure = f"step limit ({protocol.max_steps}) reached"
     result = _result(episode, getattr(planner, "name", type(planner).__name__), seed, decision_ms, failure, violations)
     result.waypoint_decision_ms = waypoint_ms[: len(result.trajectory)]
+    result.waypoint_trust = waypoint_trust[: len(result.trajectory)]
     return result
 
 

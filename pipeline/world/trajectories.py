@@ -27,7 +27,10 @@ METRICS_COLUMNS = [
 ]
 # The per-step record beside a trajectory (OUT/<label>/<map>.steps.csv): one row per trajectory
 # row up to completion, the start first (docs/protocol.md, "Per-step files").
-STEP_COLUMNS = ["step", "distance_m", "explored_m2", "explored_share", "decision_ms"]
+STEP_COLUMNS = ["step", "distance_m", "explored_m2", "explored_share", "decision_ms", "prediction_trust"]
+# Files written before `prediction_trust` (a predicting planner's trust in its predictions, empty
+# for other planners) read as having it empty.
+LEGACY_STEP_COLUMNS = STEP_COLUMNS[:5]
 STEPS_SUFFIX = ".steps.csv"
 MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
@@ -142,34 +145,40 @@ def is_trajectory_file(path: Path) -> bool:
 
 def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
     """Write the per-step record (`EpisodeResult.step_rows`) with STEP_COLUMNS; an empty
-    decision_ms is one the run did not measure (a replay)."""
+    decision_ms is one the run did not measure (a replay), an empty prediction_trust one the
+    planner keeps no record for (or a replay)."""
     path = Path(path)
     with atomic_file(path) as tmp, tmp.open("w", newline="") as handle:
         handle.write(",".join(STEP_COLUMNS) + "\n")
         for row in rows:
             handle.write(
                 f"{int(row['step'])},{_format_number(row['distance_m'], 6)},{_format_number(row['explored_m2'], 4)},"
-                f"{_format_number(row['explored_share'], 6)},{_format_number(row['decision_ms'], 3)}\n"
+                f"{_format_number(row['explored_share'], 6)},{_format_number(row['decision_ms'], 3)},"
+                f"{_format_number(row.get('prediction_trust'), 4)}\n"
             )
     return path
 
 
 def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a per-step file into one array per column (decision_ms NaN where empty); ValueError
-    naming the file when it is missing or its header is not STEP_COLUMNS."""
+    """Read a per-step file into one array per column (decision_ms, prediction_trust NaN where
+    empty); ValueError naming the file when it is missing or its header is not STEP_COLUMNS (or
+    the older LEGACY_STEP_COLUMNS, read with prediction_trust all NaN)."""
     path = Path(path)
     if not _is_file(path):
         raise ValueError(f"{path}: file not found (guide benchmark writes one per trajectory; "
                          "guide replay --steps makes one from a trajectory)")
     with path.open(newline="", encoding="utf-8-sig") as handle:
         rows = list(csv.reader(handle))
-    if not rows or [c.strip() for c in rows[0]] != STEP_COLUMNS:
+    header = [c.strip() for c in rows[0]] if rows else []
+    if header not in (STEP_COLUMNS, LEGACY_STEP_COLUMNS):
         raise ValueError(f"{path}: a per-step file starts with the header {','.join(STEP_COLUMNS)}")
     try:
         values = np.array([[float(v) if v.strip() else np.nan for v in row] for row in rows[1:] if row],
-                          dtype=np.float64).reshape(-1, len(STEP_COLUMNS))
+                          dtype=np.float64).reshape(-1, len(header))
     except ValueError:
-        raise ValueError(f"{path}: every row must be {len(STEP_COLUMNS)} numbers ({','.join(STEP_COLUMNS)})") from None
+        raise ValueError(f"{path}: every row must be {len(header)} numbers ({','.join(header)})") from None
+    if len(header) < len(STEP_COLUMNS):
+        values = np.hstack([values, np.full((len(values), len(STEP_COLUMNS) - len(header)), np.nan)])
     if not len(values):
         raise ValueError(f"{path}: no rows (the first is the start, step 0)")
     columns = {name: values[:, k] for k, name in enumerate(STEP_COLUMNS)}

@@ -22,7 +22,6 @@ from pipeline.common.config import config_dataclass, fraction, whole
 from pipeline.lattice.graph import visible_counts
 from pipeline.planners.config import option
 from pipeline.planners.predicting import PredictingPlanner, PredictorOptions
-from pipeline.planners.registry import register_planner
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
@@ -40,7 +39,6 @@ class MapExConfig(PredictorOptions):
                                                       "the inside of a seen wall, not counted (0 = off)")
 
 
-@register_planner("mapex", MapExConfig)
 class MapExPlanner(PredictingPlanner):
     """MapEx-style: information gain on the predicted map per metre of path, best viewpoint first."""
 

@@ -20,7 +20,6 @@ from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.tsp import path_length, tsp_path
 from pipeline.planners.guide.configuration_guide_tsp import HYSTERESIS_NODES, SPREAD_NODES, GuideTspConfig, TourOptions
 from pipeline.planners.predicting import GlobalGraphPlanner
-from pipeline.planners.registry import register_planner
 from pipeline.prediction.global_graph import KNOWN, GlobalGraph
 from pipeline.prediction.node_predictor import InpaintFn
 from pipeline.world.maps import MapFrame
@@ -192,7 +191,6 @@ class FrontierTour:
         return chosen
 
 
-@register_planner("guide_tsp", GuideTspConfig)
 class GuideTspPlanner(GlobalGraphPlanner):
     """GUIDE without the diffusion policy: the global graph's frontier tour (`FrontierTour`), one
     known-graph step toward its first target at every decision.
