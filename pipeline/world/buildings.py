@@ -286,14 +286,12 @@ def _shape_rooms(drawing: _Drawing) -> None:
                 row = int(rng.integers(top + min_room, bottom - min_room - thickness + 1))
                 reach = int(width * rng.uniform(0.4, 0.7))
                 cols = (left, left + reach) if drawing.chance(0.5) else (right - reach, right)
-                labels[row : row + thickness, cols[0] : cols[1]] = WALL_LABEL
-                drawing.walls.append((row, cols[0], row + thickness, cols[1]))
+                drawing.wall(row, cols[0], row + thickness, cols[1])
             else:
                 col = int(rng.integers(left + min_room, right - min_room - thickness + 1))
                 reach = int(height * rng.uniform(0.4, 0.7))
                 rows = (top, top + reach) if drawing.chance(0.5) else (bottom - reach, bottom)
-                labels[rows[0] : rows[1], col : col + thickness] = WALL_LABEL
-                drawing.walls.append((rows[0], col, rows[1], col + thickness))
+                drawing.wall(rows[0], col, rows[1], col + thickness)
         elif drawing.chance(config.diagonal_chance):
             size = int(min(height, width) * rng.uniform(0.3, 0.5))
             corner = int(rng.integers(4))
@@ -497,5 +495,6 @@ def floor_statistics(floor: BuildingFloor, cell_size: float) -> dict[str, float]
         "nodes_on_furniture": float((nodes[inside] == FURNITURE_LABEL).mean()),
         "free_share": float((labels == FREE_LABEL).sum() / max(1, inside_cells.sum())),
         "door_m": float(np.mean(door_widths)) if door_widths else float("nan"),
-        "room_m2": float(np.median([(b - t) * (r - l) for t, l, b, r in floor.rooms])) * cell_size**2,
+        "room_m2": (float(np.median([(b - t) * (r - l) for t, l, b, r in floor.rooms])) * cell_size**2
+                    if floor.rooms else float("nan")),
     }
