@@ -80,6 +80,7 @@ class ProtocolMatchedModels(Planner):
     needs_policy = property(lambda self: self.inner.needs_policy)
     uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
     ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)
+    prediction_trust = property(lambda self: self.inner.prediction_trust)
 
     def __getattr__(self, attribute: str) -> Any:  # last_decision, graph, ...: the planner's own
         if attribute == "inner":  # not yet built: no recursion

@@ -120,6 +120,8 @@ def replay_bag(bag: Path, out: Path, session: ExplorationSession, map_topic: str
                       "done": plan.done, "target": plan.target, "decision_ms": round(plan.decision_ms, 3),
                       "waypoints": plan.waypoints, "maps_skipped": session.state.maps_skipped,
                       "resets": session.state.resets}
+            if session.state.prediction_trust is not None:
+                record["prediction_trust"] = session.state.prediction_trust
             record_decision(recording, seconds, plan.waypoints, view, session.protocol.node_resolution, record)
     result.skipped, result.last_skip = session.state.maps_skipped, session.state.last_skip
     return result

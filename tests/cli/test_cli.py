@@ -1,6 +1,7 @@
 import json
 import warnings
 
+import cv2
 import numpy as np
 import pandas as pd
 import pytest
@@ -451,3 +452,23 @@ def test_planners_options_says_what_guide_is_built_of():
     assert "tour vote" in line and "guide/guide.py" in line
     names = [line.split(" = ")[0].strip() for line in result.output.splitlines() if line.startswith("  ") and " = " in line]
     assert names[:2] == ["min_utility", "inpainter_file"] and "policy_file" in names[:8]  # the paper's options first
+
+
+def test_explore_with_a_predicting_planner_records_its_trust(small_maze_path, tmp_path):
+    """run.json holds the record of checked predictions, the per-step file the trust at each
+    waypoint, and the final figure a trust strip under the map."""
+    from pipeline.world.trajectories import read_steps_csv
+
+    out = tmp_path / "trust"
+    result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "guide_tsp", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    record = json.loads((out / "run.json").read_text())["prediction_trust"]
+    assert record["right"] + record["wrong"] > 0 and 0.0 <= record["trust"] <= 1.0
+    steps = read_steps_csv(out / "small.steps.csv")
+    assert np.isnan(steps["prediction_trust"][0]) and np.isfinite(steps["prediction_trust"][1:]).all()
+    plain = tmp_path / "plain"
+    assert runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "plain=guide_tsp:trust=false",
+                               "--out", str(plain)]).exit_code == 0
+    assert "prediction_trust" not in json.loads((plain / "run.json").read_text())
+    taller = cv2.imread(str(out / "small.png")).shape[0] - cv2.imread(str(plain / "small.png")).shape[0]
+    assert taller > 0  # the trust strip

@@ -62,6 +62,7 @@ def test_the_session_explores_a_maze_in_closed_loop(small_maze, planner):
     episode = Episode(small_maze, PROTOCOL)
     session = ExplorationSession(planner, PROTOCOL, planner_options={"candidates": 2} if planner == "guide" else None)
     session.update_pose(*episode.position)  # the lattice is anchored at the first pose: the simulator's start
+    checked = []  # predicted nodes checked so far: kept over the planner's resets on new frames
     for _ in range(300):
         assert session.update_map(occupancy_message(episode, rng=rng))
         x, y = episode.position
@@ -70,9 +71,17 @@ def test_the_session_explores_a_maze_in_closed_loop(small_maze, planner):
         if plan.done:
             break
         assert plan.waypoints and plan.decision_ms > 0 and plan.target is not None
+        trust = session.state.prediction_trust
+        if trust is not None:
+            checked.append(trust["right"] + trust["wrong"])
+            assert 0.0 <= trust["trust"] <= 1.0
         episode.move(plan.waypoints[0])
     assert episode.completion_distance is not None, f"{planner}: {episode.explored_share:.2f} explored"
     assert session.state.maps_skipped == 0 and session.state.resets >= 2  # the map grew past its first frame
+    if planner == "greedy_utility":
+        assert session.state.prediction_trust is None
+    else:
+        assert checked[-1] > 0 and checked == sorted(checked)
 
 
 def test_plans_are_kept_until_a_waypoint_is_reached_the_map_changes_or_time_passes(small_maze):
