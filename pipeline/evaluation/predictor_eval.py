@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import NODE_UNKNOWN, LatticeGraph, LatticeSpec
 from pipeline.models.defaults import inpainter_path
 from pipeline.models.modeling_inpainter import TracedInpainter, load_inpainter
 from pipeline.planners import make_planner
@@ -27,11 +27,13 @@ from pipeline.prediction.global_graph import (
     PREDICTED,
     GlobalGraph,
     GlobalGraphConfig,
+    select_regions,
 )
 from pipeline.prediction.node_image import (
     PIXEL_UNKNOWN,
     ground_truth_states,
     node_states_image,
+    observed_node_states,
 )
 from pipeline.prediction.node_predictor import (
     DEFAULT_THRESHOLD,
@@ -45,7 +47,10 @@ from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import Episode, MotionError
 
 COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")  # precision.csv, as the issue fixes it
-DETAIL_COLUMNS = COLUMNS + ("centroids", "predictions_precision")  # precision_detail.csv: V_u split up
+# precision_detail.csv: V_u split up, and the base rate: the free share of the nodes the network
+# was asked about (unknown in its input) in the regions whose predictions region evaluation kept,
+# what calling every such node free would score.
+DETAIL_COLUMNS = COLUMNS + ("centroids", "predictions_precision", "base_rate")
 PAPER_STEPS = (15, 30, 45, 60)
 PAPER_PRECISION = {15: 75.92, 30: 79.73, 45: 79.24, 60: 84.61}  # % (Table I)
 PAPER_PREDICTION_MS = (5.4, 6.3)
@@ -174,6 +179,16 @@ def predict_at(
     global_graph = GlobalGraph(checkpoint.lattice, graph_config)
     global_graph.update(checkpoint.episode.belief.grid, checkpoint.episode.position, predicted, checkpoint.visited)
     return Prediction(predicted, global_graph, ms)
+
+
+def unknown_in_kept_regions(checkpoint: Checkpoint, graph_config: GlobalGraphConfig) -> np.ndarray:
+    """Lattice ids of the nodes unknown in the network's input that lie in the regions whose
+    predictions region evaluation keeps: the population V_u's predicted nodes are drawn from."""
+    lattice = checkpoint.lattice
+    asked = observed_node_states(lattice.belief, lattice) == NODE_UNKNOWN
+    selection = select_regions(lattice, np.asarray(checkpoint.episode.position, dtype=np.float64), graph_config.region)
+    region = selection.node_region
+    return np.nonzero(asked & selection.keep_region[region[:, 0], region[:, 1]])[0]
 
 
 def free_in_truth(lattice: LatticeGraph, ground_truth: GroundTruthMap, ids: np.ndarray) -> np.ndarray:
@@ -360,6 +375,8 @@ def _evaluate(
     centroid_tp = [{s: 0 for s in steps} for _ in range(n)]
     centroids = [{s: 0 for s in steps} for _ in range(n)]
     reached = {s: 0 for s in steps}
+    base_free = {s: 0 for s in steps}
+    base_total = {s: 0 for s in steps}
     times: dict[int, list[float]] = {s: [] for s in steps}
     for path in tqdm(map_paths, desc="maps", unit="map", disable=not progress):
         ground_truth = load_map(path, start=start, cell_size=protocol.cell_size)
@@ -374,6 +391,9 @@ def _evaluate(
                     predictors[0].predict(checkpoint.lattice)
             s = checkpoint.step
             reached[s] += 1
+            asked = unknown_in_kept_regions(checkpoint, graph_config)
+            base_free[s] += int(free_in_truth(checkpoint.lattice, ground_truth, asked).sum())
+            base_total[s] += int(asked.size)
             for i, predictor in enumerate(predictors):
                 prediction = predict_at(checkpoint, predictor, graph_config)
                 kept = prediction.kept
@@ -398,6 +418,7 @@ def _evaluate(
                     "prediction_ms_median": float(np.median(times[s])) if times[s] else float("nan"),
                     "centroids": centroids[i][s],
                     "predictions_precision": tp[i][s] / total[i][s] if total[i][s] else float("nan"),
+                    "base_rate": base_free[s] / base_total[s] if base_total[s] else float("nan"),
                 }
             )
         frames.append(pd.DataFrame(rows, columns=list(DETAIL_COLUMNS)))
@@ -421,9 +442,12 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
         + "/".join(f"{v:.2f}" for v in PAPER_PRECISION.values())
         + f" %, prediction {PAPER_PREDICTION_MS[0]}-{PAPER_PREDICTION_MS[1]} ms.",
         "",
-        "| step | precision (ours) | precision (paper) | V_u nodes | of them centroids | predictions only "
+        "Base rate: the free share of the nodes the network was asked about (unknown in its input) in the "
+        "regions whose predictions are kept, what calling them all free would score.",
+        "",
+        "| step | precision (ours) | precision (paper) | base rate | V_u nodes | of them centroids | predictions only "
         "| maps | prediction ms (median, ours) |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
 
     def percent(value: float) -> str:
@@ -437,7 +461,8 @@ def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference prec
         paper = f"{PAPER_PRECISION[row.step]:.2f} %" if row.step in PAPER_PRECISION else "-"
         ms = "n/a" if not np.isfinite(row.prediction_ms_median) else f"{row.prediction_ms_median:.2f}"
         lines.append(
-            f"| {row.step} | {percent(row.precision)} | {paper} | {count(row.predicted_nodes)} | {count(row.centroids)} "
+            f"| {row.step} | {percent(row.precision)} | {paper} | {percent(row.base_rate)} | {count(row.predicted_nodes)} "
+            f"| {count(row.centroids)} "
             f"| {percent(row.predictions_precision)} | {row.maps} | {ms} |"
         )
     return "\n".join(lines) + "\n"

@@ -53,6 +53,8 @@ def test_oracle_predictions_are_all_free(maze_paths):
     assert (frame["predictions_precision"] == 1.0).all()  # every kept prediction is a true free node
     assert (frame["precision"] <= 1.0).all() and (frame["centroids"] <= frame["predicted_nodes"]).all()
     assert (frame["prediction_ms_median"] > 0).all()
+    # The base rate is what calling every asked node free scores: an oracle beats it.
+    assert ((frame["base_rate"] > 0.2) & (frame["base_rate"] < frame["predictions_precision"])).all()
 
 
 def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
