@@ -40,8 +40,12 @@ class PredictionTrustConfig:
     prior_nodes: float = 20.0  # the priors' weight, in nodes: the record starts as if this many had been seen
     prior_precision: float = 0.9  # the predictions' precision before any is checked
     prior_base: float = 0.5  # the unknown's free share before any node is seen
-    full_at: float = 0.3  # lift at or above which predictions are used in full
-    none_at: float = 0.1  # lift at or below which none are used (the observed graph only)
+    # Predictions no better than the base rate still point the planner at large unknown space, and
+    # on generated building floors, where walls on lattice nodes leave every inpainter near the
+    # base rate, believing them in full made routes shorter than cutting them (docs/findings.md,
+    # "Trust in predictions"). So the cut is kept for predictions worse than the base rate.
+    full_at: float = 0.0  # lift at or above which predictions are used in full
+    none_at: float = -0.2  # lift at or below which none are used (the observed graph only)
 
     def __post_init__(self) -> None:
         if not self.prior_nodes > 0 or not 0 < self.prior_precision < 1 or not 0 < self.prior_base < 1:

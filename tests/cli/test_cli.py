@@ -120,7 +120,7 @@ def test_mazes_draws_office_floors_on_request(tmp_path):
     floor = load_map(paths[0])
     assert floor.free.shape == (100, 100) and floor.free.mean() > 0.7  # open floors, not mazes
     assert "already holds office PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "office"]))
-    assert "--kind must be maze, office or cave" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
+    assert "--kind must be maze, office, building or cave" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
     assert "side_m >= 20 m" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "office", "--side", "10"]))
     huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "h"), "--count", "1", "--kind", "office", "--side", "1e9"]))
     assert "the largest side at 0.4 m cells is" in huge
