@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -35,7 +35,7 @@ import numpy as np
 
 from pipeline.world.maps import MAX_IMAGE_PIXELS
 from pipeline.world.mazes import generate_map_set
-from pipeline.world.offices import START_CELLS, render_free_map
+from pipeline.world.offices import START_CELLS, draw_with_sides, render_free_map
 
 FREE_LABEL, WALL_LABEL, FURNITURE_LABEL, OUTSIDE_LABEL = 0, 1, 2, 3
 
@@ -455,18 +455,7 @@ def generate_building_set(config: BuildingConfig, count: int, out_dir: str | Pat
                           side_m: tuple[float, float] | None = None) -> list[Path]:
     """Write `count` building floors as `{prefix}_{i:04d}.png`, floor i drawn from default_rng([*seed, i]);
     with `side_m` = (low, high), each floor's side in whole metres is drawn from that range first."""
-    if side_m is not None:
-        low, high = math.ceil(side_m[0]), math.floor(side_m[1])
-        if not 20 <= low <= high:
-            raise ValueError(f"building floor sides must be a range low <= high of at least 20 m, got {tuple(side_m)}")
-        for side in (low, high):  # a side the config refuses fails here, before any floor is written
-            replace(config, side_m=float(side))
-
-        def draw(rng: np.random.Generator) -> np.ndarray:
-            return generate_building(replace(config, side_m=float(rng.integers(low, high + 1))), rng)
-    else:
-        def draw(rng: np.random.Generator) -> np.ndarray:
-            return generate_building(config, rng)
+    draw = draw_with_sides(generate_building, config, side_m, "building floor")
     return generate_map_set(draw, count, out_dir, seed, prefix, progress)
 
 

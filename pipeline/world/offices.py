@@ -21,9 +21,10 @@ left real targets behind in office floors and made routes longer there
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -220,6 +221,21 @@ def generate_office(config: OfficeConfig, rng: np.random.Generator) -> np.ndarra
     return render_free_map(*draw_office(config, rng))
 
 
+def draw_with_sides(draw_floor: Callable[[Any, np.random.Generator], np.ndarray], config: Any,
+                    side_m: tuple[float, float] | None, what: str) -> Callable[[np.random.Generator], np.ndarray]:
+    """`generate_map_set`'s draw for a floor family: `draw_floor(config, rng)`, with (given `side_m` =
+    (low, high)) each floor's side drawn first in whole metres from that range, inclusive; a side
+    the config refuses fails here, before any floor is drawn."""
+    if side_m is None:
+        return lambda rng: draw_floor(config, rng)
+    low, high = math.ceil(side_m[0]), math.floor(side_m[1])
+    if not 20 <= low <= high:
+        raise ValueError(f"{what} sides must be a range low <= high of at least 20 m, got {tuple(side_m)}")
+    for side in (low, high):
+        replace(config, side_m=float(side))
+    return lambda rng: draw_floor(replace(config, side_m=float(rng.integers(low, high + 1))), rng)
+
+
 def generate_office_set(config: OfficeConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
                         prefix: str = "office", progress: bool = True,
                         side_m: tuple[float, float] | None = None) -> list[Path]:
@@ -228,16 +244,5 @@ def generate_office_set(config: OfficeConfig, count: int, out_dir: str | Path, s
     With `side_m` = (low, high), each floor's side is drawn in whole metres from that range
     (inclusive) before the floor itself; else every floor has `config.side_m`.
     """
-    if side_m is not None:
-        low, high = math.ceil(side_m[0]), math.floor(side_m[1])
-        if not 20 <= low <= high:
-            raise ValueError(f"office floor sides must be a range low <= high of at least 20 m, got {tuple(side_m)}")
-        for side in (low, high):  # a side the config refuses fails here, before any floor is written
-            replace(config, side_m=float(side))
-
-        def draw(rng: np.random.Generator) -> np.ndarray:
-            return generate_office(replace(config, side_m=float(rng.integers(low, high + 1))), rng)
-    else:
-        def draw(rng: np.random.Generator) -> np.ndarray:
-            return generate_office(config, rng)
+    draw = draw_with_sides(generate_office, config, side_m, "office floor")
     return generate_map_set(draw, count, out_dir, seed, prefix, progress)

@@ -20,24 +20,15 @@ def building(tmp_path_factory):
     return load_maze_png(path, cell_size=0.2)
 
 
-def oracle_for(ground_truth):
-    """An inpainter that knows the ground truth: each image is answered from the node states it shows."""
+def oracle_for(ground_truth, wrong: bool = False):
+    """An inpainter that knows the ground truth: each image answered from the node states it
+    shows, free where the truth is free (or, `wrong`, exactly where it is not)."""
     def inpaint(image: np.ndarray) -> np.ndarray:
         planner = innermost(holder["planner"])
         truth = node_states_image(planner.graph, ground_truth_states(planner.graph, ground_truth.free))
-        padded, _ = pad_to_multiple(truth, 8, 0)
-        return (padded == 255).astype(np.float32) if padded.shape == image.shape else np.zeros(image.shape, np.float32)
-    holder: dict = {}
-    return inpaint, holder
-
-
-def anti_oracle_for(ground_truth):
-    """An inpainter that is always wrong: free exactly where the ground truth is not."""
-    def inpaint(image: np.ndarray) -> np.ndarray:
-        planner = innermost(holder["planner"])
-        truth = node_states_image(planner.graph, ground_truth_states(planner.graph, ground_truth.free))
-        padded, _ = pad_to_multiple(truth, 8, 255)
-        return (padded == 0).astype(np.float32) if padded.shape == image.shape else np.zeros(image.shape, np.float32)
+        padded, _ = pad_to_multiple(truth, 8, 255 if wrong else 0)
+        answer = (padded == 0) if wrong else (padded == 255)
+        return answer.astype(np.float32) if padded.shape == image.shape else np.zeros(image.shape, np.float32)
     holder: dict = {}
     return inpaint, holder
 
@@ -50,7 +41,7 @@ def test_a_planner_trusts_an_inpainter_that_is_right_and_drops_one_that_is_wrong
     assert result.complete
     assert right.trust_state.lift > 0.5 and min(t for t in result.waypoint_trust[1:]) == 1.0
 
-    inpaint, holder = anti_oracle_for(building)
+    inpaint, holder = oracle_for(building, wrong=True)
     wrong = make_planner("guide_tsp", inpaint=inpaint, min_component=0)
     holder["planner"] = wrong
     result = run_episode(building, wrong, PAPER_REAL_ROBOT, seed=0)
