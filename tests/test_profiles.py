@@ -75,8 +75,7 @@ def test_real_robot_profile_has_the_default_keys_the_papers_scale_and_passes_eve
     protocol = Protocol.from_dict(real["protocol"])
     assert protocol == PAPER_REAL_ROBOT
     assert protocol.done_unknown_cells * protocol.cell_size ** 2 == pytest.approx(40.0)  # the 40 m^2 done rule
-    assert real["mazes"]["office_scale"] == "real_robot"
-    assert real["mazes"]["train"]["kind"] == real["mazes"]["test"]["kind"] == "office"
+    assert real["mazes"]["train"]["kind"] == real["mazes"]["test"]["kind"] == "building"  # floors drawn like real plans
     assert real["train_planner"]["model"]["max_nodes"] == real["build_observations"]["max_nodes"]
     stages = {"benchmark": "benchmark", "build_observations": "build_observations", "collect_expert": "collect_expert",
               "collect_pairs": "collect_pairs", "distil_policy": "distil_policy", "eval_predictor": "eval_predictor",
