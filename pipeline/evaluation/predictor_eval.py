@@ -27,6 +27,7 @@ from pipeline.prediction.global_graph import (
     PREDICTED,
     GlobalGraph,
     GlobalGraphConfig,
+    RegionSelection,
     select_regions,
 )
 from pipeline.prediction.node_image import (
@@ -181,12 +182,15 @@ def predict_at(
     return Prediction(predicted, global_graph, ms)
 
 
-def unknown_in_kept_regions(checkpoint: Checkpoint, graph_config: GlobalGraphConfig) -> np.ndarray:
+def unknown_in_kept_regions(checkpoint: Checkpoint, selection: RegionSelection | None,
+                            graph_config: GlobalGraphConfig) -> np.ndarray:
     """Lattice ids of the nodes unknown in the network's input that lie in the regions whose
-    predictions region evaluation keeps: the population V_u's predicted nodes are drawn from."""
+    predictions region evaluation keeps (`selection`, the global graph's; made here when the graph
+    ran without region evaluation): the population V_u's predicted nodes are drawn from."""
     lattice = checkpoint.lattice
     asked = observed_node_states(lattice.belief, lattice) == NODE_UNKNOWN
-    selection = select_regions(lattice, np.asarray(checkpoint.episode.position, dtype=np.float64), graph_config.region)
+    if selection is None:
+        selection = select_regions(lattice, np.asarray(checkpoint.episode.position, dtype=np.float64), graph_config.region)
     region = selection.node_region
     return np.nonzero(asked & selection.keep_region[region[:, 0], region[:, 1]])[0]
 
@@ -391,9 +395,6 @@ def _evaluate(
                     predictors[0].predict(checkpoint.lattice)
             s = checkpoint.step
             reached[s] += 1
-            asked = unknown_in_kept_regions(checkpoint, graph_config)
-            base_free[s] += int(free_in_truth(checkpoint.lattice, ground_truth, asked).sum())
-            base_total[s] += int(asked.size)
             for i, predictor in enumerate(predictors):
                 prediction = predict_at(checkpoint, predictor, graph_config)
                 kept = prediction.kept
@@ -404,6 +405,9 @@ def _evaluate(
                 centroids[i][s] += len(centroid_cells)
                 if i == 0:
                     times[s].append(prediction.milliseconds)
+                    asked = unknown_in_kept_regions(checkpoint, prediction.global_graph.region_selection, graph_config)
+                    base_free[s] += int(free_in_truth(checkpoint.lattice, ground_truth, asked).sum())
+                    base_total[s] += int(asked.size)
     frames = []
     for i in range(n):
         rows = []

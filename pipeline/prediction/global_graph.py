@@ -174,6 +174,7 @@ class GlobalGraph:
             self.region_scores = selection.scores
         else:
             kept, centroid_xy = predicted, np.zeros((0, 2))
+        self.region_selection: RegionSelection | None = selection  # None without region evaluation
         self.lattice_ids = np.concatenate([known, kept, np.full(len(centroid_xy), -1)])
         self.types = np.concatenate(
             [np.full(len(known), KNOWN), np.full(len(kept), PREDICTED), np.full(len(centroid_xy), CENTROID)]
