@@ -11,8 +11,12 @@ progress bar, on
 
 Results come back to this process through the engine (pickled by the process pool, or Ray's
 object store), never through files a worker writes, so no node needs a file system shared
-with this one. Ray ships this package to every node (`runtime_env` `py_modules`), so the nodes
-run the driver's code and need only the dependencies installed.
+with this one for its results. Ray ships this package to every node (`runtime_env`
+`py_modules`), so the nodes run the driver's code and need only the dependencies installed.
+What a task reads by path (a maze folder, a data set, a model) it reads from the driver's
+working folder where the node has it (the same path on a shared file system, or this machine);
+`GUIDE_RAY_WORKING_DIR=.` ships the driver's working folder to every node instead (Ray's
+`working_dir`, for data sets of up to a few hundred MB).
 
 The engine is a machine setting, never part of any data's identity: the same tasks give the
 same results on both. `resolve_backend` reads it from an explicit value, else the
@@ -41,6 +45,9 @@ R = TypeVar("R")
 
 BACKENDS = ("process", "ray")
 BACKEND_ENV = "GUIDE_BACKEND"
+WORKING_DIR_ENV = "GUIDE_RAY_WORKING_DIR"
+# Never shipped with a working folder: caches, histories and the work of running stages.
+WORKING_DIR_EXCLUDES = [".git", ".dvc/cache", ".dvc/tmp", "checkpoints", "mlruns", "mlflow.db", "runs", "__pycache__"]
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the `pipeline` package Ray ships to its nodes
 
 # What a run shares with every task (`run_tasks(shared=...)`), by run: set before the process pool
@@ -66,8 +73,13 @@ def default_workers() -> int:
 
 
 def ray_runtime_env() -> dict[str, Any]:
-    """What every Ray worker needs to import this code: the `pipeline` package, shipped from here."""
-    return {"py_modules": [str(PACKAGE_DIR)], "excludes": ["__pycache__", "*.pyc"]}
+    """What every Ray worker needs: the `pipeline` package, shipped from here, and with
+    $GUIDE_RAY_WORKING_DIR the working folder its tasks read inputs from."""
+    env: dict[str, Any] = {"py_modules": [str(PACKAGE_DIR)], "excludes": ["__pycache__", "*.pyc"]}
+    if os.environ.get(WORKING_DIR_ENV):
+        env["working_dir"] = os.environ[WORKING_DIR_ENV]
+        env["excludes"] = env["excludes"] + WORKING_DIR_EXCLUDES
+    return env
 
 
 def start_ray(workers: int | None) -> None:
@@ -83,8 +95,11 @@ def start_ray(workers: int | None) -> None:
         ray.init(address="local", num_cpus=workers or default_workers(), **quiet)
 
 
-def _apply(function: Callable[..., R], *args: Any) -> R:
-    """function(*args): what a Ray task runs (Ray takes plain functions only; `function` may be a partial)."""
+def _apply(folder: str | None, function: Callable[..., R], *args: Any) -> R:
+    """function(*args) in the driver's working `folder` where this node has it (so that relative
+    paths read what the driver would): what a Ray task runs (Ray takes plain functions only)."""
+    if folder is not None and os.path.isdir(folder):
+        os.chdir(folder)
     return function(*args)
 
 
@@ -101,12 +116,13 @@ def results_as_finished(function: Callable[..., R], tasks: Sequence[T], indices:
 
         start_ray(workers)
         remote = ray.remote(num_cpus=1)(_apply)
+        folder = None if os.environ.get(WORKING_DIR_ENV) else os.getcwd()  # a shipped working folder is the task's own
         function_ref = ray.put(function)
         if shared is None:
-            pending = {remote.remote(function_ref, tasks[index]): index for index in indices}
+            pending = {remote.remote(folder, function_ref, tasks[index]): index for index in indices}
         else:  # stored once in the object store; each task reads it from its node's copy
             shared_ref = ray.put(shared)
-            pending = {remote.remote(function_ref, shared_ref, tasks[index]): index for index in indices}
+            pending = {remote.remote(folder, function_ref, shared_ref, tasks[index]): index for index in indices}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)

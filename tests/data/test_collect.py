@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.pairs import load_pairs
