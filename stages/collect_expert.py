@@ -12,7 +12,7 @@ from typing import Any
 from pydantic import ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
 
-from pipeline.common.config import Section, flag, satisfies, text, whole
+from pipeline.common.config import Section, flag, satisfies, whole
 from pipeline.planners import planner_config
 from pipeline.planners.registry import accepted_options, make_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
@@ -30,7 +30,6 @@ class Settings(Section):
     horizon: whole(1, note="future waypoints per step")
     random_starts: flag()
     workers: whole(0, note="0 or 1: in this process")
-    backend: text(("process", "ray"))
 
     @field_validator("planner_options")
     @classmethod
@@ -55,6 +54,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 if __name__ == "__main__":
     parser = stage_arguments(__doc__)
     parser.add_argument("--backend", choices=["process", "ray"], default=None,
-                        help="process (default) or ray (pip install '.[ray]')")
+                        help="where the shards are made: process (this machine's cores) or ray (the cluster "
+                             "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]")
     args = parser.parse_args()
     run_stage_main(main, args.params, args.backend)

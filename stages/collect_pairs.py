@@ -6,7 +6,7 @@ manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.pn
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, list_of, pair, satisfies, text, whole
+from pipeline.common.config import Section, list_of, pair, satisfies, whole
 from pipeline.planners import planner_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.collect_pairs import collect_pairs
@@ -22,7 +22,6 @@ class Settings(Section):
     snapshot_every: whole(1, note="steps")
     stop_steps: pair(whole(1, note="steps"))
     workers: whole(0, note="0 or 1: in this process")
-    backend: text(("process", "ray"))
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
@@ -32,6 +31,7 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 if __name__ == "__main__":
     parser = stage_arguments(__doc__)
     parser.add_argument("--backend", choices=["process", "ray"], default=None,
-                        help="process (default) or ray (pip install '.[ray]')")
+                        help="where the shards are made: process (this machine's cores) or ray (the cluster "
+                             "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]")
     args = parser.parse_args()
     run_stage_main(main, args.params, args.backend)

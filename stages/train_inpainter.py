@@ -32,6 +32,7 @@ Settings = pydantic.create_model(
     model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
     accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
     devices=(maybe(DEVICES, "1"), None),
+    num_nodes=(maybe(whole(1, note="nodes of a multi-node DDP run"), "1"), None),
     threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
     init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
     experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),

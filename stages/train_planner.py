@@ -26,6 +26,7 @@ class Settings(Section):
     train: every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))  # its default unless set
     accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
     devices: DEVICES
+    num_nodes: whole(1, note="nodes of a multi-node DDP run")
     threads: maybe(whole(0, note="0: torch's default"), "torch's default")
     experiment: text(note="an MLflow experiment")
 

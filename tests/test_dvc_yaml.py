@@ -43,3 +43,43 @@ def test_every_data_model_and_report_path_is_written_down_once():
             if re.search(r"""Path\(\s*f?["'](?:data|models|reports)/""", line):
                 spelled.append(f"{path.relative_to(ROOT)}:{number}")
     assert not spelled, f"paths written outside pipeline/paths.yaml: {spelled}"
+
+
+def test_machine_settings_are_not_part_of_any_stages_identity():
+    """Each stage lists its section's keys one by one, all but the machine settings: a teammate
+    with another core count (workers), devices or threads does not rerun anything."""
+    from pipeline.common.params import MACHINE_KEYS
+
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    for name, stage in yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"].items():
+        listed = stage.get("params") or stage.get("do", {}).get("params") or []
+        for section, values in params.items():
+            if not isinstance(values, dict):
+                continue
+            keys = {entry.split(".", 1)[1] for entry in listed if entry.startswith(section + ".")}
+            if section in listed:
+                assert not set(values) & set(MACHINE_KEYS), f"{name}: lists all of {section}, machine settings too"
+            elif keys and any(k in values for k in MACHINE_KEYS):
+                assert keys == set(values) - set(MACHINE_KEYS), (
+                    f"{name}: lists {sorted(keys)} of {section}, not every key but the machine settings "
+                    f"{sorted(set(values) - set(MACHINE_KEYS) - keys)}")
+
+
+def test_every_output_travels_through_a_dvc_remote_or_git():
+    """An output DVC does not cache must be a summary JSON that git tracks: anything else (a
+    figure, a folder of tables) would be missing from a teammate's clone after `dvc pull`."""
+    import re
+    import subprocess
+
+    paths = yaml.safe_load((ROOT / "pipeline/paths.yaml").read_text())
+    for name, stage in yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"].items():
+        for out in stage.get("outs") or stage.get("do", {}).get("outs") or []:
+            if isinstance(out, dict):
+                ((path, options),) = out.items()
+                if options.get("cache") is False:
+                    ref = re.fullmatch(r"\$\{(\w+)\.(\w+)\}", path)
+                    resolved = str(paths[ref[1]][ref[2]]) if ref and ref[1] != "item" else path
+                    assert resolved.endswith(".json") or resolved == "${item.metrics}", (name, resolved)
+                    if ref and ref[1] != "item":
+                        ignored = subprocess.run(["git", "check-ignore", "-q", resolved], cwd=ROOT).returncode == 0
+                        assert not ignored, f"{name}: {resolved} is neither cached by DVC nor tracked by git"

@@ -1,11 +1,13 @@
-"""End to end: `dvc repro` on a fresh copy of the project with a tiny profile."""
+"""End to end: `dvc repro` on a fresh copy of the project with a tiny profile; the same on a
+two-node Ray cluster, byte for byte; and a teammate's clone through a DVC remote."""
 
 import json
 import subprocess
+from pathlib import Path
 
 import pytest
 import yaml
-from tiny_project import dvc_env, make_tiny_project
+from tiny_project import dvc, dvc_env, git, make_tiny_project
 
 from pipeline.planners.specs import parse_planner_spec
 
@@ -14,14 +16,63 @@ from pipeline.planners.specs import parse_planner_spec
 HALF_SCALE = {"node_resolution": 2.0, "sensor_range": 10.0, "utility_range": 5.0, "region_size": 10.0}
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("protocol", [{}, HALF_SCALE], ids=["default", "half_scale"])
-def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
-    project = make_tiny_project(tmp_path / "project", protocol)
-    params = yaml.safe_load((project / "params.yaml").read_text())
-    env = dvc_env()
+@pytest.fixture(scope="module")
+def tiny_repro(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """A fresh tiny copy after one `dvc repro` on the process engine, and that run."""
+    project = make_tiny_project(tmp_path_factory.mktemp("tiny") / "project")
+    env = {k: v for k, v in dvc_env().items() if k not in ("GUIDE_BACKEND", "RAY_ADDRESS")}
     run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    return project, run
+
+
+def produced_bytes(project: Path) -> dict[str, str]:
+    """DVC's hash of every data set (data/*) and the bytes of every benchmark trajectory: what
+    the executor's workloads made (collections, gate samples, block snapshots, observations,
+    DAgger rollouts, benchmark and report episodes all feed these)."""
+    lock = yaml.safe_load((project / "dvc.lock").read_text())
+    made = {out["path"]: out["md5"] for stage in lock["stages"].values() for out in stage.get("outs", [])
+            if out["path"].startswith(("data/", "models/sliver_gate", "models/block_model"))}
+    for path in sorted((project / "reports/benchmark").glob("*/*.csv")):
+        made[str(path.relative_to(project))] = path.read_text()
+    return made
+
+
+@pytest.mark.slow
+def test_every_workload_gives_the_process_engines_bytes_on_a_two_node_ray_cluster(tiny_repro, tmp_path):
+    ray = pytest.importorskip("ray", reason="the ray extra is not installed (pip install -e '.[dev]' brings it)")
+    from ray.cluster_utils import Cluster
+
+    reference, _ = tiny_repro
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    try:
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        project = make_tiny_project(tmp_path / "project")
+        env = {**dvc_env(), "GUIDE_BACKEND": "ray", "RAY_ADDRESS": cluster.address}
+        run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
+        assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    assert "Connecting to existing Ray cluster" in run.stdout + run.stderr  # the stages joined it
+    made, expected = produced_bytes(project), produced_bytes(reference)
+    assert sorted(made) == sorted(expected) and len(made) > 20
+    assert {k for k in made if made[k] != expected[k]} == set()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("protocol", [{}, HALF_SCALE], ids=["default", "half_scale"])
+def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
+    if protocol:
+        project = make_tiny_project(tmp_path / "project", protocol)
+        env = dvc_env()
+        run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
+        assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    else:  # the module's run (the Ray test reads it before, the remote test pushes it after)
+        project, run = request.getfixturevalue("tiny_repro")
+        env = dvc_env()
+    params = yaml.safe_load((project / "params.yaml").read_text())
     assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
     metrics = json.loads((project / "reports/benchmark.json").read_text())
     assert set(metrics) == {parse_planner_spec(spec).label for spec in params["benchmark"]["planners"]}
@@ -63,3 +114,36 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol):
         from test_dvc_experiments import check_experiments
 
         check_experiments(project)
+
+
+@pytest.mark.slow
+def test_a_teammate_pulls_the_results_and_finds_nothing_to_rerun(tiny_repro, tmp_path):
+    """`dvc push` to a shared remote (a local folder here; S3 or SSH in docs/scale-out.md), a fresh
+    clone, `dvc pull`: `dvc status` is clean and `dvc repro` reruns nothing, also on a machine
+    that sets other machine settings (workers, threads) in its params.yaml."""
+    project, _ = tiny_repro
+    remote = tmp_path / "remote"
+    dvc(project, "remote", "add", "-d", "team", str(remote), check=True)
+    dvc(project, "push", check=True)
+    git(project, "add", "-A")
+    git(project, "commit", "-qm", "results of the tiny profile")
+    clone = tmp_path / "clone"
+    git(tmp_path, "clone", "-q", str(project), str(clone))
+    assert not (clone / "data").exists()
+    dvc(clone, "pull", check=True)
+    status = dvc(clone, "status", check=True)
+    assert "up to date" in status.stdout.lower(), status.stdout
+    params = yaml.safe_load((clone / "params.yaml").read_text())
+    from pipeline.common.params import MACHINE_KEYS
+
+    changed = 0
+    for section in params.values():
+        for key in set(MACHINE_KEYS) & set(section if isinstance(section, dict) else ()):
+            section[key] = 1 if key in ("workers", "threads", "devices") else section[key]
+            changed += key in ("workers", "threads")
+    assert changed >= 8
+    (clone / "params.yaml").write_text(yaml.safe_dump(params, sort_keys=False))
+    status = dvc(clone, "status", check=True)
+    assert "up to date" in status.stdout.lower(), status.stdout
+    again = dvc(clone, "repro", check=True)
+    assert "Running stage" not in again.stdout, again.stdout[-3000:]

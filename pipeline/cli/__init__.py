@@ -2,7 +2,8 @@
 
 Each command lives in a module of this package and is imported when it runs (`COMMANDS`), so
 a command that needs no model (`guide mazes`, `guide replay`) never loads torch. The pipeline's
-stages run as `dvc repro` (or `python -m stages.<name>`), not through this command line.
+stages run as `dvc repro` (or `python -m stages.<name>`); `guide repro` is `dvc repro` that also
+goes on after a run killed with its whole process group (`pipeline/cli/repro.py`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ COMMANDS = {
     "resample-map": "pipeline.cli.maps",
     "eval-predictor": "pipeline.cli.predictor",
     "bag": "pipeline.cli.bag",
+    "repro": "pipeline.cli.repro",
 }
 
 

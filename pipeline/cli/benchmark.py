@@ -36,6 +36,9 @@ def benchmark(
         ..., "--planner", help="Planner name or labelled variant label=name:key=value,...; repeat for several."),
     out: Path = typer.Option(Path("runs/bench"), help="Output folder (trajectories, metrics.csv, summary.md)."),
     workers: Optional[int] = typer.Option(None, min=1, help="Parallel processes [default: all cores]."),
+    backend: Optional[str] = typer.Option(
+        None, help="Where the episodes run: process (this machine's cores) or ray (the Ray cluster $RAY_ADDRESS "
+                   "names, else a private one here) [default: $GUIDE_BACKEND or process]."),
     seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     tracking_uri: Optional[str] = typer.Option(None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]."),
     experiment: str = typer.Option("benchmark", help="MLflow experiment name."),
@@ -59,7 +62,8 @@ def benchmark(
     record), and OUT/metrics.csv, summary.md, exploration.csv (distance to 50 / 90 / 99 % of the
     free area, coverage AUC, Table V efficiency), coverage.png and run.json.
 
-    Exits 1 when an episode did not complete (the files are written either way).
+    Each finished episode is kept (OUT/.episodes/) until the run completes: killed, the same
+    command resumes it. Exits 1 when an episode did not complete (the files are written either way).
     """
     try:
         speed = SpeedModel(speed_mps)
@@ -71,10 +75,11 @@ def benchmark(
         frame = benchmark_folder(maps, list(planner), rules, out, workers=workers, seed=seed, baseline=baseline,
                                  start=start, checkpoint=checkpoint, tracking_uri=tracking_uri,
                                  experiment=experiment, mlflow=mlflow_log, warn=warn,
-                                 speed=speed).frame
+                                 speed=speed, backend=backend).frame
     except BenchmarkInterrupted as stop:
         kept = f"; {out}/metrics.csv and summary.md hold them" if stop.done else ""
-        typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}", err=True)
+        typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}; the same command resumes "
+                   "the run", err=True)
         raise typer.Exit(code=130)
     except (MapError, ValueError, FileNotFoundError) as error:  # a malformed spec, an unknown option or name, no model
         fail(str(error))

@@ -73,3 +73,60 @@ def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
         f"tracking store {uri!r} is not one MLflow 3 can log to here: use sqlite:///mlflow.db (the default), "
         "an http(s):// tracking server or a database URI"
     )
+
+
+def dvc_hash(folder: str | Path, lock_path: str | Path = "dvc.lock") -> str | None:
+    """DVC's recorded hash of `folder` when a stage of `lock_path` (dvc.lock) outputs it, else None."""
+    import yaml
+
+    lock_path = Path(lock_path)
+    if not lock_path.is_file():
+        return None
+    try:
+        target = Path(folder).resolve().relative_to(lock_path.resolve().parent).as_posix()
+    except ValueError:
+        return None  # outside the project
+    stages = (yaml.safe_load(lock_path.read_text()) or {}).get("stages", {})
+    for stage in stages.values():
+        for out in stage.get("outs", []):
+            if out.get("path") == target:
+                return out.get("md5")
+    return None
+
+
+def maze_set_input(folder: str | Path, context: str = "evaluation") -> tuple[object, dict[str, str]]:
+    """The MLflow dataset input of the maze set (or data set) `folder`: named by the folder,
+    its digest DVC's hash where a stage made it (else a digest of its files), its source the
+    folder; returns (dataset, tags) for `mlflow.log_input(dataset, context, tags)`."""
+    import warnings
+
+    from pipeline.common.fingerprints import files_digest
+
+    import_mlflow()  # telemetry off first
+    from mlflow.data.dataset_source_registry import resolve_dataset_source
+    from mlflow.data.meta_dataset import MetaDataset
+
+    folder = Path(folder)
+    recorded = dvc_hash(folder)
+    with warnings.catch_warnings():  # a local path reads as two kinds of the same source
+        warnings.simplefilter("ignore", UserWarning)
+        source = resolve_dataset_source(str(folder.resolve()))
+    name = folder.as_posix() if not folder.is_absolute() else folder.name
+    dataset = MetaDataset(source=source, name=name, digest=recorded or files_digest([folder]))
+    tags = {"dvc_hash": recorded or "none (not a DVC output here)", "context": context}
+    return dataset, tags
+
+
+def log_maze_set(folder: str | Path, context: str = "evaluation", run_id: str | None = None,
+                 client: object | None = None) -> None:
+    """Record the maze set `folder` as a dataset input of the active MLflow run (or of `run_id`
+    through `client`, for a run Lightning's logger holds)."""
+    dataset, tags = maze_set_input(folder, context)
+    mlflow = import_mlflow()
+    if run_id is None:
+        mlflow.log_input(dataset, context=context, tags=tags)
+        return
+    from mlflow.entities import DatasetInput, InputTag
+
+    input_tags = [InputTag("mlflow.data.context", context)] + [InputTag(k, v) for k, v in tags.items() if k != "context"]
+    client.log_inputs(run_id, datasets=[DatasetInput(dataset._to_mlflow_entity(), input_tags)])

@@ -13,6 +13,12 @@ from typing import Any
 
 import yaml
 
+# A section's machine settings: how this machine runs a stage (its cores, engine, devices), never
+# what the stage makes. dvc.yaml lists every other key of a section one by one and leaves these
+# out, so that two machines with other core counts agree that the pipeline is up to date.
+MACHINE_KEYS = ("workers", "threads", "accelerator", "devices", "device", "num_nodes")
+
+
 def yaml_problem(error: yaml.YAMLError) -> str:
     """What a YAML parser refused, with its line and column when it knows them (one line)."""
     problem = getattr(error, "problem", None)

@@ -14,20 +14,20 @@ that makes the same data.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import shutil
 import subprocess
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+import tempfile
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from tqdm import tqdm
 
-from pipeline.common.atomic import atomic_folder, atomic_write_json
+from pipeline.common.atomic import atomic_folder, atomic_write_bytes, atomic_write_json
+from pipeline.common.executor import resolve_backend, run_tasks
 from pipeline.common.fingerprints import settings_digest, source_digest
 
 MANIFEST = "manifest.json"
@@ -105,7 +105,7 @@ def run_shards(
     out_dir: str | Path,
     params: dict[str, Any],
     workers: int = 1,
-    backend: str = "process",
+    backend: str | None = None,
     description: str = "shards",
     progress: bool = True,
     sources: Sequence[str] | None = None,
@@ -116,8 +116,11 @@ def run_shards(
     returns its manifest with this run's provenance.
 
     `make_shard(job)` writes `shard_path(job.out_dir, job.index)` (its counts as `summary_*`
-    arrays); `job.out_dir` is the work folder (default: `out_dir` with `.work` appended, beside
-    it). Shards from other params or code and stray temporaries are removed from it first.
+    arrays) into a private folder of the machine that runs it; the shard comes back as the task's
+    result (`shard_bytes`) and this process writes it into the work folder (default: `out_dir`
+    with `.work` appended, beside it), on either engine (`pipeline.common.executor`; `backend`
+    None: $GUIDE_BACKEND, else process). Shards from other params or code and stray temporaries
+    are removed from the work folder first.
     `sources` names the library files whose code the shards depend on (see `fingerprint`).
     `inputs` is what else they depend on, such as the digests of the models a collection runs:
     it enters the fingerprint only, since those bytes can differ where the data do not (an export
@@ -128,10 +131,7 @@ def run_shards(
     returned dict adds `code_version` and `made_this_run` (the shard indices this run made)
     for the caller's run summary.
     """
-    if backend not in ("process", "ray"):  # checked before any shard on disk is touched
-        raise ValueError(f"unknown backend {backend!r}: use 'process' or 'ray'")
-    if backend == "ray" and importlib.util.find_spec("ray") is None:
-        raise ValueError("backend 'ray' needs Ray, which is not installed: pip install '.[ray]' (or use backend: process)")
+    backend = resolve_backend(backend)  # checked before any shard on disk is touched
     out_dir = Path(out_dir)
     work = Path(work_dir) if work_dir is not None else out_dir.with_name(out_dir.name + ".work")
     work.mkdir(parents=True, exist_ok=True)
@@ -146,31 +146,18 @@ def run_shards(
     for record in work.glob("shard_*.json"):
         if not record.with_suffix(".npz").is_file():
             record.unlink()
-    jobs = [ShardJob(k, str(work), fp, params) for k in range(shard_count)]
-    todo = [job for job in jobs if not shard_path(work, job.index).is_file()]
+    todo = [k for k in range(shard_count) if not shard_path(work, k).is_file()]
     if len(todo) < shard_count:
         print(f"{description}: {shard_count - len(todo)} of {shard_count} kept from an earlier run ({work})")
 
-    def finished(index: int) -> None:  # the record last: a shard without one is redone
-        atomic_write_json(_record_path(shard_path(work, index)), {"fingerprint": fp})
-        bar.update()
+    def finished(position: int, shard: bytes) -> None:  # the record last: a shard without one is redone
+        path = shard_path(work, todo[position])
+        atomic_write_bytes(path, shard)
+        atomic_write_json(_record_path(path), {"fingerprint": fp})
 
-    bar = tqdm(total=shard_count, initial=shard_count - len(todo), desc=description, unit="shard", disable=not progress)
-    if backend == "ray":
-        for index, _ in _run_ray(make_shard, todo, workers):
-            finished(index)
-    else:
-        if workers <= 1 or len(todo) <= 1:
-            for job in todo:
-                make_shard(job)
-                finished(job.index)
-        else:
-            with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
-                futures = {pool.submit(make_shard, job): job.index for job in todo}
-                for future in as_completed(futures):
-                    future.result()  # re-raises a worker's error
-                    finished(futures[future])
-    bar.close()
+    jobs = [ShardJob(k, "", fp, params) for k in todo]
+    run_tasks(partial(shard_bytes, make_shard), jobs, workers, description, "shard", backend=backend,
+              progress=progress, on_result=finished, collect=False)
     # Counts read back from every shard file, made now or earlier, so a resume writes the same manifest.
     shards = [{"file": shard_path(work, k).name, **summarise_shard(shard_path(work, k))} for k in range(shard_count)]
     manifest = {"params": params, "shards": shards, "totals": _totals(shards)}
@@ -178,7 +165,15 @@ def run_shards(
         for k in range(shard_count):
             _link_or_copy(shard_path(work, k), shard_path(folder, k))
         (folder / MANIFEST).write_text(json.dumps(manifest, indent=2, default=str) + "\n")
-    return {**manifest, "code_version": code_version(), "made_this_run": [job.index for job in todo]}
+    return {**manifest, "code_version": code_version(), "made_this_run": todo}
+
+
+def shard_bytes(make_shard: Callable[[ShardJob], Any], job: ShardJob) -> bytes:
+    """The bytes of the shard `make_shard` writes for `job`, made in a private folder of whichever
+    machine runs it: the shard travels back as the task's result, not through a shared disk."""
+    with tempfile.TemporaryDirectory(prefix="guide-shard-") as folder:
+        make_shard(replace(job, out_dir=folder))
+        return shard_path(folder, job.index).read_bytes()
 
 
 def _link_or_copy(source: Path, target: Path) -> None:
@@ -234,18 +229,3 @@ def read_manifest(out_dir: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no manifest (the collection did not finish; rerun its stage)")
     return json.loads(path.read_text())
-
-
-def _run_ray(make_shard: Callable[[ShardJob], dict[str, Any]], jobs: list[ShardJob], workers: int):
-    import ray  # installed: run_shards checked
-    if not ray.is_initialized():
-        if os.environ.get("RAY_ADDRESS"):
-            ray.init(log_to_driver=False)  # join the cluster RAY_ADDRESS names
-        else:
-            ray.init(num_cpus=workers if workers > 0 else None, include_dashboard=False, log_to_driver=False)
-    remote = ray.remote(make_shard)
-    pending = {remote.remote(job): job.index for job in jobs}
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        for ref in done:
-            yield pending.pop(ref), ray.get(ref)

@@ -1,27 +1,31 @@
-"""Benchmark many maps x planners in parallel processes and write docs/protocol.md's outputs.
+"""Benchmark many maps x planners on the executor's engines and write docs/protocol.md's outputs.
 
 Data makes one trip: each map is loaded once and each planner built once per benchmark, in the
-main process, before the episodes (the checks need them); worker processes, forked from it,
-take both from there, and a planner is reset for each of its episodes. The episodes' metrics,
-per-step records, exploration table and summary are computed once, in memory, written once and
-handed back (`BenchmarkRun`) for the figures and the MLflow runs.
+main process, before the episodes (the checks need them); they reach the episodes as the run's
+shared inputs (`EpisodeInputs`: forked worker processes take them from their copy, a Ray node
+from its object store), and a planner is reset for each of its episodes. Each finished episode
+is kept under OUT/.episodes/ until the run completes, so a killed run, rerun with the same
+command, resumes where it stopped on either engine. The episodes' metrics, per-step records,
+exploration table and summary are computed once, in memory, written once and handed back
+(`BenchmarkRun`) for the figures and the MLflow runs.
 """
 
 from __future__ import annotations
 
 import json
-import os
+import shutil
 import warnings
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
+from pipeline.common.executor import default_workers, resolve_backend, run_tasks
+from pipeline.common.fingerprints import files_digest, source_digest
+from pipeline.common.kept_results import KeptResults
 from pipeline.evaluation.exploration_curves import (
     EXPLORATION_CSV,
     SpeedModel,
@@ -51,6 +55,7 @@ RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and model
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
 OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
+KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run not yet complete
 
 
 def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> list[str]:
@@ -109,8 +114,8 @@ def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]
         seen[name] = path
 
 
-# This process's maps and planners: filled by `run_benchmark` before its workers fork, so that a
-# worker takes them from there; a task run elsewhere loads or builds what it lacks once.
+# This process's maps and planners: filled by `run_benchmark` (and by the shared inputs a task
+# arrives with), so that an episode finds them; a task run alone loads or builds what it lacks once.
 _MAPS: dict[tuple, tuple[GroundTruthMap, Protocol]] = {}
 _PLANNERS: dict[tuple[str, str], Planner] = {}
 
@@ -130,6 +135,24 @@ def task_planner(task: EpisodeTask) -> Planner:
     if key not in _PLANNERS:
         _PLANNERS[key] = make_planner(task.planner, **task.options)
     return _PLANNERS[key]
+
+
+@dataclass
+class EpisodeInputs:
+    """What every episode of a run reads: the loaded maps and the built planners, by the keys of
+    `task_map` and `task_planner`."""
+
+    maps: dict[tuple, tuple[GroundTruthMap, Protocol]]
+    planners: dict[tuple[str, str], Planner]
+
+
+def run_shared_task(inputs: EpisodeInputs, task: EpisodeTask) -> EpisodeResult:
+    """`run_task` with the run's maps and planners (the executor's shared inputs) taken first."""
+    for key, value in inputs.maps.items():
+        _MAPS.setdefault(key, value)
+    for key, value in inputs.planners.items():
+        _PLANNERS.setdefault(key, value)
+    return run_task(task)
 
 
 def run_task(task: EpisodeTask) -> EpisodeResult:
@@ -155,10 +178,6 @@ class BenchmarkRun:
     maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
 
 
-def default_workers() -> int:
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
-
-
 def run_benchmark(
     map_paths: Sequence[str | Path],
     planners: Sequence[str | PlannerSpec],
@@ -171,6 +190,7 @@ def run_benchmark(
     start: tuple[float, float] | None = None,
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
+    backend: str | None = None,
 ) -> BenchmarkRun:
     """Run every map with every planner; write trajectories, their per-step files, metrics.csv,
     exploration.csv and summary.md; return them in memory (`BenchmarkRun`).
@@ -186,7 +206,11 @@ def run_benchmark(
     episodes, and after them the likely reason for each map an episode failed on.
     `speed` turns distances and decision times into exploration time (exploration.csv's per-second
     efficiency; `exploration_curves.SpeedModel`).
+    `backend` is the executor's engine (`pipeline.common.executor`: process or ray; None:
+    $GUIDE_BACKEND, else process). Finished episodes are kept in OUT/.episodes/ until the run
+    completes: the same command run again after a kill makes only the episodes still missing.
     """
+    backend = resolve_backend(backend)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
     specs = resolve_planner_specs(planners, OUTPUT_FILES)
@@ -218,28 +242,30 @@ def run_benchmark(
         for spec in specs
         for p in map_paths
     ]
-    for spec, planner in zip(specs, built):  # the episodes (and forked workers) take these planners
+    for spec, planner in zip(specs, built):  # the episodes take these planners
         _PLANNERS[spec.name, json.dumps(dict(spec.options), sort_keys=True, default=str)] = planner
-    workers = default_workers() if workers is None else workers
+    inputs = EpisodeInputs({task_key: _MAPS[task_key] for task_key in {(t.map_path, t.start, t.protocol) for t in tasks}},
+                           {key: _PLANNERS[key] for key in {(t.planner, json.dumps(t.options, sort_keys=True, default=str))
+                                                            for t in tasks}})
+    identity = {"tasks": [[t.map_path, t.planner, t.label, json.dumps(t.options, sort_keys=True, default=str), t.seed,
+                           t.start] for t in tasks],
+                "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
+                "planners": [planner.description for planner in built], "source": source_digest()}
+    keep = KeptResults(out_dir / KEPT_EPISODES, identity)
     results: list[EpisodeResult] = []
-    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress)
+
+    def finished(index: int, result: EpisodeResult) -> None:
+        results.append(_write_result(result, tasks[index], out_dir))
+
+    workers = default_workers() if workers is None else workers
     try:
-        if workers == 1 or len(tasks) == 1:
-            for task in tasks:
-                results.append(_write_result(run_task(task), task, out_dir))
-                bar.update()
-        else:
-            with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
-                futures = {pool.submit(run_task, task): task for task in tasks}
-                for future in as_completed(futures):
-                    results.append(_write_result(future.result(), futures[future], out_dir))
-                    bar.update()
+        run_tasks(run_shared_task, tasks, min(workers, len(tasks)), "episodes", "ep", keep=keep, backend=backend,
+                  progress=progress, on_result=finished, collect=False, shared=inputs)
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
-        bar.close()
         if results:
             _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
-    bar.close()
+    shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     run = _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
     if warn is not None:
         for hint in failure_hints(run.frame, loaded):
@@ -266,7 +292,8 @@ def failure_hints(frame: pd.DataFrame, loaded: dict[str, tuple[GroundTruthMap, P
 
 
 class BenchmarkInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a benchmark, after `done` of `total` episodes (their metrics.csv and summary.md are written)."""
+    """Ctrl-C during a benchmark, after `done` of `total` episodes (their metrics.csv and summary.md
+    are written; they stay kept in OUT/.episodes/, so the same command resumes the run)."""
 
     def __init__(self, done: int, total: int, out_dir: Path):
         super().__init__(f"interrupted after {done} of {total} episodes")

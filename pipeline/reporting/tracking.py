@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
 from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, BenchmarkRun
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV
 from pipeline.world.protocol import Protocol
@@ -24,7 +24,8 @@ def log_benchmark(
     """One MLflow run per planner of a benchmark `run` written to `out_dir`: protocol params, the
     planner's name, options and description (from its run.json), summary metrics, the exploration metrics (exploration.csv:
     distance to 50 / 90 / 99 %, coverage AUC, Table V efficiency), and as artifacts summary.md,
-    metrics.csv, exploration.csv and the coverage figure.
+    metrics.csv, exploration.csv and the coverage figure; `maps` (the maze folder) is each run's
+    dataset input, with its DVC hash when a stage made it.
 
     Returns the run ids.
     """
@@ -46,6 +47,7 @@ def log_benchmark(
                 "planner_description": str(ran.get("description", ""))[:500],
                 "seed": record.get("seed"),
             } if ran else {}
+            log_maze_set(maps, "evaluation")
             mlflow.log_params(
                 {**record.get("protocol", protocol.to_dict()), "planner": planner, "maps": maps, "episodes": int(row.episodes),
                  **variant}

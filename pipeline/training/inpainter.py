@@ -308,6 +308,7 @@ def train_inpainter(
     lr: Optional[float] = None,
     accelerator: str = "cpu",
     devices: int | str = 1,
+    num_nodes: int = 1,
     resume: bool = False,
     tracking_uri: Optional[str] = None,
     init_checkpoint: Optional[str | Path] = None,
@@ -340,7 +341,7 @@ def train_inpainter(
     (MLflow's default: ./mlruns).
     """
     run = RunOptions.from_dict(dict(
-        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, resume=resume,
+        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, num_nodes=num_nodes, resume=resume,
         mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
         artifact_location=artifact_location, progress=progress))
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
@@ -391,7 +392,7 @@ def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: 
 
     result = fit(run, module, monitor="val_f1", mode="max", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
                  fit_args={"datamodule": data}, unused_parameters=tc.adversarial_weight > 0,
-                 trainer_options={"use_distributed_sampler": False, "log_every_n_steps": 1})
+                 trainer_options={"use_distributed_sampler": False, "log_every_n_steps": 1}, data=data_dir)
     export_path = run.out_dir / EXPORT_NAME
 
     def write(host: dict[str, Any]) -> None:

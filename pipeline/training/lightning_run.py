@@ -20,7 +20,9 @@ from typing import Any, Optional
 import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
 
-from pipeline.common.config import config_dataclass, flag, text, validate
+from pipeline.common.atomic import atomic_write_text
+from pipeline.common.config import config_dataclass, flag, text, validate, whole
+from pipeline.common.mlflow_store import log_maze_set
 from pipeline.training.run_setup import (
     DEVICES,
     LAST_CKPT,
@@ -36,6 +38,7 @@ from pipeline.training.run_setup import (
 )
 
 BEST_NAME = "best"
+MLFLOW_RUN_FILE = "mlflow_run_id"  # beside last.ckpt: the MLflow run a resumed training logs on into
 
 
 @config_dataclass
@@ -43,7 +46,12 @@ class RunOptions:
     """Where and how a training runs, apart from what it learns.
 
     `checkpoint_dir` holds Lightning's `last.ckpt` and `best.ckpt` (default: `out_dir`, where the
-    export goes); `resume` continues from `last.ckpt` when there is one. MLflow logs to
+    export goes); `resume` continues from `last.ckpt` when there is one, and in the MLflow run the
+    interrupted one made (`mlflow_run_id` beside it). `devices` are per node and `num_nodes` the
+    nodes of a multi-node run (DDP; each node started with Lightning's MASTER_ADDR, MASTER_PORT,
+    NODE_RANK): each of the devices x num_nodes processes takes a batch of the training's
+    `batch_size`, so the global batch is batch_size x devices x num_nodes, and the learning rate is
+    the one given (raise it by hand when the global batch grows). MLflow logs to
     `tracking_uri` (default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db) in `experiment`;
     `artifact_location` is where a newly made experiment keeps its artifacts. Whether this
     machine has the accelerator and devices is checked when the options are made, before any
@@ -54,6 +62,7 @@ class RunOptions:
     checkpoint_dir: Optional[Path] = None
     accelerator: text(note="Lightning's accelerator: cpu, gpu, auto") = "cpu"
     devices: DEVICES = 1
+    num_nodes: whole(1) = 1
     resume: flag() = False
     mlflow: flag() = True
     tracking_uri: Optional[str] = None
@@ -100,19 +109,26 @@ def start(run: RunOptions, seed: int) -> None:
 
 def fit(run: RunOptions, module: L.LightningModule, *, monitor: str, mode: str, max_epochs: int,
         max_minutes: Optional[float], fit_args: dict[str, Any], trainer_options: dict[str, Any],
-        hyperparams: Optional[dict[str, Any]] = None, unused_parameters: bool = False) -> FitResult:
+        hyperparams: Optional[dict[str, Any]] = None, unused_parameters: bool = False,
+        data: Optional[Path] = None) -> FitResult:
     """Train `module` (`fit_args`: its datamodule or loaders), keeping the best checkpoint by
     `monitor` (`mode` min or max) and the last. `unused_parameters`: a multi-device run lets a step
-    leave some parameters without gradients (the GAN's two steps)."""
+    leave some parameters without gradients (the GAN's two steps). `data` (the data set's folder
+    or file) is recorded as the MLflow run's dataset input, with its DVC hash."""
     checkpoint = ModelCheckpoint(dirpath=run.checkpoint_dir, filename=BEST_NAME, monitor=monitor, mode=mode,
                                  save_top_k=1, save_last=True, auto_insert_metric_name=False,
                                  enable_version_counter=False)
-    logger: Any = mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location) if run.mlflow else False
+    ckpt_path = run.resume_from()
+    run_file = run.checkpoint_dir / MLFLOW_RUN_FILE
+    run_id = run_file.read_text().strip() if ckpt_path is not None and run_file.is_file() else None
+    logger: Any = (mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location, run_id)
+                   if run.mlflow else False)
     options = dict(
         max_epochs=max_epochs,
         max_time=max_time(max_minutes),
         accelerator=run.accelerator,
         devices=run.devices,
+        num_nodes=run.num_nodes,
         logger=logger,
         callbacks=[checkpoint],
         default_root_dir=str(run.checkpoint_dir),
@@ -128,7 +144,10 @@ def fit(run: RunOptions, module: L.LightningModule, *, monitor: str, mode: str, 
         trainer = make_trainer(**options, strategy="ddp_find_unused_parameters_true")
     if logger and hyperparams:  # makes the MLflow run: only once the trainer accepted the settings
         logger.log_hyperparams(hyperparams)
-    ckpt_path = run.resume_from()
+    if logger and trainer.is_global_zero:
+        if data is not None and run_id is None:
+            log_maze_set(data, "training", run_id=logger.run_id, client=logger.experiment)
+        atomic_write_text(run_file, logger.run_id + "\n")
     started = time.perf_counter()
     with fresh_checkpoints(run.checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
         trainer.fit(module, ckpt_path=ckpt_path, **fit_args)

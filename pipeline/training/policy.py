@@ -180,6 +180,7 @@ def train_planner(
     *,
     accelerator: str = "cpu",
     devices: int | str = 1,
+    num_nodes: int = 1,
     resume: bool = False,
     tracking_uri: Optional[str] = None,
     mlflow: bool = True,
@@ -204,7 +205,7 @@ def train_planner(
     tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
     mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
     run = RunOptions.from_dict(dict(
-        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, resume=resume,
+        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, num_nodes=num_nodes, resume=resume,
         mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
         progress=progress))
     arrays, meta = load_observations(observations)
@@ -238,7 +239,7 @@ def train_planner(
                        "observations": str(observations), "samples": len(arrays["episode"])}
         result = fit(run, module, monitor="val_loss", mode="min", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
                      fit_args={"train_dataloaders": train_loader, "val_dataloaders": val_loader}, hyperparams=hyperparams,
-                     trainer_options={"log_every_n_steps": 5, "gradient_clip_val": 1.0})
+                     trainer_options={"log_every_n_steps": 5, "gradient_clip_val": 1.0}, data=Path(observations))
         export_path = run.out_dir / EXPORT_NAME
 
         def write(host: dict[str, Any]) -> None:

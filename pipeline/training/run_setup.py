@@ -61,7 +61,7 @@ def _read_devices_text(value: str) -> int | list[int] | str:
         return value
 
 
-_DEVICE_SHAPES = (whole(1), whole(-1, -1), list_of(whole(0)), text(("auto",)))
+_DEVICE_SHAPES = (whole(1), list_of(whole(0)), text(("auto",)))
 _DEVICE_VALUE = any_of(*_DEVICE_SHAPES)
 
 
@@ -69,11 +69,12 @@ def _devices_text(value: str) -> None:
     check_value(_DEVICE_VALUE, _read_devices_text(value), "devices")
 
 
-# Lightning's `devices`: a number of devices, -1 (all), a list of device indices or "auto", or the
-# same as the text a command line gives ("2", "0,1"). Whether this machine has them is
-# `check_accelerator`'s question.
+# Lightning's `devices`: a number of devices per node, a list of device indices or "auto", or the
+# same as the text a command line gives ("2", "0,1"). Lightning's -1 ("all") is refused here, where
+# it would be refused by Lightning on a CPU only after the stage started: "auto" takes every device.
+# Whether this machine has them is `check_accelerator`'s question.
 DEVICES = any_of(*_DEVICE_SHAPES, satisfies(_devices_text, "devices as text", kind=str),
-                 description="a number of devices >= 1, -1 (all), a list of device indices, 'auto', "
+                 description="a number of devices >= 1, a list of device indices, 'auto' (all), "
                              "or one of those as text such as '0,1'")
 
 
@@ -87,7 +88,7 @@ def _parse_devices(devices: Any) -> int | list[int] | str:
 def check_accelerator(accelerator: Any, devices: Any) -> None:
     """ValueError (one line, naming the option and what is available) for training settings
     Lightning would refuse: an unknown accelerator or one this machine lacks, devices of no DEVICES
-    shape, -1 devices, device indices for the cpu, or more CUDA GPUs than torch sees."""
+    shape (-1 among them), device indices for the cpu, or more CUDA GPUs than torch sees."""
     from lightning.pytorch.accelerators import Accelerator, AcceleratorRegistry
 
     names = sorted({"auto", "gpu", *AcceleratorRegistry.available_accelerators()})
@@ -115,9 +116,6 @@ def check_accelerator(accelerator: Any, devices: Any) -> None:
     if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
         kind = "cpu"  # what Lightning picks here
     wanted = _parse_devices(devices)
-    if wanted == -1:
-        raise ValueError(f"devices {devices!r}: need at least one device; use a positive number, 'auto', "
-                         "or device indices such as '0,1'")
     if isinstance(wanted, list) and kind == "cpu":
         raise ValueError(f"devices {devices!r}: the cpu accelerator takes a number of processes, not device indices")
     if kind == "cuda":
@@ -320,15 +318,16 @@ def training_host(device: torch.device | str = "cpu") -> dict[str, Any]:
 
 
 def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: Optional[str],
-                  artifact_location: Optional[str] = None) -> Any:
+                  artifact_location: Optional[str] = None, run_id: Optional[str] = None) -> Any:
     """Lightning's MLFlowLogger on `tracking_uri` (default $MLFLOW_TRACKING_URI or sqlite:///mlflow.db):
-    Lightning's own default is the ./mlruns file store, which MLflow 3 refuses."""
+    Lightning's own default is the ./mlruns file store, which MLflow 3 refuses. With `run_id`, it
+    logs on into that run (a resumed training)."""
     from lightning.pytorch.loggers import MLFlowLogger
 
 
     import_mlflow()  # telemetry off before Lightning imports it
     return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
-                        tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location)
+                        tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location, run_id=run_id)
 
 
 def log_export(logger: Any, export_path: Path, seconds: float, num_parameters: int, host: dict[str, Any]) -> None:

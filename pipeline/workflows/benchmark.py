@@ -45,6 +45,7 @@ def benchmark_folder(
     mlflow: bool = True,
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
+    backend: str | None = None,
 ) -> BenchmarkRun:
     """Every map in `maps` with each planner spec; writes OUT's trajectories and their per-step files,
     metrics.csv, summary.md, exploration.csv, the coverage figure and run.json, and logs one MLflow
@@ -52,7 +53,8 @@ def benchmark_folder(
 
     `baseline`: the label summary.md compares every planner with (None: greedy_utility when it
     runs; "": none). `checkpoint`: a policy for every diffusion planner. The MLflow store is
-    checked before any episode runs, not after all of them.
+    checked before any episode runs, not after all of them. `backend`: the executor's engine
+    (process or ray; None: $GUIDE_BACKEND, else process).
     """
     if mlflow:
         check_tracking_uri(tracking_uri)
@@ -66,7 +68,7 @@ def benchmark_folder(
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
     run = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
-                        start=start, warn=warn, speed=speed)
+                        start=start, warn=warn, speed=speed, backend=backend)
     draw_coverage(run, out, speed)
     if mlflow:
         log_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)

@@ -13,7 +13,7 @@ import numpy as np
 from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.parallel import map_with_progress
+from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, POLICIES, REPORTS
 from pipeline.data.observations import concatenate, save_observations, shard_observations
 from pipeline.data.shards import MANIFEST, read_manifest
@@ -59,7 +59,7 @@ def build_observations(section: dict, protocol: Protocol):
     workers = max(1, int(section["workers"]))
     identity = {"tasks": tasks, "expert": files_digest([EXPERT_DIR]), "inpainter": files_digest([inpainter]),
                 "source": source_digest()}
-    results = map_with_progress(_shard_observations, tasks, workers, "expert shards", "shard",
+    results = run_tasks(_shard_observations, tasks, workers, "expert shards", "shard",
                                 keep=KeptResults(CHECKPOINTS.observations, identity))
     seconds = time.perf_counter() - started
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}

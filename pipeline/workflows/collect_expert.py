@@ -58,7 +58,7 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
     started = time.perf_counter()
     manifest = run_shards(
         collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="expert shards", sources=EXPERT_SOURCES, work_dir=CHECKPOINTS.expert,
+        backend=backend, description="expert shards", sources=EXPERT_SOURCES, work_dir=CHECKPOINTS.expert,
     )
     seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)

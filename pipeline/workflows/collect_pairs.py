@@ -71,7 +71,7 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
     started = time.perf_counter()
     manifest = run_shards(
         collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend or section["backend"], description="pair shards", sources=PAIRS_SOURCES, work_dir=CHECKPOINTS.pairs,
+        backend=backend, description="pair shards", sources=PAIRS_SOURCES, work_dir=CHECKPOINTS.pairs,
     )
     seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)

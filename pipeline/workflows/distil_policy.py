@@ -34,7 +34,7 @@ from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_json
 from pipeline.common.fingerprints import files_digest, settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.common.parallel import map_with_progress
+from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, POLICIES, REPORTS
 from pipeline.data.collect import COLLECTION_SOURCES
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard
@@ -117,7 +117,7 @@ def round_observations(protocol: Protocol, r: int, first_episode: int, settings:
     tasks = [(str(folder / entry["file"]), int(f), protocol.to_dict(), str(inpainter), settings)
              for entry, f in zip(entries, firsts)]
     identity = {"tasks": tasks, "data": files_digest([folder]), "inpainter": files_digest([inpainter]), "source": source_digest()}
-    results = map_with_progress(_shard_observations, tasks, workers, f"round {r} observations", "shard",
+    results = run_tasks(_shard_observations, tasks, workers, f"round {r} observations", "shard",
                                 keep=KeptResults(round_folder(r) / "observations", identity))
     return concatenate(results)
 

@@ -16,7 +16,7 @@ from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.common.parallel import map_with_progress
+from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
 from pipeline.models.defaults import PIPELINE_GATE
@@ -48,7 +48,7 @@ def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int
     if keep_in is not None:
         identity = {"tasks": tasks, "maps": files_digest(maps), "source": source_digest()}
         keep = KeptResults(keep_in, identity)
-    return map_with_progress(_samples, tasks, workers, "gate samples", "maze", keep=keep)
+    return run_tasks(_samples, tasks, workers, "gate samples", "maze", keep=keep)
 
 
 def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path]:

@@ -21,7 +21,7 @@ from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
-from pipeline.common.parallel import map_with_progress
+from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.defaults import PIPELINE_BLOCK_MODEL
@@ -68,7 +68,7 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
         # The mazes are drawn from these settings alone (their folder is a fresh temporary one each run).
         identity = {"mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed", "snapshot_every")},
                     "block_m": config.block_m, "protocol": protocol.to_dict(), "source": source_digest()}
-        collected = map_with_progress(_snapshots, tasks, section["workers"], "block snapshots", "maze",
+        collected = run_tasks(_snapshots, tasks, section["workers"], "block snapshots", "maze",
                                       keep=KeptResults(KEPT_SNAPSHOTS, identity))
     fit_count = len(maps) - section["holdout_mazes"]
     train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])

@@ -30,7 +30,7 @@ METRICS = REPORTS.inpainter
 CURVES = REPORTS.inpainter_curves
 SAMPLES = REPORTS.inpainter_samples
 REPORT_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
-RUN_KEYS = ("model", "accelerator", "devices", "init_checkpoint", "experiment", "threads")
+RUN_KEYS = ("model", "accelerator", "devices", "num_nodes", "init_checkpoint", "experiment", "threads")
 
 
 def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
@@ -90,6 +90,7 @@ def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: O
         train_config=train_config,
         accelerator=accelerator,
         devices=devices,
+        num_nodes=int(run["num_nodes"] or 1),
         resume=resume_from is not None,
         checkpoint_dir=CHECKPOINT_DIR,
         tracking_uri=tracking_uri,

@@ -17,11 +17,13 @@ from pipeline.training.run_setup import resume_point, start_afresh
 CHECKPOINTS_OF = {variant: getattr(CHECKPOINTS, f"planner_{variant}") for variant in POLICIES}
 
 
-def training_fingerprint(model: dict, train: dict, accelerator: str, devices: str, observations: Path) -> str:
-    """What a policy's weights depend on: its model and training settings, the device layout and
-    the observations' bytes (not the MLflow experiment or the thread count)."""
-    return settings_digest({"model": model, "train": train, "accelerator": accelerator, "devices": devices,
-                            "observations": files_digest([observations])})
+def training_fingerprint(model: dict, train: dict, accelerator: str, devices: str, observations: Path,
+                         num_nodes: int = 1) -> str:
+    """What a policy's weights depend on: its model and training settings, the device layout
+    (devices x nodes: the global batch) and the observations' bytes (not the MLflow experiment or
+    the thread count)."""
+    layout = {"accelerator": accelerator, "devices": devices, **({"num_nodes": num_nodes} if num_nodes != 1 else {})}
+    return settings_digest({"model": model, "train": train, **layout, "observations": files_digest([observations])})
 
 
 def train_and_report(section: dict, variant: str, accelerator: str | None = None, devices: str | None = None,
@@ -44,7 +46,7 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
     DiffusionPolicyConfig.from_dict(model, "train_planner.model")
     if not Path(paths.observations).is_file():  # before any checkpoint is decided on
         raise FileNotFoundError(f"{paths.observations}: no observations; run the build_observations stage first")
-    fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations)
+    fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations, int(section["num_nodes"]))
     resume_from = None if afresh else resume_point(checkpoint_dir, fingerprint, f"train_planner {variant}")
     if resume_from is None:
         start_afresh(checkpoint_dir, fingerprint)
@@ -55,6 +57,7 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
         train,
         accelerator=accelerator,
         devices=devices,
+        num_nodes=int(section["num_nodes"]),
         resume=resume_from is not None,
         checkpoint_dir=checkpoint_dir,
         experiment_name=str(section["experiment"]),

@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.pairs import load_pairs
@@ -86,15 +85,6 @@ def test_future_waypoints_repeat_the_last():
     future = future_waypoints(trajectory, 3)
     assert future.shape == (5, 3, 2)
     assert (future[0] == trajectory[1:4]).all() and (future[-1] == trajectory[-1]).all()
-
-
-def test_ray_backend_writes_the_same_shards(generated_maze_dir, tmp_path):
-    pytest.importorskip("ray", reason="the optional ray extra is not installed (pip install '.[ray]')")
-    config = pairs_config(generated_maze_dir, pairs_per_shard=3)
-    run_shards(collect_pairs_shard, 2, tmp_path / "p", {"config": config}, progress=False)
-    run_shards(collect_pairs_shard, 2, tmp_path / "r", {"config": config}, workers=2, backend="ray", progress=False)
-    for k in range(2):
-        assert shard_path(tmp_path / "p", k).read_bytes() == shard_path(tmp_path / "r", k).read_bytes()
 
 
 def test_collection_sources_exist_and_are_the_stages_dvc_deps():

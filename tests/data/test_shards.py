@@ -144,6 +144,6 @@ def test_a_backend_that_cannot_run_fails_before_any_shard_is_touched(tmp_path):
     with pytest.raises(ValueError, match="unknown backend 'dask'"):
         run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="dask", progress=False)
     if importlib.util.find_spec("ray") is None:
-        with pytest.raises(ValueError, match=r"backend 'ray' needs Ray, which is not installed: pip install '\.\[ray\]'"):
+        with pytest.raises(ValueError, match=r"backend 'ray' needs Ray, which is not installed: pip install -e '\.\[ray\]'"):
             run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="ray", progress=False)
     assert sorted(p.name for p in out.iterdir()) == before  # the manifest and the shards of the earlier run stay

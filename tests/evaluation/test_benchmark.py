@@ -201,3 +201,16 @@ def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir
     metrics = pd.read_csv(tmp_path / "b" / "metrics.csv")
     assert len(metrics) == 1 and bool(metrics["complete"].iloc[0])
     assert "nearest_frontier" in (tmp_path / "b" / "summary.md").read_text()
+
+
+
+@pytest.mark.slow
+def test_a_killed_benchmark_resumes_with_its_finished_episodes(tmp_path):
+    from benchmark_runs import killed_and_resumed
+
+    kept, output, resumed, whole = killed_and_resumed(tmp_path)
+    assert 18 <= kept < 36
+    assert f"episodes: {kept} of 36 kept from an interrupted run" in output
+    columns = ["map", "planner", "distance_m", "steps", "complete"]
+    pd.testing.assert_frame_equal(resumed[columns], whole[columns])
+    assert not (tmp_path / "killed/.episodes").exists()

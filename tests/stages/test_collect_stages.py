@@ -21,10 +21,9 @@ from pipeline.world.simulator import LATTICE_TOLERANCE_M
 from stages import collect_expert, collect_pairs
 
 PAIRS = dict(seed=5, pairs=6, pairs_per_shard=3, planners=["nearest_frontier", "greedy_utility"], snapshot_every=2,
-             stop_steps=[3, 12], workers=1, backend="process")
+             stop_steps=[3, 12], workers=1)
 EXPERT = dict(seed=12, episodes=2, episodes_per_shard=1, planner="expert", planner_options={"time_limit_s": 20}, horizon=4,
-              random_starts=True, workers=1,
-              backend="process")
+              random_starts=True, workers=1)
 
 
 def stage_folder(root: Path, maze_dir: Path | None, params: dict[str, Any]) -> None:

@@ -58,12 +58,12 @@ def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_pa
 @pytest.mark.parametrize("accelerator, devices, message", [
     ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
     ("CPU", 1, r"accelerator 'CPU': unknown"),
-    ("cpu", 0, r"^devices: must be a number of devices >= 1, -1 \(all\), a list of device indices, 'auto', "
+    ("cpu", 0, r"^devices: must be a number of devices >= 1, a list of device indices, 'auto' \(all\), "
                r"or one of those as text such as '0,1', got 0$"),
     ("cpu", "0", r"^devices: must be .*, got '0'$"),
     ("cpu", [], r"^devices: must be .*, got \[\]$"),
     ("cpu", "1,-1", r"^devices: must be .*, got '1,-1'$"),
-    ("auto", -1, r"devices -1: need at least one device"),
+    ("auto", -1, r"^devices: must be a number of devices >= 1, .*got -1$"),
     ("cpu", "two", r"^devices: must be .*, got 'two'$"),
     ("cpu", True, r"^devices: must be .*, got True$"),
     ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
@@ -74,12 +74,18 @@ def test_training_settings_are_checked(accelerator, devices, message):
 
 
 @pytest.mark.parametrize("devices, kept", [
-    (1, 1), (np.int64(2), 2), (-1, -1), ([0, 1], [0, 1]), ((0,), [0]), ("auto", "auto"), ("0,1", "0,1"), ("2", "2"),
+    (1, 1), (np.int64(2), 2), ([0, 1], [0, 1]), ((0,), [0]), ("auto", "auto"), ("0,1", "0,1"), ("2", "2"),
 ])
 def test_devices_take_every_shape_lightning_reads(devices, kept):
-    """A count, -1 (all), device indices or "auto", or one of those as the command line's text (kept as given:
+    """A count, device indices or "auto", or one of those as the command line's text (kept as given:
     Lightning reads it)."""
     assert check_value(DEVICES, devices, "train_planner.devices") == kept
+
+
+@pytest.mark.parametrize("devices", [-1, "-1", 0])
+def test_minus_one_devices_are_refused_by_the_check_not_by_lightning_later(devices):
+    with pytest.raises(ValueError, match=r"train_planner.devices: must be a number of devices >= 1, .*'auto' \(all\)"):
+        check_value(DEVICES, devices, "train_planner.devices")
 
 
 def test_run_options_are_checked_once_with_one_line_errors(tmp_path):

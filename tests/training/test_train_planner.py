@@ -2,6 +2,7 @@
 
 import dataclasses
 import shutil
+from pathlib import Path
 import warnings
 
 import numpy as np
@@ -331,3 +332,128 @@ def test_a_fresh_run_can_start_from_an_export(trained, tmp_path, mlflow_uri):
     with pytest.raises(ValueError, match="model config differs"):
         train_planner(root / "guide.npz", tmp_path / "other", dict(TINY_MODEL, d_model=16, heads=2), no_steps, mlflow=False,
                       init_policy=paths["guide"])
+
+
+TWO_NODE_SCRIPT = """
+import sys
+from pipeline.training.policy import train_planner
+path = train_planner(sys.argv[1], sys.argv[2], {model}, {train}, accelerator="cpu", devices=1, num_nodes=2,
+                     tracking_uri=sys.argv[3], experiment_name="two_nodes", run_name="two nodes",
+                     checkpoint_dir=sys.argv[4], resume=sys.argv[5] == "resume")
+print("exported:", path)
+"""
+
+
+@pytest.mark.slow
+def test_a_two_node_training_killed_after_an_epoch_resumes_into_one_mlflow_run(trained, tmp_path, mlflow_uri):
+    """Two "nodes" on 127.0.0.1 (one process each, gloo), started as a cluster launcher starts
+    them (MASTER_ADDR, MASTER_PORT, NODE_RANK): killed once the first epoch's checkpoint is written,
+    started again with resume, they finish the epochs and leave one MLflow run."""
+    import os
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+
+    import mlflow
+
+    root, _ = trained
+    script = tmp_path / "two_nodes.py"
+    script.write_text(TWO_NODE_SCRIPT.format(model=TINY_MODEL, train={**TINY_TRAIN, "max_epochs": 3}))
+    out, checkpoints = tmp_path / "out", tmp_path / "ckpt"
+
+    def launch(mode: str) -> list[subprocess.Popen]:
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        nodes = []
+        for rank in (0, 1):
+            env = {**os.environ, "PYTHONWARNINGS": "ignore", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port),
+                   "NODE_RANK": str(rank), "LOCAL_RANK": "0", "WORLD_SIZE": "2"}
+            nodes.append(subprocess.Popen([sys.executable, str(script), str(root / "guide.npz"), str(out), mlflow_uri,
+                                           str(checkpoints), mode], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                                          stderr=subprocess.PIPE, text=True, start_new_session=True))
+        return nodes
+
+    first = launch("fresh")
+    deadline = time.monotonic() + 240
+    while not (checkpoints / "last.ckpt").is_file() and time.monotonic() < deadline and first[0].poll() is None:
+        time.sleep(0.2)
+    assert (checkpoints / "last.ckpt").is_file(), first[0].communicate()[1][-3000:]
+    for node in first:
+        os.killpg(node.pid, signal.SIGKILL)
+        node.wait()
+    assert not (out / "policy.pt").exists()
+    second = launch("resume")
+    outputs = [node.communicate(timeout=300) for node in second]
+    assert all(node.returncode == 0 for node in second), outputs[0][1][-3000:] + outputs[1][1][-3000:]
+    printed = sorted(line for stdout, _ in outputs for line in stdout.splitlines() if line.startswith("exported:"))
+    assert printed == [f"exported: {out / 'policy.pt'}", "exported: None"]  # only node 0 exports
+    export = read_policy_export(out / "policy.pt")
+    assert export["epochs"] == 3
+    client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
+    runs = client.search_runs([client.get_experiment_by_name("two_nodes").experiment_id])
+    assert len(runs) == 1 and runs[0].info.status == "FINISHED"
+    assert len(client.get_metric_history(runs[0].info.run_id, "val_loss")) == 3  # both parts logged into it
+    assert runs[0].inputs.dataset_inputs and runs[0].inputs.dataset_inputs[0].dataset.name.endswith("guide.npz")
+
+
+@pytest.mark.slow
+def test_a_tracking_server_receives_the_benchmark_and_training_runs(trained, generated_maze_dir, tmp_path, monkeypatch):
+    """`mlflow server` on 127.0.0.1 with its own artifact store: with MLFLOW_TRACKING_URI set, a
+    tiny `guide benchmark` and a tiny training log there: runs, metrics, the model artifact, and
+    the maze set / data set each run used as a dataset input."""
+    import os
+    import socket
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+
+    import mlflow
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    uri = f"http://127.0.0.1:{port}"
+    server = subprocess.Popen(
+        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
+         "--backend-store-uri", f"sqlite:///{tmp_path / 'server.db'}", "--artifacts-destination", str(tmp_path / "store")],
+        cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                urllib.request.urlopen(f"{uri}/health", timeout=1).close()
+                break
+            except OSError:
+                assert server.poll() is None, server.stderr.read()[-3000:]
+                time.sleep(0.5)
+        env = {**os.environ, "MLFLOW_TRACKING_URI": uri, "MLFLOW_DISABLE_TELEMETRY": "true"}
+        guide = str(Path(sys.executable).with_name("guide"))
+        mazes = tmp_path / "mazes"
+        mazes.mkdir()
+        shutil.copy(sorted(generated_maze_dir.glob("*.png"))[0], mazes)
+        bench = subprocess.run([guide, "benchmark", "--maps", str(mazes), "--planner", "nearest_frontier",
+                                "--out", str(tmp_path / "bench"), "--workers", "1"], cwd=tmp_path, env=env,
+                               capture_output=True, text=True)
+        assert bench.returncode == 0, bench.stderr[-3000:]
+        monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
+        root, _ = trained
+        train_planner(root / "guide.npz", tmp_path / "policy", TINY_MODEL, TINY_TRAIN, experiment_name="on_server",
+                      run_name="tiny")
+        client = mlflow.MlflowClient(tracking_uri=uri)
+        (bench_run,) = client.search_runs([client.get_experiment_by_name("benchmark").experiment_id])
+        assert bench_run.data.params["planner"] == "nearest_frontier" and bench_run.data.metrics["completion_rate"] == 1.0
+        (maze_input,) = bench_run.inputs.dataset_inputs
+        assert maze_input.dataset.source_type == "local" and str(mazes) in maze_input.dataset.source
+        assert "summary.md" in {a.path for a in client.list_artifacts(bench_run.info.run_id)}
+        (train_run,) = client.search_runs([client.get_experiment_by_name("on_server").experiment_id])
+        assert "val_loss" in train_run.data.metrics and "train_seconds" in train_run.data.metrics
+        assert "policy.pt" in {a.path for a in client.list_artifacts(train_run.info.run_id)}
+        assert train_run.inputs.dataset_inputs[0].dataset.name.endswith("guide.npz")
+        assert any((tmp_path / "store").rglob("policy.pt"))  # uploaded through the server to its artifact store
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
