@@ -27,14 +27,18 @@ def tiny_repro(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
 
 
 def produced_bytes(project: Path) -> dict[str, str]:
-    """DVC's hash of every data set (data/*) and the bytes of every benchmark trajectory: what
-    the executor's workloads made (collections, gate samples, block snapshots, observations,
-    DAgger rollouts, benchmark and report episodes all feed these)."""
+    """DVC's hash of every data set (data/*: the collections, observations and DAgger rollouts) and
+    of the gate fitted on the gate samples, and the bytes of every benchmark and report
+    trajectory: what the executor's workloads made.
+    (The models differ between any two runs by the training time their exports record, and the
+    per-step files by the decision times.)"""
     lock = yaml.safe_load((project / "dvc.lock").read_text())
     made = {out["path"]: out["md5"] for stage in lock["stages"].values() for out in stage.get("outs", [])
-            if out["path"].startswith(("data/", "models/sliver_gate", "models/block_model"))}
-    for path in sorted((project / "reports/benchmark").glob("*/*.csv")):
-        made[str(path.relative_to(project))] = path.read_text()
+            if out["path"].startswith(("data/", "models/sliver_gate"))}
+    for folder in ("reports/benchmark", "reports/denoising_steps"):
+        for path in sorted((project / folder).glob("*/*.csv")):
+            if not path.name.endswith(".steps.csv"):
+                made[str(path.relative_to(project))] = path.read_text()
     return made
 
 
