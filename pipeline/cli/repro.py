@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
+import sys
 from pathlib import Path
 
 import psutil
@@ -87,4 +87,8 @@ def repro(ctx: typer.Context) -> None:
         fail(f"{RWLOCK}: {error}")
     if freed:
         typer.echo(f"guide repro: cleared the lock of a killed run on {len(freed)} path(s) in {RWLOCK}", err=True)
-    raise typer.Exit(subprocess.call(["dvc", "repro", *ctx.args], env={**os.environ, "DVC_NO_ANALYTICS": "1"}))
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # dvc takes this process's place (its id, its parent): whoever waits for `guide repro` reaps dvc,
+    # and a kill of the job's process group leaves no orphan behind.
+    os.execvpe("dvc", ["dvc", "repro", *ctx.args], {**os.environ, "DVC_NO_ANALYTICS": "1"})
