@@ -117,12 +117,12 @@ def results_as_finished(function: Callable[..., R], tasks: Sequence[T], indices:
         start_ray(workers)
         remote = ray.remote(num_cpus=1)(_apply)
         folder = None if os.environ.get(WORKING_DIR_ENV) else os.getcwd()  # a shipped working folder is the task's own
-        function_ref = ray.put(function)
+        # `function` (small) travels inside each task; `shared` (maps, models) once, through the object store
         if shared is None:
-            pending = {remote.remote(folder, function_ref, tasks[index]): index for index in indices}
-        else:  # stored once in the object store; each task reads it from its node's copy
+            pending = {remote.remote(folder, function, tasks[index]): index for index in indices}
+        else:
             shared_ref = ray.put(shared)
-            pending = {remote.remote(folder, function_ref, shared_ref, tasks[index]): index for index in indices}
+            pending = {remote.remote(folder, function, shared_ref, tasks[index]): index for index in indices}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)

@@ -89,6 +89,16 @@ def test_a_benchmark_gives_the_process_engines_trajectories(on_cluster, generate
     assert not (tmp_path / "r" / ".episodes").exists()  # complete: nothing left to resume
 
 
+def test_a_killed_benchmark_resumes_on_the_cluster(on_cluster, tmp_path):
+    from benchmark_runs import killed_and_resumed
+
+    kept, output, resumed, whole = killed_and_resumed(tmp_path, ("--backend", "ray"), {"RAY_ADDRESS": on_cluster.address})
+    assert 18 <= kept < 36
+    assert f"episodes: {kept} of 36 kept from an interrupted run" in output
+    columns = ["map", "planner", "distance_m", "steps", "complete"]
+    pd.testing.assert_frame_equal(resumed[columns], whole[columns])
+
+
 def test_a_ray_start_cluster_is_not_joined_without_ray_address(two_nodes, monkeypatch):
     """With a cluster running here and RAY_ADDRESS unset, the run starts a private Ray of its own
     size instead of joining (and refusing num_cpus on) the one it would otherwise find."""
@@ -100,13 +110,3 @@ def test_a_ray_start_cluster_is_not_joined_without_ray_address(two_nodes, monkey
         assert run_tasks(_where, [2], 3, "t", "task", backend="ray", progress=False)[0][0] == 4
     finally:
         ray.shutdown()
-
-
-def test_a_killed_benchmark_resumes_on_the_cluster(on_cluster, tmp_path):
-    from benchmark_runs import killed_and_resumed
-
-    kept, output, resumed, whole = killed_and_resumed(tmp_path, ("--backend", "ray"), {"RAY_ADDRESS": on_cluster.address})
-    assert 18 <= kept < 36
-    assert f"episodes: {kept} of 36 kept from an interrupted run" in output
-    columns = ["map", "planner", "distance_m", "steps", "complete"]
-    pd.testing.assert_frame_equal(resumed[columns], whole[columns])
