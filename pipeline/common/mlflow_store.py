@@ -10,6 +10,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from pipeline.common.fingerprints import files_digest
+
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 
 
@@ -99,8 +101,6 @@ def maze_set_input(folder: str | Path, context: str = "evaluation") -> tuple[obj
     its digest DVC's hash where a stage made it (else a digest of its files), its source the
     folder; returns (dataset, tags) for `mlflow.log_input(dataset, context, tags)`."""
     import warnings
-
-    from pipeline.common.fingerprints import files_digest
 
     import_mlflow()  # telemetry off first
     from mlflow.data.dataset_source_registry import resolve_dataset_source

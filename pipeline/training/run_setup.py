@@ -326,8 +326,26 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
 
 
     import_mlflow()  # telemetry off before Lightning imports it
-    return MLFlowLogger(experiment_name=experiment_name, run_name=run_name,
-                        tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location, run_id=run_id)
+
+    class ResumedMLFlowLogger(MLFlowLogger):
+        """Logs on into an existing run: a setting the resumed training changed (a longer
+        max_epochs) is kept as the tag `resumed.<key>`, since MLflow never changes a param."""
+
+        def log_hyperparams(self, params: Any) -> None:
+            from lightning.fabric.utilities.logger import _convert_params, _flatten_dict
+
+            flat = _flatten_dict(_convert_params(params))
+            logged = self.experiment.get_run(self.run_id).data.params
+            changed = {k: v for k, v in flat.items() if k in logged and logged[k] != str(v)[:250]}
+            for key, value in changed.items():
+                self.experiment.set_tag(self.run_id, f"resumed.{key}", str(value)[:5000])
+            fresh = {k: v for k, v in flat.items() if k not in logged}
+            if fresh:
+                super().log_hyperparams(fresh)
+
+    kind = MLFlowLogger if run_id is None else ResumedMLFlowLogger
+    return kind(experiment_name=experiment_name, run_name=run_name,
+                tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location, run_id=run_id)
 
 
 def log_export(logger: Any, export_path: Path, seconds: float, num_parameters: int, host: dict[str, Any]) -> None:
