@@ -7,14 +7,14 @@ import pytest
 
 
 def twelve_mazes(folder):
-    """12 small generated mazes (30 m), for the kill-and-resume benchmarks."""
+    """12 small generated mazes (50 m), for the kill-and-resume benchmarks."""
     import numpy as np
 
     from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 
     folder.mkdir(parents=True, exist_ok=True)
     for i in range(12):
-        write_maze_png(generate_maze(MazeConfig(side_m=(30.0, 30.0)), np.random.default_rng([11, i])), folder / f"m{i:02d}.png")
+        write_maze_png(generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng([11, i])), folder / f"m{i:02d}.png")
     return folder
 
 
