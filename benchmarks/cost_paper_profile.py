@@ -218,7 +218,8 @@ def stage_costs(profile: dict, unit: dict, nodes: int, cores: int, gpus: int) ->
     gate_mazes = p["fit_gate"]["maps"] + p["fit_gate"]["offices"]
     r = p["report"]
     report_episodes = len(r["k_values"]) * len(r["k_planners"]) * r["k_maps"]
-    default_block_rate = (block.get("train_seconds", 0.0) / max(1, 2560 * 2)) if block else 0.0  # s per maze-epoch
+    block_maze_epochs = (block.get("mazes_fit", 0) + block.get("mazes_holdout", 0)) * len(block.get("history", []))
+    default_block_rate = block.get("train_seconds", 0.0) / max(1, block_maze_epochs)  # s per maze-epoch of the default run
     bm = p["train_block_model"]
     costs = {
         "collect_pairs": p["collect_pairs"]["pairs"] * unit["pair"] / total_cores,

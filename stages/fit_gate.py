@@ -1,7 +1,7 @@
 """DVC stage: fit the sliver gate on greedy episodes in the training mazes.
 
 Reads only the `fit_gate` section (maps, holdout_maps, offices, office_holdout, hidden,
-min_gain, wall_margin, threshold, workers) and the shared `protocol` section of params.yaml.
+fit_samples, min_gain, wall_margin, threshold, workers) and the shared `protocol` section of params.yaml.
 Runs `greedy_utility` on the first `maps` training mazes and the first `offices` office
 floors, labels every reachable target at every decision by the cells its scan would truly
 reveal, fits the gate (`pipeline.planners.extensions.sliver_gate`; `hidden` layers, none: logistic) on all but
@@ -18,7 +18,7 @@ from typing import Any
 
 from pydantic import model_validator
 
-from pipeline.common.config import Section, fraction, list_of, whole
+from pipeline.common.config import Section, fraction, list_of, maybe, whole
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.fit_gate import fit_gate
 
@@ -30,6 +30,7 @@ class Settings(Section):
     offices: whole(0)
     office_holdout: whole(0)
     hidden: list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)")
+    fit_samples: maybe(whole(1)) = None
     min_gain: whole(0, note="cells")
     wall_margin: whole(0, note="cells")
     threshold: fraction("P(big)")

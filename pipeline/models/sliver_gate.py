@@ -165,14 +165,23 @@ class SliverGate:
 
 
 def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_margin: int, range_cells: float,
-                    threshold: float = 0.5, hidden: tuple[int, ...] = (), seed: int = 0) -> SliverGate:
+                    threshold: float = 0.5, hidden: tuple[int, ...] = (), seed: int = 0,
+                    max_samples: int | None = None) -> SliverGate:
     """Fit P(gain >= min_gain) on log(1 + counts) with scikit-learn.
+
+    `max_samples`: fit on that many samples drawn at random (by `seed`) when there are more; the
+    fit's cost grows with the samples, while three features are learnt from a few 100,000 as
+    well as from millions.
 
     No `hidden` layers: logistic regression (L2 at its default strength). Hidden layers: a ReLU
     perceptron (Adam, batches of 200, 30 passes and at least 2,000 steps), which fits one gate to maps of unlike families where a
     logistic model must trade one family for the other.
     """
-    labels = np.asarray(gains) >= min_gain
+    counts, gains = np.asarray(counts), np.asarray(gains)
+    if max_samples is not None and len(gains) > max_samples:
+        drawn = np.sort(np.random.default_rng(seed).choice(len(gains), max_samples, replace=False))
+        counts, gains = counts[drawn], gains[drawn]
+    labels = gains >= min_gain
     if labels.all() or not labels.any():
         raise ValueError(f"cannot fit the sliver gate: every one of {labels.size} samples is "
                          f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps")

@@ -323,7 +323,7 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
     Lightning's own default is the ./mlruns file store, which MLflow 3 refuses. With `run_id`, it
     logs on into that run (a resumed training)."""
     from lightning.pytorch.loggers import MLFlowLogger
-
+    from lightning.pytorch.utilities import rank_zero_only
 
     import_mlflow()  # telemetry off before Lightning imports it
 
@@ -331,6 +331,7 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
         """Logs on into an existing run: a setting the resumed training changed (a longer
         max_epochs) is kept as the tag `resumed.<key>`, since MLflow never changes a param."""
 
+        @rank_zero_only  # the other ranks of a multi-process run hold no MLflow client
         def log_hyperparams(self, params: Any) -> None:
             from lightning.fabric.utilities.logger import _convert_params, _flatten_dict
 

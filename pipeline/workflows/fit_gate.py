@@ -79,11 +79,13 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
             held[family] = ours[len(maps) - holdout:]
     fit_gains = np.concatenate([g for _, g in fit])
     gate = fit_sliver_gate(np.concatenate([c for c, _ in fit]), fit_gains, section["min_gain"], section["wall_margin"],
-                           protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]))
+                           protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]),
+                           max_samples=section.get("fit_samples"))
     metrics: dict[str, Any] = {
         "maps_fit": len(families["mazes"][0]) - section["holdout_maps"], "maps_holdout": section["holdout_maps"],
         "offices_fit": len(families["offices"][0]) - office_holdout, "offices_holdout": office_holdout,
         "hidden": list(section["hidden"]), "samples_fit": int(len(fit_gains)),
+        "samples_drawn": int(min(len(fit_gains), section.get("fit_samples") or len(fit_gains))),
         "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
     }
     curves = {}

@@ -101,6 +101,20 @@ def test_fit_learns_the_share_of_open_unknown():
         fit_sliver_gate(counts, np.zeros(4000), min_gain=50, wall_margin=2, range_cells=50.0)
 
 
+def test_a_fit_on_drawn_samples_is_the_fit_on_that_subset():
+    """`max_samples` draws that many samples by the seed and fits on them; fewer samples are all used."""
+    rng = np.random.default_rng(1)
+    unknown = rng.integers(20, 2000, 3000).astype(float)
+    share = rng.uniform(0, 1, 3000)
+    counts = np.column_stack([unknown * share, unknown, rng.integers(0, 60, 3000)])
+    gains = np.where(share > 0.5, 200, 10)
+    settings = dict(min_gain=50, wall_margin=2, range_cells=50.0, seed=3)
+    drawn = np.sort(np.random.default_rng(3).choice(3000, 500, replace=False))
+    assert fit_sliver_gate(counts, gains, max_samples=500, **settings) == fit_sliver_gate(counts[drawn], gains[drawn], **settings)
+    assert fit_sliver_gate(counts, gains, max_samples=500, **settings) != fit_sliver_gate(counts, gains, **settings)
+    assert fit_sliver_gate(counts, gains, max_samples=5000, **settings) == fit_sliver_gate(counts, gains, **settings)
+
+
 def test_file_round_trip_and_clear_errors(tmp_path):
     gate = SliverGate(((((1.0, -2.0),) * 3, (0.5, 0.0)), (((1.5,), (-1.0,)), (-0.25,))),
                       threshold=0.6, wall_margin=3, min_gain=40, range_cells=25.0)

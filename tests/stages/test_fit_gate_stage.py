@@ -48,7 +48,7 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     ({"maps": 3, "holdout_maps": 3}, r"fit_gate: holdout_maps \(3\) must be below maps \(3\)"),
     ({"maps": 0}, r"fit_gate\.maps: must be a whole number >= 1"),
     ({"min_gain": 2.5}, r"fit_gate\.min_gain: must be a whole number >= 0 \(cells\)"),
-    ({"mpas": 3}, r"fit_gate\.mpas: unknown setting \(known: maps, holdout_maps, offices, office_holdout, hidden, min_gain, wall_margin, threshold, workers\)"),
+    ({"mpas": 3}, r"fit_gate\.mpas: unknown setting \(known: maps, holdout_maps, offices, office_holdout, hidden, fit_samples, min_gain, wall_margin, threshold, workers\)"),
     ({"maps": 8, "holdout_maps": 4}, "3 maps, need more than fit_gate.holdout_maps = 4"),
     ({"offices": 2, "office_holdout": 2}, r"fit_gate: office_holdout \(2\) must be below offices \(2\)"),
     ({"maps": 3, "holdout_maps": 1, "offices": 5, "office_holdout": 2}, "2 maps, need more than fit_gate.office_holdout = 2"),

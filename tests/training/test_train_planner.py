@@ -371,24 +371,46 @@ def test_a_two_node_training_killed_after_an_epoch_resumes_into_one_mlflow_run(t
         for rank in (0, 1):
             env = {**os.environ, "PYTHONWARNINGS": "ignore", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port),
                    "NODE_RANK": str(rank), "LOCAL_RANK": "0", "WORLD_SIZE": "2"}
+            logs = [open(tmp_path / f"{mode}_{rank}.{stream}", "w") for stream in ("out", "err")]  # files: a pipe fills
             nodes.append(subprocess.Popen([sys.executable, str(script), str(root / "guide.npz"), str(out), mlflow_uri,
-                                           str(checkpoints), mode], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                                          stderr=subprocess.PIPE, text=True, start_new_session=True))
+                                           str(checkpoints), mode], cwd=tmp_path, env=env, stdout=logs[0],
+                                          stderr=logs[1], text=True, start_new_session=True))
+            for log in logs:
+                log.close()
         return nodes
+
+    def logs(mode: str) -> str:
+        return "".join(f"--- node {rank} ---\n" + (tmp_path / f"{mode}_{rank}.err").read_text()[-3000:] for rank in (0, 1))
+
+    def finish(nodes: list[subprocess.Popen], mode: str, seconds: float) -> None:
+        """Wait for both nodes; one failing (the other then waits for it forever) or the time
+        running out kills both and shows both nodes' logs."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline and any(node.poll() is None for node in nodes):
+            if any(node.poll() not in (None, 0) for node in nodes):
+                break
+            time.sleep(0.5)
+        failed = [node for node in nodes if node.poll() != 0]
+        for node in failed:
+            if node.poll() is None:
+                os.killpg(node.pid, signal.SIGKILL)
+                node.wait()
+        assert not failed, f"{mode}: node(s) {[nodes.index(n) for n in failed]} failed or hung\n{logs(mode)}"
 
     first = launch("fresh")
     deadline = time.monotonic() + 240
-    while not (checkpoints / "last.ckpt").is_file() and time.monotonic() < deadline and first[0].poll() is None:
+    while (not (checkpoints / "last.ckpt").is_file() and time.monotonic() < deadline
+           and all(node.poll() is None for node in first)):
         time.sleep(0.2)
-    assert (checkpoints / "last.ckpt").is_file(), first[0].communicate()[1][-3000:]
     for node in first:
         os.killpg(node.pid, signal.SIGKILL)
         node.wait()
+    assert (checkpoints / "last.ckpt").is_file(), logs("fresh")
     assert not (out / "policy.pt").exists()
     second = launch("resume")
-    outputs = [node.communicate(timeout=300) for node in second]
-    assert all(node.returncode == 0 for node in second), outputs[0][1][-3000:] + outputs[1][1][-3000:]
-    printed = sorted(line for stdout, _ in outputs for line in stdout.splitlines() if line.startswith("exported:"))
+    finish(second, "resume", 300)
+    outputs = [(tmp_path / f"resume_{rank}.out").read_text() for rank in (0, 1)]
+    printed = sorted(line for stdout in outputs for line in stdout.splitlines() if line.startswith("exported:"))
     assert printed == [f"exported: {out / 'policy.pt'}", "exported: None"]  # only node 0 exports
     export = read_policy_export(out / "policy.pt")
     assert export["epochs"] == 3
