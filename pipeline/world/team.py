@@ -82,6 +82,7 @@ class TeamPlanner(ABC):
     name: str = ""
     description: str = ""
     uses_ground_truth: bool = False
+    ignores_motion_rule: bool = False  # only the ground-truth team reference may set this
 
     @abstractmethod
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int, robots: int) -> None:
@@ -323,13 +324,16 @@ class TeamEpisode:
         positions[robot], targets[robot] = r.position, r.target
         return TeamObservation(robot, own, tuple(positions), tuple(targets), tuple(self.connected[robot]), self.time)
 
-    def depart(self, robot: int, waypoint: Sequence[float]) -> None:
-        """Start robot `robot`'s move to a lattice waypoint: known-free in its belief now."""
+    def depart(self, robot: int, waypoint: Sequence[float], oracle: bool = False) -> None:
+        """Start robot `robot`'s move to a lattice waypoint: known-free in its belief now (with
+        `oracle`, the ground-truth reference's rule: free in the ground truth)."""
         r = self.robots[robot]
         cell = lattice_cell(self.map, self.protocol, waypoint)
-        if not segment_is_known_free(self.beliefs[robot].grid == FREE, r.cell, cell):
+        free = self.map.free if oracle else self.beliefs[robot].grid == FREE
+        if not segment_is_known_free(free, r.cell, cell):
+            what = "ground-truth free" if oracle else "known to be free"
             raise MotionError(f"robot {robot}: segment ({r.position[0]:.3f}, {r.position[1]:.3f}) -> "
-                              f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not known to be free")
+                              f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}")
         target = snap(waypoint, self.protocol)
         r.origin, r.departed_at = r.position, self.time
         r.heading = (target, cell)
@@ -399,6 +403,7 @@ def run_team_episode(
     reset_team_planner(planner, ground_truth, protocol, seed, robots)
     decision_ms: list[list[float]] = [[] for _ in range(robots)]
     failure, violations = "", 0
+    oracle = bool(getattr(planner, "ignores_motion_rule", False))  # the ground-truth reference's rule only
     # Events: (time, waiting, robot). At one time, arrivals and decisions come before the
     # retries of waiting robots, and lower robot numbers first.
     queue = [(0.0, 0, r.index) for r in episode.robots]
@@ -439,7 +444,7 @@ def run_team_episode(
             continue
         robot.waiting = False
         try:
-            episode.depart(index, robot.plan.pop(0))
+            episode.depart(index, robot.plan.pop(0), oracle)
         except MotionError as error:
             failure, violations = f"motion rule: {error}", 1
             break
@@ -560,10 +565,11 @@ class TeamReplay:
 
 
 def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
-                protocol: Protocol) -> TeamReplay:
+                protocol: Protocol, oracle: bool = False) -> TeamReplay:
     """Replay a team file's rows: each row's segment from its robot's previous row must be
     known-free in the belief built from all earlier rows (the team's belief with full
-    communication). Rows after done are not counted."""
+    communication); with `oracle`, free in the ground truth (the team `optimal` reference's
+    rule). Rows after done are not counted."""
     robots = _team_size(rows)
     if robots == 0:
         raise ValueError("a team file starts with one row per robot at time 0 (robots 0, 1, ...)")
@@ -590,7 +596,7 @@ def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, f
             except MotionError as error:
                 failure, violations = f"motion rule: robot {robot}: {error}", 1
                 break
-            if not segment_is_known_free(belief.grid == FREE, cells[robot], cell):
+            if not segment_is_known_free(ground_truth.free if oracle else belief.grid == FREE, cells[robot], cell):
                 failure, violations = (f"motion rule: robot {robot}: segment ({where[robot][0]:g}, {where[robot][1]:g}) -> "
                                        f"({x:g}, {y:g}) at {t:g} s crosses cells not known to be free"), 1
                 break
