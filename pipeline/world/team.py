@@ -436,10 +436,10 @@ def run_team_episode(
             robot.waiting = True
             moving = [r.clock for r in episode.robots if r.heading is not None]
             if not moving:
-                if all(r.waiting or r.stopped for r in episode.robots):
+                if not queue:  # nobody moves and nobody is left to decide
                     failure = "no reachable target left for any robot"
                     break
-                continue  # another robot decides at this time: ask again after it
+                continue  # another robot decides at this time: if it moves, this one asks again
             heapq.heappush(queue, (min(moving), 1, index))
             continue
         robot.waiting = False
