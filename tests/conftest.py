@@ -12,6 +12,7 @@ import pytest
 os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 os.environ.setdefault("DVC_NO_ANALYTICS", "1")
 
+from tiny_project import TinyRun, tiny_reference_run  # noqa: E402
 from pipeline.world.maps import GroundTruthMap, load_maze_png  # noqa: E402
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png  # noqa: E402
 
@@ -54,6 +55,13 @@ def small_maze_path(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def small_maze(small_maze_path) -> GroundTruthMap:
     return load_maze_png(small_maze_path)
+
+
+@pytest.fixture(scope="session")
+def tiny_reference(tmp_path_factory) -> TinyRun:
+    """One uninterrupted `dvc repro` of a tiny copy, shared by the end-to-end, Ray and chaos tests
+    (read only: each test that changes a project makes its own)."""
+    return tiny_reference_run(tmp_path_factory.mktemp("tiny") / "project")
 
 
 @pytest.fixture(scope="session")

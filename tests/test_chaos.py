@@ -17,12 +17,7 @@ from __future__ import annotations
 
 import json
 import os
-import queue
-import sys
 import re
-import signal
-import subprocess
-import threading
 import time
 from pathlib import Path
 from typing import Callable
@@ -31,7 +26,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tiny_project import dvc, dvc_env, make_tiny_project
+from tiny_project import dvc, make_tiny_project, streamed_repro
 
 # Where each stage's own progress shows on disk (relative to the project): killed once it exists.
 PROGRESS = {
@@ -59,7 +54,6 @@ RESUMED = {
     "train_planner@dare": "resuming from checkpoints/planner_dare/last.ckpt",
     "distil_policy": "kept from an earlier run",
 }
-RUNNING = re.compile(r"Running stage '([^']+)'")
 
 
 def kill_condition(project: Path, stage: str, seconds: float, rng: np.random.Generator) -> Callable[[], bool]:
@@ -84,52 +78,6 @@ def stage_running(stage: str) -> bool:
         if all(word in text for word in words) and "pytest" not in text:
             return True
     return False
-
-
-def repro(project: Path, on_stage: Callable[[str], Callable[[], bool] | None] = lambda stage: None,
-          log: list[str] | None = None, args: tuple[str, ...] = ()) -> tuple[bool, str | None, dict[str, float]]:
-    """`guide repro [args]`, streamed: at each stage's start `on_stage(stage)` may give a condition, and once
-    it holds the run is SIGKILLed with its whole process group. Returns (finished, the stage
-    killed in, seconds per stage)."""
-    guide = str(Path(sys.executable).with_name("guide"))
-    run = subprocess.Popen([guide, "repro", *args], cwd=project, env=dvc_env(), stdout=subprocess.PIPE,
-                           stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    lines: queue.Queue[str | None] = queue.Queue()
-
-    def read() -> None:
-        for line in run.stdout:  # type: ignore[union-attr]
-            lines.put(line)
-        lines.put(None)
-
-    threading.Thread(target=read, daemon=True).start()
-    stage, condition, started, seconds, output = None, None, time.monotonic(), {}, []
-    while True:
-        try:
-            line = lines.get(timeout=0.05)
-        except queue.Empty:
-            line = ""
-        if line is None:
-            break
-        output.append(line)
-        match = RUNNING.search(line)
-        if match:
-            if stage is not None:
-                seconds[stage] = time.monotonic() - started
-            stage, started = match.group(1), time.monotonic()
-            condition = on_stage(stage)
-        if condition is not None and condition():
-            os.killpg(run.pid, signal.SIGKILL)
-            run.wait()
-            if log is not None:
-                log.append(f"--- killed in {stage}\n" + "".join(output))
-            return False, stage, seconds
-    run.wait()
-    if stage is not None:
-        seconds[stage] = time.monotonic() - started
-    if log is not None:
-        log.append("".join(output))
-    assert run.returncode == 0, "".join(output)[-4000:]
-    return True, None, seconds
 
 
 def reuse_dead_process_ids(project: Path) -> None:
@@ -158,9 +106,8 @@ def data_hashes(project: Path) -> dict[str, str]:
 
 
 @pytest.mark.slow
-def test_dvc_repro_killed_inside_every_stage_ends_as_an_uninterrupted_run(tmp_path):
-    reference = make_tiny_project(tmp_path / "reference")
-    _, _, seconds = repro(reference)
+def test_dvc_repro_killed_inside_every_stage_ends_as_an_uninterrupted_run(tiny_reference, tmp_path):
+    reference, seconds = tiny_reference.project, dict(tiny_reference.seconds)
     project = make_tiny_project(tmp_path / "chaos")
     rng = np.random.default_rng(49)
     killed: list[str] = []
@@ -171,7 +118,7 @@ def test_dvc_repro_killed_inside_every_stage_ends_as_an_uninterrupted_run(tmp_pa
 
     args: tuple[str, ...] = ()
     for _ in range(4 * len(seconds)):
-        finished, stage, _ = repro(project, kill_once, log, args)
+        finished, stage, _ = streamed_repro(project, kill_once, log, args)
         args = ()
         if not finished:
             if stage_is_done(project, stage):  # the kill came after the stage had ended: not inside it

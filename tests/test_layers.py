@@ -25,12 +25,13 @@ def test_the_layers_contract_is_kept():
 
 def test_inside_planners_registration_sits_above_both_wings():
     """The paper's planner (guide/) and the baselines never import our additions (extensions/) or the
-    registration that composes them (catalog); the base never imports a wing."""
+    registration that composes them (catalog); the base never imports a wing; team planners
+    (team/) compose single-robot ones and nothing single-robot imports them."""
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
     (contract,) = [c for c in config["contracts"] if c.get("containers") == ["pipeline.planners"]]
     order = [set(name.strip() for name in layer.split("|")) for layer in contract["layers"]]
     rank = {name: i for i, layer in enumerate(order) for name in layer}
-    assert rank["catalog"] < rank["extensions"] < rank["guide"] == rank["baselines"] < rank["graph_planner"]
+    assert rank["team"] < rank["catalog"] < rank["extensions"] < rank["guide"] == rank["baselines"] < rank["graph_planner"]
     planners = ROOT / "pipeline" / "planners"
     parts = {path.stem if path.is_file() else path.name for path in planners.iterdir()
              if (path.suffix == ".py" and path.stem != "__init__") or (path / "__init__.py").is_file()}

@@ -17,13 +17,9 @@ HALF_SCALE = {"node_resolution": 2.0, "sensor_range": 10.0, "utility_range": 5.0
 
 
 @pytest.fixture(scope="module")
-def tiny_repro(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
-    """A fresh tiny copy after one `dvc repro` on the process engine, and that run."""
-    project = make_tiny_project(tmp_path_factory.mktemp("tiny") / "project")
-    env = {k: v for k, v in dvc_env().items() if k not in ("GUIDE_BACKEND", "RAY_ADDRESS")}
-    run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    return project, run
+def tiny_repro(tiny_reference) -> tuple[Path, str]:
+    """A fresh tiny copy after one `dvc repro` on the process engine, and what that run printed."""
+    return tiny_reference.project, tiny_reference.output
 
 
 def produced_bytes(project: Path) -> dict[str, str]:
@@ -73,8 +69,9 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
         env = dvc_env()
         run = subprocess.run(["dvc", "repro"], cwd=project, env=env, capture_output=True, text=True)
         assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    else:  # the module's run (the Ray test reads it before, the remote test pushes it after)
-        project, run = request.getfixturevalue("tiny_repro")
+        printed = run.stdout + run.stderr
+    else:  # the session's run (the Ray and chaos tests read it before, the remote test pushes it after)
+        project, printed = request.getfixturevalue("tiny_repro")
         env = dvc_env()
     params = yaml.safe_load((project / "params.yaml").read_text())
     assert len(list((project / "data/mazes/test").glob("*.png"))) == 2
@@ -111,7 +108,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
     trained_at = Protocol.from_dict(params["protocol"]).to_dict()
     assert read_inpainter_export(project / "models/inpainter/inpainter.pt")["protocol"] == trained_at
     assert read_policy_export(project / "models/planner_guide/policy.pt")["observations"]["protocol"] == trained_at
-    assert "trained at other protocol values" not in run.stdout + run.stderr  # its own models match its protocol
+    assert "trained at other protocol values" not in printed  # its own models match its protocol
     again = subprocess.run(["dvc", "status"], cwd=project, env=env, capture_output=True, text=True)
     assert "up to date" in again.stdout.lower() or again.stdout.strip() == "", again.stdout
     if not protocol:  # the default case goes on with one experiment (its repro is the baseline)

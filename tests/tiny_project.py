@@ -7,10 +7,17 @@ commits the copy (DVC's experiments need a commit). `dvc(project, *args)` runs D
 from __future__ import annotations
 
 import os
+import queue
+import re
 import shutil
+import signal
 import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import yaml
 
@@ -80,3 +87,73 @@ def make_tiny_project(dest: Path, protocol: dict[str, Any] | None = None) -> Pat
     git(dest, "add", "-A")
     git(dest, "commit", "-qm", "copy")
     return dest
+
+
+RUNNING = re.compile(r"Running stage '([^']+)'")
+
+
+def streamed_repro(project: Path, on_stage: Callable[[str], Callable[[], bool] | None] = lambda stage: None,
+                   log: list[str] | None = None, args: tuple[str, ...] = (),
+                   env: dict[str, str] | None = None) -> tuple[bool, str | None, dict[str, float]]:
+    """`guide repro [args]`, streamed: at each stage's start `on_stage(stage)` may give a condition, and once
+    it holds the run is SIGKILLed with its whole process group. Returns (finished, the stage
+    killed in, seconds per stage); the output goes to `log`."""
+    guide = str(Path(sys.executable).with_name("guide"))
+    run = subprocess.Popen([guide, "repro", *args], cwd=project, env=env or dvc_env(), stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    lines: queue.Queue[str | None] = queue.Queue()
+
+    def read() -> None:
+        for line in run.stdout:  # type: ignore[union-attr]
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=read, daemon=True).start()
+    stage, condition, started, seconds, output = None, None, time.monotonic(), {}, []
+    while True:
+        try:
+            line = lines.get(timeout=0.05)
+        except queue.Empty:
+            line = ""
+        if line is None:
+            break
+        output.append(line)
+        match = RUNNING.search(line)
+        if match:
+            if stage is not None:
+                seconds[stage] = time.monotonic() - started
+            stage, started = match.group(1), time.monotonic()
+            condition = on_stage(stage)
+        if condition is not None and condition():
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+            if log is not None:
+                log.append(f"--- killed in {stage}\n" + "".join(output))
+            return False, stage, seconds
+    run.wait()
+    if stage is not None:
+        seconds[stage] = time.monotonic() - started
+    if log is not None:
+        log.append("".join(output))
+    assert run.returncode == 0, "".join(output)[-4000:]
+    return True, None, seconds
+
+
+@dataclass(frozen=True)
+class TinyRun:
+    """A tiny copy after one uninterrupted `dvc repro` on the process engine: what it printed and
+    how long each stage took (what the chaos test times its kills by)."""
+
+    project: Path
+    output: str
+    seconds: dict[str, float]
+
+
+def tiny_reference_run(dest: Path) -> TinyRun:
+    """A fresh tiny copy at `dest` and its uninterrupted run, on the process engine whatever this
+    machine's GUIDE_BACKEND and RAY_ADDRESS say."""
+    project = make_tiny_project(dest)
+    env = {k: v for k, v in dvc_env().items() if k not in ("GUIDE_BACKEND", "RAY_ADDRESS")}
+    log: list[str] = []
+    _, _, seconds = streamed_repro(project, log=log, env=env)
+    return TinyRun(project, log[-1], seconds)

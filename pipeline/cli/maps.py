@@ -16,9 +16,10 @@ from pipeline.world.caves import CaveConfig, generate_cave_set
 from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
-from pipeline.world.protocol import protocol_for_map
+from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.resample import resample_map, write_ros_map
-from pipeline.world.simulator import replay as replay_trajectory
+from pipeline.world.simulator import MotionError, replay as replay_trajectory
+from pipeline.world.team import TEAM_SUFFIX, read_team_csv, replay_team
 from pipeline.world.trajectories import read_trajectory_csv, recorded_start, write_steps_csv
 
 app = typer.Typer(rich_markup_mode=None)
@@ -137,7 +138,8 @@ def resample_map_command(
 @app.command()
 def replay(
     map_path: Path = typer.Option(..., "--map", help="The map the trajectory was run on."),
-    trajectory: Path = typer.Option(..., help="Trajectory CSV (header x,y; first row 0,0)."),
+    trajectory: Path = typer.Option(..., help="Trajectory CSV (header x,y; first row 0,0), or a team trajectory "
+                                              "<map>.team.csv of `benchmark --robots` (header time_s,robot,x,y)."),
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     done_unknown_cells: int = DoneCells,
@@ -152,9 +154,18 @@ def replay(
     `complete_after_waypoint` is the 1-based row of the file at which the map became complete
     (the start row is 1). Rows after completion count for nothing.
 
+    A team file (<map>.team.csv) is replayed with every row's segment checked against the belief
+    of all earlier rows; it prints the team's completion, makespan (seconds, as the file counts
+    time) and each robot's distance.
+
     Exits 1 when the trajectory breaks the motion rule or does not complete the map.
     """
     rules = protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9)
+    if trajectory.name.endswith(TEAM_SUFFIX):
+        if steps_csv is not None:
+            fail("--steps-csv is a single robot's per-step record; a team file has none")
+        replay_team_file(map_path, trajectory, rules, start, cell_size, oracle)
+        return
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
         points = read_trajectory_csv(trajectory)
@@ -186,3 +197,33 @@ def replay(
                        "replay it with the same --start", err=True)
     if not result.complete or result.motion_violations:
         raise typer.Exit(code=1)  # as `explore`: scripts can test the exit status
+
+
+def replay_team_file(map_path: Path, trajectory: Path, rules: Protocol, start: Optional[tuple[float, float]],
+                     cell_size: float, oracle: bool) -> None:
+    """`guide replay` of a team file: its figures as JSON; exit 1 when it breaks the rule or does not complete."""
+    try:
+        ground_truth = load_map(map_path, start=start, cell_size=cell_size)
+        rows = read_team_csv(trajectory)
+        result = replay_team(ground_truth, rows, protocol_for_map(rules, ground_truth, map_path), oracle=oracle)
+    except (MapError, ValueError) as error:
+        fail(str(error))
+    except MotionError as error:  # a start row off the lattice or outside the map
+        fail(f"{trajectory}: {error}")
+    typer.echo(
+        json.dumps(
+            {
+                "map": ground_truth.name,
+                "complete": result.complete,
+                "robots": result.robots,
+                "makespan_s": round(result.makespan_s, 3),  # the time of the row that completed the map
+                "robot_distance_m": [round(d, 3) for d in result.robot_distance_m],
+                "total_distance_m": round(result.total_distance_m, 3),
+                "motion_violations": result.motion_violations,
+                "explored_ratio": round(result.explored_ratio, 5),
+                "failure": result.failure,
+            }
+        )
+    )
+    if not result.complete or result.motion_violations:
+        raise typer.Exit(code=1)

@@ -37,6 +37,7 @@ from pipeline.evaluation.exploration_curves import (
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, unobservable_problem
 from pipeline.evaluation.statistics import paired_difference, summarise
 from pipeline.models.exports import require_file
+from pipeline.planners.config import PlannerConfig
 from pipeline.planners.registry import make_planner, planner_config
 from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
@@ -58,16 +59,18 @@ DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it r
 KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run not yet complete
 
 
-def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None) -> list[str]:
+def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None,
+                           config_of: Callable[[str], type[PlannerConfig]] = planner_config) -> list[str]:
     """`specs` with policy_file=PATH added to each diffusion planner's (the command line's --checkpoint);
-    ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too."""
+    ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too.
+    `config_of` finds a name's config (the team registry's `team_config` for team names)."""
     if checkpoint is None:
         return specs
     require_file(checkpoint, "a planner checkpoint")
     out, used = [], False
     for spec in specs:
         parsed = parse_planner_spec(spec)
-        if not planner_config(parsed.name).needs_policy:
+        if not config_of(parsed.name).needs_policy:
             out.append(spec)
             continue
         if {"checkpoint", "policy_file"} & set(parsed.options):
@@ -326,11 +329,14 @@ def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[s
 def write_run_record(
     path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None,
     protocol: dict[str, Any], maps: Sequence[str], speed: SpeedModel = SpeedModel(),
+    extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """What ran: per label the planner, its options and its description (which names the policy
     and predictor files a learned planner loaded), with the seed, any start override, the
-    protocol (`recorded_protocol`), the maps and the speed model's speed."""
+    protocol (`recorded_protocol`), the maps, the speed model's speed and any `extra` settings
+    (a team benchmark's robot counts and range)."""
     record = {
+        **(extra or {}),
         "seed": seed,
         "start": list(start) if start is not None else None,
         "protocol": protocol,

@@ -1,4 +1,5 @@
-"""MLflow runs of a benchmark: one run per planner, with its options, summary metrics and tables."""
+"""MLflow runs of a benchmark: one run per planner (one per planner and robot count for a team
+benchmark), with its options, summary metrics and tables."""
 
 from __future__ import annotations
 
@@ -10,6 +11,12 @@ import pandas as pd
 from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
 from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, BenchmarkRun
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV
+from pipeline.evaluation.team_benchmark import (
+    TEAM_COVERAGE_FIGURE,
+    TEAM_METRICS_CSV,
+    TEAM_SUMMARY_JSON,
+    TeamBenchmarkRun,
+)
 from pipeline.world.protocol import Protocol
 
 
@@ -79,3 +86,50 @@ def exploration_metrics(exploration: pd.DataFrame, planner: str) -> dict[str, fl
         return {}
     row = exploration.loc[planner]
     return {name: float(row[name]) for name in EXPLORATION_METRICS if name in row and pd.notna(row[name])}
+
+
+TEAM_METRICS = ("makespan_mean_m", "makespan_std_m", "total_distance_mean_m", "time_to_90_mean_m", "completion_rate",
+                "decision_ms_median", "makespan_over_single_distance")
+
+
+def log_team_benchmark(
+    run: TeamBenchmarkRun,
+    out_dir: str | Path,
+    protocol: Protocol,
+    maps: str,
+    tracking_uri: str | None = None,
+    experiment: str = "benchmark",
+) -> list[str]:
+    """One MLflow run per team run (`label@robots`) of a team benchmark written to `out_dir`, as
+    `log_benchmark` logs one per planner: protocol params, the planner's name, options and
+    description, the robot count and range, team_summary.json's figures as metrics (those no
+    episode reached left out), and as artifacts team_summary.json, team_metrics.csv and the
+    team coverage figure; `maps` is each run's dataset input.
+
+    Returns the run ids.
+    """
+    mlflow = import_mlflow()
+    out_dir = Path(out_dir)
+    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
+    mlflow.set_experiment(experiment)
+    record = run.record
+    run_ids = []
+    for run_label, row in run.summary.items():
+        with mlflow.start_run(run_name=run_label) as active:
+            ran = record.get("planners", {}).get(row["label"], {})
+            log_maze_set(maps, "evaluation")
+            mlflow.log_params({
+                **record.get("protocol", protocol.to_dict()), "planner": row["label"], "maps": maps,
+                "episodes": int(row["episodes"]), "robots": int(row["robots"]),
+                "comm_range_m": "none" if row["comm_range_m"] is None else row["comm_range_m"],
+                "planner_name": ran.get("name", row["label"]),
+                "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+                "planner_description": str(ran.get("description", ""))[:500],
+                "seed": record.get("seed"),
+            })
+            mlflow.log_metrics({name: float(row[name]) for name in TEAM_METRICS if row.get(name) is not None})
+            for name in (TEAM_SUMMARY_JSON, TEAM_METRICS_CSV, TEAM_COVERAGE_FIGURE):
+                if (out_dir / name).is_file():
+                    mlflow.log_artifact(str(out_dir / name))
+            run_ids.append(active.info.run_id)
+    return run_ids

@@ -433,7 +433,7 @@ import sys
 from pipeline.training.inpainter import train_inpainter
 path = train_inpainter({model}, sys.argv[1], sys.argv[2], max_epochs=1, mlflow=False, train_config={train},
                        accelerator="cpu", devices=2)
-print("exported:", path)
+print(f"exported: {{path}}", flush=True)  # one write: two processes share the pipe
 """
 
 

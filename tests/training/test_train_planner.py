@@ -258,7 +258,7 @@ DDP_SCRIPT = """
 import sys
 from pipeline.training.policy import train_planner
 path = train_planner(sys.argv[1], sys.argv[2], {model}, {train}, accelerator="cpu", devices=2, mlflow=False)
-print("exported:", path)
+print(f"exported: {{path}}", flush=True)  # one write: two processes share the pipe
 """
 
 
@@ -340,7 +340,7 @@ from pipeline.training.policy import train_planner
 path = train_planner(sys.argv[1], sys.argv[2], {model}, {train}, accelerator="cpu", devices=1, num_nodes=2,
                      tracking_uri=sys.argv[3], experiment_name="two_nodes", run_name="two nodes",
                      checkpoint_dir=sys.argv[4], resume=sys.argv[5] == "resume")
-print("exported:", path)
+print(f"exported: {{path}}", flush=True)  # one write: two processes share the pipe
 """
 
 

@@ -1,0 +1,387 @@
+"""Team benchmarks: every planner spec with every robot count on every map (`pipeline.world.team`).
+
+A team run is one planner spec at one robot count, named `<label>@<robots>` (`greedy_utility@3`,
+`g5=greedy_utility:min_utility=5` at 3 robots is `g5@3`): the name of its folder, its rows in the
+tables and its MLflow run. The count is in the name at every count, 1 included, so team folders
+never mix with a single-robot benchmark's `OUT/<label>/` (a label cannot hold `@`). A planner name
+means its coordinated team version where one is registered, else every robot runs that planner
+uncoordinated (`pipeline.planners.team.registry`).
+
+As in the single-robot benchmark (`pipeline.evaluation.benchmark`), maps are loaded and planners
+built once, in this process, before the episodes (a bad name, option or map fails before any
+work); they reach the episodes as the run's shared inputs; each finished episode is kept (in
+OUT/.team_episodes/, apart from the single benchmark's OUT/.episodes/) until the run completes,
+so a killed run, rerun with the same command, makes only the episodes still missing. The tables
+are written in task order, so a resumed run writes the same files as an uninterrupted one.
+
+Files: OUT/<run>/<map>.team.csv (the team trajectory, times at the speed model's speed), its
+merges file beside it under a communication range, OUT/<run>/<map>.robots.csv (per robot:
+distance, moves, median decision time), OUT/team_metrics.csv, OUT/team_coverage.csv,
+OUT/team_summary.json and OUT/team_run.json (what ran).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from pipeline.common.atomic import atomic_file, atomic_write_text
+from pipeline.common.executor import default_workers, resolve_backend, run_tasks
+from pipeline.common.fingerprints import files_digest, source_digest
+from pipeline.common.kept_results import KeptResults
+from pipeline.evaluation.benchmark import (
+    BenchmarkInterrupted,
+    EpisodeTask,
+    check_unique_map_names,
+    recorded_protocol,
+    task_map,
+    write_run_record,
+)
+from pipeline.evaluation.exploration_curves import SpeedModel
+from pipeline.evaluation.map_checks import before_episodes
+from pipeline.planners.specs import PlannerSpec, parse_planner_spec
+from pipeline.planners.team.registry import make_team_planner
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.protocol import Protocol, ProtocolMismatchWarning
+from pipeline.world.team import (
+    MAX_ROBOTS,
+    TEAM_SUFFIX,
+    TeamEpisodeResult,
+    TeamPlanner,
+    merges_path,
+    run_team_episode,
+    write_merges_csv,
+    write_team_csv,
+)
+
+TEAM_METRICS_CSV = "team_metrics.csv"
+TEAM_COVERAGE_CSV = "team_coverage.csv"
+TEAM_SUMMARY_JSON = "team_summary.json"
+TEAM_RUN_RECORD = "team_run.json"
+TEAM_COVERAGE_FIGURE = "team_coverage.png"
+ROBOTS_SUFFIX = ".robots.csv"
+TEAM_KEPT_EPISODES = ".team_episodes"
+TEAM_OUTPUT_FILES = (TEAM_METRICS_CSV, TEAM_COVERAGE_CSV, TEAM_SUMMARY_JSON, TEAM_RUN_RECORD, TEAM_COVERAGE_FIGURE)
+ROBOT_COLUMNS = ["robot", "distance_m", "moves", "decision_ms_median"]
+COVERAGE_COLUMNS = ["label", "map", "robots", "time_m", "explored_share"]
+METRICS_COLUMNS = ["label", "map", "planner", "robots", "comm_range_m", "makespan_m", "total_distance_m",
+                   "max_robot_distance_m", "time_to_90_m", "complete", "explored_ratio", "decision_ms_median",
+                   "merges", "seed"]
+
+
+def team_run_label(label: str, robots: int) -> str:
+    """The name of a planner spec's team run at `robots` robots: its folder and MLflow run."""
+    return f"{label}@{robots}"
+
+
+def check_robot_counts(robots: Sequence[int]) -> list[int]:
+    """The robot counts, each once, in increasing order; ValueError for none or one outside 1-MAX_ROBOTS."""
+    counts = list(robots)
+    if not counts:
+        raise ValueError("give at least one robot count")
+    for count in counts:
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or not 1 <= count <= MAX_ROBOTS:
+            raise ValueError(f"robot counts must be whole numbers 1-{MAX_ROBOTS}, got {count!r}")
+    return sorted({int(count) for count in counts})
+
+
+def check_comm_range(comm_range_m: float | None) -> float | None:
+    """The communication range in metres (None: full communication); ValueError unless positive and finite."""
+    if comm_range_m is None:
+        return None
+    if isinstance(comm_range_m, bool) or not isinstance(comm_range_m, (int, float)) \
+            or not (math.isfinite(comm_range_m) and comm_range_m > 0):
+        raise ValueError(f"the communication range must be a positive number of metres, got {comm_range_m!r}")
+    return float(comm_range_m)
+
+
+def resolve_team_specs(planners: Sequence[str | PlannerSpec]) -> list[tuple[PlannerSpec, TeamPlanner]]:
+    """Each entry parsed (`parse_planner_spec`) and built as a team planner (`make_team_planner`);
+    ValueError naming the label for an unknown name, a refused option or a label used twice."""
+    resolved: list[tuple[PlannerSpec, TeamPlanner]] = []
+    seen: set[str] = set()
+    for entry in planners:
+        spec = entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry, TEAM_OUTPUT_FILES)
+        if spec.label in seen:
+            raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
+        seen.add(spec.label)
+        try:
+            planner = make_team_planner(spec.name, **spec.options)
+        except (TypeError, ValueError) as error:  # UnknownPlannerError is a ValueError too
+            message = str(error)
+            raise ValueError(message if message.startswith("unknown") else f"planner {spec.label!r}: {message}") from None
+        resolved.append((spec, planner))
+    return resolved
+
+
+def options_key(options: dict[str, Any]) -> str:
+    return json.dumps(options, sort_keys=True, default=str)
+
+
+@dataclass(frozen=True)
+class TeamEpisodeTask:
+    """One (map, planner spec, robot count) team episode, picklable for a worker."""
+
+    map_path: str
+    planner: str  # the name `make_team_planner` takes
+    label: str  # the spec's label; the run is `label@robots`
+    robots: int
+    seed: int
+    options: dict[str, Any] = field(default_factory=dict, hash=False)
+    comm_range_m: float | None = None
+
+    @property
+    def run_label(self) -> str:
+        return team_run_label(self.label, self.robots)
+
+    @property
+    def planner_key(self) -> tuple[str, str]:
+        return self.planner, options_key(self.options)
+
+
+@dataclass
+class TeamEpisodeInputs:
+    """What every team episode of a run reads: the maps (path -> (map, its protocol)) and the
+    built team planners (by `TeamEpisodeTask.planner_key`; each episode resets its planner)."""
+
+    maps: dict[str, tuple[GroundTruthMap, Protocol]]
+    planners: dict[tuple[str, str], TeamPlanner]
+
+
+def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpisodeResult:
+    """One team episode with the run's map and planner (the executor's shared inputs)."""
+    ground_truth, protocol = inputs.maps[task.map_path]
+    with warnings.catch_warnings():
+        # run_team_benchmark has said it once, before the episodes; each worker would repeat it.
+        warnings.simplefilter("ignore", ProtocolMismatchWarning)
+        result = run_team_episode(ground_truth, inputs.planners[task.planner_key], protocol, task.robots,
+                                  comm_range_m=task.comm_range_m, seed=task.seed)
+    result.map_name = Path(task.map_path).stem
+    return result
+
+
+@dataclass
+class TeamBenchmarkRun:
+    """What a team benchmark made, in memory: team_metrics.csv's rows (`frame`), team_coverage.csv's
+    rows (`coverage`), team_summary.json (`summary`, by run label), the episodes with their tasks in
+    task order, what ran (team_run.json's `record`) and the maps (name -> (map, its protocol,
+    whether the checks before the run found it completable))."""
+
+    frame: pd.DataFrame
+    coverage: pd.DataFrame
+    summary: dict[str, dict[str, Any]]
+    episodes: list[tuple[TeamEpisodeTask, TeamEpisodeResult]]
+    record: dict[str, Any]
+    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+
+
+def run_team_benchmark(
+    map_paths: Sequence[str | Path],
+    planners: Sequence[str | PlannerSpec],
+    protocol: Protocol,
+    out_dir: str | Path,
+    robots: Sequence[int],
+    comm_range_m: float | None = None,
+    workers: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    start: tuple[float, float] | None = None,
+    warn: Callable[[str], None] | None = None,
+    speed: SpeedModel = SpeedModel(),
+    backend: str | None = None,
+) -> TeamBenchmarkRun:
+    """Run every planner spec at every robot count on every map; write the files the module's doc
+    lists and return them in memory (`TeamBenchmarkRun`).
+
+    Every robot starts at the map's start (`start` overrides every map's, as in `load_map`).
+    `comm_range_m` None is full communication (one team belief), else the range within which
+    robots merge their beliefs. Failed episodes are kept in the tables (complete False).
+    `warn` receives a line for each map no planner can complete, before the episodes. `speed`
+    converts the team files' times to seconds. `workers`, `backend` and the kept episodes are
+    the single-robot benchmark's (`run_benchmark`).
+    """
+    backend = resolve_backend(backend)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
+    counts = check_robot_counts(robots)
+    comm_range_m = check_comm_range(comm_range_m)
+    resolved = resolve_team_specs(planners)  # a refused name or value fails before any map is read
+    maps: dict[str, tuple[GroundTruthMap, Protocol]] = {}
+    loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]] = {}
+    names, cell_sizes = [], set()
+    for path in map_paths:
+        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
+        maps[str(path)] = ground_truth, map_protocol
+        cell_sizes.add(map_protocol.cell_size)
+        names.append(ground_truth.name)
+        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
+        loaded[ground_truth.name] = (ground_truth, map_protocol, completable)
+        for problem in problems if warn is not None else ():
+            warn(problem)
+    check_unique_map_names(map_paths, names)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    run_labels = {team_run_label(spec.label, count) for spec, _ in resolved for count in counts}
+    stale = sorted(d.name for d in out_dir.iterdir()
+                   if d.is_dir() and "@" in d.name and d.name not in run_labels and any(d.glob("*" + TEAM_SUFFIX)))
+    if stale:
+        warnings.warn(f"{out_dir} holds team trajectories of runs this one does not write ({', '.join(stale)}); "
+                      f"its {TEAM_METRICS_CSV} lists only this run's", stacklevel=2)
+    for _, planner in resolved:  # models trained at other protocol values: said once here, not by every worker
+        planner.check_protocol(protocol)
+    specs = [spec for spec, _ in resolved]
+    descriptions = [planner.description for _, planner in resolved]
+    record = write_run_record(out_dir / TEAM_RUN_RECORD, specs, descriptions, seed, start,
+                              recorded_protocol(protocol, sorted(cell_sizes)), [str(p) for p in map_paths], speed,
+                              extra={"robots": counts, "comm_range_m": comm_range_m})
+    tasks = [
+        TeamEpisodeTask(str(path), spec.name, spec.label, count, seed, dict(spec.options), comm_range_m)
+        for spec in specs
+        for count in counts
+        for path in map_paths
+    ]
+    inputs = TeamEpisodeInputs(maps, {(spec.name, options_key(dict(spec.options))): planner for spec, planner in resolved})
+    identity = {"tasks": [[t.map_path, t.planner, t.label, t.robots, options_key(t.options), t.seed, t.comm_range_m]
+                          for t in tasks],
+                "start": list(start) if start is not None else None,
+                "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
+                "planners": descriptions, "source": source_digest()}
+    keep = KeptResults(out_dir / TEAM_KEPT_EPISODES, identity)
+    finished: dict[int, TeamEpisodeResult] = {}
+
+    def on_result(index: int, result: TeamEpisodeResult) -> None:
+        write_episode_files(result, tasks[index], out_dir, speed)
+        finished[index] = result
+
+    workers = default_workers() if workers is None else workers
+    try:
+        run_tasks(run_team_task, tasks, min(workers, len(tasks)), "team episodes", "ep", keep=keep, backend=backend,
+                  progress=progress, on_result=on_result, collect=False, shared=inputs)
+    except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
+        if finished:
+            write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
+        raise BenchmarkInterrupted(len(finished), len(tasks), out_dir) from None
+    shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
+    return write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
+
+
+def write_episode_files(result: TeamEpisodeResult, task: TeamEpisodeTask, out_dir: Path, speed: SpeedModel) -> Path:
+    """OUT/<run>/<map>.team.csv, its merges file under a range, and <map>.robots.csv; the team file's path."""
+    folder = out_dir / task.run_label
+    team_file = write_team_csv(folder / f"{result.map_name}{TEAM_SUFFIX}", result.rows, speed.speed_mps)
+    if task.comm_range_m is not None:
+        write_merges_csv(merges_path(team_file), result.merges, speed.speed_mps)
+    with atomic_file(folder / f"{result.map_name}{ROBOTS_SUFFIX}") as tmp:
+        robot_table(result).to_csv(tmp, index=False, float_format="%.6g")
+    return team_file
+
+
+def robot_table(result: TeamEpisodeResult) -> pd.DataFrame:
+    """Per robot of an episode: its distance, its moves (rows after its start) and its median decision time."""
+    moves = np.bincount([robot for _, robot, _, _ in result.rows], minlength=result.robots) - 1
+    return pd.DataFrame({
+        "robot": np.arange(result.robots),
+        "distance_m": np.round(result.robot_distance_m, 3),
+        "moves": moves,
+        "decision_ms_median": [round(float(np.median(ms)), 3) if len(ms) else float("nan") for ms in result.decision_ms],
+    }, columns=ROBOT_COLUMNS)
+
+
+def coverage_rows(task: TeamEpisodeTask, result: TeamEpisodeResult) -> list[dict[str, Any]]:
+    """team_coverage.csv's rows of an episode: the union belief's explored share after each event
+    (an event that changed neither time nor share is left out)."""
+    rows, last = [], None
+    for time_m, share in result.coverage:
+        point = (round(time_m, 6), round(share, 6))
+        if point != last:
+            rows.append({"label": task.run_label, "map": result.map_name, "robots": task.robots,
+                         "time_m": point[0], "explored_share": point[1]})
+            last = point
+    return rows
+
+
+def write_team_tables(episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]], out_dir: Path,
+                      record: dict[str, Any], maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]) -> TeamBenchmarkRun:
+    """team_metrics.csv, team_coverage.csv and team_summary.json from the episodes (in task order)."""
+    frame = pd.DataFrame([{**result.metrics_row(), "label": task.run_label} for task, result in episodes],
+                         columns=METRICS_COLUMNS)
+    with atomic_file(out_dir / TEAM_METRICS_CSV) as tmp:
+        frame.to_csv(tmp, index=False)
+    coverage = pd.DataFrame([row for task, result in episodes for row in coverage_rows(task, result)],
+                            columns=COVERAGE_COLUMNS)
+    with atomic_file(out_dir / TEAM_COVERAGE_CSV) as tmp:
+        coverage.to_csv(tmp, index=False)
+    summary = team_summary(episodes, record)
+    atomic_write_text(out_dir / TEAM_SUMMARY_JSON, json.dumps(summary, indent=2) + "\n")
+    return TeamBenchmarkRun(frame, coverage, summary, list(episodes), record, maps)
+
+
+def _finite(value: float, decimals: int = 3) -> float | None:
+    """A number for JSON: rounded, or None for nan (no episode reached it)."""
+    return round(float(value), decimals) if np.isfinite(value) else None
+
+
+def team_summary(episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]],
+                 record: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Per run (`label@robots`, in task order): makespan mean and std, total distance, time to 90 %
+    of the free area (over the episodes that reached it), completion rate, median decision time
+    and, when the same spec also ran with one robot, the mean over maps of the makespan over
+    that robot's distance (1 for the one-robot run; below 1: the team finishes sooner).
+    Distances and times in metres of travel."""
+    by_run: dict[str, list[tuple[TeamEpisodeTask, TeamEpisodeResult]]] = {}
+    for task, result in episodes:
+        by_run.setdefault(task.run_label, []).append((task, result))
+    single = {(task.label, result.map_name): result.total_distance_m
+              for task, result in episodes if task.robots == 1}
+    summary: dict[str, dict[str, Any]] = {}
+    for run_label, group in by_run.items():
+        task = group[0][0]
+        results = [result for _, result in group]
+        makespans = np.array([r.makespan_m for r in results])
+        to_90 = np.array([r.time_to_share(0.9) for r in results])
+        medians = [float(np.median(ms)) for r in results
+                   if (ms := [m for robot in r.decision_ms for m in robot])]
+        ratios = [r.makespan_m / single[task.label, r.map_name] for r in results
+                  if single.get((task.label, r.map_name), 0) > 0]
+        summary[run_label] = {
+            "label": task.label,
+            "planner": results[0].planner,
+            "description": record.get("planners", {}).get(task.label, {}).get("description", ""),
+            "robots": task.robots,
+            "comm_range_m": task.comm_range_m,
+            "episodes": len(results),
+            "makespan_mean_m": _finite(makespans.mean()),
+            "makespan_std_m": _finite(makespans.std(ddof=0)),
+            "total_distance_mean_m": _finite(np.mean([r.total_distance_m for r in results])),
+            "time_to_90_mean_m": _finite(to_90[np.isfinite(to_90)].mean()) if np.isfinite(to_90).any() else None,
+            "completion_rate": round(float(np.mean([r.complete for r in results])), 4),
+            "decision_ms_median": _finite(np.median(medians)) if medians else None,
+            "makespan_over_single_distance": _finite(np.mean(ratios), 4) if ratios else None,
+        }
+    return summary
+
+
+def team_summary_markdown(summary: dict[str, dict[str, Any]]) -> str:
+    """team_summary.json as a markdown table, for the command line."""
+
+    def cell(value: Any, fmt: str = "{:.1f}") -> str:
+        return "—" if value is None else fmt.format(value)
+
+    lines = ["| run | robots | episodes | makespan (m) | total distance (m) | to 90 % (m) | complete "
+             "| decision ms (median) | makespan / 1-robot distance |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for run_label, row in summary.items():
+        spread = f" +- {row['makespan_std_m']:.1f}" if row["episodes"] > 1 and row["makespan_std_m"] is not None else ""
+        lines.append(f"| {run_label} | {row['robots']} | {row['episodes']} | {cell(row['makespan_mean_m'])}{spread} "
+                     f"| {cell(row['total_distance_mean_m'])} | {cell(row['time_to_90_mean_m'])} "
+                     f"| {row['completion_rate'] * 100:.0f} % | {cell(row['decision_ms_median'], '{:.2f}')} "
+                     f"| {cell(row['makespan_over_single_distance'], '{:.2f}')} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,147 @@
+"""Figures of team benchmarks: one team episode's paths on its map, and team coverage against time.
+
+The paths figure draws the map as `render.render_frame` does (the belief the team built, over the
+faint ground truth), then each robot's path in its own colour, its start as a square (nested
+when robots share a start) and its last position as a dot.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from pipeline.common.atomic import atomic_file
+from pipeline.evaluation.exploration_curves import share_at
+from pipeline.reporting.render import FONT, OUTLINE_RGB, auto_scale, render_frame, render_header, save_png, world_to_cells
+from pipeline.world.maps import GroundTruthMap
+from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import Belief, Lidar
+from pipeline.world.team import lattice_cell
+
+# One colour per robot (RGB), one for each of the MAX_ROBOTS a team may have, distinct from the
+# map's palette: blue, orange, green, red, violet, brown, pink, olive.
+ROBOT_RGB: tuple[tuple[int, int, int], ...] = (
+    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40),
+    (148, 103, 189), (140, 86, 75), (227, 119, 194), (188, 189, 34),
+)
+GRID_POINTS = 400  # samples along the time axis of the coverage figure
+KEY_HEIGHT = 24  # the strip under the title that names each robot's colour
+
+
+def team_belief(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
+                protocol: Protocol) -> np.ndarray:
+    """The union belief a team's rows build: a scan at every row's position (the starts included)."""
+    belief = Belief(ground_truth.shape)
+    lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
+    for _, _, x, y in rows:
+        belief.apply(lidar.scan(lattice_cell(ground_truth, protocol, (x, y))))
+    return belief.grid
+
+
+def robot_paths(rows: Sequence[tuple[float, int, float, float]]) -> list[list[tuple[float, float]]]:
+    """Each robot's waypoints (metres) in order, its start first."""
+    robots = 1 + max(int(robot) for _, robot, _, _ in rows)
+    paths: list[list[tuple[float, float]]] = [[] for _ in range(robots)]
+    for _, robot, x, y in rows:
+        paths[int(robot)].append((float(x), float(y)))
+    return paths
+
+
+def team_paths_figure(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
+                      protocol: Protocol, path: str | Path | None = None, title: str = "",
+                      scale: int | None = None) -> np.ndarray:
+    """One team episode on its map: the belief its rows build, each robot's path in its colour,
+    starts as squares, last positions as dots, a colour key naming each robot's distance; an RGB
+    image, written as PNG to `path` when given. `rows` are a team file's (time, robot, x, y)."""
+    if not rows:
+        raise ValueError("a team episode has at least its start rows")
+    scale = auto_scale(ground_truth.shape) if scale is None else int(scale)
+    image = render_frame(ground_truth, team_belief(ground_truth, rows, protocol), [], None, scale, legend=False)
+    paths = robot_paths(rows)
+    thickness = max(2, int(round(scale * 0.9)))
+    distances = []
+    for robot, points in enumerate(paths):
+        colour = ROBOT_RGB[robot % len(ROBOT_RGB)]
+        pixels = ((world_to_cells(points, ground_truth) + 0.5) * scale).round().astype(np.int32)
+        distances.append(float(np.hypot(*np.diff(np.asarray(points), axis=0).T).sum()) if len(points) > 1 else 0.0)
+        if len(pixels) > 1:
+            cv2.polylines(image, [pixels[:, None, :]], False, (255, 255, 255), thickness + 2, cv2.LINE_AA)
+            cv2.polylines(image, [pixels[:, None, :]], False, colour, thickness, cv2.LINE_AA)
+    for robot, points in enumerate(paths):  # markers over every path, so no path hides a start
+        colour = ROBOT_RGB[robot % len(ROBOT_RGB)]
+        pixels = ((world_to_cells(points, ground_truth) + 0.5) * scale).round().astype(np.int32)
+        half = int(round(max(4.0, 3.0 * scale) * (1.0 - 0.6 * robot / max(1, len(paths)))))
+        (sx, sy), (ex, ey) = pixels[0], pixels[-1]
+        cv2.rectangle(image, (int(sx) - half, int(sy) - half), (int(sx) + half, int(sy) + half), colour, -1)
+        cv2.rectangle(image, (int(sx) - half, int(sy) - half), (int(sx) + half, int(sy) + half), (255, 255, 255), 1)
+        radius = max(3, int(round(1.8 * scale)))
+        cv2.circle(image, (int(ex), int(ey)), radius + 1, OUTLINE_RGB, -1, cv2.LINE_AA)
+        cv2.circle(image, (int(ex), int(ey)), radius, colour, -1, cv2.LINE_AA)
+    header = render_header(image.shape[1], title or f"map {ground_truth.name}: {len(paths)} robots", legend=False)
+    figure = np.concatenate([header, robot_key(image.shape[1], distances), image], axis=0)
+    if path is not None:
+        save_png(figure, path)
+    return figure
+
+
+def robot_key(width: int, distances: Sequence[float]) -> np.ndarray:
+    """A strip naming each robot's colour and distance: `robot 0: 41 m`."""
+    strip = np.full((KEY_HEIGHT, width, 3), 255, dtype=np.uint8)
+    x = 8
+    for robot, distance in enumerate(distances):
+        label = f"robot {robot}: {distance:.0f} m"
+        (text_width, _), _ = cv2.getTextSize(label, FONT, 0.42, 1)
+        if x + 18 + text_width > width:
+            break
+        cv2.rectangle(strip, (x, 7), (x + 12, 17), ROBOT_RGB[robot % len(ROBOT_RGB)], -1)
+        cv2.putText(strip, label, (x + 16, 17), FONT, 0.42, (40, 40, 40), 1, cv2.LINE_AA)
+        x += 16 + text_width + 14
+    return strip
+
+
+def team_coverage_figure(coverage: pd.DataFrame, path: str | Path, title: str = "") -> Path:
+    """Team coverage against time: per run (`label` column) the mean explored share over maps
+    against the team's time in metres of travel, with a band of one standard deviation; one
+    colour per planner spec, one dash per robot count. `coverage` has team_coverage.csv's
+    columns (label, map, robots, time_m, explored_share). A PNG at `path`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if coverage.empty:
+        raise ValueError("no team coverage to draw")
+    grid = np.linspace(0.0, max(float(coverage["time_m"].max()), 1e-9), GRID_POINTS)
+    runs = list(dict.fromkeys(coverage["label"]))  # in the table's (task) order
+    specs = list(dict.fromkeys(run.rsplit("@", 1)[0] for run in runs))
+    counts = sorted(set(int(c) for c in coverage["robots"]))
+    colors = plt.get_cmap("tab10")
+    styles = ("-", "--", "-.", ":")
+    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=120)
+    for run in runs:
+        rows = coverage[coverage["label"] == run]
+        shares = np.stack([share_at({"explored_share": episode["explored_share"].to_numpy()}, grid,
+                                    episode["time_m"].to_numpy())
+                           for _, episode in rows.groupby("map", sort=True)])
+        mean, std = shares.mean(axis=0), shares.std(axis=0)
+        color = colors(specs.index(run.rsplit("@", 1)[0]) % colors.N)
+        style = styles[counts.index(int(rows["robots"].iloc[0])) % len(styles)]
+        ax.plot(grid, 100 * mean, color=color, ls=style, lw=1.4, label=f"{run} ({len(shares)})")
+        ax.fill_between(grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color,
+                        alpha=0.1, lw=0)
+    ax.set_xlabel("team time (metres each robot can travel)")
+    ax.set_ylabel("explored share of the free area (%)")
+    ax.set_ylim(0, 101)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right", title="run (maps)", title_fontsize=7)
+    ax.set_title(title or "Team coverage: mean over maps, band one standard deviation", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
+    return path
