@@ -101,6 +101,12 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()
+    import mlflow
+
+    client = mlflow.MlflowClient(tracking_uri=f"sqlite:///{project / 'mlflow.db'}")
+    runs = [run for e in client.search_experiments() for run in client.search_runs([e.experiment_id])]
+    without = sorted({run.info.run_name for run in runs if not run.inputs.dataset_inputs})
+    assert len(runs) > 10 and not without, f"runs with no maze or data set recorded: {without}"
     from pipeline.models.modeling_diffusion import read_policy_export
     from pipeline.models.modeling_inpainter import read_inpainter_export
     from pipeline.world.protocol import Protocol

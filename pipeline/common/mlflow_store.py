@@ -10,7 +10,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from pipeline.common.fingerprints import files_digest
+from pipeline.common.fingerprints import files_digest, settings_digest
 
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 
@@ -115,6 +115,19 @@ def maze_set_input(folder: str | Path, context: str = "evaluation") -> tuple[obj
     dataset = MetaDataset(source=source, name=name, digest=recorded or files_digest([folder]))
     tags = {"dvc_hash": recorded or "none (not a DVC output here)", "context": context}
     return dataset, tags
+
+
+def log_generated_maze_set(name: str, settings: dict, context: str = "training") -> None:
+    """Record a maze set drawn in the run itself (no folder outlives it) as a dataset input of
+    the active MLflow run: named `name`, its digest that of the `settings` it was drawn from
+    (the generator's, with the seed), which are its source."""
+    mlflow = import_mlflow()
+    from mlflow.data.code_dataset_source import CodeDatasetSource
+    from mlflow.data.meta_dataset import MetaDataset
+
+    source = CodeDatasetSource({k: str(v) for k, v in settings.items()})
+    dataset = MetaDataset(source=source, name=name, digest=settings_digest(settings))
+    mlflow.log_input(dataset, context=context, tags={"dvc_hash": "none (drawn in the run)", "context": context})
 
 
 def log_maze_set(folder: str | Path, context: str = "evaluation", run_id: str | None = None,

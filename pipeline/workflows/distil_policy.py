@@ -33,7 +33,7 @@ import numpy as np
 from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_json
 from pipeline.common.fingerprints import files_digest, settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_generated_maze_set, log_maze_set, resolve_tracking_uri
 from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, POLICIES, REPORTS
 from pipeline.data.collect import COLLECTION_SOURCES
@@ -256,6 +256,10 @@ def log_rounds(section: dict, rows: list[dict]) -> None:
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(str(section["experiment"]))
     with mlflow.start_run(run_name="distil rounds"):
+        log_maze_set(DATA.mazes_train, "training")
+        log_generated_maze_set(f"evaluation mazes ({section['eval_mazes']} of {float(section['eval_side_m']):g} m)",
+                               {"generator": "guide mazes", "count": section["eval_mazes"],
+                                "side_m": section["eval_side_m"], "seed": section["eval_seed"]}, "evaluation")
         teacher = section["teacher"]
         mlflow.log_params({"teacher": teacher["planner"], **{f"teacher.{k}": v for k, v in (teacher.get("options") or {}).items()},
                            "rounds": section["rounds"], "episodes": section["episodes"],

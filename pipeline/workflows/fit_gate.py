@@ -15,7 +15,7 @@ import numpy as np
 from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
 from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
@@ -121,6 +121,9 @@ def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="fit_gate"):
         mlflow.log_params({**protocol.to_dict(), **{f"fit_gate.{k}": v for k, v in section.items()}})
+        log_maze_set(TRAIN_MAZES, "training")
+        if section["offices"]:
+            log_maze_set(TRAIN_OFFICES, "training")
         mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float))})
         for path in (GATE_PATH, METRICS_PATH, FIGURE_PATH):
             if path.is_file():

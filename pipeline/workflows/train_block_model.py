@@ -20,7 +20,7 @@ import numpy as np
 from pipeline.common.atomic import atomic_write_json
 from pipeline.common.fingerprints import settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri, log_generated_maze_set
 from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
@@ -109,6 +109,9 @@ def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protoco
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="train_block_model"):
+        log_generated_maze_set(f"block model mazes ({section['mazes']} of {section['side_m']:g} m, seed {section['maze_seed']})",
+                               {"generator": "guide mazes", "count": section["mazes"], "side_m": section["side_m"],
+                                "seed": section["maze_seed"], "block_m": config.block_m})
         mlflow.log_params({**protocol.to_dict(), **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
                            **{f"model.{k}": v for k, v in config.to_dict().items()}})
         mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})

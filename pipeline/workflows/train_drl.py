@@ -26,7 +26,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm.auto import tqdm
 
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_generated_maze_set, resolve_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.defaults import PIPELINE_DRL
@@ -244,6 +244,12 @@ def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]
     mlflow.set_experiment(section["experiment"])
     flat = {f"{group}.{k}": v for group in ("model", "env", "ppo") for k, v in section[group].items()}
     with mlflow.start_run(run_name="train_drl"):
+        log_generated_maze_set("training environments' mazes (a fresh one at every reset)",
+                               {"generator": "guide/Explore-v0", "maze_sides_m": section["env"]["maze_sides_m"],
+                                "seed": section["seed"]})
+        log_generated_maze_set(f"evaluation mazes ({section['eval_mazes']} of {section['eval_side_m']:g} m)",
+                               {"generator": "guide/Explore-v0", "count": section["eval_mazes"],
+                                "side_m": section["eval_side_m"], "seed": section["eval_seed"]}, "evaluation")
         mlflow.log_params({**protocol.to_dict(), **flat,
                            **{k: v for k, v in section.items() if k not in ("model", "env", "ppo")}})
         for row in metrics["history"]:

@@ -38,6 +38,12 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     written = json.loads((tmp_path / "reports/sliver_gate.json").read_text())
     assert written == metrics and written["maps_fit"] == 2 and written["samples_fit"] > 100
     assert 0.5 < written["auc_holdout"] <= 1.0  # better than chance on a maze it was not fitted on
+    import mlflow
+
+    client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
+    (run,) = client.search_runs([client.get_experiment_by_name("sliver_gate").experiment_id],
+                                order_by=["attribute.start_time DESC"], max_results=1)
+    assert [i.dataset.name for i in run.inputs.dataset_inputs] == ["data/mazes/train"]  # no floors drawn here
     assert (tmp_path / "reports/sliver_gate.png").stat().st_size > 5000
     first = (tmp_path / "models/sliver_gate/sliver_gate.json").read_bytes()
     fit_gate.main("params.yaml")

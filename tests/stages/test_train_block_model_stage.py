@@ -37,6 +37,13 @@ def test_stage_trains_measures_and_logs_the_block_model(tmp_path, monkeypatch, m
     trained_on = torch.load(tmp_path / "models/block_model/block_model.pt", weights_only=True)["trained_on"]
     assert trained_on["mazes"] == {"mazes": 3, "side_m": 50.0, "maze_seed": 555}
     assert not (tmp_path / "data").exists()  # its mazes were drawn in a temporary folder
+    import mlflow
+
+    client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
+    (run,) = client.search_runs([client.get_experiment_by_name("block_model").experiment_id],
+                                order_by=["attribute.start_time DESC"], max_results=1)
+    (drawn,) = run.inputs.dataset_inputs  # recorded by the settings they were drawn from
+    assert drawn.dataset.name.startswith("block model mazes (3 of 50 m, seed 555)") and drawn.dataset.digest
 
 
 @pytest.mark.parametrize(("section", "message"), [

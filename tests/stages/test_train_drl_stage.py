@@ -83,6 +83,8 @@ def test_the_stage_trains_exports_evaluates_resumes_and_logs(project, capsys):
     runs = client.search_runs([experiment_id], order_by=["attribute.start_time DESC"])
     assert len(runs) == runs_before + 1
     assert runs[0].data.metrics["timesteps"] == 64 and runs[0].data.params["ppo.n_envs"] == "2"
+    inputs = {i.dataset.name: i for i in runs[0].inputs.dataset_inputs}  # the mazes drawn, by their settings
+    assert len(inputs) == 2 and all(i.dataset.source_type == "code" and i.dataset.digest for i in inputs.values())
     assert runs[0].data.metrics["eval_distance_m"] == evaluation["distance_m"]
 
     # Longer: continues from the checkpoint, whatever timesteps says.
