@@ -94,6 +94,10 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
         assert json.loads((project / f"reports/planner_{variant}_metrics.json").read_text())["epochs"] == 2
     report = (project / "reports/report.md").read_text()
     assert "Table II" in report and "Table IV" in report and "## Table V" in report and "coverage.png" in report
+    teams = json.loads((project / "reports/teams.json").read_text())
+    assert sorted(teams) == ["greedy_utility@1", "greedy_utility@2", "guide_tsp@1", "guide_tsp@2"]
+    assert all(row["completion_rate"] == 1.0 for row in teams.values()) and "## Teams" in report
+    assert len(list((project / "reports/teams/guide_tsp@2").glob("*.team.csv"))) == 2
     assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
     figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
                "reports/pairs_preview.png", "reports/expert_episode.png", "reports/trajectories.png",

@@ -497,6 +497,32 @@ def _param_text(value: Any) -> str:
     return str(value)
 
 
+def team_table_markdown(summary: Mapping[str, Mapping[str, Any]] | None, coverage_figure: str | None = None) -> str:
+    """The team table: each team planner at each team size (reports/teams.json, `team_summary`),
+    beside the metrics MARVEL and IR2 publish, as our team files measure them."""
+    title = "## Teams: makespan by team size"
+    if not summary:
+        return f"{title}\n\n{NOT_RUN}: no team sizes or team planners were configured (benchmark.robots).\n"
+    lines = [title, "",
+             "| team planner | robots | maps | makespan (m) | total distance (m) | to 90 % (m) | vs one robot | complete |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for row in summary.values():
+        lines.append(f"| {row['label']} | {row['robots']} | {row['episodes']} "
+                     f"| {_mean_std(row['makespan_mean_m'], row['makespan_std_m'], row['episodes'])} "
+                     f"| {_num(row['total_distance_mean_m'])} | {_num(row['time_to_90_mean_m'])} "
+                     f"| {_num(row['makespan_over_single_distance'], '{:.2f}')} | {_pct(row['completion_rate'], False)} |")
+    lines += ["",
+              "Distances and times in metres of travel (every robot at the same speed). Makespan: the team's time "
+              "when the union of its beliefs is explored, which is MARVEL's trajectory length of the longest robot "
+              "and IR2's maximum distance among the robots (a robot waiting still counts the time); to 90 %: "
+              "MARVEL's distance to 90 % explored, in team time; vs one robot: makespan over the same planner's "
+              "one-robot distance on each map (1/N is the ideal split). A planner's name is its coordinated team "
+              "version; `uncoordinated_<name>` runs one planner per robot, blind to the others (docs/teams.md)."]
+    if coverage_figure:
+        lines += ["", f"![team coverage]({coverage_figure})"]
+    return "\n".join(lines) + "\n"
+
+
 def report_markdown(
     table2_frame: pd.DataFrame,
     table3_frame: pd.DataFrame,
@@ -511,8 +537,11 @@ def report_markdown(
     table5_frame: pd.DataFrame | None = None,
     speed_mps: float | None = None,
     coverage_figure: str | None = None,
+    teams: Mapping[str, Mapping[str, Any]] | None = None,
+    team_coverage_figure: str | None = None,
 ) -> str:
-    """reports/report.md: a header naming the maps and parameters, then Tables I-V and the figures."""
+    """reports/report.md: a header naming the maps and parameters, then Tables I-V, the team
+    table and the figures."""
     lines = ["# GUIDE reimplementation: results beside the paper's", ""]
     if maps:
         lines.append(f"- Benchmark maps ({len(maps)}): {', '.join(maps)}")
@@ -534,6 +563,7 @@ def report_markdown(
         table4_markdown(table4_frame) if table4_frame is not None
         else f"## Table IV: denoising steps K\n\n{NOT_RUN}: no sweep was configured.\n",
         table5_markdown(table5_frame, speed_mps),
+        team_table_markdown(teams, team_coverage_figure),
     ]
     text = "\n".join(lines) + "\n" + "\n".join(sections)
     if coverage_figure:

@@ -25,6 +25,7 @@ from pipeline.reporting.benchmark_figures import distance_bar_chart, planner_pat
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
+from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
 from pipeline.world.maps import MapError, list_maps
 from pipeline.world.protocol import Protocol
 
@@ -81,15 +82,13 @@ def draw_coverage(run: BenchmarkRun, out: Path, speed: SpeedModel) -> Path:
                            title=f"Coverage curves on {maps_text(run.frame['map'].nunique())}: mean, band one standard deviation")
 
 
-def maps_text(count: int) -> str:
-    return f"{count} map{'s' if count != 1 else ''}"
-
-
 TEST_MAZES = DATA.mazes_test
 OUT_DIR = REPORTS.benchmark
 METRICS_PATH = REPORTS.benchmark_metrics
 CHART_PATH = REPORTS.benchmark_chart
 FIGURE_PATH = REPORTS.benchmark_figure
+TEAMS_DIR = REPORTS.teams
+TEAMS_METRICS_PATH = REPORTS.teams_metrics
 
 
 def benchmark_test_mazes(section: dict, protocol: Protocol):
@@ -131,3 +130,20 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
     planner_paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
     log_benchmark(run, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
     print((OUT_DIR / "summary.md").read_text())
+    benchmark_teams(section, protocol)
+
+
+def benchmark_teams(section: dict, protocol: Protocol) -> None:
+    """The `team_planners` at each of the `robots` counts on the test mazes (`comm_range_m`:
+    None, one shared belief): reports/teams/ (built whole, as reports/benchmark/) and the metrics
+    DVC tracks, reports/teams.json. No robots or no team planners: both written empty."""
+    robots, planners = list(section.get("robots") or []), list(section.get("team_planners") or [])
+    summary: dict = {}
+    with atomic_folder(TEAMS_DIR) as out_dir:
+        if robots and planners:
+            run = team_benchmark_folder(TEST_MAZES, planners, protocol, out_dir, robots,
+                                        comm_range_m=section.get("comm_range_m"), workers=section["workers"],
+                                        seed=int(section["seed"]), speed=SpeedModel(section["speed_mps"]),
+                                        experiment="benchmark_teams")
+            summary = run.summary
+    atomic_write_text(TEAMS_METRICS_PATH, json.dumps(summary, indent=2) + "\n")

@@ -52,6 +52,8 @@ REPORT_MD = REPORTS.report
 REPORT_JSON = REPORTS.report_metrics
 FIGURE_PATH = REPORTS.report_figure
 COVERAGE_PATH = REPORTS.coverage_figure
+TEAMS_JSON = REPORTS.teams_metrics  # the benchmark stage's team runs (empty when none were configured)
+TEAM_COVERAGE = REPORTS.teams / "team_coverage.png"
 
 def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
     """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
@@ -133,6 +135,9 @@ def write_report(section: dict, protocol: Protocol):
             maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
             protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
             table5_frame=tables["table5"], speed_mps=speed.speed_mps, coverage_figure=COVERAGE_PATH.name,
+            teams=json.loads(TEAMS_JSON.read_text()) if TEAMS_JSON.is_file() else None,
+            team_coverage_figure=(TEAM_COVERAGE.relative_to(REPORT_MD.parent).as_posix()
+                                  if TEAM_COVERAGE.is_file() else None),
         ),
     )
     metrics = metrics_json(tables)

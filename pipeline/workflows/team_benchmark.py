@@ -19,9 +19,13 @@ from pipeline.evaluation.team_benchmark import (
 from pipeline.planners.team.registry import team_config
 from pipeline.reporting.team_figures import team_coverage_figure, team_paths_figure
 from pipeline.reporting.tracking import log_team_benchmark
-from pipeline.workflows.benchmark import maps_text
 from pipeline.world.maps import MapError, list_maps
 from pipeline.world.protocol import Protocol
+
+def maps_text(count: int) -> str:
+    """"1 map", "12 maps": for figure titles."""
+    return f"{count} map{'s' if count != 1 else ''}"
+
 
 PATHS_SUFFIX = ".team.png"  # beside the first map's team file of each run: its robots' paths
 

@@ -285,6 +285,21 @@ def test_report_markdown_has_every_table(bench_frame):
     assert "## Table I" in missing and "eval_predictor" in missing and "## Table IV" in missing
 
 
+def test_the_team_table_has_a_row_per_planner_and_size_with_the_metrics_defined(bench_frame):
+    row = {"label": "greedy_utility", "robots": 3, "episodes": 12, "makespan_mean_m": 200.04, "makespan_std_m": 20.5,
+           "total_distance_mean_m": 580.0, "time_to_90_mean_m": 150.25, "makespan_over_single_distance": 0.4035,
+           "completion_rate": 1.0}
+    text = reports.team_table_markdown({"greedy_utility@3": row, "greedy_utility@1": {
+        **row, "robots": 1, "makespan_over_single_distance": 1.0, "completion_rate": 0.5}}, "teams/team_coverage.png")
+    assert "| greedy_utility | 3 | 12 | 200.0 +- 20.5 | 580.0 | 150.2 | 0.40 | 100 % |" in text
+    assert "| greedy_utility | 1 | 12 |" in text and "| 1.00 | 50 % |" in text
+    assert "MARVEL" in text and "IR2" in text and "![team coverage](teams/team_coverage.png)" in text
+    for none in (None, {}):
+        assert "not run" in reports.team_table_markdown(none).lower()
+    assert "## Teams" in reports.report_markdown(reports.table2(bench_frame), reports.table3(bench_frame),
+                                                 teams={"greedy_utility@3": row})
+
+
 def test_metrics_json_is_flat_numbers(bench_frame):
     tables = {"table1": precision_frame(), "table2": reports.table2(bench_frame), "table3": reports.table3(bench_frame)}
     metrics = reports.metrics_json(tables)

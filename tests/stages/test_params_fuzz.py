@@ -95,6 +95,11 @@ ALLOWED = {
     # An empty list has a meaning: a logistic gate; no threshold sweep; no denoising-steps sweep.
     ("fit_gate.hidden", "empty list"), ("eval_predictor.sweep_thresholds", "empty list"),
     ("report.k_values", "empty list"), ("report.k_planners", "empty list"),
+    # Params files from before the teams and the gate's draw: no team runs, one shared belief, all samples.
+    ("benchmark.robots", "delete"), ("benchmark.team_planners", "delete"), ("benchmark.comm_range_m", "delete"),
+    ("fit_gate.fit_samples", "delete"),
+    # No team sizes or no team planners: no team runs.
+    ("benchmark.robots", "empty list"), ("benchmark.team_planners", "empty list"),
     # Benchmark labels, not registered names: one absent from the benchmark shows as "not run".
     ("report.ablation_planners[*]", "unknown planner"), ("report.figure_planners[*]", "unknown planner"),
 }

@@ -104,6 +104,13 @@ def test_benchmark_stage_settings_are_checked_before_any_episode(generated_maze_
     assert line.startswith("error: p.yaml: benchmark.planners[1]: ") and "unknown planner 'foo'" in line and "nearest_frontier" in line
     (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0, speed_mps: 2}\n")
     assert stage_error(capsys, benchmark, "w.yaml") == "error: w.yaml: benchmark.workers: must be a whole number >= 1, or null (all cores), got 0"
+    (tmp_path / "r.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
+                                     " robots: [1, 9], team_planners: [greedy_utility]}\n")
+    assert stage_error(capsys, benchmark, "r.yaml").startswith("error: r.yaml: benchmark.robots[1]: must be a whole number")
+    (tmp_path / "t.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
+                                     " robots: [3], team_planners: [uncoordinated_foo]}\n")
+    line = stage_error(capsys, benchmark, "t.yaml")
+    assert line.startswith("error: t.yaml: benchmark.team_planners[0]: ") and "uncoordinated_foo" in line
     (tmp_path / "s.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: -2}\n")
     assert stage_error(capsys, benchmark, "s.yaml") == "error: s.yaml: benchmark.speed_mps: must be a finite number > 0 (metres per second), got -2"
     assert not (tmp_path / "reports" / "benchmark").exists()
