@@ -17,7 +17,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
 from pipeline.evaluation.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.evaluation.predictor_eval import comparison_markdown
@@ -622,8 +622,10 @@ def log_tables_to_mlflow(
     tracking_uri: str | None = None,
     params: Mapping[str, Any] | None = None,
     artifacts: Mapping[str, Sequence[str | Path]] | None = None,
+    maps: str | Path | None = None,
 ) -> dict[str, list[str]]:
     """One MLflow experiment per table, one run per row, so variants compare side by side.
+    `maps`: the maze set the tables were measured on, each run's dataset input.
 
     Keys are "table1".."table4" (logged to table1_inference, table2_benchmark,
     table3_ablation, table4_denoising_steps) or experiment names. Run name: the planner,
@@ -645,6 +647,8 @@ def log_tables_to_mlflow(
         for record in table.to_dict("records"):
             name = _run_name(record)
             with mlflow.start_run(run_name=name) as run:
+                if maps is not None:
+                    log_maze_set(maps, "evaluation")
                 run_params = {column: record[column] for column in _ID_COLUMNS if column in record and column != "label"}
                 mlflow.log_params({**(dict(params) if params else {}), **run_params})
                 metrics = {}

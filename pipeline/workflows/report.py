@@ -144,7 +144,7 @@ def write_report(section: dict, protocol: Protocol):
     atomic_write_text(REPORT_JSON, json.dumps(metrics, indent=2, sort_keys=True) + "\n")
     log_tables_to_mlflow(
         tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)},
-        artifacts={"table5": [COVERAGE_PATH]},
+        artifacts={"table5": [COVERAGE_PATH]}, maps=TEST_MAZES,
     )
     print(REPORT_MD.read_text())
     return metrics

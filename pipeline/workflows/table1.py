@@ -17,7 +17,7 @@ from typing import Any, Optional
 import pandas as pd
 
 from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_text
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri
+from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
 from pipeline.evaluation.predictor_eval import (
     COLUMNS,
     PAPER_STEPS,
@@ -113,6 +113,7 @@ def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protoco
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="structural_inference") as active:
+        log_maze_set(maps, "evaluation")
         mlflow.log_params({**protocol.to_dict(), **{f"eval_predictor.{k}": v for k, v in section.items()}, "maps": maps})
         metrics = {}
         for row in frame.itertuples(index=False):
