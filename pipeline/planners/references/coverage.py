@@ -179,7 +179,7 @@ def _order_viewpoints(
     return [nodes[int(i)] for i in perm]
 
 
-def _detours(dist: np.ndarray, order: Sequence[int]) -> np.ndarray:
+def viewpoint_detours(dist: np.ndarray, order: Sequence[int]) -> np.ndarray:
     """Per viewpoint order[i] (i >= 1): extra metres the order spends to pass through it."""
     o = np.asarray(order)
     prev, here = o[:-1], o[1:]
@@ -200,7 +200,7 @@ def prune_plan(objective: CoverageObjective, plan: CoveragePlan, deadline: float
     while improved and len(plan.order) > 1 and time.perf_counter() < deadline:
         improved = False
         order = plan.order
-        for i in np.argsort(_detours(objective.model.dist, order), kind="stable")[::-1]:
+        for i in np.argsort(viewpoint_detours(objective.model.dist, order), kind="stable")[::-1]:
             i = int(i) + 1
             trial = evaluate_order(objective, order[:i] + order[i + 1 :])
             if _better(trial, plan, allow_equal=True):
