@@ -1,4 +1,5 @@
-"""`guide explore`: one planner on one map, with its trajectory, metrics, picture and animation."""
+"""`guide explore`: one planner on one map, with its trajectory, metrics, picture and animation;
+with `--robots N`, a team of N robots running the planner's team version."""
 
 from __future__ import annotations
 
@@ -24,9 +25,14 @@ from pipeline.cli.options import (
     protocol,
     warn,
 )
+from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
+from pipeline.evaluation.team_benchmark import check_comm_range
 from pipeline.planners.matched_models import model_files
 from pipeline.workflows import explore as exploration
+from pipeline.workflows import team_explore
 from pipeline.world.maps import MapError
+from pipeline.world.protocol import Protocol
+from pipeline.world.team import MAX_ROBOTS
 
 app = typer.Typer(rich_markup_mode=None)
 
@@ -49,9 +55,44 @@ def explore(
     utility_range: Optional[float] = UtilityRange, region_size: Optional[float] = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
+    robots: Optional[int] = typer.Option(
+        None, "--robots", help=f"Explore with a team of this many robots (1-{MAX_ROBOTS}) running the planner's team "
+                               "version, all from the start [default: one robot, the single-robot episode]."),
+    comm_range: Optional[float] = typer.Option(
+        None, "--comm-range", help="With --robots: robots merge what they know only within this many metres of "
+                                   "each other (or through a chain of robots that are) [default: full communication]."),
+    speed_mps: float = typer.Option(
+        PAPER_SPEED_MPS, help="With --robots: the robots' speed (m/s) for the team file's times (the paper's "
+                              "maximum, as in the team benchmark)."),
 ) -> None:
-    """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF), run.json."""
+    """Explore one map with one planner: trajectory CSV, metrics, final PNG (and GIF), run.json.
+
+    With --robots N, a team of N robots instead: OUT (default runs/explore/<label>@<N>) gets
+    <map>.team.csv, <map>.robots.csv, under --comm-range <map>.team.merges.csv, team_metrics.csv,
+    <map>.png (each robot's path in its colour), with --gif <map>.gif, and run.json.
+    """
+    if robots is not None:
+        if bag is not None:
+            fail("--bag records one robot's episode; it is not supported for teams (drop --bag or --robots)")
+        if not 1 <= robots <= MAX_ROBOTS:
+            fail(f"--robots takes a team size 1-{MAX_ROBOTS}, got {robots}")
+        try:
+            check_comm_range(comm_range)
+        except ValueError:
+            fail(f"--comm-range takes a positive number of metres, got {comm_range:g}")
+        try:
+            speed = SpeedModel(speed_mps)
+        except ValueError as error:
+            fail(f"--speed-mps: {error}")
+    elif comm_range is not None:
+        fail("--comm-range is the range of a team's radios: give the team size with --robots")
+    elif given(ctx, "speed_mps"):
+        fail("--speed-mps sets a team file's times: give the team size with --robots")
     rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
+    if robots is not None:
+        explore_team(ctx, map_path, planner, rules, robots, comm_range, speed, out=out, gif=gif, start=start, seed=seed,
+                     checkpoint=checkpoint, cell_size=cell_size, progress=progress)
+        return
     try:
         run = exploration.prepare(map_path, planner, rules, out, start, checkpoint)
     except (MapError, ValueError, FileNotFoundError, TypeError) as error:  # an unknown planner name is a ValueError too
@@ -74,6 +115,34 @@ def explore(
     typer.echo("wrote " + ", ".join(str(path) for path in written))
     if not result.complete:
         hint = exploration.after_failure(run, result)
+        if hint:
+            warn(hint)
+        raise typer.Exit(code=1)
+
+
+def explore_team(ctx: typer.Context, map_path: Path, planner: str, rules: Protocol, robots: int,
+                 comm_range: Optional[float], speed: SpeedModel, *, out: Optional[Path], gif: bool,
+                 start: Optional[tuple[float, float]], seed: int, checkpoint: Optional[Path], cell_size: float,
+                 progress: bool) -> None:
+    """`guide explore --robots N`: one team episode, its files, a summary line; exit 1 when it did not complete."""
+    try:
+        run = team_explore.prepare_team(map_path, planner, rules, robots, comm_range, out, start, checkpoint)
+    except (MapError, ValueError, FileNotFoundError, TypeError) as error:  # an unknown planner name is a ValueError too
+        fail(str(error))
+    ground_truth = run.ground_truth
+    if exploration.is_ros_map(map_path) and given(ctx, "cell_size") and abs(cell_size - ground_truth.cell_size) > 1e-12:
+        warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
+    check_out_dir(run.out)  # before the episode: a long run is not lost to an unwritable folder
+    for problem in run.problems:
+        warn(problem)
+    run.planner.check_protocol(run.protocol)  # before the progress bar, which a warning from inside the episode would cut
+    range_text = "full communication" if run.comm_range_m is None else f"{run.comm_range_m:g} m range"
+    typer.echo(f"{run.label}: {run.planner.description} ({robots} robot{'s' if robots != 1 else ''}, {range_text})")
+    result, written = team_explore.run_team(run, seed=seed, gif=gif, progress=progress, start=start, speed=speed)
+    typer.echo(team_explore.team_summary_line(run, result))
+    typer.echo("wrote " + ", ".join(str(path) for path in written))
+    if not result.complete:
+        hint = team_explore.after_team_failure(run, result)
         if hint:
             warn(hint)
         raise typer.Exit(code=1)

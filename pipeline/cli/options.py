@@ -7,7 +7,6 @@ import tempfile
 from pathlib import Path
 from typing import NoReturn, Optional
 
-import click
 import typer
 
 from pipeline.common.config import validate
@@ -56,8 +55,11 @@ def check_bag_out(path: Path) -> None:
 
 
 def given(ctx: Optional[typer.Context], name: str) -> bool:
-    """Whether the user set option `name` on the command line (not its default)."""
-    return ctx is not None and ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
+    """Whether the user set option `name` on the command line (not its default). Compared by the
+    source's name: newer typer releases carry their own copy of click, whose ParameterSource is
+    not `click.core`'s."""
+    source = ctx.get_parameter_source(name) if ctx is not None else None
+    return source is not None and source.name == "COMMANDLINE"
 
 
 def protocol(

@@ -1,8 +1,10 @@
-"""Figures of team benchmarks: one team episode's paths on its map, and team coverage against time.
+"""Figures of team benchmarks: one team episode's paths on its map, its animation, and team
+coverage against time.
 
 The paths figure draws the map as `render.render_frame` does (the belief the team built, over the
 faint ground truth), then each robot's path in its own colour, its start as a square (nested
-when robots share a start) and its last position as a dot.
+when robots share a start) and its last position as a dot. The animation is that figure at evenly
+spaced team times, each frame drawn from the rows up to its time.
 """
 
 from __future__ import annotations
@@ -16,7 +18,16 @@ import pandas as pd
 
 from pipeline.common.atomic import atomic_file
 from pipeline.evaluation.exploration_curves import share_at
-from pipeline.reporting.render import FONT, OUTLINE_RGB, auto_scale, render_frame, render_header, save_png, world_to_cells
+from pipeline.reporting.render import (
+    FONT,
+    OUTLINE_RGB,
+    auto_scale,
+    render_frame,
+    render_header,
+    save_gif,
+    save_png,
+    world_to_cells,
+)
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import Belief, Lidar
@@ -53,14 +64,16 @@ def robot_paths(rows: Sequence[tuple[float, int, float, float]]) -> list[list[tu
 
 def team_paths_figure(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
                       protocol: Protocol, path: str | Path | None = None, title: str = "",
-                      scale: int | None = None) -> np.ndarray:
+                      scale: int | None = None, belief: np.ndarray | None = None) -> np.ndarray:
     """One team episode on its map: the belief its rows build, each robot's path in its colour,
     starts as squares, last positions as dots, a colour key naming each robot's distance; an RGB
-    image, written as PNG to `path` when given. `rows` are a team file's (time, robot, x, y)."""
+    image, written as PNG to `path` when given. `rows` are a team file's (time, robot, x, y);
+    `belief` is their `team_belief` when the caller has it already (the animation builds it row by row)."""
     if not rows:
         raise ValueError("a team episode has at least its start rows")
     scale = auto_scale(ground_truth.shape) if scale is None else int(scale)
-    image = render_frame(ground_truth, team_belief(ground_truth, rows, protocol), [], None, scale, legend=False)
+    belief = team_belief(ground_truth, rows, protocol) if belief is None else belief
+    image = render_frame(ground_truth, belief, [], None, scale, legend=False)
     paths = robot_paths(rows)
     thickness = max(2, int(round(scale * 0.9)))
     distances = []
@@ -86,6 +99,34 @@ def team_paths_figure(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, 
     if path is not None:
         save_png(figure, path)
     return figure
+
+
+def team_animation(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
+                   protocol: Protocol, path: str | Path, frames: int = 40, title: str = "",
+                   fps: float = 8, hold_last_s: float = 2.0) -> Path:
+    """An animated GIF of one team episode: `team_paths_figure` at `frames` evenly spaced team
+    times from the start to the last row, each drawn from the rows up to that time (the belief
+    they build, each robot's path so far in its colour). `title` heads every frame, followed by
+    the frame's team time in metres of travel. The GIF's path."""
+    if not rows:
+        raise ValueError("a team episode has at least its start rows")
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+        raise ValueError(f"frames must be a whole number >= 1, got {frames!r}")
+    rows = sorted(rows, key=lambda row: row[0])  # a team file's order already; kept stable for equal times
+    scale = auto_scale(ground_truth.shape)
+    belief = Belief(ground_truth.shape)
+    lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
+    end = float(rows[-1][0])
+    images, used = [], 0
+    for t in np.linspace(0.0, end, frames) if frames > 1 else [end]:
+        while used < len(rows) and rows[used][0] <= t + 1e-9:  # the belief grows with each row reached
+            _, _, x, y = rows[used]
+            belief.apply(lidar.scan(lattice_cell(ground_truth, protocol, (x, y))))
+            used += 1
+        text = f"{title}  |  t {t:.1f} m" if title else f"map {ground_truth.name}  |  t {t:.1f} m"
+        images.append(team_paths_figure(ground_truth, rows[:used], protocol, None, text, scale,
+                                        belief=belief.grid.copy()))
+    return save_gif(images, path, fps=fps, hold_last_s=hold_last_s)
 
 
 def robot_key(width: int, distances: Sequence[float]) -> np.ndarray:
