@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import NoReturn, Optional
 
 import typer
 
@@ -116,10 +116,7 @@ def benchmark(
                                  experiment=experiment, mlflow=mlflow_log, warn=warn,
                                  speed=speed, backend=backend).frame
     except BenchmarkInterrupted as stop:
-        kept = f"; {out}/metrics.csv and summary.md hold them" if stop.done else ""
-        typer.echo(f"interrupted after {stop.done} of {stop.total} episodes{kept}; the same command resumes "
-                   "the run", err=True)
-        raise typer.Exit(code=130)
+        stop_interrupted(stop, "episodes", f"{out}/metrics.csv and summary.md hold them")
     except (MapError, ValueError, FileNotFoundError) as error:  # a malformed spec, an unknown option or name, no model
         fail(str(error))
     typer.echo((out / "summary.md").read_text(), nl=False)
@@ -131,16 +128,22 @@ def benchmark(
         raise typer.Exit(code=1)
 
 
+def stop_interrupted(stop: BenchmarkInterrupted, episodes: str, kept: str) -> NoReturn:
+    """Exit 130 after Ctrl-C, saying how many `episodes` were done, where they are (`kept`, when
+    any were) and that the same command resumes."""
+    where = f"; {kept}" if stop.done else ""
+    typer.echo(f"interrupted after {stop.done} of {stop.total} {episodes}{where}; the same command resumes the run",
+               err=True)
+    raise typer.Exit(code=130)
+
+
 def team_benchmark_command(maps: Path, planners: list[str], rules: Protocol, out: Path, robots: list[int],
                            comm_range_m: Optional[float], **options) -> None:
     """The team benchmark of `guide benchmark --robots`: run, summary printed, exit 1 when an episode did not complete."""
     try:
         run = team_benchmark_folder(maps, planners, rules, out, robots, comm_range_m=comm_range_m, warn=warn, **options)
     except BenchmarkInterrupted as stop:
-        kept = f"; {out}/{TEAM_METRICS_CSV} holds them" if stop.done else ""
-        typer.echo(f"interrupted after {stop.done} of {stop.total} team episodes{kept}; the same command resumes "
-                   "the run", err=True)
-        raise typer.Exit(code=130)
+        stop_interrupted(stop, "team episodes", f"{out}/{TEAM_METRICS_CSV} holds them")
     except (MapError, ValueError, FileNotFoundError) as error:  # a malformed spec, an unknown option or name, no model
         fail(str(error))
     frame = run.frame

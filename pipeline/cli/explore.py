@@ -4,7 +4,7 @@ with `--robots N`, a team of N robots running the planner's team version."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Any, Callable, Optional
 
 import typer
 
@@ -97,26 +97,39 @@ def explore(
         run = exploration.prepare(map_path, planner, rules, out, start, checkpoint)
     except (MapError, ValueError, FileNotFoundError, TypeError) as error:  # an unknown planner name is a ValueError too
         fail(str(error))
-    ground_truth = run.ground_truth
-    if exploration.is_ros_map(map_path) and given(ctx, "cell_size") and abs(cell_size - ground_truth.cell_size) > 1e-12:
-        warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
-    check_out_dir(run.out)  # before the episode: a long run is not lost to an unwritable folder
     if bag is not None:
         check_bag_out(bag)
-    for problem in run.problems:
-        warn(problem)
-    run.planner.check_protocol(run.protocol)  # before the progress bar, which a warning from inside the episode would cut
+    before_episode(ctx, map_path, run, cell_size)
     typer.echo(f"{run.label}: {run.planner.description}")
     files = model_files(run.planner)
     if files:
         typer.echo(f"models: {', '.join(files)}")
     result, written = exploration.run(run, seed=seed, gif=gif, progress=progress, start=start, bag=bag)
-    typer.echo(exploration.summary_line(run, result))
+    after_episode(exploration.summary_line(run, result), written, result.complete,
+                  lambda: exploration.after_failure(run, result))
+
+
+def before_episode(ctx: typer.Context, map_path: Path, run: Any, cell_size: float) -> None:
+    """What is said and checked before an episode (one robot's or a team's): a ROS map's own
+    resolution over --cell-size, the output folder (a long run is not lost to an unwritable one),
+    why the map may not complete, and models trained at other protocol values (before the progress
+    bar, which a warning from inside the episode would cut)."""
+    if exploration.is_ros_map(map_path) and given(ctx, "cell_size") and abs(cell_size - run.ground_truth.cell_size) > 1e-12:
+        warn(f"{map_path.name} carries its own resolution ({run.ground_truth.cell_size:g} m per cell); --cell-size is ignored")
+    check_out_dir(run.out)
+    for problem in run.problems:
+        warn(problem)
+    run.planner.check_protocol(run.protocol)
+
+
+def after_episode(summary: str, written: list[Path], complete: bool, hint: Callable[[], Optional[str]]) -> None:
+    """The summary line and the files written; exit 1, with what to try, when the episode did not complete."""
+    typer.echo(summary)
     typer.echo("wrote " + ", ".join(str(path) for path in written))
-    if not result.complete:
-        hint = exploration.after_failure(run, result)
-        if hint:
-            warn(hint)
+    if not complete:
+        text = hint()
+        if text:
+            warn(text)
         raise typer.Exit(code=1)
 
 
@@ -129,20 +142,9 @@ def explore_team(ctx: typer.Context, map_path: Path, planner: str, rules: Protoc
         run = team_explore.prepare_team(map_path, planner, rules, robots, comm_range, out, start, checkpoint)
     except (MapError, ValueError, FileNotFoundError, TypeError) as error:  # an unknown planner name is a ValueError too
         fail(str(error))
-    ground_truth = run.ground_truth
-    if exploration.is_ros_map(map_path) and given(ctx, "cell_size") and abs(cell_size - ground_truth.cell_size) > 1e-12:
-        warn(f"{map_path.name} carries its own resolution ({ground_truth.cell_size:g} m per cell); --cell-size is ignored")
-    check_out_dir(run.out)  # before the episode: a long run is not lost to an unwritable folder
-    for problem in run.problems:
-        warn(problem)
-    run.planner.check_protocol(run.protocol)  # before the progress bar, which a warning from inside the episode would cut
+    before_episode(ctx, map_path, run, cell_size)
     range_text = "full communication" if run.comm_range_m is None else f"{run.comm_range_m:g} m range"
     typer.echo(f"{run.label}: {run.planner.description} ({robots} robot{'s' if robots != 1 else ''}, {range_text})")
     result, written = team_explore.run_team(run, seed=seed, gif=gif, progress=progress, start=start, speed=speed)
-    typer.echo(team_explore.team_summary_line(run, result))
-    typer.echo("wrote " + ", ".join(str(path) for path in written))
-    if not result.complete:
-        hint = team_explore.after_team_failure(run, result)
-        if hint:
-            warn(hint)
-        raise typer.Exit(code=1)
+    after_episode(team_explore.team_summary_line(run, result), written, result.complete,
+                  lambda: team_explore.after_team_failure(run, result))
