@@ -86,9 +86,9 @@ def test_bad_team_flags_are_refused_in_one_line_before_any_work(generated_maze_d
 
 
 def test_a_planner_no_team_can_run_is_refused_in_one_line(generated_maze_dir, tmp_path):
-    result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "optimal",
+    result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "expert",
                                  "--robots", "2", "--out", str(tmp_path / "o"), "--no-mlflow"])
-    assert "planner 'optimal'" in one_error_line(result)
+    assert "planner 'expert'" in one_error_line(result)
     result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nope",
                                  "--robots", "2", "--out", str(tmp_path / "o"), "--no-mlflow"])
     assert "unknown team planner 'nope'" in one_error_line(result)

@@ -99,7 +99,7 @@ def test_bad_planners_are_refused_before_any_file(generated_maze_dir, tmp_path):
     for planners, message in ((["nope"], "unknown team planner 'nope'"),
                               (["a=uncoordinated_greedy_utility", "a=uncoordinated_nearest_frontier"], "used twice"),
                               (["g=uncoordinated_greedy_utility:no_such_option=1"], "planner 'g'"),
-                              (["optimal"], "planner 'optimal'")):
+                              (["expert"], "planner 'expert'")):
         with pytest.raises(ValueError, match=message):
             run_team_benchmark(maps, planners, Protocol(), tmp_path / "out", robots=[2], progress=False)
     with pytest.raises(ValueError, match="robot counts"):
