@@ -174,7 +174,7 @@ def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_m
     well as from millions.
 
     No `hidden` layers: logistic regression (L2 at its default strength). Hidden layers: a ReLU
-    perceptron (Adam, batches of 200, 30 passes and at least 2,000 steps), which fits one gate to maps of unlike families where a
+    perceptron (`fit_perceptron`), which fits one gate to maps of unlike families where a
     logistic model must trade one family for the other.
     """
     counts, gains = np.asarray(counts), np.asarray(gains)
@@ -193,17 +193,51 @@ def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_m
 
         model = LogisticRegression(max_iter=5000).fit(inputs, labels)
         return SliverGate.logistic(tuple(model.coef_[0]), float(model.intercept_[0]), **settings)
-    import warnings
+    layers = fit_perceptron(inputs, labels, tuple(int(h) for h in hidden), seed)
+    return SliverGate(layers, **settings)
 
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.neural_network import MLPClassifier
 
-    passes = max(30, math.ceil(2000 * 200 / len(labels)))
-    model = MLPClassifier(tuple(int(h) for h in hidden), batch_size=200, max_iter=passes, random_state=seed)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)  # a fixed number of passes, by design
-        model.fit(inputs, labels)
-    return SliverGate(tuple((w.tolist(), b.tolist()) for w, b in zip(model.coefs_, model.intercepts_)), **settings)
+def fit_perceptron(inputs: np.ndarray, labels: np.ndarray, hidden: tuple[int, ...], seed: int = 0,
+                   batch_size: int = 1024, passes: int = 10, min_steps: int = 2000,
+                   peak_lr: float = 0.005) -> tuple[Layer, ...]:
+    """A ReLU perceptron's layers fitted on (inputs, labels) by cross-entropy: Adam on batches of
+    `batch_size` under a one-cycle learning rate peaking at `peak_lr`, for `passes` passes over the
+    samples and at least `min_steps` steps.
+
+    Big batches keep the cost of millions of samples at seconds: three inputs leave the fit
+    limited by its number of steps, not by the noise of a batch (docs/findings.md, "The gate in
+    seconds"). Seeded: the same samples give the same layers on one torch build.
+    """
+    import torch
+
+    x = torch.as_tensor(np.asarray(inputs, np.float32))
+    y = torch.as_tensor(np.asarray(labels, np.float32))
+    batch = min(batch_size, len(y))
+    per_pass = len(y) // batch
+    steps = per_pass * max(passes, math.ceil(min_steps / per_pass))
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        widths = (x.shape[1], *hidden, 1)
+        linears = [torch.nn.Linear(a, b) for a, b in zip(widths, widths[1:])]
+        modules: list[torch.nn.Module] = []
+        for linear in linears:
+            modules += [linear, torch.nn.ReLU()]
+        network = torch.nn.Sequential(*modules[:-1])
+        optimizer = torch.optim.Adam(network.parameters(), lr=peak_lr)
+        schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, max_lr=peak_lr, total_steps=steps)
+        loss = torch.nn.BCEWithLogitsLoss()
+        order = torch.empty(0, dtype=torch.long)
+        for step in range(steps):
+            start = (step % per_pass) * batch
+            if start == 0:
+                order = torch.randperm(len(y))
+            rows = order[start: start + batch]
+            optimizer.zero_grad()
+            loss(network(x[rows])[:, 0], y[rows]).backward()
+            optimizer.step()
+            schedule.step()
+    return tuple((linear.weight.detach().double().numpy().T.tolist(), linear.bias.detach().double().numpy().tolist())
+                 for linear in linears)
 
 
 def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:
