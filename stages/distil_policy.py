@@ -19,6 +19,7 @@ from pipeline.common.config import Section, every_key, flag, maybe, positive, te
 from pipeline.planners.registry import make_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.training.policy import PlannerTrainConfig
+from pipeline.training.run_setup import DEVICES
 from pipeline.workflows.distil_policy import distil_policy
 
 
@@ -56,6 +57,7 @@ class Settings(Section):
     workers: whole(0, note="0 or 1: in this process")
     threads: maybe(whole(0, note="0: torch's default"), "torch's default")
     accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
+    devices: DEVICES = 1
     experiment: text(note="an MLflow experiment")
 
 

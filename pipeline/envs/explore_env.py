@@ -43,6 +43,17 @@ from pipeline.world.simulator import Episode
 LATTICE_CACHE_SIZE = 4
 
 
+def checked_action(action: Any, count: int) -> int:
+    """A discrete action as an int in 0..count-1 (a 0-d array accepted); ValueError otherwise."""
+    if isinstance(action, np.ndarray) and action.shape == ():
+        action = action.item()
+    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
+        raise ValueError(f"action must be an integer in 0..{count - 1}, got {action!r}")
+    if not 0 <= action < count:
+        raise ValueError(f"action {action} lies outside 0..{count - 1}")
+    return int(action)
+
+
 class ExploreEnv(gymnasium.Env):
     """Explore an unknown map with a lidar by choosing lattice nodes; see docs/environment.md.
 
@@ -173,7 +184,7 @@ class ExploreEnv(gymnasium.Env):
     def step(self, action):
         if self._episode is None or self._over:
             raise RuntimeError("the episode is over (or never began): call reset()")
-        slot = self._checked_action(action)
+        slot = checked_action(action, self.action_count)
         episode, cfg = self._episode, self.config
         free_before, distance_before, was_complete = episode.belief.free_count, episode.distance, episode.complete
         self._steps += 1
@@ -202,15 +213,6 @@ class ExploreEnv(gymnasium.Env):
         self._over = terminated or truncated
         info = self._info(invalid=invalid, stuck=stuck, parts=parts, area=area, distance=distance)
         return self._observation(), float(sum(parts)), bool(terminated), bool(truncated), info
-
-    def _checked_action(self, action) -> int:
-        if isinstance(action, np.ndarray) and action.shape == ():
-            action = action.item()
-        if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
-            raise ValueError(f"action must be an integer in 0..{self.action_count - 1}, got {action!r}")
-        if not 0 <= action < self.action_count:
-            raise ValueError(f"action {action} lies outside 0..{self.action_count - 1}")
-        return int(action)
 
     def _path(self, action: int) -> list[int]:
         """The lattice nodes a valid action moves the robot through, in order (its own node not included):

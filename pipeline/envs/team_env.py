@@ -38,7 +38,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from pipeline.envs.configuration_team import TeamExploreEnvConfig
-from pipeline.envs.explore_env import ExploreEnv
+from pipeline.envs.explore_env import ExploreEnv, checked_action
 from pipeline.envs.map_sources import DrawnMap
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.prediction.observed_graph import (
@@ -269,7 +269,7 @@ class TeamExploreEnv(ParallelEnv):
             agent = self.possible_agents[acting]
             if agent not in actions:
                 raise ValueError(f"{agent} acts at this step: actions must hold its action")
-            action = self._checked_action(actions[agent])
+            action = checked_action(actions[agent], self.action_count)
         self._steps += 1
         was_complete = episode.complete
         travelled_before = [r.travelled for r in episode.robots]
@@ -303,15 +303,6 @@ class TeamExploreEnv(ParallelEnv):
         if terminated or truncated:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
-
-    def _checked_action(self, action) -> int:
-        if isinstance(action, np.ndarray) and action.shape == ():
-            action = action.item()
-        if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
-            raise ValueError(f"action must be an integer in 0..{self.action_count - 1}, got {action!r}")
-        if not 0 <= action < self.action_count:
-            raise ValueError(f"action {action} lies outside 0..{self.action_count - 1}")
-        return int(action)
 
     def _waypoints(self, k: int, action: int) -> list[tuple[float, float]]:
         """The lattice waypoints (metres) a valid move action sends robot k through: the neighbour in the

@@ -132,6 +132,42 @@ def task_map(task: EpisodeTask) -> tuple[GroundTruthMap, Protocol]:
     return _MAPS[key]
 
 
+@dataclass
+class BenchmarkMaps:
+    """The maps of a run, read and checked before any episode: by path (map, its protocol), by name
+    (map, its protocol, whether the checks found it completable), and the cell sizes they bring."""
+
+    by_path: dict[str, tuple[GroundTruthMap, Protocol]]
+    by_name: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+    cell_sizes: list[float]
+
+
+def check_workers(workers: int | None) -> None:
+    """ValueError unless `workers` is a whole number >= 1 or None (all cores)."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
+
+
+def read_benchmark_maps(map_paths: Sequence[str | Path], protocol: Protocol, seed: int,
+                        start: tuple[float, float] | None, warn: Callable[[str], None] | None) -> BenchmarkMaps:
+    """Every map of a run loaded (`start` overrides each map's) and checked: `warn` hears of each one
+    no planner can complete; MapError when two share a name."""
+    by_path: dict[str, tuple[GroundTruthMap, Protocol]] = {}
+    by_name: dict[str, tuple[GroundTruthMap, Protocol, bool]] = {}
+    names, cell_sizes = [], set()
+    for path in map_paths:
+        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
+        by_path[str(path)] = ground_truth, map_protocol
+        cell_sizes.add(map_protocol.cell_size)  # a ROS map's own
+        names.append(ground_truth.name)
+        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
+        by_name[ground_truth.name] = (ground_truth, map_protocol, completable)
+        for problem in problems if warn is not None else ():
+            warn(problem)
+    check_unique_map_names(map_paths, names)
+    return BenchmarkMaps(by_path, by_name, sorted(cell_sizes))
+
+
 def task_planner(task: EpisodeTask) -> Planner:
     """The task's planner, built once per process and reset by each episode."""
     key = (task.planner, json.dumps(task.options, sort_keys=True, default=str))
@@ -194,6 +230,7 @@ def run_benchmark(
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
     backend: str | None = None,
+    keep_dir: str | Path | None = None,
 ) -> BenchmarkRun:
     """Run every map with every planner; write trajectories, their per-step files, metrics.csv,
     exploration.csv and summary.md; return them in memory (`BenchmarkRun`).
@@ -210,24 +247,16 @@ def run_benchmark(
     `speed` turns distances and decision times into exploration time (exploration.csv's per-second
     efficiency; `exploration_curves.SpeedModel`).
     `backend` is the executor's engine (`pipeline.common.executor`: process or ray; None:
-    $GUIDE_BACKEND, else process). Finished episodes are kept in OUT/.episodes/ until the run
-    completes: the same command run again after a kill makes only the episodes still missing.
+    $GUIDE_BACKEND, else process). Finished episodes are kept in `keep_dir` (None: OUT/.episodes/)
+    until the run completes: the same command run again after a kill makes only the episodes still
+    missing. A stage that builds OUT in a temporary folder keeps them outside it, where a rerun finds them.
     """
     backend = resolve_backend(backend)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
+    check_workers(workers)
     specs = resolve_planner_specs(planners, OUTPUT_FILES)
     built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read
-    names, cell_sizes, loaded = [], set(), {}
-    for path in map_paths:
-        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
-        cell_sizes.add(map_protocol.cell_size)  # a ROS map's own
-        names.append(ground_truth.name)
-        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
-        loaded[ground_truth.name] = (ground_truth, map_protocol, completable)
-        for problem in problems if warn is not None else ():
-            warn(problem)
-    check_unique_map_names(map_paths, names)
+    maps = read_benchmark_maps(map_paths, protocol, seed, start, warn)
+    loaded = maps.by_name
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     labels = {spec.label for spec in specs}
@@ -235,7 +264,7 @@ def run_benchmark(
     if stale:
         warnings.warn(f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
                       "its metrics.csv and summary.md list only this run's", stacklevel=2)
-    protocol_record = recorded_protocol(protocol, sorted(cell_sizes))
+    protocol_record = recorded_protocol(protocol, maps.cell_sizes)
     for planner in built:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)  # (a learned planner takes the protocol's models first: the record names them)
     write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start,
@@ -254,7 +283,7 @@ def run_benchmark(
                            t.start] for t in tasks],
                 "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
                 "planners": [planner.description for planner in built], "source": source_digest()}
-    keep = KeptResults(out_dir / KEPT_EPISODES, identity)
+    keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / KEPT_EPISODES, identity)
     results: list[EpisodeResult] = []
 
     def finished(index: int, result: EpisodeResult) -> None:

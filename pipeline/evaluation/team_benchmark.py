@@ -39,14 +39,12 @@ from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.evaluation.benchmark import (
     BenchmarkInterrupted,
-    EpisodeTask,
-    check_unique_map_names,
+    check_workers,
+    read_benchmark_maps,
     recorded_protocol,
-    task_map,
     write_run_record,
 )
 from pipeline.evaluation.exploration_curves import SpeedModel
-from pipeline.evaluation.map_checks import before_episodes
 from pipeline.planners.specs import PlannerSpec, parse_planner_spec
 from pipeline.planners.team.registry import make_team_planner
 from pipeline.world.maps import GroundTruthMap
@@ -197,6 +195,7 @@ def run_team_benchmark(
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
     backend: str | None = None,
+    keep_dir: str | Path | None = None,
 ) -> TeamBenchmarkRun:
     """Run every planner spec at every robot count on every map; write the files the module's doc
     lists and return them in memory (`TeamBenchmarkRun`).
@@ -206,27 +205,15 @@ def run_team_benchmark(
     robots merge their beliefs. Failed episodes are kept in the tables (complete False).
     `warn` receives a line for each map no planner can complete, before the episodes. `speed`
     converts the team files' times to seconds. `workers`, `backend` and the kept episodes are
-    the single-robot benchmark's (`run_benchmark`).
+    the single-robot benchmark's (`run_benchmark`), `keep_dir` too.
     """
     backend = resolve_backend(backend)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
+    check_workers(workers)
     counts = check_robot_counts(robots)
     comm_range_m = check_comm_range(comm_range_m)
     resolved = resolve_team_specs(planners)  # a refused name or value fails before any map is read
-    maps: dict[str, tuple[GroundTruthMap, Protocol]] = {}
-    loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]] = {}
-    names, cell_sizes = [], set()
-    for path in map_paths:
-        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
-        maps[str(path)] = ground_truth, map_protocol
-        cell_sizes.add(map_protocol.cell_size)
-        names.append(ground_truth.name)
-        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
-        loaded[ground_truth.name] = (ground_truth, map_protocol, completable)
-        for problem in problems if warn is not None else ():
-            warn(problem)
-    check_unique_map_names(map_paths, names)
+    read = read_benchmark_maps(map_paths, protocol, seed, start, warn)
+    maps, loaded = read.by_path, read.by_name
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     run_labels = {team_run_label(spec.label, count) for spec, _ in resolved for count in counts}
@@ -240,7 +227,7 @@ def run_team_benchmark(
     specs = [spec for spec, _ in resolved]
     descriptions = [planner.description for _, planner in resolved]
     record = write_run_record(out_dir / TEAM_RUN_RECORD, specs, descriptions, seed, start,
-                              recorded_protocol(protocol, sorted(cell_sizes)), [str(p) for p in map_paths], speed,
+                              recorded_protocol(protocol, read.cell_sizes), [str(p) for p in map_paths], speed,
                               extra={"robots": counts, "comm_range_m": comm_range_m})
     tasks = [
         TeamEpisodeTask(str(path), spec.name, spec.label, count, seed, dict(spec.options), comm_range_m)
@@ -254,7 +241,7 @@ def run_team_benchmark(
                 "start": list(start) if start is not None else None,
                 "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
                 "planners": descriptions, "source": source_digest()}
-    keep = KeptResults(out_dir / TEAM_KEPT_EPISODES, identity)
+    keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / TEAM_KEPT_EPISODES, identity)
     finished: dict[int, TeamEpisodeResult] = {}
 
     def on_result(index: int, result: TeamEpisodeResult) -> None:

@@ -11,7 +11,7 @@ from typing import Callable
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import check_tracking_uri
-from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
     DEFAULT_BASELINE,
@@ -88,6 +88,8 @@ METRICS_PATH = REPORTS.benchmark_metrics
 CHART_PATH = REPORTS.benchmark_chart
 FIGURE_PATH = REPORTS.benchmark_figure
 TEAMS_DIR = REPORTS.teams
+KEPT_EPISODES = CHECKPOINTS.benchmark  # a killed stage's finished episodes, outside the folder DVC deletes
+KEPT_TEAM_EPISODES = CHECKPOINTS.teams
 TEAMS_METRICS_PATH = REPORTS.teams_metrics
 
 
@@ -96,12 +98,14 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
 
     reports/benchmark/ is built in a temporary folder that replaces it as a whole once every file
     in it is written: a stage killed halfway leaves the previous folder, never a mix of two runs.
+    Its finished episodes are kept in checkpoints/ meanwhile, so that the rerun makes only the rest.
     """
     maps = generated_maps(TEST_MAZES, "test mazes")
     speed = SpeedModel(section["speed_mps"])
     with atomic_folder(OUT_DIR) as out_dir:
         run = run_benchmark(
-            maps, section["planners"], protocol, out_dir, workers=section["workers"], seed=int(section["seed"]), speed=speed
+            maps, section["planners"], protocol, out_dir, workers=section["workers"], seed=int(section["seed"]), speed=speed,
+            keep_dir=KEPT_EPISODES,
         )
         draw_coverage(run, out_dir, speed)
     # After the folder is in place: reports/benchmark.json's temporary name shares the folder's
@@ -144,6 +148,6 @@ def benchmark_teams(section: dict, protocol: Protocol) -> None:
             run = team_benchmark_folder(TEST_MAZES, planners, protocol, out_dir, robots,
                                         comm_range_m=section.get("comm_range_m"), workers=section["workers"],
                                         seed=int(section["seed"]), speed=SpeedModel(section["speed_mps"]),
-                                        experiment="benchmark_teams")
+                                        experiment="benchmark_teams", keep_dir=KEPT_TEAM_EPISODES)
             summary = run.summary
     atomic_write_text(TEAMS_METRICS_PATH, json.dumps(summary, indent=2) + "\n")

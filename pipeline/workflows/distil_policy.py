@@ -46,6 +46,7 @@ from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.reporting.training_figures import dagger_rounds_figure
 from pipeline.training.policy import train_planner
+from pipeline.training.policy_launch import train_in_subprocess
 from pipeline.training.run_setup import resume_point, start_afresh
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.mazes import MazeConfig, generate_maze_set
@@ -125,19 +126,27 @@ def round_observations(protocol: Protocol, r: int, first_episode: int, settings:
 # ----------------------------------------------------------------------------- one round's policy
 def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict) -> tuple[Path, dict]:
     """Fine-tune from `init` on the aggregate; the export and its metadata. A killed training
-    resumes from its checkpoint when its settings, data and starting weights are the same."""
+    resumes from its checkpoint when its settings, data and starting weights are the same.
+
+    On one device the training runs in this process. On several (`devices`, DDP), it runs in a
+    child process that only trains (`train_in_subprocess`), because DDP starts its other processes
+    by running the script again, and a rerun of this stage would collect the round again."""
     train = dict(section["train"])
     folder = round_folder(r)
-    fingerprint = settings_digest({"model": model, "train": train, "accelerator": section["accelerator"], "data": files_digest([aggregate]),
+    devices = section.get("devices", 1)
+    layout = {"accelerator": section["accelerator"], **({"devices": devices} if devices != 1 else {})}
+    fingerprint = settings_digest({"model": model, "train": train, **layout, "data": files_digest([aggregate]),
                                    "init": files_digest([init])})
     checkpoints = folder / "training"
     resume_from = resume_point(checkpoints, fingerprint, f"distil_policy round {r}")
     if resume_from is None:
         start_afresh(checkpoints, fingerprint)
-    export = train_planner(aggregate, folder / "policy", model, train, accelerator=str(section["accelerator"]), devices=1,
-                           resume=resume_from is not None, checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]),
-                           run_name=f"distil round {r}", num_threads=section["threads"], init_policy=init)
-    assert export is not None  # one device: this process exports
+    arguments = dict(observations=aggregate, out_dir=folder / "policy", model_config=model, train_config=train,
+                     accelerator=str(section["accelerator"]), devices=devices, resume=resume_from is not None,
+                     checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]), run_name=f"distil round {r}",
+                     num_threads=section["threads"], init_policy=init)
+    export = train_planner(**arguments) if devices == 1 else train_in_subprocess(**arguments)
+    assert export is not None  # one device: this process exports; several: the child's rank zero did
     _, meta = load_policy(export)
     return export, meta
 

@@ -11,7 +11,7 @@ from typing import Any
 import pandas as pd
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
-from pipeline.common.paths import DATA, REPORTS
+from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
 from pipeline.planners.specs import PlannerSpec
@@ -69,7 +69,8 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
     try:
         with atomic_folder(SWEEP_DIR) as folder:
             return run_benchmark(
-                maps, specs, protocol, folder, workers=section["workers"], seed=int(section["seed"])
+                maps, specs, protocol, folder, workers=section["workers"], seed=int(section["seed"]),
+                keep_dir=CHECKPOINTS.denoising_steps,
             ).frame
     except KeyError as error:  # an unregistered planner name
         raise SystemExit(f"error: report.k_planners: {error.args[0]}") from None

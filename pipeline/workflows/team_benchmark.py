@@ -48,13 +48,15 @@ def team_benchmark_folder(
     warn: Callable[[str], None] | None = None,
     speed: SpeedModel = SpeedModel(),
     backend: str | None = None,
+    keep_dir: Path | None = None,
 ) -> TeamBenchmarkRun:
     """Every map in `maps` with each planner spec at each robot count; writes the team files
     (`run_team_benchmark`), OUT/team_coverage.png, the first map's paths of each run
     (OUT/<run>/<map>.team.png), and logs one MLflow run per planner and robot count when `mlflow`.
 
     The robot counts, the range and the MLflow store are checked before any map is read;
-    `checkpoint` is a policy for every diffusion planner, as in `benchmark_folder`.
+    `checkpoint` is a policy for every diffusion planner, as in `benchmark_folder`; `keep_dir`
+    keeps the finished episodes (`run_team_benchmark`).
     """
     check_robot_counts(robots)
     check_comm_range(comm_range_m)
@@ -65,7 +67,7 @@ def team_benchmark_folder(
         raise MapError(maps, "no maps in this folder (maze .png, .npy or ROS .yaml)")
     specs = with_policy_checkpoint(list(planners), checkpoint, config_of=team_config)
     run = run_team_benchmark(map_paths, specs, protocol, out, robots, comm_range_m, workers=workers, seed=seed,
-                             start=start, warn=warn, speed=speed, backend=backend)
+                             start=start, warn=warn, speed=speed, backend=backend, keep_dir=keep_dir)
     draw_team_figures(run, Path(out))
     if mlflow:
         log_team_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)

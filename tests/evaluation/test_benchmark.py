@@ -214,3 +214,30 @@ def test_a_killed_benchmark_resumes_with_its_finished_episodes(tmp_path):
     columns = ["map", "planner", "distance_m", "steps", "complete"]
     pd.testing.assert_frame_equal(resumed[columns], whole[columns])
     assert not (tmp_path / "killed/.episodes").exists()
+
+
+def test_episodes_kept_outside_the_output_folder_carry_over_to_a_new_one(generated_maze_dir, tmp_path, monkeypatch):
+    """As the benchmark stage runs it: each attempt writes a fresh (temporary) output folder, and
+    the finished episodes of a killed attempt, kept in `keep_dir`, are taken up by the next."""
+    import pipeline.evaluation.benchmark as benchmark
+
+    finished, calls = benchmark.run_task, []
+
+    def interrupt_after_the_first(task):
+        if calls:
+            raise KeyboardInterrupt
+        calls.append(task)
+        return finished(task)
+
+    monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
+    maps, keep = list_maps(generated_maze_dir), tmp_path / "checkpoints" / "benchmark"
+    with pytest.raises(benchmark.BenchmarkInterrupted):
+        run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path / "first", workers=1, progress=False, keep_dir=keep)
+    assert len(list(keep.glob("item_*.pkl"))) == 1 and not (tmp_path / "first" / ".episodes").exists()
+
+    ran = []
+    monkeypatch.setattr(benchmark, "run_task", lambda task: ran.append(task) or finished(task))
+    run = run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path / "second", workers=1, progress=False,
+                        keep_dir=keep)
+    assert len(ran) == 2 and len(run.frame) == 3  # the kept episode was not run again
+    assert not keep.exists()  # a complete run leaves nothing kept

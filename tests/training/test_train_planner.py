@@ -284,6 +284,26 @@ def test_two_process_training_exports_once(trained, tmp_path):
     assert export["epochs"] == 2 and all(np.isfinite(h["val_loss"]) for h in export["history"])
 
 
+@pytest.mark.slow
+def test_a_training_in_a_child_process_starts_its_ddp_processes_there(trained, tmp_path):
+    """`train_in_subprocess` (distil_policy's rounds on several devices): DDP reruns the child's
+    script, not the caller's, and rank zero's export comes back."""
+    from pipeline.training.policy_launch import train_in_subprocess
+
+    root, _ = trained
+    export = train_in_subprocess(observations=root / "guide.npz", out_dir=tmp_path / "child", model_config=TINY_MODEL,
+                                 train_config=TINY_TRAIN, accelerator="cpu", devices=2, mlflow=False)
+    assert export == tmp_path / "child" / "policy.pt"
+    assert read_policy_export(export)["epochs"] == 2
+
+
+def test_a_failed_training_in_a_child_process_says_why(tmp_path):
+    from pipeline.training.policy_launch import train_in_subprocess
+
+    with pytest.raises(RuntimeError, match="(?s)policy training failed.*missing.npz: no observations"):
+        train_in_subprocess(observations=tmp_path / "missing.npz", out_dir=tmp_path / "child", mlflow=False)
+
+
 def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, tmp_path, monkeypatch):
     """The checkpoint carries the random generators (the loader's shuffle, torch's diffusion noise),
     so an interrupted and resumed run exports the uninterrupted run's EMA weights bit for bit."""

@@ -61,6 +61,8 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     assert files(out) == before
     assert (workspace / "reports/benchmark.json").read_bytes() == metrics
     assert leftovers(workspace) == []
+    kept = workspace / "checkpoints/benchmark"  # outside the folder DVC deletes before it reruns the stage
+    assert list(kept.glob("item_*.pkl"))  # the episodes finished before the kill, for the rerun
 
     monkeypatch.setattr(evaluation, "write_steps_csv", real)
     workflow.benchmark_test_mazes(two, Protocol())
@@ -69,4 +71,4 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     assert {"greedy_utility/small.csv", "nearest_frontier/small.csv"} <= set(after)
     assert after["nearest_frontier/small.csv"] == first["nearest_frontier/small.csv"]
     assert set(json.loads((workspace / "reports/benchmark.json").read_text())) == {"nearest_frontier", "greedy_utility"}
-    assert leftovers(workspace) == []
+    assert leftovers(workspace) == [] and not kept.exists()
