@@ -262,13 +262,19 @@ def run_team_benchmark(
 
 def write_episode_files(result: TeamEpisodeResult, task: TeamEpisodeTask, out_dir: Path, speed: SpeedModel) -> Path:
     """OUT/<run>/<map>.team.csv, its merges file under a range, and <map>.robots.csv; the team file's path."""
-    folder = out_dir / task.run_label
+    return write_team_files(result, out_dir / task.run_label, task.comm_range_m is not None, speed)[0]
+
+
+def write_team_files(result: TeamEpisodeResult, folder: Path, merges: bool, speed: SpeedModel) -> list[Path]:
+    """FOLDER/<map>.team.csv, its merges file when `merges` (under a range), and <map>.robots.csv;
+    the paths written, the team file first."""
     team_file = write_team_csv(folder / f"{result.map_name}{TEAM_SUFFIX}", result.rows, speed.speed_mps)
-    if task.comm_range_m is not None:
-        write_merges_csv(merges_path(team_file), result.merges, speed.speed_mps)
+    written = [team_file]
+    if merges:
+        written.append(write_merges_csv(merges_path(team_file), result.merges, speed.speed_mps))
     with atomic_file(folder / f"{result.map_name}{ROBOTS_SUFFIX}") as tmp:
         robot_table(result).to_csv(tmp, index=False, float_format="%.6g")
-    return team_file
+    return [*written, folder / f"{result.map_name}{ROBOTS_SUFFIX}"]
 
 
 def robot_table(result: TeamEpisodeResult) -> pd.DataFrame:

@@ -20,28 +20,18 @@ from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
 from pipeline.evaluation.team_benchmark import (
     METRICS_COLUMNS,
-    ROBOTS_SUFFIX,
     TEAM_METRICS_CSV,
     check_comm_range,
     check_robot_counts,
     resolve_team_specs,
-    robot_table,
     team_run_label,
+    write_team_files,
 )
 from pipeline.planners.team.registry import team_config
 from pipeline.reporting.team_figures import team_animation, team_paths_figure
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map
-from pipeline.world.team import (
-    TEAM_SUFFIX,
-    TeamEpisode,
-    TeamEpisodeResult,
-    TeamPlanner,
-    merges_path,
-    run_team_episode,
-    write_merges_csv,
-    write_team_csv,
-)
+from pipeline.world.team import TeamEpisode, TeamEpisodeResult, TeamPlanner, run_team_episode
 
 DEFAULT_OUT = Path("runs/explore")
 GIF_FRAMES = 40  # evenly spaced team times: enough to follow the robots, small enough to write quickly
@@ -100,13 +90,7 @@ def run_team(exploration: TeamExploration, seed: int = 0, gif: bool = False, pro
                                   comm_range_m=exploration.comm_range_m, seed=seed, on_event=on_event)
     result.map_name = ground_truth.name
     name = ground_truth.name
-    team_file = write_team_csv(out / f"{name}{TEAM_SUFFIX}", result.rows, speed.speed_mps)
-    written = [team_file]
-    if exploration.comm_range_m is not None:
-        written.append(write_merges_csv(merges_path(team_file), result.merges, speed.speed_mps))
-    with atomic_file(out / f"{name}{ROBOTS_SUFFIX}") as tmp:
-        robot_table(result).to_csv(tmp, index=False, float_format="%.6g")
-    written.append(out / f"{name}{ROBOTS_SUFFIX}")
+    written = write_team_files(result, out, exploration.comm_range_m is not None, speed)
     with atomic_file(out / TEAM_METRICS_CSV) as tmp:
         pd.DataFrame([{**result.metrics_row(), "label": exploration.label}], columns=METRICS_COLUMNS).to_csv(
             tmp, index=False)
