@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import psutil
@@ -47,10 +48,21 @@ def test_a_lock_whose_process_id_was_reused_stops_dvc_and_not_guide_repro(tmp_pa
     assert not any(json.loads((project / ".dvc/tmp/rwlock").read_text()).values())  # no entry left
 
 
+def command_once_started(pid: int, marker: str) -> str:
+    """The command line of process `pid` once it has exec'd (before that it is still its parent's)."""
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        cmd = " ".join(psutil.Process(pid).cmdline())
+        if marker in cmd:
+            return cmd
+        time.sleep(0.01)
+    raise AssertionError(f"process {pid} did not start {marker!r} within 30 s")
+
+
 def test_a_live_runs_entries_are_kept(tmp_path):
-    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
     try:
-        cmd = " ".join(psutil.Process(live.pid).cmdline())
+        cmd = command_once_started(live.pid, "time.sleep(600)")
         assert holder_is_alive({"pid": live.pid, "cmd": cmd})
         assert not holder_is_alive({"pid": live.pid, "cmd": "dvc repro"})  # the id, another command
         lock = {"write": {"a": {"pid": live.pid, "cmd": cmd}, "b": {"pid": os.getpid(), "cmd": "dvc repro"}},
