@@ -22,6 +22,7 @@ from gymnasium import spaces
 from sb3_contrib import MaskablePPO
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 from torch import nn
@@ -208,8 +209,16 @@ class EpisodeLog(BaseCallback):
 
 def new_agent(envs: VecEnv, policy: DRLPolicyConfig, settings: PPOSettings, seed: int,
               device: str = "cpu") -> MaskablePPO:
-    return MaskablePPO(DRLActorCritic, envs, policy_kwargs={"drl_config": policy.to_dict()}, seed=seed,
-                       device=device, verbose=0, **settings.algorithm_kwargs())
+    agent = MaskablePPO(DRLActorCritic, envs, policy_kwargs={"drl_config": policy.to_dict()}, seed=seed,
+                        device=device, verbose=0, **settings.algorithm_kwargs())
+    return with_silent_logger(agent)
+
+
+def with_silent_logger(agent: MaskablePPO) -> MaskablePPO:
+    """`agent` with a logger that writes nowhere: left to itself, SB3 makes an empty SB3-<date> folder in
+    the temp directory at every `learn`. The rollout callback reads the logger's values in memory."""
+    agent.set_logger(Logger(folder=None, output_formats=[]))
+    return agent
 
 
 def policy_of(agent: MaskablePPO) -> DRLPolicy:
@@ -238,4 +247,4 @@ def write_json(path: Path, payload: dict[str, Any]) -> None:
 
 def load_agent(path: Path, envs: VecEnv, device: str = "cpu") -> MaskablePPO:
     """An agent saved by `agent.save` (a checkpoint), attached to `envs` to continue training."""
-    return MaskablePPO.load(path, env=envs, device=device)
+    return with_silent_logger(MaskablePPO.load(path, env=envs, device=device))

@@ -4,6 +4,7 @@ greedy evaluation, and saving and loading an agent."""
 
 from __future__ import annotations
 
+import tempfile
 from types import SimpleNamespace
 
 import numpy as np
@@ -285,9 +286,10 @@ def test_evaluate_is_the_planners_episode(trained):
     env.close()
 
 
-def test_a_saved_agent_loads_and_trains_on(trained, tmp_path):
+def test_a_saved_agent_loads_and_trains_on(trained, tmp_path, monkeypatch):
     agent, _, _, _ = trained
     agent.save(tmp_path / "last.zip")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where SB3's own logger would write
     envs = vector_env(ENVIRONMENT, PROTOCOL, POLICY, SETTINGS, seed=9)
     try:
         loaded = load_agent(tmp_path / "last.zip", envs)
@@ -297,6 +299,19 @@ def test_a_saved_agent_loads_and_trains_on(trained, tmp_path):
             assert torch.equal(value, policy_of(loaded).state_dict()[name]), name
         loaded.learn(64, reset_num_timesteps=False)
         assert loaded.num_timesteps == 128
+        assert not list(tmp_path.glob("SB3-*"))  # no empty log folder left in the temp directory
     finally:
         envs.close()
 
+
+
+def test_a_new_agent_leaves_no_log_folder(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    envs = vector_env(ENVIRONMENT, PROTOCOL, POLICY, SETTINGS, seed=4)
+    try:
+        agent = new_agent(envs, POLICY, SETTINGS, seed=4)
+        rows: list[dict] = []
+        agent.learn(64, callback=EpisodeLog(rows.append))
+        assert len(rows) == 1 and not list(tmp_path.glob("SB3-*"))
+    finally:
+        envs.close()
