@@ -1,9 +1,9 @@
 """Time one training step of the inpainter (forward, backward, Adam) at each image size, on one
 thread and on more, side by side in one run.
 
-Usage: python benchmarks/bench_inpainter_train.py [--batch 16] [--threads 1 2] [--steps 40]
+Usage: python benchmarks/bench_inpainter_train.py [--batch 16] [--threads 1 2] [--steps 40] [--params params.yaml]
 
-A freshly initialised default-config generator (`train_inpainter.model` of params.yaml) on
+A freshly initialised generator as `train_inpainter.model` of params.yaml configures it on
 random node images; the weights do not change the cost. Prints the median milliseconds per
 step for each size and thread count, and each thread count's ratio to the first.
 """
@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
+import yaml
 
 from pipeline.models import InpainterConfig, InpainterModel
 from pipeline.prediction.node_image import PAD_SIZES
@@ -38,8 +40,9 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=16, help="images per step (train_inpainter.batch_size)")
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="torch CPU thread counts to compare")
     parser.add_argument("--steps", type=int, default=40, help="timed steps per size and thread count")
+    parser.add_argument("--params", type=Path, default=Path("params.yaml"), help="whose train_inpainter.model to build")
     args = parser.parse_args()
-    config = InpainterConfig(ngf=16, n_downsampling=3, n_blocks=3, ratio_gin=0.75, ratio_gout=0.75, input_encoding="signed")
+    config = InpainterConfig.from_dict(yaml.safe_load(args.params.read_text())["train_inpainter"]["model"])
     rng = np.random.default_rng(0)
     for size in PAD_SIZES:
         batch = torch.as_tensor(rng.integers(-1, 2, (args.batch, 1, size, size)).astype(np.float32))

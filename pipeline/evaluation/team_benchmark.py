@@ -272,9 +272,10 @@ def write_team_files(result: TeamEpisodeResult, folder: Path, merges: bool, spee
     written = [team_file]
     if merges:
         written.append(write_merges_csv(merges_path(team_file), result.merges, speed.speed_mps))
-    with atomic_file(folder / f"{result.map_name}{ROBOTS_SUFFIX}") as tmp:
+    robots_file = folder / f"{result.map_name}{ROBOTS_SUFFIX}"
+    with atomic_file(robots_file) as tmp:
         robot_table(result).to_csv(tmp, index=False, float_format="%.6g")
-    return [*written, folder / f"{result.map_name}{ROBOTS_SUFFIX}"]
+    return [*written, robots_file]
 
 
 def robot_table(result: TeamEpisodeResult) -> pd.DataFrame:

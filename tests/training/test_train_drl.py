@@ -304,7 +304,6 @@ def test_a_saved_agent_loads_and_trains_on(trained, tmp_path, monkeypatch):
         envs.close()
 
 
-
 def test_a_new_agent_leaves_no_log_folder(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     envs = vector_env(ENVIRONMENT, PROTOCOL, POLICY, SETTINGS, seed=4)
