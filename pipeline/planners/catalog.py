@@ -14,7 +14,7 @@ here comes wrapped in the trust in its predictions (`extensions/prediction_trust
 
 from __future__ import annotations
 
-from pipeline.common.config import config_dataclass, flag, text
+from pipeline.common.config import config_dataclass, flag, maybe, real, text, whole
 from pipeline.planners.config import OptionInfo, option
 from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
 from pipeline.planners.extensions.lookahead import LookaheadConfig
@@ -33,6 +33,11 @@ from pipeline.world.planner import Planner
 MODES = ("tour", "policy")
 
 
+def tour_help(name: str) -> str:
+    """The help of one of guide_tsp's tour options, for guide's own default of it."""
+    return TourOptions.__dataclass_fields__[name].metadata["help"]
+
+
 @config_dataclass
 class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig,
                    PredictionTrustOptions):
@@ -44,6 +49,17 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
 
     mode: text(MODES) = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
                                        "policy: the sampled plans are driven (the paper's)")
+    # The options the policy votes on are single useful nodes (spread 0, none dropped), scored by boosted utility per
+    # metre with no tour regret (beta 0): guide_tsp's clusters and regret, tuned for its tour on mazes, cost guide
+    # distance on building floors and gained nothing on mazes or office floors (docs/findings.md, issue 61). With no
+    # regret the tour only adds its own first target to the options, so it is solved cheaply.
+    spread: maybe(real(0.0, note="0 = each useful node its own target"), "2.5 node spacings") = option(
+        0.0, "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
+             "null: 2.5 node spacings, guide_tsp's clusters)")
+    min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
+    beta: real(0.0) = option(0.0, tour_help("beta"))
+    exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
+    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(0, tour_help("max_moves"))
 
     @classmethod
     def options(cls) -> list[OptionInfo]:

@@ -32,13 +32,16 @@ class PlannerSpec:
             return self.name
         text = f"{self.label}={self.name}"
         if self.options:
-            text += ":" + ",".join(f"{key}={value}" for key, value in self.options.items())
+            text += ":" + ",".join(f"{key}={'null' if value is None else value}" for key, value in self.options.items())
         return text
 
 
 def parse_option_value(text: str) -> Any:
-    """'10' -> 10, '0.5' -> 0.5, 'true'/'false' (any case) -> bool, anything else stays a string."""
+    """'10' -> 10, '0.5' -> 0.5, 'true'/'false' (any case) -> bool, 'null' -> None (an option's default
+    meaning, as in params.yaml), anything else stays a string."""
     lowered = text.lower()
+    if lowered == "null":
+        return None
     if lowered in ("true", "false"):
         return lowered == "true"
     for kind in (int, float):
@@ -97,6 +100,8 @@ def check_option_value(key: str, value: Any, info: OptionInfo) -> None:
     kinds = info.kinds
     if kinds is None:
         raise ValueError(f"option {key!r} takes a Python object; set it from Python, not a spec")
+    if value is None:
+        return  # null: the config says whether this option may be null, and what null means
     kind = "bool" if isinstance(value, bool) else type(value).__name__
     if kind == "float" and not math.isfinite(value):
         raise ValueError(f"option {key}={value!r} must be a finite number")

@@ -57,8 +57,8 @@ BAD = [
     ("expert", {"min_utility": 0}, "min_utility: must be a whole number >= 1, got 0"),
     # guide_tsp
     ("guide_tsp", {"top_k": -1}, "top_k: must be a whole number >= 0 (0 = every cluster), got -1"),
-    ("guide_tsp", {"spread": 0.0}, "spread: must be a finite number > 0, or null (2.5 node spacings), got 0.0"),
-    ("guide_tsp", {"spread": NAN}, "spread: must be a finite number > 0, or null (2.5 node spacings), got nan"),
+    ("guide_tsp", {"spread": -0.5}, "spread: must be a finite number >= 0 (0 = each useful node its own target), or null (2.5 node spacings), got -0.5"),
+    ("guide_tsp", {"spread": NAN}, "spread: must be a finite number >= 0 (0 = each useful node its own target), or null (2.5 node spacings), got nan"),
     ("guide_tsp", {"min_weight": -1.0}, "min_weight: must be a finite number >= 0 (0 = keep every cluster), got -1.0"),
     ("guide_tsp", {"min_weight": INF}, "min_weight: must be a finite number >= 0 (0 = keep every cluster), got inf"),
     ("guide_tsp", {"beta": NAN}, "beta: must be a finite number >= 0, got nan"),

@@ -40,6 +40,8 @@ from pipeline.world.trajectories import (
             "v-1.b=dare:eta=0.5,deterministic=True,mode=fast,flag=false,n=-3",
             PlannerSpec("v-1.b", "dare", {"eta": 0.5, "deterministic": True, "mode": "fast", "flag": False, "n": -3}),
         ),
+        # null: the option's default meaning, as params.yaml writes it (guide's clustered tour, say)
+        ("clusters=guide:spread=null,beta=1.5", PlannerSpec("clusters", "guide", {"spread": None, "beta": 1.5})),
     ],
 )
 def test_parse_planner_spec_good(text, expected):
@@ -49,7 +51,7 @@ def test_parse_planner_spec_good(text, expected):
 
 
 def test_planner_spec_round_trips_through_str():
-    for text in ("guide", "guide_k10=guide:num_inference_steps=10", "a=b:x=1,y=0.5"):
+    for text in ("guide", "guide_k10=guide:num_inference_steps=10", "a=b:x=1,y=0.5", "c=guide:spread=null"):
         assert parse_planner_spec(str(parse_planner_spec(text))) == parse_planner_spec(text)
 
 
@@ -86,7 +88,8 @@ def test_parse_planner_spec_bad(text, message):
         (["x=guide:num_inference_steps=0"], ValueError, r"num_inference_steps: must be a whole number >= 1, or null \(the policy's own\), got 0"),
         (["x=expert:replan_on_change=1"], ValueError, "replan_on_change=1 must be true or false"),
         (["x=guide_tsp:inpaint=zeros"], ValueError, "'inpaint' takes a Python object"),
-        (["x=guide_tsp:spread=-1"], ValueError, "'x'.*spread: must be a finite number > 0"),
+        (["x=guide_tsp:spread=-1"], ValueError, "'x'.*spread: must be a finite number >= 0"),
+        (["x=guide_tsp:beta=null"], ValueError, "'x'.*beta: must be a finite number >= 0, got None"),  # null where none is meant
         (["x=guide_tsp:spread=2:beta=3"], ValueError, "separated by ','"),  # a ':' where a ',' belongs
         (["nearest_frontier", "nearest_frontier=greedy_utility"], ValueError, "used twice"),
         # an oracle bound passes the options it does not take to its base planner, and only those

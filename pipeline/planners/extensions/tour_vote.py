@@ -1,7 +1,10 @@
 """The tour vote (ours, not the paper's): the global graph proposes, the diffusion policy votes.
 
-`guide` in its default `mode=tour`. The first-target options are `guide_tsp`'s: clusters of the
-global graph's boosted utilities, each scored by weight per metre of distance plus tour regret.
+`guide` in its default `mode=tour`. The first-target options come from `guide_tsp`'s tour
+(`FrontierTour`) with guide's own defaults: each useful node of the global graph is an option,
+scored by its boosted utility per metre of global-graph distance (`spread=0`, `beta=0`);
+`spread=null,min_weight=30,beta=1.5,exact_max=9,max_moves=200` gives guide_tsp's clusters, each
+scored by weight per metre of distance plus tour regret.
 Each option's score is multiplied by 1 + `prior_weight` x how much the policy's sampled plans
 head for it (`target_votes`): the learned prior says which way the expert would go, the global
 graph says what is worth going for. The executed chunk is the first T_a steps of the sample

@@ -14,6 +14,7 @@ from pipeline.prediction.node_image import ground_truth_states, node_states_imag
 from pipeline.prediction.node_predictor import pad_to_multiple
 from pipeline.models import defaults
 from pipeline.planners import make_planner, planner_names
+from pipeline.planners.registry import make_config
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
 from pipeline.world.simulator import Episode, run_episode
@@ -134,6 +135,21 @@ def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze
     assert weights.tolist() == [13.0]
     targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist, keep=c)
     assert targets[0] == c  # the previous first target seeds a cluster and survives the weight filter
+
+
+def test_spread_zero_makes_every_useful_node_its_own_target_as_guide_does_by_default(maze):
+    """guide's default tour options: one option per useful node, none dropped for its weight."""
+    planner = make_planner("guide_tsp", spread=0.0, min_weight=0.0)
+    planner.reset(maze, PROTOCOL, 0)
+    a, b, c = (int(planner.graph.nearest_node(p)) for p in ((0.0, 0.0), (4.0, 0.0), (8.0, 0.0)))  # neighbours in a row
+    candidates = np.array(sorted([a, b, c]))
+    dist = np.zeros(planner.graph.node_count)
+    dist[[a, b, c]] = [4.0, 4.0, 8.0]  # a and b: one 4 m step apart, at the same distance
+    utility = np.array([{a: 1.0, b: 3.0, c: 2.0}[n] for n in candidates])
+    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist)
+    assert targets.tolist() == [b, c, a] and weights.tolist() == [3.0, 2.0, 1.0]  # by utility, each on its own
+    defaults = make_config("guide")[0]
+    assert (defaults.spread, defaults.min_weight, defaults.beta) == (0.0, 0.0, 0.0)
 
 
 def test_guide_tsp_keeps_its_target_through_a_cycle_on_an_unchanged_map(maze):
