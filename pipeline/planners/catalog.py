@@ -15,7 +15,7 @@ here comes wrapped in the trust in its predictions (`extensions/prediction_trust
 from __future__ import annotations
 
 from pipeline.common.config import config_dataclass, flag, maybe, real, text, whole
-from pipeline.planners.config import OptionInfo, option
+from pipeline.planners.config import OptionInfo, PlannerConfig, option
 from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
 from pipeline.planners.extensions.lookahead import LookaheadConfig
 from pipeline.planners.extensions.prediction_trust import PredictionTrustOptions, with_trust
@@ -39,9 +39,10 @@ def tour_help(name: str) -> str:
 
 
 @config_dataclass
-class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig, LookaheadConfig,
-                   PredictionTrustOptions):
-    """Every option of the registered `guide`: the paper's (`GuideConfig`) and each addition's."""
+class TourVoteOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig,
+                      LookaheadConfig, PredictionTrustOptions):
+    """Every option of GUIDE's policy (`GuideConfig`) and of each addition around it, the tour's at
+    guide_tsp's defaults (its clusters): the team guide's options (`pipeline.planners.team`)."""
 
     composition = ("the tour vote (extensions/tour_vote.py) around GUIDE's policy (guide/guide.py); mode=policy: "
                    "ranked plans and the stall hand-over (extensions/) around it")
@@ -49,17 +50,6 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
 
     mode: text(MODES) = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
                                        "policy: the sampled plans are driven (the paper's)")
-    # The options the policy votes on are single useful nodes (spread 0, none dropped), scored by boosted utility per
-    # metre with no tour regret (beta 0): guide_tsp's clusters and regret, tuned for its tour on mazes, cost guide
-    # distance on building floors and gained nothing on mazes or office floors (docs/findings.md, issue 61). With no
-    # regret the tour only adds its own first target to the options, so it is solved cheaply.
-    spread: maybe(real(0.0, note="0 = each useful node its own target"), "2.5 node spacings") = option(
-        0.0, "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
-             "null: 2.5 node spacings, guide_tsp's clusters)")
-    min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
-    beta: real(0.0) = option(0.0, tour_help("beta"))
-    exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
-    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(0, tour_help("max_moves"))
 
     @classmethod
     def options(cls) -> list[OptionInfo]:
@@ -70,8 +60,33 @@ class GuideOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverCo
 
     def check(self) -> None:
         if self.lookahead and self.mode != "tour":
-            raise ValueError(f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode {self.mode}")
+            raise ValueError(f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode "
+                             f"{self.mode}")
         super().check()
+
+
+@config_dataclass
+class SingleNodeTargets(PlannerConfig):
+    """guide's own defaults of the tour options (`TourOptions`' keys): the options the policy votes
+    on are single useful nodes (spread 0, none dropped), scored by boosted utility per metre with no
+    tour regret (beta 0). guide_tsp's clusters and regret, tuned for its tour on mazes, cost guide
+    distance on building floors and gained nothing on mazes or office floors (docs/findings.md,
+    issue 61). With no regret the tour only adds its own first target to the options, so it is
+    solved cheaply."""
+
+    spread: maybe(real(0.0, note="0 = each useful node its own target"), "2.5 node spacings") = option(
+        0.0, "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
+             "null: 2.5 node spacings, guide_tsp's clusters)")
+    min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
+    beta: real(0.0) = option(0.0, tour_help("beta"))
+    exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
+    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(0, tour_help("max_moves"))
+
+
+@config_dataclass
+class GuideOptions(SingleNodeTargets, TourVoteOptions):
+    """Every option of the registered `guide`: the paper's (`GuideConfig`) and each addition's, its
+    targets single useful nodes (`SingleNodeTargets`)."""
 
 
 @config_dataclass

@@ -117,8 +117,8 @@ def option_kinds(annotation: Any) -> frozenset[str] | None:
     that takes Python objects (a config object), which no spec sets.
 
     Constrained types are unwrapped (`Annotated`), so are `Optional` and unions (None is not a
-    kind: a spec's null is checked by the config), and a `Literal` takes the kinds of its values (choices of strings:
-    'str')."""
+    kind: a spec's null is checked by the config), and a `Literal` takes the kinds of its values
+    (choices of strings: 'str')."""
     kinds = _kinds(annotation)
     return frozenset(kinds) if kinds and kinds <= set(SPEC_KINDS) else None
 

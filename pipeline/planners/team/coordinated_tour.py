@@ -34,11 +34,10 @@ from typing import Any
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from pipeline.common.config import config_dataclass, maybe, real, text, whole
+from pipeline.common.config import config_dataclass, text, whole
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.tsp import path_length, tsp_path
-from pipeline.planners.catalog import GuideOptions, GuideTspOptions, tour_help
-from pipeline.planners.guide.configuration_guide_tsp import SPREAD_NODES, TourOptions
+from pipeline.planners.catalog import GuideOptions, GuideTspOptions, TourVoteOptions
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.extensions.tour_vote import TourVote
 from pipeline.planners.guide.guide import drive
@@ -53,11 +52,6 @@ from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Planner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.team import TeamObservation, TeamPlanner
-
-
-def default_of(name: str) -> Any:
-    """guide_tsp's default of one of its tour options."""
-    return TourOptions.__dataclass_fields__[name].default
 
 
 @config_dataclass
@@ -79,17 +73,11 @@ class CoordinatedGuideTspConfig(GuideTspOptions, TeamRouteOptions):
 
 
 @config_dataclass
-class CoordinatedGuideConfig(GuideOptions, TeamRouteOptions):
+class CoordinatedGuideConfig(TourVoteOptions, TeamRouteOptions):
     description = ("guide (tour vote) per robot, the global graph's frontier clusters split into min-max routes over "
                    "the team; each robot's policy votes on its own route's first targets")
-    # guide_tsp's clusters, not the single-node options of guide alone: the team splits its targets into
+    # guide_tsp's clusters (`TourVoteOptions`), not guide's single-node targets: the team splits its targets into
     # min-max routes, and one target per useful node would make that split a routing problem over all of them.
-    spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(
-        None, tour_help("spread"))
-    min_weight: real(0.0, note="0 = keep every cluster") = option(default_of("min_weight"), tour_help("min_weight"))
-    beta: real(0.0) = option(default_of("beta"), tour_help("beta"))
-    exact_max: whole(1, 14) = option(default_of("exact_max"), tour_help("exact_max"))
-    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(default_of("max_moves"), tour_help("max_moves"))
 
     def check(self) -> None:
         if self.mode != "tour":
