@@ -437,7 +437,10 @@ def test_a_two_node_training_killed_after_an_epoch_resumes_into_one_mlflow_run(t
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
     runs = client.search_runs([client.get_experiment_by_name("two_nodes").experiment_id])
     assert len(runs) == 1 and runs[0].info.status == "FINISHED"
-    assert len(client.get_metric_history(runs[0].info.run_id, "val_loss")) == 3  # both parts logged into it
+    # Both parts logged into the one run, each of the 3 epochs at its own step. An epoch that ended after the
+    # checkpoint the kill left is run again on resume and logged again at the same step (on a fast CPU, often).
+    history = client.get_metric_history(runs[0].info.run_id, "val_loss")
+    assert len({metric.step for metric in history}) == 3, [(metric.step, metric.value) for metric in history]
     assert runs[0].inputs.dataset_inputs and runs[0].inputs.dataset_inputs[0].dataset.name.endswith("guide.npz")
 
 
