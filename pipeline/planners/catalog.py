@@ -23,7 +23,7 @@ from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansC
 from pipeline.planners.extensions.stall_handover import StallHandover, StallHandoverConfig
 from pipeline.planners.extensions.tour_vote import TourVote, TourVoteConfig
 from pipeline.planners.guide.configuration_guide import DareConfig, GuideConfig, GuideNoRegionConfig
-from pipeline.planners.guide.configuration_guide_tsp import GuideTspConfig, TourOptions
+from pipeline.planners.guide.configuration_guide_tsp import SPREAD_NODES, GuideTspConfig, TourOptions
 from pipeline.planners.guide.guide import GuidePlanner
 from pipeline.planners.guide.guide_tsp import GuideTspPlanner
 from pipeline.planners.registry import register_planner
@@ -74,9 +74,9 @@ class SingleNodeTargets(PlannerConfig):
     issue 61). With no regret the tour only adds its own first target to the options, so it is
     solved cheaply."""
 
-    spread: maybe(real(0.0, note="0 = each useful node its own target"), "2.5 node spacings") = option(
+    spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(
         0.0, "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
-             "null: 2.5 node spacings, guide_tsp's clusters)")
+             f"null: {SPREAD_NODES:g} node spacings, guide_tsp's clusters)")
     min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
     beta: real(0.0) = option(0.0, tour_help("beta"))
     exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
