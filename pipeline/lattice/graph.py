@@ -18,7 +18,9 @@ import numpy as np
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from pipeline.lattice.doors import MAX_DETOUR, door_edges_kernel
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask, update_frontier_window
+from pipeline.lattice.reachability import clearance_cells
 from pipeline.world.geometry import ray_table, sensor_angles, walk_offsets
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
@@ -39,10 +41,13 @@ class LatticeSpec:
     utility_range: float
     region_size: float
     frontier_min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS
+    # The robot's radius in cells when edges may pass through door nodes (`pipeline.lattice.doors`),
+    # None for DARE's lattice of straight edges only.
+    door_radius_cells: float | None = None
 
     @classmethod
     def for_map(cls, ground_truth, protocol) -> "LatticeSpec":
-        """The lattice every planner uses on a map under a protocol."""
+        """The lattice every planner uses on a map under a protocol (door nodes where it says)."""
         return cls(
             shape=ground_truth.shape,
             start_cell=ground_truth.start_cell,
@@ -50,6 +55,7 @@ class LatticeSpec:
             node_resolution=protocol.node_resolution,
             utility_range=protocol.utility_range,
             region_size=protocol.region_size,
+            door_radius_cells=protocol.robot_radius_cells if protocol.uses_door_graph else None,
         )
 
     @property
@@ -66,6 +72,11 @@ class LatticeSpec:
         idx = np.arange(low - 1, high + 2)
         cells = start + np.round(idx * step).astype(np.int64)
         return idx[(cells >= 0) & (cells < size)]
+
+    def node_indices(self) -> np.ndarray:
+        """(i, j) lattice index of every node, ids row-major over the lattice (rows along y)."""
+        grid_j, grid_i = np.meshgrid(self.lattice_range(1), self.lattice_range(0), indexing="ij")
+        return np.stack([grid_i.ravel(), grid_j.ravel()], axis=1)
 
     def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
         """World metres (x, y) to grid cells (col, row), origin at the start cell."""
@@ -94,8 +105,7 @@ class LatticeGraph:
         ii = spec.lattice_range(0)
         jj = spec.lattice_range(1)
         self.lattice_i, self.lattice_j = ii, jj
-        grid_j, grid_i = np.meshgrid(jj, ii, indexing="ij")
-        self.node_ij = np.stack([grid_i.ravel(), grid_j.ravel()], axis=1)
+        self.node_ij = spec.node_indices()
         self.node_world = self.node_ij * spec.node_resolution
         self.node_cells = spec.world_to_cell(self.node_world)
         self.node_flat = self.node_cells[:, 1] * cols + self.node_cells[:, 0]
@@ -115,6 +125,11 @@ class LatticeGraph:
         self.belief = np.full(spec.shape, UNKNOWN, dtype=np.uint8)
         self._build_candidate_edges()
         self.edge_valid = np.zeros(len(self.edge_nodes), dtype=bool)
+        # An edge valid through a door node: the node's flat cell (-1: straight or invalid) and the
+        # length of the way through it in metres.
+        self.edge_via = np.full(len(self.edge_nodes), -1, dtype=np.int64)
+        self.via_length = np.zeros(len(self.edge_nodes))
+        self._edge_cost = None
         self._adjacency = None
         self._search_matrix = None
         self._neighbour_lists: tuple[np.ndarray, np.ndarray] | None = None
@@ -145,7 +160,7 @@ class LatticeGraph:
     ))
 
     #: Derived from the edges and rebuilt when they change.
-    EDGE_CACHES = ("_adjacency", "_search_matrix", "_neighbour_lists")
+    EDGE_CACHES = ("_adjacency", "_search_matrix", "_neighbour_lists", "_edge_cost")
 
     def state(self) -> dict:
         """What changes with the belief (node states, edges, frontier, utilities, regions): all a
@@ -288,10 +303,40 @@ class LatticeGraph:
         crosses only known-free cells (a compiled loop: it ran once per rollout step)."""
         changed = _validate_edges(self.edge_valid, self._edge_box, np.array(box, dtype=np.int64),
                                   self._walk_rows, np.ascontiguousarray(belief).reshape(-1), FREE)
+        if self.spec.door_radius_cells is not None:
+            changed |= self._update_door_edges(belief, box)
         if changed:
             self._adjacency = None
             self._search_matrix = None
             self._neighbour_lists = None
+            self._edge_cost = None
+
+    def _update_door_edges(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> bool:
+        """Validate through a door node (`pipeline.lattice.doors`) the still-invalid edges between
+        known free nodes that meet `box`, and shorten those whose door node the new cells improve
+        on; whether any changed. Passability is read in a window around the box wide enough for
+        every way round an edge there can take."""
+        rows, cols = belief.shape
+        step = int(np.ceil(self.spec.node_step_cells))
+        radius = float(self.spec.door_radius_cells)
+        margin = int(np.ceil(MAX_DETOUR * WINDOW_RADIUS * step * np.sqrt(2))) + int(np.ceil(radius)) + 2
+        x0, x1, y0, y1 = box
+        wx0, wx1, wy0, wy1 = max(0, x0 - margin), min(cols, x1 + margin + 1), max(0, y0 - margin), min(rows, y1 + margin + 1)
+        window = belief[wy0:wy1, wx0:wx1]
+        clearance = clearance_cells(window)
+        passable = (window == FREE) & (clearance >= radius - 1e-6) if radius > 1.0 else window == FREE
+        return door_edges_kernel(
+            self.edge_valid, self.edge_via, self.via_length, self._edge_box, np.array(box, dtype=np.int64),
+            self.edge_nodes, self.node_cells, self.node_state == NODE_FREE, np.ascontiguousarray(passable),
+            np.ascontiguousarray(clearance, dtype=np.float32), wx0, wy0, cols, self.spec.cell_size, MAX_DETOUR,
+        )
+
+    @property
+    def edge_cost(self) -> np.ndarray:
+        """Each candidate edge's length in metres as the robot drives it: straight, or through its door node."""
+        if self._edge_cost is None:
+            self._edge_cost = np.where(self.edge_via >= 0, self.via_length, self.edge_length)
+        return self._edge_cost
 
     def _update_utilities(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         """Frontier utility: frontier cells visible (through known-free cells) within range."""
@@ -375,7 +420,7 @@ class LatticeGraph:
         """Sparse adjacency matrix (upper triangle) weighted by edge length in metres."""
         if self._adjacency is None:
             e = self.edge_nodes[self.edge_valid]
-            w = self.edge_length[self.edge_valid]
+            w = self.edge_cost[self.edge_valid]
             self._adjacency = coo_matrix((w, (e[:, 0], e[:, 1])), shape=(self.node_count,) * 2).tocsr()
         return self._adjacency
 
@@ -401,7 +446,7 @@ class LatticeGraph:
             indptr = np.zeros(self.node_count + 1, dtype=np.int32)
             np.cumsum(np.bincount(rows[keep], minlength=self.node_count), out=indptr[1:])
             self._search_matrix = csr_matrix(
-                (self.edge_length[edge[keep]], cols[keep], indptr), shape=(self.node_count,) * 2
+                (self.edge_cost[edge[keep]], cols[keep], indptr), shape=(self.node_count,) * 2
             )
         return self._search_matrix
 

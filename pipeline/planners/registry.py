@@ -13,6 +13,7 @@ from typing import Any, Callable, TypeVar
 from pipeline.common.config import validate
 from pipeline.planners.config import OptionInfo, PlannerConfig
 from pipeline.planners.matched_models import ProtocolMatchedModels, default_slots
+from pipeline.planners.whole_building import WholeBuilding
 from pipeline.world.planner import Planner
 
 Build = TypeVar("Build", bound=Callable[..., Planner])
@@ -105,11 +106,14 @@ def make_planner(name: str, **options: Any) -> Planner:
 
     A planner with trained models left to the default (and no Python object injected) comes
     wrapped in `ProtocolMatchedModels`, so that each reset takes the models trained at its protocol.
+    Every planner but an oracle comes wrapped in `WholeBuilding` (door nodes, the done rule on cells),
+    which acts only under the door-aware graph.
     """
     config, objects = make_config(name, **options)
     build = planner_entry(name).build
     if default_slots(config) and not objects:
-        return ProtocolMatchedModels(config, build, name)
-    planner = build(config, **objects)
-    planner.name = name
-    return planner
+        planner: Planner = ProtocolMatchedModels(config, build, name)
+    else:
+        planner = build(config, **objects)
+        planner.name = name
+    return planner if planner.uses_ground_truth else WholeBuilding(planner)

@@ -229,7 +229,7 @@ class GlobalGraph:
         rows, cols, weights = [], [], []
         # Known-known: the lattice graph's known-free edges.
         e = lattice.edges
-        w = lattice.edge_length[lattice.edge_valid]
+        w = lattice.edge_cost[lattice.edge_valid]
         rows.append(index_of[e[:, 0]])
         cols.append(index_of[e[:, 1]])
         weights.append(w)

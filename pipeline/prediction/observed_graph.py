@@ -135,7 +135,7 @@ def _neighbour_rows(graph: LatticeGraph, table: WindowTable, row_nodes: np.ndarr
     for r in np.flatnonzero(counts > max_neighbors):  # only when max_neighbors is below the window's 24
         edges, nodes = table.edge_by_id[row_nodes[r]], table.neighbour_by_id[row_nodes[r]]
         kept = np.flatnonzero((edges >= 0) & graph.edge_valid[edges] & (row_of[nodes] >= 0))
-        nearest = kept[np.argsort(graph.edge_length[edges[kept]], kind="stable")[:max_neighbors]]
+        nearest = kept[np.argsort(graph.edge_cost[edges[kept]], kind="stable")[:max_neighbors]]
         neighbors[r] = row_of[nodes[nearest]]
     return neighbors
 

@@ -166,29 +166,40 @@ class Episode:
         self._pending_changes = []
         return Observation(self.belief.grid, self.position, self.cell, changed, self.steps)
 
-    def waypoint_cell(self, waypoint: Sequence[float]) -> tuple[int, int]:
-        """Check that a waypoint is a lattice node inside the grid and return its cell."""
+    def waypoint_cell(self, waypoint: Sequence[float]) -> tuple[tuple[int, int], tuple[float, float]]:
+        """(the cell, the exact position in metres) of a waypoint: a lattice node inside the grid, or,
+        under the door-aware graph (`Protocol.uses_door_graph`), any cell's centre (a door node, or a
+        cell on the way to a frontier the lattice does not reach)."""
         x, y = float(waypoint[0]), float(waypoint[1])
         if not (np.isfinite(x) and np.isfinite(y)):
             raise MotionError(f"waypoint ({x}, {y}) is not finite")
         d = self.protocol.node_resolution
         i, j = round(x / d), round(y / d)
-        if abs(i * d - x) > LATTICE_TOLERANCE_M or abs(j * d - y) > LATTICE_TOLERANCE_M:
-            raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) is not on the {d} m node lattice")
-        col = self.map.start_cell[0] + int(round(i * d / self.protocol.cell_size))
-        row = self.map.start_cell[1] + int(round(j * d / self.protocol.cell_size))
+        size = self.protocol.cell_size
+        if abs(i * d - x) <= LATTICE_TOLERANCE_M and abs(j * d - y) <= LATTICE_TOLERANCE_M:
+            position = (i * d, j * d)
+            col = self.map.start_cell[0] + int(round(i * d / size))
+            row = self.map.start_cell[1] + int(round(j * d / size))
+        else:
+            ci, cj = round(x / size), round(y / size)
+            if not self.protocol.uses_door_graph or abs(ci * size - x) > LATTICE_TOLERANCE_M \
+                    or abs(cj * size - y) > LATTICE_TOLERANCE_M:
+                where = "a cell centre" if self.protocol.uses_door_graph else f"on the {d} m node lattice"
+                raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) is not {where}")
+            position = (ci * size, cj * size)
+            col, row = self.map.start_cell[0] + ci, self.map.start_cell[1] + cj
         rows, cols = self.map.shape
         if not (0 <= col < cols and 0 <= row < rows):
             raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) lies outside the map")
-        return col, row
+        return (col, row), position
 
     def move(self, waypoint: Sequence[float], oracle: bool = False) -> None:
-        """Move to a lattice waypoint through known-free cells, then sense there.
+        """Move to a waypoint (`waypoint_cell`) through known-free cells, then sense there.
 
         `oracle=True` is the ground-truth planner's rule (docs/protocol.md, "The reference"):
         the segment need only be free in the ground truth, observed or not.
         """
-        cell = self.waypoint_cell(waypoint)
+        cell, target = self.waypoint_cell(waypoint)
         free = self.map.free if oracle else self.belief.grid == FREE
         if not segment_is_known_free(free, self.cell, cell):
             what = "ground-truth free" if oracle else "known to be free"
@@ -196,8 +207,6 @@ class Episode:
                 f"segment ({self.position[0]:.3f}, {self.position[1]:.3f}) -> "
                 f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}"
             )
-        d = self.protocol.node_resolution
-        target = (round(float(waypoint[0]) / d) * d, round(float(waypoint[1]) / d) * d)
         self.distance += float(np.hypot(target[0] - self.position[0], target[1] - self.position[1]))
         self.position = target
         self.cell = cell

@@ -27,7 +27,7 @@ import heapq
 import math
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -387,6 +387,12 @@ def lattice_cell(world: GroundTruthMap | MapFrame, protocol: Protocol, point: Se
     return col, row
 
 
+def team_protocol(protocol: Protocol) -> Protocol:
+    """The protocol a team runs under: DARE's lattice of straight edges, whatever the scale. A team's
+    moves are checked on the lattice (`lattice_cell`); door nodes are the single robot's."""
+    return replace(protocol, door_graph=False)
+
+
 def run_team_episode(
     ground_truth: GroundTruthMap,
     planner: TeamPlanner,
@@ -399,6 +405,7 @@ def run_team_episode(
 ) -> TeamEpisodeResult:
     """Run a team of `robots` with `planner` until the union belief is explored, a move breaks the
     motion rule, every robot waits with nothing to do, or a robot has made `max_steps` moves."""
+    protocol = team_protocol(protocol)
     episode = TeamEpisode(ground_truth, protocol, robots, starts, comm_range_m)
     reset_team_planner(planner, ground_truth, protocol, seed, robots)
     decision_ms: list[list[float]] = [[] for _ in range(robots)]
@@ -570,6 +577,7 @@ def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, f
     known-free in the belief built from all earlier rows (the team's belief with full
     communication); with `oracle`, free in the ground truth (the team `optimal` reference's
     rule). Rows after done are not counted."""
+    protocol = team_protocol(protocol)
     robots = _team_size(rows)
     if robots == 0:
         raise ValueError("a team file starts with one row per robot at time 0 (robots 0, 1, ...)")

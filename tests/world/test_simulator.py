@@ -39,7 +39,7 @@ UNSENSED_CORRIDOR_END = (0.0, 20.0)
 def test_moves_free_in_the_ground_truth_but_unsensed_need_the_oracle_rule(small_maze):
     """The motion rule checks the belief, not the ground truth; only `oracle=True` uses the latter."""
     episode = Episode(small_maze, Protocol())
-    corridor = walk_cells(episode.cell, episode.waypoint_cell(UNSENSED_CORRIDOR_END))
+    corridor = walk_cells(episode.cell, episode.waypoint_cell(UNSENSED_CORRIDOR_END)[0])
     assert small_maze.free[corridor[:, 1], corridor[:, 0]].all()  # no wall on the way
     assert (episode.belief.grid[corridor[:, 1], corridor[:, 0]] == UNKNOWN).any()  # not sensed yet
     with pytest.raises(MotionError, match="not known to be free"):

@@ -82,7 +82,7 @@ def test_expert_steps_are_known_free_each_decision(small_maze):
         observation = episode.observe()
         waypoints = planner.plan(observation)
         assert len(waypoints) == 1
-        cell = episode.waypoint_cell(waypoints[0])
+        cell = episode.waypoint_cell(waypoints[0])[0]
         assert segment_is_known_free(observation.belief == 255, episode.cell, cell)
         episode.move(waypoints[0])
         assert episode.steps < PROTOCOL.max_steps

@@ -1,0 +1,131 @@
+"""The whole building: every planner drives through door nodes, and stops only when nothing is left.
+
+Under the door-aware graph (`Protocol.uses_door_graph`: the real robot's scale) every planner
+`make_planner` builds is wrapped in `WholeBuilding`, which changes three things and nothing else:
+
+- **Door nodes.** A planner's graph validates edges through door nodes
+  (`pipeline.lattice.doors`); when it sends the robot along such an edge, the door node is put
+  before the edge's far end, so each segment is known free.
+- **Done means done.** When the planner's own rule finds nothing (no useful node it reaches,
+  utilities at or under its threshold), the robot drives to the nearest frontier cell it can
+  reach through passable cells at its radius (`pipeline.lattice.reachability`), as ARiADNE's ROS
+  planner falls back on the nearest frontier; it returns [] (done) only when no such cell is left.
+- **Back to the lattice.** After a fallback the robot stands off the lattice; its next decision
+  takes it by the shortest passable path to the nearest known-free lattice node, where the
+  planner's graph has it again.
+
+`decision_kind` says which of "planner", "fallback", "rejoin" or "done" the last decision was;
+`fallbacks` counts the decisions that were not the planner's own (fallbacks and rejoins). At the
+maze scale (DARE's lattice) the wrapper passes every call through unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.lattice.doors import via_waypoints
+from pipeline.lattice.graph import LatticeSpec
+from pipeline.lattice.reachability import (LEFTOVER_M2, clearance_cells, open_frontier, passable_mask, path_to_nearest,
+                                           waypoints_along)
+from pipeline.planners.wrapper import PlannerWrapper
+from pipeline.world.maps import MapFrame, map_frame
+from pipeline.world.planner import Observation, Planner, Waypoint
+from pipeline.world.protocol import Protocol
+
+PLANNER, FALLBACK, REJOIN, DONE = "planner", "fallback", "rejoin", "done"
+LATTICE_TOLERANCE_M = 1e-3
+
+
+class WholeBuilding(PlannerWrapper):
+    """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
+
+    own = frozenset({"active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "door_moves", "tried",
+                     "leftover_cells",
+                     "_unseen"})
+
+    def __init__(self, inner: Planner):
+        super().__init__(inner)
+        self.active = False
+        self.decision_kind = PLANNER
+        self.fallbacks = 0
+        self.door_moves = 0
+
+    def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
+        self.inner.reset(frame, protocol, seed)
+        self.active = protocol.uses_door_graph
+        self.decision_kind, self.fallbacks, self.door_moves = PLANNER, 0, 0
+        self._unseen: list[np.ndarray] | None = []  # changes the inner planner has not seen (None: all)
+        if self.active:
+            spec = LatticeSpec.for_map(map_frame(frame), protocol)
+            self.spec, self.radius_cells = spec, protocol.robot_radius_cells
+            cells = spec.world_to_cell(spec.node_indices() * spec.node_resolution)
+            rows, cols = spec.shape
+            inside = (cells[:, 0] >= 0) & (cells[:, 0] < cols) & (cells[:, 1] >= 0) & (cells[:, 1] < rows)
+            self.node_mask = np.zeros(spec.shape, dtype=bool)
+            self.node_mask[cells[inside, 1], cells[inside, 0]] = True
+            self.tried = np.zeros(spec.shape, dtype=bool)
+            self.leftover_cells = max(1, int(round(LEFTOVER_M2 / protocol.cell_size**2)))
+
+    def plan(self, observation: Observation) -> list[Waypoint]:
+        if not self.active:
+            return self.inner.plan(observation)
+        passable = passable_mask(observation.belief, self.radius_cells)
+        if not self._on_lattice(observation.position):
+            route = path_to_nearest(passable, passable & self.node_mask, observation.cell)
+            if len(route) > 1:  # the inner planner sees these cells' changes at its next decision
+                self._keep_changes(observation)
+                self.decision_kind = REJOIN
+                self.fallbacks += 1
+                return self._metres(waypoints_along(passable, route))
+        waypoints = self.inner.plan(self._with_kept_changes(observation))
+        if waypoints:
+            self.decision_kind = PLANNER
+            return self._through_doors(observation, passable, waypoints)
+        frontier = open_frontier(observation.belief, self.leftover_cells, self.spec.frontier_min_unknown_neighbours)
+        frontier &= ~self.tried
+        route = path_to_nearest(passable, frontier, observation.cell)
+        if len(route) < 2:
+            self.decision_kind = DONE
+            return []
+        self.decision_kind = FALLBACK
+        self.fallbacks += 1
+        col, row = route[-1]
+        self.tried[row, col] = True  # a visit clears an open frontier cell; never the same one twice
+        return self._metres(waypoints_along(passable, route))
+
+    # ------------------------------------------------------------------ helpers
+    def _on_lattice(self, position: tuple[float, float]) -> bool:
+        d = self.spec.node_resolution
+        return all(abs(round(v / d) * d - v) <= LATTICE_TOLERANCE_M for v in position)
+
+    def _through_doors(self, observation: Observation, passable: np.ndarray, waypoints: list[Waypoint]) -> list[Waypoint]:
+        cells = [tuple(map(int, c)) for c in self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64))]
+        route = via_waypoints(passable, clearance_cells(observation.belief), observation.cell, cells)
+        doors = [cell for cell, door in route if door]
+        if not doors:
+            return waypoints
+        self.door_moves += len(doors)
+        out: list[Waypoint] = []
+        given = iter(waypoints)
+        for cell, door in route:  # the planner's own waypoints stay exactly as it gave them
+            out.append(self._metres([cell])[0] if door else next(given))
+        return out
+
+    def _metres(self, cells: list[tuple[int, int]]) -> list[Waypoint]:
+        world = self.spec.cell_to_world(np.asarray(cells, dtype=np.float64).reshape(-1, 2))
+        return [(float(x), float(y)) for x, y in np.round(world, 9)]
+
+    def _keep_changes(self, observation: Observation) -> None:
+        """Hold the cells `observation` changed for the inner planner's next decision (None: all)."""
+        if observation.changed is None:
+            self._unseen = None
+        elif self._unseen is not None:
+            self._unseen.append(observation.changed)
+
+    def _with_kept_changes(self, observation: Observation) -> Observation:
+        """`observation` with the changes of the decisions the inner planner did not see folded in."""
+        unseen, self._unseen = self._unseen, []
+        if unseen is not None and not unseen:
+            return observation
+        changed = None if unseen is None or observation.changed is None else np.unique(np.concatenate([*unseen, observation.changed]))
+        return Observation(observation.belief, observation.position, observation.cell, changed, observation.step)
