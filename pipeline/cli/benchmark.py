@@ -11,9 +11,11 @@ from pipeline.cli.options import (
     CellSize,
     Checkpoint,
     DoneCells,
+    DoorGraph,
     MaxSteps,
     NodeRes,
     RegionSize,
+    RobotRadius,
     SensorRange,
     UtilityRange,
     check_out_dir,
@@ -62,6 +64,7 @@ def benchmark(
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: Optional[float] = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+    robot_radius: float = RobotRadius, door_graph: Optional[bool] = DoorGraph,
     speed_mps: float = typer.Option(PAPER_SPEED_MPS, help="The robot's speed for exploration time and the "
                                                           "per-second efficiency (m/s) [default: the paper's maximum]."),
     robots: Optional[list[int]] = typer.Option(
@@ -104,7 +107,8 @@ def benchmark(
     elif comm_range is not None:
         fail("--comm-range is the range of a team's radios: give the team size with --robots")
     check_out_dir(out)
-    rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
+    rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps,
+                     robot_radius, door_graph)
     if robots:
         team_benchmark_command(maps, list(planner), rules, out, counts, comm_range_m, workers=workers, seed=seed,
                                start=start, checkpoint=checkpoint, tracking_uri=tracking_uri, experiment=experiment,

@@ -12,9 +12,11 @@ from pipeline.cli.options import (
     CellSize,
     Checkpoint,
     DoneCells,
+    DoorGraph,
     MaxSteps,
     NodeRes,
     RegionSize,
+    RobotRadius,
     SensorRange,
     Start,
     UtilityRange,
@@ -54,6 +56,7 @@ def explore(
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     utility_range: Optional[float] = UtilityRange, region_size: Optional[float] = RegionSize,
     done_unknown_cells: int = DoneCells, max_steps: int = MaxSteps,
+    robot_radius: float = RobotRadius, door_graph: Optional[bool] = DoorGraph,
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
     robots: Optional[int] = typer.Option(
         None, "--robots", help=f"Explore with a team of this many robots (1-{MAX_ROBOTS}) running the planner's team "
@@ -88,7 +91,8 @@ def explore(
         fail("--comm-range is the range of a team's radios: give the team size with --robots")
     elif given(ctx, "speed_mps"):
         fail("--speed-mps sets a team file's times: give the team size with --robots")
-    rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps)
+    rules = protocol(cell_size, node_resolution, sensor_range, utility_range, region_size, done_unknown_cells, max_steps,
+                     robot_radius, door_graph)
     if robots is not None:
         explore_team(ctx, map_path, planner, rules, robots, comm_range, speed, out=out, gif=gif, start=start, seed=seed,
                      checkpoint=checkpoint, cell_size=cell_size, progress=progress)

@@ -10,7 +10,8 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli.options import CellSize, DoneCells, NodeRes, SensorRange, check_out_dir, fail, protocol, warn
+from pipeline.cli.options import (CellSize, DoneCells, DoorGraph, NodeRes, RobotRadius, SensorRange, check_out_dir, fail,
+                                  protocol, warn)
 from pipeline.world.buildings import BuildingConfig, generate_building_set
 from pipeline.world.caves import CaveConfig, generate_cave_set
 from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
@@ -143,6 +144,7 @@ def replay(
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
     cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
     done_unknown_cells: int = DoneCells,
+    robot_radius: float = RobotRadius, door_graph: Optional[bool] = DoorGraph,
     oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
     steps_csv: Optional[Path] = typer.Option(None, help="Also write the per-step record (step, distance, explored "
                                                     "area and share) recomputed from the trajectory alone, as "
@@ -160,7 +162,7 @@ def replay(
 
     Exits 1 when the trajectory breaks the motion rule or does not complete the map.
     """
-    rules = protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9)
+    rules = protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9, robot_radius, door_graph)
     if trajectory.name.endswith(TEAM_SUFFIX):
         if steps_csv is not None:
             fail("--steps-csv is a single robot's per-step record; a team file has none")

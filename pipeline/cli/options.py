@@ -65,6 +65,7 @@ def given(ctx: Optional[typer.Context], name: str) -> bool:
 def protocol(
     cell_size: float, node_resolution: float, sensor_range: float, utility_range: Optional[float],
     region_size: Optional[float], done_unknown_cells: int, max_steps: int,
+    robot_radius_m: float = Protocol().robot_radius_m, door_graph: Optional[bool] = None,
 ) -> Protocol:
     """The protocol the options name; a refused value is an error naming its option."""
     values = dict(
@@ -75,11 +76,13 @@ def protocol(
         region_size=region_size if region_size is not None else sensor_range,
         done_unknown_cells=done_unknown_cells,
         max_steps=max_steps,
+        robot_radius_m=robot_radius_m,
+        door_graph=door_graph,
     )
     try:
         return validate(Protocol, values, "protocol")
     except ValueError as error:  # named by the options: "protocol.sensor_range" -> "--sensor-range"
-        fail(re.sub(r"protocol\.(\w+)", lambda m: "--" + m.group(1).replace("_", "-"), str(error)))
+        fail(re.sub(r"protocol\.(\w+)", lambda m: "--" + m.group(1).replace("_m", "").replace("_", "-"), str(error)))
 
 
 _DEFAULT = Protocol()
@@ -91,6 +94,11 @@ UtilityRange = typer.Option(None, help="Frontier-utility range in metres [defaul
 # robot's 10 m (the best of 5, 10 and 20 m for guide_tsp on generated real-robot floors).
 RegionSize = typer.Option(None, help="Side of the fixed regions in metres [default: the sensor range].")
 DoneCells = typer.Option(_DEFAULT.done_unknown_cells, help="Done when ground-truth free minus belief free cells is at most this.")
+RobotRadius = typer.Option(_DEFAULT.robot_radius_m, "--robot-radius",
+                           help="The robot's radius in metres: what fits through a door (door-aware graph, done rule).")
+DoorGraph = typer.Option(None, "--door-graph/--lattice-only",
+                         help="Door nodes off the lattice and 'done' checked on cells (docs/protocol.md, \"The whole "
+                              "building\") [default: on below a 2 m lattice, the building scale; DARE's lattice above].")
 MaxSteps = typer.Option(_DEFAULT.max_steps, help="Waypoints before an episode ends as a failure.")
 Start = typer.Option(
     None, help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "

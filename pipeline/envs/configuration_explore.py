@@ -80,6 +80,9 @@ class ExploreEnvConfig:
     region_size: positive("metres") = 20.0  # side of the fixed regions (kept for the protocol; the observed graph ignores it)
     done_unknown_cells: whole(0, note="cells") = 250  # the episode is complete when at most this many free cells are unseen
     max_steps: whole(1) = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
+    robot_radius_m: real(0.0) = 0.2  # metres: what fits through a door (the protocol's; unused on the lattice)
+    # the environment's actions are lattice moves: it keeps DARE's lattice of straight edges at every scale
+    door_graph: maybe(flag(), "on below a 2 m lattice") = False
     # --- actions and observations
     action: text(ACTION_MODES) = "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
     max_nodes: whole(1, MAX_PADDED_NODES) = 320  # rows of the padded node arrays (nearest nodes first): the trained policies' size

@@ -299,6 +299,7 @@ def run_benchmark(
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     run = _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
+    record_fallbacks(out_dir / RUN_RECORD, run.frame)
     if warn is not None:
         for hint in failure_hints(run.frame, loaded):
             warn(hint)
@@ -380,6 +381,16 @@ def write_run_record(
     return record
 
 
+def record_fallbacks(path: Path, frame: pd.DataFrame) -> None:
+    """Add to run.json, per label, the fallback decisions of each map's episode (the whole
+    building's nearest-frontier fallback and the way back to the lattice), where there were any."""
+    counts = {str(label): {str(m): int(n) for m, n in zip(rows["map"], rows["fallbacks"]) if n}
+              for label, rows in frame.groupby("planner", sort=True)}
+    record = json.loads(path.read_text())
+    record["fallbacks"] = {label: maps for label, maps in counts.items() if maps}
+    atomic_write_text(path, json.dumps(record, indent=2) + "\n")
+
+
 def _write_result(result: EpisodeResult, task: EpisodeTask, out_dir: Path) -> EpisodeResult:
     result.map_name = Path(task.map_path).stem
     result.planner = task.label
@@ -397,6 +408,25 @@ def metrics_frame(results: Sequence[EpisodeResult]) -> pd.DataFrame:
         rows.append(row)
     frame = pd.DataFrame(rows, columns=METRICS_COLUMNS + ["failure"])
     return frame.sort_values(["planner", "map"]).reset_index(drop=True)
+
+
+def whole_building_markdown(frame: pd.DataFrame, protocol: dict[str, Any]) -> list[str]:
+    """Lines of summary.md on how much of what a robot could reach each planner saw: per planner the
+    mean and least share of the reachable free area explored, the early stops and the fallback
+    decisions. Written when the run used the door-aware graph or a planner stopped early."""
+    door_graph = Protocol.from_dict({k: v for k, v in protocol.items() if k != "cell_size"}).uses_door_graph
+    if not door_graph and not frame["early_stop"].astype(bool).any():
+        return []
+    lines = ["", "The whole building (share of the free area a robot of radius "
+             f"{protocol.get('robot_radius_m', 0.2):g} m reaches from the start that it saw; an early stop is a "
+             "planner that said done with more than done_unknown_cells of it unseen; fallbacks are decisions its own "
+             "rule did not make):", "",
+             "| planner | reachable explored (mean) | (least) | early stops | fallback decisions |", "|---|---:|---:|---:|---:|"]
+    for planner, rows in frame.groupby("planner", sort=True):
+        share = rows["reachable_share"].astype(float)
+        lines.append(f"| {planner} | {share.mean() * 100:.1f} % | {share.min() * 100:.1f} % | "
+                     f"{int(rows['early_stop'].astype(bool).sum())} | {int(rows['fallbacks'].sum())} |")
+    return lines
 
 
 def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], baseline: str | None = DEFAULT_BASELINE,
@@ -440,6 +470,7 @@ def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], b
         ),
         "Protocol: " + ", ".join(f"{k}={v}" for k, v in fields.items()) + ".",
     ]
+    notes += whole_building_markdown(frame, fields)
     if len(failures):
         notes.append("")
         notes.append(f"Failed episodes ({len(failures)}):")

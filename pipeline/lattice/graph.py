@@ -20,8 +20,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.doors import MAX_DETOUR, door_edges_kernel
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask, update_frontier_window
-from pipeline.lattice.reachability import clearance_cells
 from pipeline.world.geometry import ray_table, sensor_angles, walk_offsets
+from pipeline.world.reachability import clearance_cells
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 NODE_UNKNOWN, NODE_FREE, NODE_OCCUPIED = 0, 1, 2

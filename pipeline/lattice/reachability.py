@@ -1,15 +1,10 @@
-"""Where a robot of some radius can drive on a grid: passable cells, what it reaches, paths there.
+"""The frontier a robot can drive to, and the way there, asked on cells rather than on a lattice.
 
 A lattice graph reaches only the cells its straight edges join. These questions are asked on the
-cells themselves, so that "done" means no frontier cell is left that the robot could drive to
-(docs/protocol.md, "The whole building"), and so that a robot the lattice strands still gets
-there: a breadth-first path over passable cells, pulled tight into waypoints whose segments
-follow the protocol's walk.
-
-A cell is *passable* for a robot of radius r when it is known free and no occupied cell's centre
-lies closer than r to its centre. Clearance counts occupied cells only: unknown space is where
-the robot is going, and a frontier cell always borders it. Connectivity is 4-neighbour, as the
-protocol's walk is: two free cells that touch only at a corner let no walk through.
+cells themselves (`pipeline.world.reachability`'s passable cells), so that "done" means no
+frontier cell is left that the robot could drive to (docs/protocol.md, "The whole building"), and
+so that a robot the lattice strands still gets there: a breadth-first path over passable cells,
+pulled tight into waypoints whose segments follow the protocol's walk.
 """
 
 from __future__ import annotations
@@ -20,7 +15,8 @@ import numpy as np
 
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask
 from pipeline.world.geometry import segment_is_known_free
-from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+from pipeline.world.reachability import reachable_from
+from pipeline.world.sensor import UNKNOWN
 
 Cell = tuple[int, int]  # (col, row)
 
@@ -43,36 +39,6 @@ def open_frontier(belief: np.ndarray, min_unknown_cells: int,
     large = unknown & (stats[labels, cv2.CC_STAT_AREA] >= min_unknown_cells)
     beside = cv2.dilate(large.view(np.uint8), _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
     return frontier_mask(belief, min_unknown_neighbours) & beside
-
-
-def clearance_cells(belief: np.ndarray) -> np.ndarray:
-    """Per cell, the distance (in cells, centre to centre) to the nearest occupied cell; the grid's
-    edge counts as no obstacle."""
-    not_occupied = (belief != OCCUPIED).astype(np.uint8)
-    if not_occupied.all():
-        return np.full(belief.shape, np.inf, dtype=np.float32)
-    return cv2.distanceTransform(not_occupied, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-
-
-def passable_mask(belief: np.ndarray, radius_cells: float) -> np.ndarray:
-    """Known-free cells whose centre is at least `radius_cells` from every occupied cell's centre.
-
-    A radius of one cell or less keeps every known-free cell: the nearest occupied centre of a free
-    cell is at least a cell away.
-    """
-    free = belief == FREE
-    if radius_cells <= 1.0:
-        return free
-    return free & (clearance_cells(belief) >= radius_cells - 1e-6)
-
-
-def reachable_from(passable: np.ndarray, start: Cell) -> np.ndarray:
-    """The cells of `passable` 4-connected to `start` (the start's own cell counts as passable)."""
-    mask = passable.copy()
-    col, row = start
-    mask[row, col] = True
-    _, labels = cv2.connectedComponents(mask.view(np.uint8), connectivity=4)
-    return labels == labels[row, col]
 
 
 def reachable_frontier(passable: np.ndarray, frontier: np.ndarray, start: Cell) -> np.ndarray:

@@ -106,14 +106,23 @@ def make_planner(name: str, **options: Any) -> Planner:
 
     A planner with trained models left to the default (and no Python object injected) comes
     wrapped in `ProtocolMatchedModels`, so that each reset takes the models trained at its protocol.
-    Every planner but an oracle comes wrapped in `WholeBuilding` (door nodes, the done rule on cells),
+    Every planner but an oracle is wrapped in `WholeBuilding` (door nodes, the done rule on cells),
     which acts only under the door-aware graph.
     """
     config, objects = make_config(name, **options)
-    build = planner_entry(name).build
+    build = whole_building(planner_entry(name).build)
     if default_slots(config) and not objects:
-        planner: Planner = ProtocolMatchedModels(config, build, name)
-    else:
+        return ProtocolMatchedModels(config, build, name)
+    planner = build(config, **objects)
+    planner.name = name
+    return planner
+
+
+def whole_building(build: Callable[..., Planner]) -> Callable[..., Planner]:
+    """`build`, its planner wrapped in `WholeBuilding` unless it is an oracle (which sees the map)."""
+
+    def build_whole(config: PlannerConfig, **objects: Any) -> Planner:
         planner = build(config, **objects)
-        planner.name = name
-    return planner if planner.uses_ground_truth else WholeBuilding(planner)
+        return planner if planner.uses_ground_truth else WholeBuilding(planner)
+
+    return build_whole

@@ -25,12 +25,12 @@ import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
 from pipeline.lattice.graph import LatticeSpec
-from pipeline.lattice.reachability import (LEFTOVER_M2, clearance_cells, open_frontier, passable_mask, path_to_nearest,
-                                           waypoints_along)
+from pipeline.lattice.reachability import LEFTOVER_M2, open_frontier, path_to_nearest, waypoints_along
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
+from pipeline.world.reachability import clearance_cells, passable_mask
 
 PLANNER, FALLBACK, REJOIN, DONE = "planner", "fallback", "rejoin", "done"
 LATTICE_TOLERANCE_M = 1e-3
@@ -39,7 +39,7 @@ LATTICE_TOLERANCE_M = 1e-3
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
 
-    own = frozenset({"active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "door_moves", "tried",
+    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "door_moves", "tried",
                      "leftover_cells",
                      "_unseen"})
 

@@ -10,6 +10,12 @@ A cell of the protocol's size (`cell_size`, coarser than SLAM's 0.05 m as a rule
 conservatively from the message cells whose centres fall in it: occupied where any of them is,
 free only where all of them are, unknown otherwise. A message coarser than the protocol is first
 split into cells no larger than the protocol's.
+
+That rule alone would close doors: a 0.6 m door of a 0.05 m map is 3 cells of 0.2 m, and the two at
+its frames hold wall. So a robot radius (`robot_radius_m`) keeps the way open: a cell judged
+occupied is free after all when one of its message cells is one the robot's centre may stand on
+(known free, no occupied message cell nearer than the radius) and none of them is unknown. Every
+door the robot fits through, at the map's own resolution, stays passable on the coarse grid.
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.world.reachability import passable_mask
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 FREE_MAX = 19  # a probability (%) at or below this is free: ROS map_server's free_thresh, 0.196
@@ -86,6 +93,7 @@ class Canvas:
     anchor: tuple[float, float]  # map-frame metres of the start cell's centre
     belief: np.ndarray = field(default_factory=lambda: np.full((1, 1), UNKNOWN, np.uint8))
     start_cell: tuple[int, int] = (0, 0)  # (col, row) of the anchor
+    robot_radius_m: float = 0.0  # a cell the robot's centre may stand on in a finer map stays free (module doc)
 
     @property
     def origin(self) -> tuple[float, float]:
@@ -145,6 +153,7 @@ class Canvas:
         row = np.floor((grid.origin[1] + (np.arange(rows) + 0.5) * resolution - oy) / self.cell_size).astype(np.int64)
         height, width = self.belief.shape
         inside_c, inside_r = (col >= 0) & (col < width), (row >= 0) & (row < height)
+        fits = self._fits_robot(values, resolution)
         values = values[np.ix_(inside_r, inside_c)]
         flat = (row[inside_r][:, None] * width + col[inside_c][None, :]).reshape(-1)
         values = values.reshape(-1)
@@ -156,8 +165,22 @@ class Canvas:
         judged = np.full(size, UNKNOWN, np.uint8)
         judged[covered & (free == total)] = FREE
         judged[occupied > 0] = OCCUPIED
+        if fits is not None:  # doors the conservative rule would close (module doc)
+            standing = np.bincount(flat, weights=fits[np.ix_(inside_r, inside_c)].reshape(-1), minlength=size)
+            judged[(standing > 0) & (occupied + free == total)] = FREE
         belief = self.belief.reshape(-1)
         belief[covered] = judged[covered]
+
+
+    def _fits_robot(self, values: np.ndarray, resolution: float) -> np.ndarray | None:
+        """Per message cell, whether the robot's centre may stand there (known free, no occupied cell
+        nearer than its radius); None when the message is no finer than the canvas or there is no radius."""
+        if self.robot_radius_m <= 0 or resolution >= self.cell_size - 1e-9:
+            return None
+        trinary = np.full(values.shape, UNKNOWN, np.uint8)
+        trinary[(values >= 0) & (values <= FREE_MAX)] = FREE
+        trinary[values >= OCCUPIED_MIN] = OCCUPIED
+        return passable_mask(trinary, self.robot_radius_m / resolution)
 
 
 def _steps(cells: int, step: int) -> int:

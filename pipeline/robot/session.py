@@ -37,6 +37,7 @@ from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner
 from pipeline.world.protocol import PROTOCOLS, Protocol
 from pipeline.world.sensor import FREE, OCCUPIED
+from pipeline.world.simulator import PLANNER_DECISION
 
 log = logging.getLogger("guide.robot")
 
@@ -59,6 +60,7 @@ class Plan:
     decision_ms: float = 0.0
     reason: str = ""
     replanned: bool = False
+    fallback: bool = False  # the planner's own rule found nothing: these go to the nearest reachable frontier
 
 
 @dataclass
@@ -75,6 +77,9 @@ class SessionState:
     # The planner's record of its checked predictions after the last plan (right, wrong, base,
     # lift, trust: prediction/prediction_trust.py); None for a planner that keeps none.
     prediction_trust: dict[str, float | int] | None = None
+    # Plans that were not the planner's own rule (pipeline/planners/whole_building.py): its
+    # nearest-frontier fallback, and the way back to the lattice after one.
+    fallbacks: int = 0
 
 
 class ExplorationSession:
@@ -160,7 +165,8 @@ class ExplorationSession:
         if not _inside(grid.extent, x, y):
             self.pose = None  # a pose is only kept once it lies on a map
             return
-        canvas = Canvas(self.protocol.cell_size, self.step_cells, (x, y))
+        radius = self.protocol.robot_radius_m if self.protocol.uses_door_graph else 0.0
+        canvas = Canvas(self.protocol.cell_size, self.step_cells, (x, y), robot_radius_m=radius)
         # At least a lidar's reach around the start: the first scans fit, and the predictor sees a whole image.
         canvas.cover((x, y, x, y), margin_m=self.protocol.sensor_range + self.protocol.node_resolution)
         self.canvas = canvas
@@ -245,10 +251,12 @@ class ExplorationSession:
         self.state.plans += 1
         trust = getattr(self.planner, "trust_state", None)
         self.state.prediction_trust = trust.as_dict() if trust is not None else None
+        fallback = getattr(self.planner, "decision_kind", PLANNER_DECISION) not in (PLANNER_DECISION, "done")
+        self.state.fallbacks += int(fallback)
         decision = getattr(self.planner, "last_decision", {}) or {}
         target = self._target(decision.get("target"), waypoints)
         plan = Plan([self.canvas.to_map(w) for w in waypoints], done=not waypoints, target=target,
-                    decision_ms=_ms(started), reason=reason, replanned=True)
+                    decision_ms=_ms(started), reason=reason, replanned=True, fallback=fallback)
         return self._keep(plan)
 
     def _reset_planner(self, frame: MapFrame) -> None:

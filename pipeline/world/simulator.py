@@ -17,9 +17,12 @@ from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
+from pipeline.world.reachability import reachable_free
 from pipeline.world.sensor import FREE, Belief, Lidar
 
 LATTICE_TOLERANCE_M = 1e-3
+STOPPED = "no reachable target left"  # the failure of an episode whose planner said it was done
+PLANNER_DECISION = "planner"  # a planner's `decision_kind` when its own rule decided (pipeline.planners.whole_building)
 
 
 class MotionError(Exception):
@@ -48,6 +51,15 @@ class EpisodeResult:
     waypoint_trust: list[float | None] = field(default_factory=list)  # the planner's prediction trust per row
     free_cell_count: int = 0  # ground-truth free cells: the explored share's denominator
     cell_size: float = 0.0  # metres: a cell's area is cell_size ** 2
+    # The whole building (docs/protocol.md): the share of the free area a robot of the protocol's
+    # radius reaches from the start that the belief holds at the end (ground truth, scoring only);
+    # the decisions that were not the planner's own rule (its nearest-frontier fallback and the way
+    # back to the lattice), in all and per trajectory row; and whether the planner stopped while
+    # more than `done_unknown_cells` of that area was still unseen (an early stop).
+    reachable_share: float = 1.0
+    fallbacks: int = 0
+    waypoint_fallback: list[bool | None] = field(default_factory=list)
+    early_stop: bool = False
 
     def step_rows(self) -> list[dict]:
         """The per-step record (docs/protocol.md, "Per-step files"): one row per trajectory row up to
@@ -55,6 +67,7 @@ class EpisodeResult:
         area = self.cell_size**2
         timed = len(self.waypoint_decision_ms) == len(self.trajectory)
         trusted = len(self.waypoint_trust) == len(self.trajectory)
+        marked = len(self.waypoint_fallback) == len(self.trajectory)
         return [
             {
                 "step": step,
@@ -63,6 +76,7 @@ class EpisodeResult:
                 "explored_share": self.explored_cells[step] / max(1, self.free_cell_count),
                 "decision_ms": self.waypoint_decision_ms[step] if timed else None,
                 "prediction_trust": self.waypoint_trust[step] if trusted else None,
+                "fallback": self.waypoint_fallback[step] if marked else None,
             }
             for step in range(len(self.trajectory))
         ]
@@ -80,6 +94,9 @@ class EpisodeResult:
             "decision_ms_median": round(float(np.median(ms)), 3) if ms.size else float("nan"),
             "decision_ms_p95": round(float(np.percentile(ms, 95)), 3) if ms.size else float("nan"),
             "seed": self.seed,
+            "reachable_share": round(self.reachable_share, 5),
+            "fallbacks": self.fallbacks,
+            "early_stop": bool(self.early_stop),
         }
 
 
@@ -236,6 +253,7 @@ def run_episode(
     decision_ms: list[float] = []
     waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
     waypoint_trust: list[float | None] = [None]
+    waypoint_fallback: list[bool | None] = [False]
     failure = ""
     violations = 0
     oracle = bool(getattr(planner, "ignores_motion_rule", False))
@@ -247,14 +265,16 @@ def run_episode(
         waypoints = planner.plan(observation)
         decision_ms.append((time.perf_counter() - t0) * 1e3)
         trust = getattr(planner, "prediction_trust", None)
+        fallback = getattr(planner, "decision_kind", PLANNER_DECISION) != PLANNER_DECISION
         if not waypoints:
-            failure = "no reachable target left"
+            failure = STOPPED
             break
         try:
             for k, waypoint in enumerate(waypoints):
                 episode.move(waypoint, oracle=oracle)
                 waypoint_ms.append(decision_ms[-1] if k == 0 else 0.0)
                 waypoint_trust.append(trust)
+                waypoint_fallback.append(fallback)
                 if on_step is not None:
                     on_step(episode)
                 if episode.complete or episode.steps >= protocol.max_steps:
@@ -268,6 +288,8 @@ def run_episode(
     result = _result(episode, getattr(planner, "name", type(planner).__name__), seed, decision_ms, failure, violations)
     result.waypoint_decision_ms = waypoint_ms[: len(result.trajectory)]
     result.waypoint_trust = waypoint_trust[: len(result.trajectory)]
+    result.waypoint_fallback = waypoint_fallback[: len(result.trajectory)]
+    result.fallbacks = int(getattr(planner, "fallbacks", 0))
     return result
 
 
@@ -310,6 +332,9 @@ def _result(
     episode: Episode, planner: str, seed: int, decision_ms: list[float], failure: str, violations: int
 ) -> EpisodeResult:
     complete = episode.complete
+    reachable = reachable_free(episode.map.free, episode.map.start_cell, episode.protocol.robot_radius_cells)
+    seen = int((reachable & (episode.belief.grid == FREE)).sum())
+    unseen = int(reachable.sum()) - seen
     return EpisodeResult(
         map_name=episode.map.name,
         planner=planner,
@@ -327,4 +352,6 @@ def _result(
         explored_cells=list(episode.explored_cells),
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
+        reachable_share=seen / max(1, seen + unseen),
+        early_stop=failure == STOPPED and unseen > episode.protocol.done_unknown_cells,
     )

@@ -24,13 +24,17 @@ METRICS_COLUMNS = [
     "decision_ms_median",
     "decision_ms_p95",
     "seed",
+    "reachable_share",
+    "fallbacks",
+    "early_stop",
 ]
 # The per-step record beside a trajectory (OUT/<label>/<map>.steps.csv): one row per trajectory
 # row up to completion, the start first (docs/protocol.md, "Per-step files").
-STEP_COLUMNS = ["step", "distance_m", "explored_m2", "explored_share", "decision_ms", "prediction_trust"]
+STEP_COLUMNS = ["step", "distance_m", "explored_m2", "explored_share", "decision_ms", "prediction_trust", "fallback"]
 # Files written before `prediction_trust` (a predicting planner's trust in its predictions, empty
-# for other planners) read as having it empty.
-LEGACY_STEP_COLUMNS = STEP_COLUMNS[:5]
+# for other planners) or before `fallback` (1 where the whole building's fallback sent the robot)
+# read as having them empty.
+LEGACY_STEP_COLUMNS = (STEP_COLUMNS[:5], STEP_COLUMNS[:6])
 STEPS_SUFFIX = ".steps.csv"
 MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
@@ -44,6 +48,11 @@ def _format_number(value: float | None, decimals: int = 6) -> str:
         return ""
     text = f"{value:.{decimals}f}".rstrip("0").rstrip(".")
     return "0" if text in ("-0", "") else text
+
+
+def _flag(value: bool | None) -> str:
+    """1 / 0 for a recorded yes / no, empty where nothing was recorded (a replay)."""
+    return "" if value is None else str(int(bool(value)))
 
 
 def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]) -> Path:
@@ -154,15 +163,15 @@ def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
             handle.write(
                 f"{int(row['step'])},{_format_number(row['distance_m'], 6)},{_format_number(row['explored_m2'], 4)},"
                 f"{_format_number(row['explored_share'], 6)},{_format_number(row['decision_ms'], 3)},"
-                f"{_format_number(row.get('prediction_trust'), 4)}\n"
+                f"{_format_number(row.get('prediction_trust'), 4)},{_flag(row.get('fallback'))}\n"
             )
     return path
 
 
 def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a per-step file into one array per column (decision_ms, prediction_trust NaN where
-    empty); ValueError naming the file when it is missing or its header is not STEP_COLUMNS (or
-    the older LEGACY_STEP_COLUMNS, read with prediction_trust all NaN)."""
+    """Read a per-step file into one array per column (decision_ms, prediction_trust, fallback NaN
+    where empty); ValueError naming the file when it is missing or its header is not STEP_COLUMNS
+    (or an older one of LEGACY_STEP_COLUMNS, read with the missing columns all NaN)."""
     path = Path(path)
     if not _is_file(path):
         raise ValueError(f"{path}: file not found (guide benchmark writes one per trajectory; "
@@ -170,7 +179,7 @@ def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
     with path.open(newline="", encoding="utf-8-sig") as handle:
         rows = list(csv.reader(handle))
     header = [c.strip() for c in rows[0]] if rows else []
-    if header not in (STEP_COLUMNS, LEGACY_STEP_COLUMNS):
+    if header != STEP_COLUMNS and header not in LEGACY_STEP_COLUMNS:
         raise ValueError(f"{path}: a per-step file starts with the header {','.join(STEP_COLUMNS)}")
     try:
         values = np.array([[float(v) if v.strip() else np.nan for v in row] for row in rows[1:] if row],

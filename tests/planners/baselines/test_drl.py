@@ -15,6 +15,7 @@ from pipeline.envs.explore_env import ExploreEnv
 from pipeline.models import defaults
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.modeling_drl import DRLPolicy, save_drl_policy
+from pipeline.planners.wrapper import innermost
 from pipeline.planners import make_planner
 from pipeline.planners.baselines.drl import DRLPlanner
 from pipeline.world.maps import list_maps, load_map
@@ -59,7 +60,7 @@ def test_the_planner_decides_as_the_environments_agent(maps, seed, values, proto
     policy = fresh_policy(seed, **values)
     for path in maps:
         planner = make_planner("drl", policy=policy, stall_steps=0)
-        assert isinstance(planner, DRLPlanner) and planner.source == "injected drl policy"
+        assert isinstance(innermost(planner), DRLPlanner) and planner.source == "injected drl policy"
         result = run_episode(load_map(path), planner, protocol)
         info = env_episode(path, policy, protocol)
         assert result.motion_violations == 0
