@@ -154,7 +154,7 @@ class LatticeGraph:
     #: times a decision; the edge walks alone are megabytes.
     SHARED_ON_COPY = frozenset((
         "spec", "lattice_i", "lattice_j", "node_ij", "node_world", "node_cells", "node_flat", "node_count", "_id_grid",
-        "edge_nodes", "_edge_walks", "_walk_rows", "_edge_box", "edge_length", "utility_range_cells", "_region_cells",
+        "edge_nodes", "_edge_walks", "_walk_rows", "_edge_box", "edge_length", "_edge_keys", "_edge_order", "utility_range_cells", "_region_cells",
         "_region_origin", "region_col_of_x", "region_row_of_y", "_region_offset", "region_shape", "node_region",
         "nodes_per_region", "_search_entries", "_adjacency", "_search_matrix", "_neighbour_lists",
     ))
@@ -252,6 +252,9 @@ class LatticeGraph:
         )
         diff = self.node_world[self.edge_nodes[:, 1]] - self.node_world[self.edge_nodes[:, 0]]
         self.edge_length = np.hypot(diff[:, 0], diff[:, 1])
+        keys = self.edge_nodes.min(axis=1) * self.node_count + self.edge_nodes.max(axis=1)
+        self._edge_order = np.argsort(keys, kind="stable")
+        self._edge_keys = keys[self._edge_order]  # sorted: an edge found from its two nodes (`edge_between`)
         # Both directions of every candidate edge in `search_matrix`'s order (by row; higher
         # neighbours first, each ascending): (edge, row, column) per entry.
         edge = np.tile(np.arange(len(self.edge_nodes)), 2)
@@ -330,6 +333,23 @@ class LatticeGraph:
             self.edge_nodes, self.node_cells, self.node_state == NODE_FREE, np.ascontiguousarray(passable),
             np.ascontiguousarray(clearance, dtype=np.float32), wx0, wy0, cols, self.spec.cell_size, MAX_DETOUR,
         )
+
+    def edge_between(self, a: int, b: int) -> int:
+        """The candidate edge joining nodes `a` and `b`, or -1 when they are not window neighbours."""
+        key = min(a, b) * self.node_count + max(a, b)
+        at = int(np.searchsorted(self._edge_keys, key))
+        return int(self._edge_order[at]) if at < len(self._edge_keys) and self._edge_keys[at] == key else -1
+
+    def route_between(self, a: int, b: int) -> list[tuple[float, float]]:
+        """The waypoints (metres) that drive from node `a` to its neighbour `b`: `b`, after the edge's
+        door node when the edge is valid through one."""
+        edge = self.edge_between(a, b)
+        end = (float(self.node_world[b][0]), float(self.node_world[b][1]))
+        if edge < 0 or self.edge_via[edge] < 0:
+            return [end]
+        cols = self.spec.shape[1]
+        door = self.spec.cell_to_world(np.array([self.edge_via[edge] % cols, self.edge_via[edge] // cols]))
+        return [(float(door[0]), float(door[1])), end]
 
     @property
     def edge_cost(self) -> np.ndarray:

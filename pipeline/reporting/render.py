@@ -36,6 +36,8 @@ UTILITY_RGB: Colour = (255, 160, 0)
 START_RGB: Colour = (20, 170, 80)
 ROBOT_RGB: Colour = (255, 230, 0)
 OUTLINE_RGB: Colour = (20, 20, 20)
+DOOR_RGB: Colour = (0, 190, 230)  # a door node the planner drove through (off the lattice)
+FALLBACK_RGB: Colour = (230, 0, 200)  # a waypoint of the nearest-frontier fallback (the planner's rule found nothing)
 HEADER_BG_RGB: Colour = (24, 34, 64)
 HEADER_TEXT_RGB: Colour = (240, 242, 246)
 HEADER_DIM_RGB: Colour = (170, 178, 192)
@@ -87,7 +89,10 @@ def _fit_text(text: str, width: int, font_scale: float, min_scale: float = 0.32)
     return text, scale
 
 
-def _legend_items(graph_shown: bool, belief_shown: bool = True) -> list[tuple[str, str, Colour]]:
+MARK_ITEMS = {"door": ("diamond", "door node", DOOR_RGB), "fallback": ("ring", "fallback", FALLBACK_RGB)}
+
+
+def _legend_items(graph_shown: bool, belief_shown: bool = True, marks: Sequence[str] = ()) -> list[tuple[str, str, Colour]]:
     items = [("box", "free", FREE_RGB), ("box", "wall", OCCUPIED_RGB)]
     if belief_shown:
         items += [
@@ -102,7 +107,7 @@ def _legend_items(graph_shown: bool, belief_shown: bool = True) -> list[tuple[st
         ("start", "start", START_RGB),
         ("robot", "robot" if belief_shown else "end", ROBOT_RGB),
     ]
-    return items
+    return items + [MARK_ITEMS[mark] for mark in marks]
 
 
 def _legend_layout(items, width: int, font_scale: float, pad: int) -> list[list[tuple[int, tuple]]]:
@@ -139,10 +144,35 @@ def _draw_swatch(img: np.ndarray, kind: str, x: int, cy: int, colour: Colour) ->
     elif kind == "robot":
         cv2.circle(img, (x + s // 2, cy), 6, OUTLINE_RGB, -1, cv2.LINE_AA)
         cv2.circle(img, (x + s // 2, cy), 4, colour, -1, cv2.LINE_AA)
+    elif kind == "diamond":
+        _draw_diamond(img, (x + s // 2, cy), 5, colour, shift=0)
+    elif kind == "ring":
+        cv2.circle(img, (x + s // 2, cy), 5, colour, 2, cv2.LINE_AA)
+
+
+def _draw_diamond(img: np.ndarray, centre: tuple[int, int], radius: float, colour: Colour, shift: int = _SHIFT) -> None:
+    cx, cy = centre
+    r = int(round(radius * (1 << shift)))
+    pts = np.array([[cx, cy - r], [cx + r, cy], [cx, cy + r], [cx - r, cy]], dtype=np.int32)
+    cv2.fillConvexPoly(img, pts, OUTLINE_RGB, cv2.LINE_AA, shift)
+    inner = int(round(r * 0.7))
+    pts = np.array([[cx, cy - inner], [cx + inner, cy], [cx, cy + inner], [cx - inner, cy]], dtype=np.int32)
+    cv2.fillConvexPoly(img, pts, colour, cv2.LINE_AA, shift)
+
+
+def _draw_marks(img: np.ndarray, doors: np.ndarray, fallbacks: np.ndarray, scale: int) -> None:
+    """Door nodes as diamonds, fallback waypoints as rings, over the path."""
+    size = max(3.0, 2.2 * scale)
+    for c in _cell_centres_fixed(doors, scale) if len(doors) else ():
+        _draw_diamond(img, (int(c[0]), int(c[1])), size, DOOR_RGB)
+    for c in _cell_centres_fixed(fallbacks, scale) if len(fallbacks) else ():
+        cv2.circle(img, (int(c[0]), int(c[1])), int(round(size * _ONE)), FALLBACK_RGB, max(1, scale // 2 + 1),
+                   cv2.LINE_AA, _SHIFT)
 
 
 def render_header(
-    width: int, title: str = "", legend: bool = True, graph_shown: bool = True, belief_shown: bool = True
+    width: int, title: str = "", legend: bool = True, graph_shown: bool = True, belief_shown: bool = True,
+    marks: Sequence[str] = (),
 ) -> np.ndarray | None:
     """The title bar: one line of `title` and, below it, the colour key. None when both are off.
 
@@ -155,7 +185,7 @@ def render_header(
     pad = 8
     title_h = 30 if width >= 1000 else 26 if width >= 600 else 22
     legend_scale = base * 0.85
-    rows = _legend_layout(_legend_items(graph_shown, belief_shown), width, legend_scale, pad) if legend else []
+    rows = _legend_layout(_legend_items(graph_shown, belief_shown, marks), width, legend_scale, pad) if legend else []
     row_h = 20
     height = title_h + len(rows) * row_h + (6 if rows else 0)
     img = np.empty((height, width, 3), dtype=np.uint8)
@@ -243,8 +273,13 @@ def render_frame(
     robot: Point | None = None,
     path_thickness: int | None = None,
     y_up: bool = False,
+    doors: Sequence[Point] = (),
+    fallbacks: Sequence[Point] = (),
 ) -> np.ndarray:
     """One figure: belief over the faint ground truth, frontiers, graph, path, markers, title bar.
+
+    `doors` and `fallbacks` (world points) are marked on the path: the door nodes it drove through
+    and the waypoints of the nearest-frontier fallback (`pipeline.planners.whole_building`).
 
     `y_up=True` draws row 0 at the bottom, as a ROS map's image shows it (its loader turns
     the image so that rows grow with y).
@@ -274,6 +309,11 @@ def render_frame(
     path_cells = world_to_cells(traj, ground_truth) if traj else np.zeros((0, 2), np.int64)
     thickness = path_thickness if path_thickness is not None else max(2, int(round(scale * 1.2)))
     _draw_path(img, path_cells, scale, thickness)
+    marks = [name for name, points in (("door", doors), ("fallback", fallbacks)) if len(points)]
+    if marks:
+        _draw_marks(img, world_to_cells(list(doors), ground_truth) if len(doors) else np.zeros((0, 2), np.int64),
+                    world_to_cells(list(fallbacks), ground_truth) if len(fallbacks) else np.zeros((0, 2), np.int64),
+                    scale)
     if robot is not None:
         robot_cell = world_to_cells([robot], ground_truth)[0]
     else:
@@ -281,7 +321,7 @@ def render_frame(
     _draw_markers(img, np.asarray(ground_truth.start_cell), robot_cell, scale)
     if y_up:
         img = np.ascontiguousarray(img[::-1])
-    header = render_header(img.shape[1], title, legend, graph_shown=graph is not None)
+    header = render_header(img.shape[1], title, legend, graph_shown=graph is not None, marks=marks)
     return img if header is None else np.concatenate([header, img], axis=0)
 
 
@@ -464,14 +504,29 @@ def render_final(
     title = episode_title(result.map_name, result.planner, result.distance_m, result.steps,
                           result.explored_ratio, result.complete)
     min_unknown = graph.spec.frontier_min_unknown_neighbours if graph is not None else 2
+    doors, fallbacks = whole_building_marks(result, graph.spec.node_resolution if graph is not None else None)
     image = render_frame(ground_truth, belief, result.trajectory, graph, scale, title,
-                         frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend, y_up=y_up)
+                         frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend, y_up=y_up,
+                         doors=doors, fallbacks=fallbacks)
     trust = [t for t in result.waypoint_trust if t is not None]
     if trust:  # a predicting planner's trust in its predictions, along the episode
         image = np.vstack([image, trust_strip(result.distances[-len(trust):], trust, image.shape[1])])
     if path is not None:
         save_png(image, path)
     return image
+
+
+def whole_building_marks(result: EpisodeResult, node_resolution: float | None) -> tuple[list[Point], list[Point]]:
+    """(door nodes, fallback waypoints) of an episode's trajectory: the rows its fallback sent the
+    robot to, and the other rows off the lattice (`node_resolution` metres; none when unknown)."""
+    marked = result.waypoint_fallback if len(result.waypoint_fallback) == len(result.trajectory) else []
+    fallbacks = [p for p, mark in zip(result.trajectory, marked) if mark]
+    if node_resolution is None:
+        return [], fallbacks
+    d = node_resolution
+    off = [p for k, p in enumerate(result.trajectory)
+           if not (marked and marked[k]) and any(abs(round(v / d) * d - v) > 1e-3 for v in p)]
+    return off, fallbacks
 
 
 TRUST_STRIP_HEIGHT = 90

@@ -23,6 +23,7 @@ from pipeline.robot.occupancy_grid import GridMessage
 from pipeline.robot.session import ExplorationSession
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
+from pipeline.world.reachability import reachable_free
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, Lidar
 from pipeline.world.simulator import Episode
 
@@ -49,6 +50,13 @@ class ClosedLoopResult:
     failed_goals: int
     maps_skipped: int
     decision_ms: list[float] = field(default_factory=list)
+    # The whole building (as `EpisodeResult`'s): the share of the free area a robot of the protocol's
+    # radius reaches from the start that the belief holds at the end (ground truth, scoring only),
+    # whether the session said done with more than done_unknown_cells of it unseen, and its fallbacks.
+    reachable_share: float = 1.0
+    early_stop: bool = False
+    fallbacks: int = 0
+    done: bool = False  # the session said `plan.done`
 
 
 class SimulatedRobot:
@@ -178,7 +186,7 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
     now = [0.0]
     session.clock = lambda: now[0]  # simulated time: a decision every DECISION_S seconds
     session.update_pose(0.0, 0.0, 0.0)  # the lattice is anchored at the start
-    failed, decision_ms = 0, []
+    failed, decision_ms, done = 0, [], False
     for decision in range(config.max_decisions):
         now[0] = decision * DECISION_S
         session.update_map(as_ros_message(slam_map(robot, config.slam_resolution, rng), now[0], config.cdr))
@@ -187,6 +195,7 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
         plan = session.plan()
         decision_ms.append(plan.decision_ms)
         if plan.done:
+            done = True
             break
         if not plan.waypoints:
             continue
@@ -196,5 +205,10 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
             failed += 1
             session.goal_failed(*goal)
     complete = robot.completion_distance is not None
+    reachable = reachable_free(ground_truth.free, ground_truth.start_cell, session.protocol.robot_radius_cells)
+    seen = int((reachable & (robot.belief.grid == FREE)).sum())
+    unseen = int(reachable.sum()) - seen
     return ClosedLoopResult(complete, robot.completion_distance if complete else robot.distance, decision + 1, failed,
-                            session.state.maps_skipped, decision_ms)
+                            session.state.maps_skipped, decision_ms, reachable_share=seen / max(1, seen + unseen),
+                            early_stop=done and unseen > session.protocol.done_unknown_cells,
+                            fallbacks=session.state.fallbacks, done=done)

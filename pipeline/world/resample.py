@@ -26,6 +26,8 @@ import yaml
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.world.maps import GroundTruthMap, MapError
+from pipeline.world.reachability import passable_mask
+from pipeline.world.sensor import FREE, OCCUPIED
 
 ROS_FREE_VALUE = 254
 ROS_OCCUPIED_VALUE = 0
@@ -67,14 +69,25 @@ def remove_specks(free: np.ndarray, max_cells: int) -> np.ndarray:
     return free | small[labels]
 
 
+def keep_doors(fine: np.ndarray, coarse: np.ndarray, factor: int, radius_cells: float) -> np.ndarray:
+    """`coarse` with every cell free that holds a fine cell a robot of `radius_cells` (fine cells) may
+    stand on (`passable_mask`): the doors the robot fits through stay open however the blocks fall."""
+    belief = np.where(fine, FREE, OCCUPIED).astype(np.uint8)
+    rows, cols = coarse.shape
+    stands = passable_mask(belief, radius_cells)[: rows * factor, : cols * factor]
+    return coarse | stands.reshape(rows, factor, cols, factor).any(axis=(1, 3))
+
+
 def resample_map(
-    ground_truth: GroundTruthMap, cell_size: float, wall_cells: int = 1, speck_area: float = 0.1
+    ground_truth: GroundTruthMap, cell_size: float, wall_cells: int = 1, speck_area: float = 0.1,
+    robot_radius_m: float = 0.0,
 ) -> tuple[GroundTruthMap, float]:
     """(the map at `cell_size`, metres the start moved).
 
     Obstacles of at most `speck_area` square metres are erased first (`remove_specks`); then a
     coarse cell is an obstacle when it holds at least `wall_cells` fine obstacle cells (default 1:
-    any; the module docstring says why). The start moves to
+    any; the module docstring says why), unless, with a `robot_radius_m`, it holds a fine cell the
+    robot's centre may stand on (`keep_doors`: no door it fits through is closed). The start moves to
     the nearest free coarse cell when its own is no longer free. MapError when nothing stays free.
     """
     if not (math.isfinite(speck_area) and speck_area >= 0):
@@ -84,6 +97,8 @@ def resample_map(
         raise ValueError(f"wall cells must lie in 1..{factor * factor} (the fine cells of one new cell), got {wall_cells}")
     fine = remove_specks(ground_truth.free, int(speck_area / ground_truth.cell_size**2))
     free = resample_free(fine, factor, wall_cells)
+    if robot_radius_m > 0:
+        free = keep_doors(fine, free, factor, robot_radius_m / ground_truth.cell_size)
     if not free.any():
         raise MapError(ground_truth.name, f"no cell of {cell_size:g} m stays free")
     col, row = (min(index // factor, size - 1) for index, size in zip(ground_truth.start_cell, free.shape[::-1]))

@@ -4,6 +4,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from conftest import two_rooms
+
 from pipeline.lattice.doors import find_door_node, via_waypoints
 from pipeline.lattice.graph import LatticeGraph, LatticeSpec
 from pipeline.world.geometry import segment_is_known_free
@@ -11,16 +13,6 @@ from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 from pipeline.world.reachability import clearance_cells
 from pipeline.world.sensor import FREE, OCCUPIED
-
-
-def two_rooms(door_row: int = 28) -> GroundTruthMap:
-    """12 x 24 m at 0.2 m: a wall on a lattice column (27) with a 2-cell door (0.4 m) that no straight
-    edge of the 1 m lattice crosses (rows 28-29, between the node rows 27 and 32)."""
-    free = np.ones((60, 120), bool)
-    free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = False
-    free[:, 27] = False
-    free[door_row:door_row + 2, 27] = True
-    return GroundTruthMap(free=free, start_cell=(12, 32), cell_size=0.2, name="two_rooms")
 
 
 def known(ground_truth: GroundTruthMap) -> np.ndarray:

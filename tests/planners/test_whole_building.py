@@ -4,6 +4,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from pipeline.planners import make_planner
 from pipeline.planners.whole_building import WholeBuilding
@@ -11,7 +12,6 @@ from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 from pipeline.world.simulator import STOPPED, replay, run_episode
-from tests.lattice.test_doors import two_rooms
 
 UNTIL_DONE = replace(PAPER_REAL_ROBOT, done_unknown_cells=0, max_steps=400)  # runs until the planner says done
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from conftest import two_rooms
 import pytest
 
 from pipeline.robot import ExplorationSession, GridMessage
@@ -191,3 +192,47 @@ def test_a_thousand_fuzzed_messages_and_poses_end_no_session(planner, small_maze
         plan = session.plan(force=True)
         assert plan.waypoints or plan.done, plan.reason
     assert session.state.maps_skipped > fuzzed // 2 and session.state.poses_skipped > fuzzed // 4
+
+
+def diagonal_door(gap_m: float = 0.45, offset: int = 3) -> np.ndarray:
+    """An 8 x 8 m SLAM map at 0.05 m: a 3-pixel diagonal wall with a `gap_m` door that the
+    protocol's conservative 0.2 m cells close (each of them holds a pixel of the door's frames)."""
+    values = np.zeros((160, 160), np.int8)
+    values[:, :2] = values[:, -2:] = values[:2, :] = values[-2:, :] = 100
+    rows, cols = np.mgrid[0:160, 0:160]
+    along = (rows + cols) / np.sqrt(2) * 0.05
+    door = (along > 3.0) & (along < 3.0 + gap_m)
+    values[(np.abs(rows - cols - offset) <= 1) & ~door] = 100
+    return values
+
+
+@pytest.mark.parametrize("gap_m, opens", [(0.45, True), (0.3, False)])
+def test_a_door_the_robot_fits_through_stays_open_on_the_protocols_cells(gap_m, opens):
+    from pipeline.world.reachability import reachable_from
+
+    values = diagonal_door(gap_m)
+    message = GridMessage(values.reshape(-1).tolist(), 160, 160, 0.05, 0.0, 0.0)
+    reached = []
+    for radius in (0.0, 0.2):
+        canvas = Canvas(0.2, 5, (1.5, 6.5), robot_radius_m=radius)
+        canvas.cover((0.0, 0.0, 8.0, 8.0))
+        canvas.paint(read_grid(message))
+        reach = reachable_from(canvas.belief == FREE, canvas.to_cell(1.5, 6.5))
+        reached.append(bool(reach[canvas.to_cell(6.5, 1.5)[::-1]]))
+    assert reached == [False, opens]  # conservative cells close it; the radius opens it when the robot fits
+
+
+def test_done_means_no_frontier_the_robot_can_reach_is_left():
+    """A room behind a door no lattice edge crosses: the session is not done while it is unseen."""
+    world = two_rooms()
+    session = ExplorationSession("nearest_frontier", "real_robot")
+    belief = np.where(world.free, 0, 100).astype(np.int8)
+    belief[:, 28:] = -1  # the right room unknown, the door's cells known free
+    session.update_map(GridMessage(belief.reshape(-1).tolist(), 120, 60, 0.2, 0.0, 0.0))
+    col, row = world.start_cell
+    session.update_pose((col + 0.5) * 0.2, (row + 0.5) * 0.2, 0.0)
+    plan = session.plan()
+    assert not plan.done and plan.waypoints
+    known = np.where(world.free, 0, 100).astype(np.int8)
+    session.update_map(GridMessage(known.reshape(-1).tolist(), 120, 60, 0.2, 0.0, 0.0))
+    assert session.plan(force=True).done  # everything seen: done

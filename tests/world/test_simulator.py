@@ -2,6 +2,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from pipeline.world.geometry import walk_cells
 from pipeline.world.maps import GroundTruthMap, load_map
@@ -218,3 +219,15 @@ def test_resume_starts_from_a_given_belief_and_pose(small_maze):
     assert known.complete and known.completion_distance == 0.0  # a fully known map is explored already
     with pytest.raises(ValueError, match="differ in shape"):
         Episode.resume(small_maze, protocol, observation.belief[1:], observation.cell, observation.position)
+
+
+def test_a_cell_centre_off_the_lattice_is_a_waypoint_only_under_the_door_graph():
+    world = two_rooms()
+    door = ((27 - world.start_cell[0]) * 0.2, (28 - world.start_cell[1]) * 0.2)  # the door's cell centre
+    episode = Episode(world, PAPER_REAL_ROBOT)
+    assert episode.waypoint_cell(door) == ((27, 28), pytest.approx(door))
+    with pytest.raises(MotionError, match="a cell centre"):
+        episode.waypoint_cell((door[0] + 0.05, door[1]))
+    lattice = Episode(world, replace(PAPER_REAL_ROBOT, door_graph=False))
+    with pytest.raises(MotionError, match="node lattice"):
+        lattice.waypoint_cell(door)

@@ -155,7 +155,8 @@ class GreedyUtilityPlanner(GraphPlanner):
     def _move_to(self, episode: Episode, node: int) -> float | None:
         """One rollout move to a neighbouring `node`; the rollout's result if it ends there
         (the distance at completion, inf at the step limit), else None."""
-        episode.move(tuple(map(float, self.graph.node_world[node])))
+        for waypoint in self.graph.route_between(self.graph.nearest_node(episode.position), node):
+            episode.move(waypoint)  # through the edge's door node first, where it has one
         if episode.complete:
             return float(episode.completion_distance)
         if episode.steps >= self.protocol.max_steps:
