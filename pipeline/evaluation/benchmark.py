@@ -414,6 +414,8 @@ def whole_building_markdown(frame: pd.DataFrame, protocol: dict[str, Any]) -> li
     """Lines of summary.md on how much of what a robot could reach each planner saw: per planner the
     mean and least share of the reachable free area explored, the early stops and the fallback
     decisions. Written when the run used the door-aware graph or a planner stopped early."""
+    if not {"reachable_share", "fallbacks", "early_stop"} <= set(frame.columns):  # a frame of older metrics
+        return []
     door_graph = Protocol.from_dict({k: v for k, v in protocol.items() if k != "cell_size"}).uses_door_graph
     if not door_graph and not frame["early_stop"].astype(bool).any():
         return []

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from pipeline.robot import ExplorationSession
 from pipeline.robot.closed_loop import ClosedLoopConfig, as_ros_message, free_path, run_closed_loop
@@ -21,6 +22,14 @@ def test_exploration_completes_through_cdr_maps_noisy_poses_and_failing_goals(pl
     assert result.maps_skipped == 0 and result.failed_goals >= 1
     assert session.state.maps_used == result.decisions
     assert 50.0 < result.distance_m < 600.0
+
+
+@pytest.mark.parametrize("planner", ["greedy_utility", "guide"])
+def test_the_session_explores_the_room_behind_a_door_the_lattice_misses(planner):
+    """Real-robot protocol: the session says done only when all it can reach is seen."""
+    session = ExplorationSession(planner, "real_robot", planner_options={"candidates": 2} if planner == "guide" else None)
+    result = run_closed_loop(two_rooms(), session, ClosedLoopConfig(fail_every=0, max_decisions=400), seed=1)
+    assert result.done and not result.early_stop and result.reachable_share >= 0.97, result
 
 
 def test_a_map_survives_cdr_with_rosbags_types():
