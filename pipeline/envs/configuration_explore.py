@@ -32,7 +32,9 @@ from pipeline.world.protocol import Protocol
 
 GENERATED_MAZE = "maze"  # the `map` value that draws a fresh maze at every reset
 ACTION_MODES = ("neighbour", "node")
-PROTOCOL_FIELDS = tuple(f.name for f in fields(Protocol))
+# The protocol's fields the environment takes: all but the door-aware graph's switch, since its
+# actions are lattice moves and it keeps DARE's lattice of straight edges at every scale.
+PROTOCOL_FIELDS = tuple(f.name for f in fields(Protocol) if f.name != "door_graph")
 MAX_PADDED_NODES = 32767  # neighbour lists are int16 row indices
 
 
@@ -81,8 +83,6 @@ class ExploreEnvConfig:
     done_unknown_cells: whole(0, note="cells") = 250  # the episode is complete when at most this many free cells are unseen
     max_steps: whole(1) = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
     robot_radius_m: real(0.0) = 0.2  # metres: what fits through a door (the protocol's; unused on the lattice)
-    # the environment's actions are lattice moves: it keeps DARE's lattice of straight edges at every scale
-    door_graph: maybe(flag(), "on below a 2 m lattice") = False
     # --- actions and observations
     action: text(ACTION_MODES) = "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
     max_nodes: whole(1, MAX_PADDED_NODES) = 320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
@@ -115,7 +115,7 @@ class ExploreEnvConfig:
 
     def protocol(self) -> Protocol:
         """The benchmark protocol these fields make (a ROS map may still change its cell size)."""
-        return Protocol(**{name: getattr(self, name) for name in PROTOCOL_FIELDS})
+        return Protocol(**{name: getattr(self, name) for name in PROTOCOL_FIELDS}, door_graph=False)
 
     def maze_config(self) -> MazeConfig:
         """The generator's settings for map="maze": the benchmark's mazes at `maze_side_m`."""
@@ -134,6 +134,6 @@ class ExploreEnvConfig:
                 protocol = Protocol.from_dict(protocol)
             if not isinstance(protocol, Protocol):
                 raise ValueError(f"protocol must be a Protocol or a dict of its fields, got {protocol!r}")
-            values = {**protocol.to_dict(), **values}
+            values = {**{k: v for k, v in protocol.to_dict().items() if k in PROTOCOL_FIELDS}, **values}
         return validate(cls, values)
 

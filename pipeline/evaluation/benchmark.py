@@ -421,7 +421,7 @@ def whole_building_markdown(frame: pd.DataFrame, protocol: dict[str, Any]) -> li
         return []
     lines = ["", "The whole building (share of the free area a robot of radius "
              f"{protocol.get('robot_radius_m', 0.2):g} m reaches from the start that it saw; an early stop is a "
-             "planner that said done with more than done_unknown_cells of it unseen; fallbacks are decisions its own "
+             "planner that said done with an unseen region of it of 1 m^2 or more left; fallbacks are decisions its own "
              "rule did not make):", "",
              "| planner | reachable explored (mean) | (least) | early stops | fallback decisions |", "|---|---:|---:|---:|---:|"]
     for planner, rows in frame.groupby("planner", sort=True):

@@ -15,14 +15,11 @@ import numpy as np
 
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask
 from pipeline.world.geometry import segment_is_known_free
-from pipeline.world.reachability import reachable_from
+from pipeline.world.reachability import LEFTOVER_M2, reachable_from
 from pipeline.world.sensor import UNKNOWN
 
 Cell = tuple[int, int]  # (col, row)
 
-# Unknown pockets smaller than this (m^2) are no reason to go on: the slivers a lidar leaves along
-# walls it sees at a grazing angle, each needing a visit of its own to close.
-LEFTOVER_M2 = 1.0
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
 
 

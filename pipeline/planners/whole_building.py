@@ -25,12 +25,13 @@ import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
 from pipeline.lattice.graph import LatticeSpec
-from pipeline.lattice.reachability import LEFTOVER_M2, open_frontier, path_to_nearest, waypoints_along
+from pipeline.lattice.reachability import open_frontier, path_to_nearest, waypoints_along
 from pipeline.planners.wrapper import PlannerWrapper
+from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
-from pipeline.world.reachability import clearance_cells, passable_mask
+from pipeline.world.reachability import LEFTOVER_M2, clearance_cells, passable_mask
 
 PLANNER, FALLBACK, REJOIN, DONE = "planner", "fallback", "rejoin", "done"
 LATTICE_TOLERANCE_M = 1e-3
@@ -100,6 +101,8 @@ class WholeBuilding(PlannerWrapper):
 
     def _through_doors(self, observation: Observation, passable: np.ndarray, waypoints: list[Waypoint]) -> list[Waypoint]:
         cells = [tuple(map(int, c)) for c in self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64))]
+        if all(segment_is_known_free(passable, a, b) for a, b in zip([observation.cell, *cells[:-1]], cells)):
+            return waypoints  # every segment straight: no door node to look for
         route = via_waypoints(passable, clearance_cells(observation.belief), observation.cell, cells)
         doors = [cell for cell, door in route if door]
         if not doors:

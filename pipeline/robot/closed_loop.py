@@ -23,7 +23,7 @@ from pipeline.robot.occupancy_grid import GridMessage
 from pipeline.robot.session import ExplorationSession
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
-from pipeline.world.reachability import reachable_free
+from pipeline.world.reachability import LEFTOVER_M2, largest_unseen_region, reachable_free
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, Lidar
 from pipeline.world.simulator import Episode
 
@@ -52,7 +52,7 @@ class ClosedLoopResult:
     decision_ms: list[float] = field(default_factory=list)
     # The whole building (as `EpisodeResult`'s): the share of the free area a robot of the protocol's
     # radius reaches from the start that the belief holds at the end (ground truth, scoring only),
-    # whether the session said done with more than done_unknown_cells of it unseen, and its fallbacks.
+    # whether the session said done with an unseen region of it of LEFTOVER_M2 or more, and its fallbacks.
     reachable_share: float = 1.0
     early_stop: bool = False
     fallbacks: int = 0
@@ -208,7 +208,8 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
     reachable = reachable_free(ground_truth.free, ground_truth.start_cell, session.protocol.robot_radius_cells)
     seen = int((reachable & (robot.belief.grid == FREE)).sum())
     unseen = int(reachable.sum()) - seen
+    c2 = ground_truth.cell_size**2
     return ClosedLoopResult(complete, robot.completion_distance if complete else robot.distance, decision + 1, failed,
                             session.state.maps_skipped, decision_ms, reachable_share=seen / max(1, seen + unseen),
-                            early_stop=done and unseen > session.protocol.done_unknown_cells,
+                            early_stop=done and largest_unseen_region(reachable, robot.belief.grid) * c2 >= LEFTOVER_M2,
                             fallbacks=session.state.fallbacks, done=done)

@@ -17,6 +17,11 @@ from pipeline.world.sensor import FREE, OCCUPIED
 
 Cell = tuple[int, int]  # (col, row)
 
+# Unseen pockets smaller than this (m^2) are no reason to go on: the slivers a lidar leaves along
+# walls it sees at a grazing angle, each needing a visit of its own to close. The planners' done
+# rule ignores them (`pipeline.lattice.reachability.open_frontier`), and so does an early stop.
+LEFTOVER_M2 = 1.0
+
 
 def clearance_cells(belief: np.ndarray) -> np.ndarray:
     """Per cell, the distance (in cells, centre to centre) to the nearest occupied cell; the grid's
@@ -59,3 +64,12 @@ def reachable_free(free: np.ndarray, start: Cell, radius_cells: float) -> np.nda
         return centres & free
     reach = cv2.distanceTransform((~centres).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     return free & (reach <= radius_cells + 1e-6)
+
+
+def largest_unseen_region(reachable: np.ndarray, belief: np.ndarray) -> int:
+    """Cells of the largest 8-connected region of `reachable` cells that `belief` does not hold as free."""
+    unseen = (reachable & (belief != FREE)).view(np.uint8)
+    if not unseen.any():
+        return 0
+    _, _, stats, _ = cv2.connectedComponentsWithStats(unseen, connectivity=8)
+    return int(stats[1:, cv2.CC_STAT_AREA].max())

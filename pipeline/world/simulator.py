@@ -17,7 +17,7 @@ from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
-from pipeline.world.reachability import reachable_free
+from pipeline.world.reachability import LEFTOVER_M2, largest_unseen_region, reachable_free
 from pipeline.world.sensor import FREE, Belief, Lidar
 
 LATTICE_TOLERANCE_M = 1e-3
@@ -54,8 +54,8 @@ class EpisodeResult:
     # The whole building (docs/protocol.md): the share of the free area a robot of the protocol's
     # radius reaches from the start that the belief holds at the end (ground truth, scoring only);
     # the decisions that were not the planner's own rule (its nearest-frontier fallback and the way
-    # back to the lattice), in all and per trajectory row; and whether the planner stopped while
-    # more than `done_unknown_cells` of that area was still unseen (an early stop).
+    # back to the lattice), in all and per trajectory row; and whether the planner stopped while an
+    # unseen region of that area of at least LEFTOVER_M2 was left (an early stop).
     reachable_share: float = 1.0
     fallbacks: int = 0
     waypoint_fallback: list[bool | None] = field(default_factory=list)
@@ -353,5 +353,6 @@ def _result(
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
         reachable_share=seen / max(1, seen + unseen),
-        early_stop=failure == STOPPED and unseen > episode.protocol.done_unknown_cells,
+        early_stop=failure == STOPPED and largest_unseen_region(reachable, episode.belief.grid) * episode.map.cell_size**2
+        >= LEFTOVER_M2,
     )
