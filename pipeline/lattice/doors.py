@@ -55,6 +55,8 @@ def via_waypoints(passable: np.ndarray, clearance: np.ndarray, start: Cell, cell
     return route
 
 
+# `pipeline.world.geometry.walk_offsets`' walk, compiled: the door search tests thousands of walks
+# an update, each ending at its first blocked cell, where the cached offset tables would be built.
 @numba.njit(cache=True, nogil=True)
 def walk_is_clear(free, x0, y0, x1, y1):  # pragma: no cover - compiled
     """The protocol's 4-connected walk from (x0, y0) to (x1, y1) visits only `free` cells, both ends."""
