@@ -32,29 +32,27 @@ from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.reachability import LEFTOVER_M2, clearance_cells, passable_mask
+from pipeline.world.simulator import LATTICE_TOLERANCE_M, PLANNER_DECISION
 
-PLANNER, FALLBACK, REJOIN, DONE = "planner", "fallback", "rejoin", "done"
-LATTICE_TOLERANCE_M = 1e-3
+PLANNER, FALLBACK, REJOIN, DONE = PLANNER_DECISION, "fallback", "rejoin", "done"
 
 
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
 
-    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "door_moves", "tried",
-                     "leftover_cells",
-                     "_unseen"})
+    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "tried",
+                     "leftover_cells", "_unseen"})
 
     def __init__(self, inner: Planner):
         super().__init__(inner)
         self.active = False
         self.decision_kind = PLANNER
         self.fallbacks = 0
-        self.door_moves = 0
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.inner.reset(frame, protocol, seed)
         self.active = protocol.uses_door_graph
-        self.decision_kind, self.fallbacks, self.door_moves = PLANNER, 0, 0
+        self.decision_kind, self.fallbacks = PLANNER, 0
         self._unseen: list[np.ndarray] | None = []  # changes the inner planner has not seen (None: all)
         if self.active:
             spec = LatticeSpec.for_map(map_frame(frame), protocol)
@@ -104,10 +102,6 @@ class WholeBuilding(PlannerWrapper):
         if all(segment_is_known_free(passable, a, b) for a, b in zip([observation.cell, *cells[:-1]], cells)):
             return waypoints  # every segment straight: no door node to look for
         route = via_waypoints(passable, clearance_cells(observation.belief), observation.cell, cells)
-        doors = [cell for cell, door in route if door]
-        if not doors:
-            return waypoints
-        self.door_moves += len(doors)
         out: list[Waypoint] = []
         given = iter(waypoints)
         for cell, door in route:  # the planner's own waypoints stay exactly as it gave them

@@ -41,10 +41,13 @@ class NodePredictorConfig:
 
 
 def pad_to_multiple(image: np.ndarray, multiple: int, fill: int) -> tuple[np.ndarray, tuple[int, int]]:
-    """Centre-pad to the next multiple of `multiple` on each side; returns (image, (row0, col0))."""
+    """Centre-pad to the next multiple of `multiple` on each side, two multiples at least; returns
+    (image, (row0, col0)). After the network's downsampling by `multiple` each side keeps two pixels,
+    which its reflect-padded 3x3 convolutions need: a lattice one or two nodes across (a corridor
+    wing) would otherwise leave one, and the convolution would fail."""
     rows, cols = image.shape
-    size_r = -(-rows // multiple) * multiple
-    size_c = -(-cols // multiple) * multiple
+    size_r = max(2, -(-rows // multiple)) * multiple
+    size_c = max(2, -(-cols // multiple)) * multiple
     r0, c0 = (size_r - rows) // 2, (size_c - cols) // 2
     canvas = np.full((size_r, size_c), fill, dtype=image.dtype)
     canvas[r0 : r0 + rows, c0 : c0 + cols] = image

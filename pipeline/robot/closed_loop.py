@@ -211,5 +211,6 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
     c2 = ground_truth.cell_size**2
     return ClosedLoopResult(complete, robot.completion_distance if complete else robot.distance, decision + 1, failed,
                             session.state.maps_skipped, decision_ms, reachable_share=seen / max(1, seen + unseen),
-                            early_stop=done and largest_unseen_region(reachable, robot.belief.grid) * c2 >= LEFTOVER_M2,
+                            early_stop=done and largest_unseen_region(
+                                reachable, robot.belief.grid, session.protocol.robot_radius_cells) * c2 >= LEFTOVER_M2,
                             fallbacks=session.state.fallbacks, done=done)

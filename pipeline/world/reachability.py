@@ -66,9 +66,15 @@ def reachable_free(free: np.ndarray, start: Cell, radius_cells: float) -> np.nda
     return free & (reach <= radius_cells + 1e-6)
 
 
-def largest_unseen_region(reachable: np.ndarray, belief: np.ndarray) -> int:
-    """Cells of the largest 8-connected region of `reachable` cells that `belief` does not hold as free."""
+def largest_unseen_region(reachable: np.ndarray, belief: np.ndarray, radius_cells: float) -> int:
+    """Cells of the largest 8-connected region of `reachable` cells that `belief` does not hold as free
+    and that the robot's body fits into (a square as wide as its diameter, two cells at least): a
+    slot one cell wide between two walls, or a sliver along one, is no room left unseen."""
     unseen = (reachable & (belief != FREE)).view(np.uint8)
+    if not unseen.any():
+        return 0
+    width = max(2, int(np.ceil(2 * radius_cells - 1e-6)))
+    unseen = cv2.morphologyEx(unseen, cv2.MORPH_OPEN, np.ones((width, width), np.uint8))
     if not unseen.any():
         return 0
     _, _, stats, _ = cv2.connectedComponentsWithStats(unseen, connectivity=8)

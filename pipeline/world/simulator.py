@@ -353,6 +353,6 @@ def _result(
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
         reachable_share=seen / max(1, seen + unseen),
-        early_stop=failure == STOPPED and largest_unseen_region(reachable, episode.belief.grid) * episode.map.cell_size**2
-        >= LEFTOVER_M2,
+        early_stop=failure == STOPPED and largest_unseen_region(
+            reachable, episode.belief.grid, episode.protocol.robot_radius_cells) * episode.map.cell_size**2 >= LEFTOVER_M2,
     )

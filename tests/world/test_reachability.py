@@ -37,3 +37,15 @@ def test_the_reachable_area_is_the_start_side_when_the_robot_does_not_fit():
     wide = reachable_free(corridor(11) == FREE, (5, 5), 4.0)
     # The body reaches the cells beside the walls that its centre never stands on.
     assert wide[17, 0] and wide[0, 0]
+
+
+def test_an_unseen_slot_one_cell_wide_is_no_region_left_but_a_room_is():
+    from pipeline.world.reachability import largest_unseen_region
+
+    free = np.ones((30, 30), bool)
+    belief = np.full(free.shape, FREE, np.uint8)
+    belief[2:28, 10] = UNKNOWN  # a slot between two walls, one cell wide
+    assert largest_unseen_region(free, belief, 1.0) == 0
+    belief[15:20, 15:20] = UNKNOWN  # a 5 x 5 room
+    assert largest_unseen_region(free, belief, 1.0) == 25
+    assert largest_unseen_region(free, belief, 4.0) == 0  # narrower than a robot of 8 cells across
