@@ -10,6 +10,8 @@ Under the door-aware graph (`Protocol.uses_door_graph`: the real robot's scale) 
   utilities at or under its threshold), the robot drives to the nearest frontier cell it can
   reach through passable cells at its radius (`pipeline.lattice.reachability`), as ARiADNE's ROS
   planner falls back on the nearest frontier; it returns [] (done) only when no such cell is left.
+  A robot standing on such a cell clears it; one its navigation stops short of is tried again, up
+  to MAX_TRIES straight drives, then given up.
 - **Back to the lattice.** After a fallback the robot stands off the lattice; its next decision
   takes it by the shortest passable path to the nearest known-free lattice node, where the
   planner's graph has it again.
@@ -35,12 +37,13 @@ from pipeline.world.reachability import LEFTOVER_M2, clearance_cells, passable_m
 from pipeline.world.simulator import LATTICE_TOLERANCE_M, PLANNER_DECISION
 
 PLANNER, FALLBACK, REJOIN, DONE = PLANNER_DECISION, "fallback", "rejoin", "done"
+MAX_TRIES = 3  # straight drives to one fallback target before it is given up (a goal the robot never reaches)
 
 
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
 
-    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "tried",
+    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "tries",
                      "leftover_cells", "_unseen"})
 
     def __init__(self, inner: Planner):
@@ -62,7 +65,7 @@ class WholeBuilding(PlannerWrapper):
             inside = (cells[:, 0] >= 0) & (cells[:, 0] < cols) & (cells[:, 1] >= 0) & (cells[:, 1] < rows)
             self.node_mask = np.zeros(spec.shape, dtype=bool)
             self.node_mask[cells[inside, 1], cells[inside, 0]] = True
-            self.tried = np.zeros(spec.shape, dtype=bool)
+            self.tries = np.zeros(spec.shape, dtype=np.uint8)  # straight drives to each fallback target
             self.leftover_cells = max(1, int(round(LEFTOVER_M2 / protocol.cell_size**2)))
 
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -81,16 +84,18 @@ class WholeBuilding(PlannerWrapper):
             self.decision_kind = PLANNER
             return self._through_doors(observation, passable, waypoints)
         frontier = open_frontier(observation.belief, self.leftover_cells, self.spec.frontier_min_unknown_neighbours)
-        frontier &= ~self.tried
+        frontier &= self.tries < MAX_TRIES
         route = path_to_nearest(passable, frontier, observation.cell)
         if len(route) < 2:
             self.decision_kind = DONE
             return []
         self.decision_kind = FALLBACK
         self.fallbacks += 1
-        col, row = route[-1]
-        self.tried[row, col] = True  # a visit clears an open frontier cell; never the same one twice
-        return self._metres(waypoints_along(passable, route))
+        corners = waypoints_along(passable, route)
+        if len(corners) == 1:  # sent straight there: a try (a robot standing on it clears it; one that
+            col, row = route[-1]  # stops short of it, as a navigation stack may, tries again)
+            self.tries[row, col] += 1
+        return self._metres(corners)
 
     # ------------------------------------------------------------------ helpers
     def _on_lattice(self, position: tuple[float, float]) -> bool:
