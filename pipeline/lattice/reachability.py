@@ -15,7 +15,6 @@ import numpy as np
 
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask
 from pipeline.world.geometry import segment_is_known_free
-from pipeline.world.reachability import LEFTOVER_M2, reachable_from
 from pipeline.world.sensor import UNKNOWN
 
 Cell = tuple[int, int]  # (col, row)
@@ -36,11 +35,6 @@ def open_frontier(belief: np.ndarray, min_unknown_cells: int,
     large = unknown & (stats[labels, cv2.CC_STAT_AREA] >= min_unknown_cells)
     beside = cv2.dilate(large.view(np.uint8), _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
     return frontier_mask(belief, min_unknown_neighbours) & beside
-
-
-def reachable_frontier(passable: np.ndarray, frontier: np.ndarray, start: Cell) -> np.ndarray:
-    """The frontier cells a robot at `start` can drive to through passable cells."""
-    return frontier & reachable_from(passable, start)
 
 
 def path_to_nearest(passable: np.ndarray, targets: np.ndarray, start: Cell) -> list[Cell]:
