@@ -12,6 +12,10 @@ Under the door-aware graph (`Protocol.uses_door_graph`: the real robot's scale) 
   planner falls back on the nearest frontier; it returns [] (done) only when no such cell is left.
   A robot standing on such a cell clears it; one its navigation stops short of is tried again, up
   to MAX_TRIES straight drives, then given up.
+- **Onward.** A robot that asks again before the end of a plan (a robot session drives a plan's
+  first waypoint, then asks) and stands off the lattice (at a door node, on the way to a
+  fallback target) goes on with that plan from where it stands, rather than back to the lattice:
+  a fallback until its target is cleared or given up.
 - **Back to the lattice.** After a fallback the robot stands off the lattice; its next decision
   takes it by the shortest passable path to the nearest known-free lattice node, where the
   planner's graph has it again.
@@ -38,13 +42,14 @@ from pipeline.world.simulator import LATTICE_TOLERANCE_M, PLANNER_DECISION
 
 PLANNER, FALLBACK, REJOIN, DONE = PLANNER_DECISION, "fallback", "rejoin", "done"
 MAX_TRIES = 3  # straight drives to one fallback target before it is given up (a goal the robot never reaches)
+REACHED_CELLS = 2  # a robot this many cells (Chebyshev) from a waypoint has reached it (a navigation stack stops near)
 
 
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
 
     own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "tries",
-                     "leftover_cells", "_unseen"})
+                     "leftover_cells", "pending", "pending_kind", "goal", "_unseen"})
 
     def __init__(self, inner: Planner):
         super().__init__(inner)
@@ -57,6 +62,9 @@ class WholeBuilding(PlannerWrapper):
         self.active = protocol.uses_door_graph
         self.decision_kind, self.fallbacks = PLANNER, 0
         self._unseen: list[np.ndarray] | None = []  # changes the inner planner has not seen (None: all)
+        self.pending: list[tuple[int, int]] = []  # the last plan's waypoint cells (col, row), to go on with
+        self.pending_kind = PLANNER  # which decision made them
+        self.goal: tuple[int, int] | None = None  # the last fallback's target cell
         if self.active:
             spec = LatticeSpec.for_map(map_frame(frame), protocol)
             self.spec, self.radius_cells = spec, protocol.robot_radius_cells
@@ -73,31 +81,77 @@ class WholeBuilding(PlannerWrapper):
             return self.inner.plan(observation)
         passable = passable_mask(observation.belief, self.radius_cells)
         if not self._on_lattice(observation.position):
+            onward = self._onward(observation, passable)
+            if onward:
+                return onward
             route = path_to_nearest(passable, passable & self.node_mask, observation.cell)
             if len(route) > 1:  # the inner planner sees these cells' changes at its next decision
                 self._keep_changes(observation)
                 self.decision_kind = REJOIN
                 self.fallbacks += 1
                 return self._metres(waypoints_along(passable, route))
+        self.pending, self.goal = [], None
         waypoints = self.inner.plan(self._with_kept_changes(observation))
         if waypoints:
             self.decision_kind = PLANNER
-            return self._through_doors(observation, passable, waypoints)
-        frontier = open_frontier(observation.belief, self.leftover_cells, self.spec.frontier_min_unknown_neighbours)
-        frontier &= self.tries < MAX_TRIES
-        route = path_to_nearest(passable, frontier, observation.cell)
+            waypoints = self._through_doors(observation, passable, waypoints)
+            self._remember(waypoints, PLANNER, None)
+            return waypoints
+        route = path_to_nearest(passable, self._frontier(observation.belief), observation.cell)
         if len(route) < 2:
             self.decision_kind = DONE
             return []
-        self.decision_kind = FALLBACK
-        self.fallbacks += 1
-        corners = waypoints_along(passable, route)
-        if len(corners) == 1:  # sent straight there: a try (a robot standing on it clears it; one that
-            col, row = route[-1]  # stops short of it, as a navigation stack may, tries again)
-            self.tries[row, col] += 1
-        return self._metres(corners)
+        return self._towards(passable, route, [], FALLBACK, route[-1])
 
     # ------------------------------------------------------------------ helpers
+    def _frontier(self, belief: np.ndarray) -> np.ndarray:
+        """The open frontier cells (`open_frontier`) not yet given up."""
+        frontier = open_frontier(belief, self.leftover_cells, self.spec.frontier_min_unknown_neighbours)
+        return frontier & (self.tries < MAX_TRIES)
+
+    def _onward(self, observation: Observation, passable: np.ndarray) -> list[Waypoint]:
+        """The rest of the last plan from where the robot stands ([] when nothing of it is left: its
+        waypoints reached, its fallback target cleared or given up, its way on blocked)."""
+        pending, kind, goal = self.pending, self.pending_kind, self.goal
+        self.pending, self.goal = [], None
+        if not pending or goal is not None and not self._frontier(observation.belief)[goal[1], goal[0]]:
+            return []
+        here = observation.cell
+        gaps = [max(abs(col - here[0]), abs(row - here[1])) for col, row in pending]
+        nearest = int(np.argmin(gaps))
+        rest = pending[nearest + 1:] if gaps[nearest] <= REACHED_CELLS else pending[nearest:]
+        if not rest:
+            if goal is None:
+                return []
+            if here == goal:  # standing on it and it is still there: a visit does not clear it
+                self.tries[goal[1], goal[0]] = MAX_TRIES
+                return []
+            rest = [goal]  # stopped short of it: again
+        target = np.zeros(passable.shape, dtype=bool)
+        target[rest[0][1], rest[0][0]] = True
+        route = path_to_nearest(passable, target, here)
+        if len(route) < 2:
+            return []
+        self._keep_changes(observation)  # the inner planner sees this decision's changes at its next
+        return self._towards(passable, route, rest[1:], kind, goal)
+
+    def _towards(self, passable: np.ndarray, route: list[tuple[int, int]], then: list[tuple[int, int]], kind: str,
+                 goal: tuple[int, int] | None) -> list[Waypoint]:
+        """Waypoints along `route` (two cells or more), then the cells `then`; remembered to go on
+        with. A fallback (`goal` its target) sent straight to its target counts a try."""
+        corners = waypoints_along(passable, route) + then
+        self.decision_kind = kind
+        self.fallbacks += int(kind != PLANNER)
+        if goal is not None and corners == [goal]:  # a robot standing on it clears it; one that stops
+            self.tries[goal[1], goal[0]] += 1  # short of it, as a navigation stack may, tries again
+        waypoints = self._metres(corners)
+        self._remember(waypoints, kind, goal)
+        return waypoints
+
+    def _remember(self, waypoints: list[Waypoint], kind: str, goal: tuple[int, int] | None) -> None:
+        cells = self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64).reshape(-1, 2))
+        self.pending, self.pending_kind, self.goal = [tuple(map(int, c)) for c in cells], kind, goal
+
     def _on_lattice(self, position: tuple[float, float]) -> bool:
         d = self.spec.node_resolution
         return all(abs(round(v / d) * d - v) <= LATTICE_TOLERANCE_M for v in position)

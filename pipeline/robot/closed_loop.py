@@ -12,6 +12,7 @@ session is told). The done rule is the protocol's, on the simulated belief.
 
 from __future__ import annotations
 
+import functools
 import heapq
 import math
 from dataclasses import dataclass, field
@@ -160,11 +161,17 @@ def grid_message(fields: dict[str, Any]) -> GridMessage:
     return GridMessage(fields["data"], fields["width"], fields["height"], fields["resolution"], fields["x"], fields["y"])
 
 
-def as_ros_message(fields: dict[str, Any], stamp_s: float, cdr: bool = True) -> Any:
-    """A nav_msgs/OccupancyGrid of rosbags' ROS 2 types, through CDR and back when `cdr`."""
+@functools.cache
+def ros2_typestore() -> Any:
+    """rosbags' ROS 2 Humble type store, built once: building it compiles its serializers."""
     from rosbags.typesys import Stores, get_typestore  # optional: the robot extra (pip install '.[robot]')
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
+    return get_typestore(Stores.ROS2_HUMBLE)
+
+
+def as_ros_message(fields: dict[str, Any], stamp_s: float, cdr: bool = True) -> Any:
+    """A nav_msgs/OccupancyGrid of rosbags' ROS 2 types, through CDR and back when `cdr`."""
+    store = ros2_typestore()
     t = store.types
     sec = int(stamp_s)
     time_ = t["builtin_interfaces/msg/Time"](sec=sec, nanosec=int((stamp_s - sec) * 1e9))

@@ -153,24 +153,41 @@ class Canvas:
         row = np.floor((grid.origin[1] + (np.arange(rows) + 0.5) * resolution - oy) / self.cell_size).astype(np.int64)
         height, width = self.belief.shape
         inside_c, inside_r = (col >= 0) & (col < width), (row >= 0) & (row < height)
+        if not inside_c.any() or not inside_r.any():
+            return
         fits = self._fits_robot(values, resolution)
-        values = values[np.ix_(inside_r, inside_c)]
-        flat = (row[inside_r][:, None] * width + col[inside_c][None, :]).reshape(-1)
-        values = values.reshape(-1)
-        size = height * width
-        total = np.bincount(flat, minlength=size)
-        occupied = np.bincount(flat, weights=(values >= OCCUPIED_MIN), minlength=size)
-        free = np.bincount(flat, weights=((values >= 0) & (values <= FREE_MAX)), minlength=size)
-        covered = total > 0
-        judged = np.full(size, UNKNOWN, np.uint8)
-        judged[covered & (free == total)] = FREE
+        cols_in, rows_in = np.flatnonzero(inside_c), np.flatnonzero(inside_r)  # contiguous: the cells ascend
+        window = (slice(rows_in[0], rows_in[-1] + 1), slice(cols_in[0], cols_in[-1] + 1))
+        values = values[window]
+        col, row = col[window[1]], row[window[0]]
+        # The message's cells ascend in runs, one per canvas cell (they are no coarser than it): the
+        # counts over each run of rows and columns, summed block by block.
+        col_starts = np.flatnonzero(np.diff(col, prepend=col[0] - 1))
+        row_starts = np.flatnonzero(np.diff(row, prepend=row[0] - 1))
+        widths = np.diff(col_starts, append=len(col))
+        heights = np.diff(row_starts, append=len(row))
+        total = heights[:, None] * widths[None, :]
+
+        even = (widths == widths[0]).all() and (heights == heights[0]).all()
+
+        def count(mask: np.ndarray) -> np.ndarray:
+            if even:  # whole blocks of one size (an aligned finer map): sums of strided slices, fast
+                h, w = int(heights[0]), int(widths[0])
+                rows_summed = sum(mask[k::h].astype(np.int32) for k in range(h))
+                return sum(rows_summed[:, k::w] for k in range(w))
+            per_col = np.add.reduceat(mask.astype(np.int32), col_starts, axis=1)
+            return np.add.reduceat(per_col, row_starts, axis=0)
+
+        occupied = count(values >= OCCUPIED_MIN)
+        free = count((values >= 0) & (values <= FREE_MAX))
+        judged = np.full(total.shape, UNKNOWN, np.uint8)
+        judged[free == total] = FREE
         judged[occupied > 0] = OCCUPIED
         if fits is not None:  # doors the conservative rule would close (module doc)
-            standing = np.bincount(flat, weights=fits[np.ix_(inside_r, inside_c)].reshape(-1), minlength=size)
+            standing = count(fits[window])
             judged[(standing > 0) & (occupied + free == total)] = FREE
-        belief = self.belief.reshape(-1)
-        belief[covered] = judged[covered]
-
+        r0, c0 = int(row[0]), int(col[0])
+        self.belief[r0:r0 + total.shape[0], c0:c0 + total.shape[1]] = judged
 
     def _fits_robot(self, values: np.ndarray, resolution: float) -> np.ndarray | None:
         """Per message cell, whether the robot's centre may stand there (known free, no occupied cell

@@ -10,7 +10,9 @@ Inside, the belief lives on a grid of the protocol's cell size whose lattice is 
 first pose (`Canvas`); it grows by whole lattice steps as the SLAM map grows or its origin moves,
 and keeps what was seen where a later map says nothing. The planner is reset from that grid's
 frame (never a ground truth) and again whenever the grid grows. The robot, which stands anywhere,
-is snapped to the nearest known-free lattice node it can reach in a straight known-free line.
+is snapped to the nearest known-free lattice node it can reach in a straight known-free line
+(under the door-aware graph only when that node is within `goal_tolerance_m`: elsewhere it plans
+from its own cell, as a door node or a frontier the lattice misses leaves it).
 A failed goal's node is no longer a target (it counts as visited); failed again soon after, it is
 marked occupied (its own cell only) for the next AVOID_PLANS plans, so that no plan stands on it
 meanwhile, then tried again, as a navigation stack's failures often pass. `plan()`
@@ -42,6 +44,7 @@ from pipeline.world.simulator import PLANNER_DECISION
 log = logging.getLogger("guide.robot")
 
 SNAP_NODES = 3  # the robot is snapped to a node at most this many lattice steps away
+OWN_CELL_REACH = 2  # under the door-aware graph, the robot's cell is the known-free one at most this many cells away
 AVOID_PLANS = 10  # a goal failed twice is blocked for this many plans, then tried again (failures pass)
 GROWTH_MARGIN_RANGES = 2.0  # the belief grows this many lidar ranges past a map that leaves it
 MAX_CANVAS_CELLS = 16_000_000  # the belief grid's largest size (800 m x 800 m at 0.2 m): a larger map is refused
@@ -339,7 +342,10 @@ class ExplorationSession:
 
     def _snap(self, belief: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
         """(planner position, cell) of the nearest known-free lattice node the robot reaches in a
-        straight known-free line (else the nearest known-free one); None when none is near."""
+        straight known-free line (else the nearest known-free one); None when none is near. Under
+        the door-aware graph a robot farther than `goal_tolerance_m` from that node (at a door node,
+        on its way to a frontier the lattice does not reach) stands where it is: its own cell, or
+        the nearest known-free cell beside it."""
         world = self.canvas.to_world(*self.pose[:2])
         d = self.protocol.node_resolution
         here = self.canvas.to_cell(*self.pose[:2])
@@ -354,14 +360,33 @@ class ExplorationSession:
                 if 0 <= col < cols and 0 <= row < rows and free[row, col]:
                     node = ((i0 + di) * d, (j0 + dj) * d)
                     candidates.append((math.dist(node, world), node, (col, row)))
-        if not candidates:
-            return None
         candidates.sort()
         inside = 0 <= here[0] < cols and 0 <= here[1] < rows
-        for _, node, cell in candidates:
-            if inside and segment_is_known_free(free, here, cell):
-                return node, cell
-        return candidates[0][1], candidates[0][2]
+        straight = [(gap, node, cell) for gap, node, cell in candidates
+                    if inside and segment_is_known_free(free, here, cell)]
+        if self.protocol.uses_door_graph and (not straight or straight[0][0] > self.goal_tolerance_m):
+            own = self._own_cell(free, here)
+            if own is not None:
+                return own
+        if straight:
+            return straight[0][1], straight[0][2]
+        return (candidates[0][1], candidates[0][2]) if candidates else None
+
+    def _own_cell(self, free: np.ndarray, here: tuple[int, int]) -> tuple[tuple[float, float], tuple[int, int]] | None:
+        """(planner position, cell) of the known-free cell nearest the robot's own, at most
+        OWN_CELL_REACH cells away; None when there is none."""
+        rows, cols = free.shape
+        best = None
+        for dr in range(-OWN_CELL_REACH, OWN_CELL_REACH + 1):
+            for dc in range(-OWN_CELL_REACH, OWN_CELL_REACH + 1):
+                col, row = here[0] + dc, here[1] + dr
+                if 0 <= col < cols and 0 <= row < rows and free[row, col] and (best is None or dc * dc + dr * dr < best[0]):
+                    best = (dc * dc + dr * dr, (col, row))
+        if best is None:
+            return None
+        col, row = best[1]
+        c = self.protocol.cell_size
+        return ((col - self.canvas.start_cell[0]) * c, (row - self.canvas.start_cell[1]) * c), (col, row)
 
     def _target(self, node: Any, waypoints: list) -> tuple[float, float] | None:
         graph = getattr(self.planner, "graph", None)
