@@ -23,7 +23,7 @@ from pipeline.cli.options import (
     protocol,
     warn,
 )
-from pipeline.evaluation.benchmark import BenchmarkInterrupted
+from pipeline.evaluation.benchmark import BenchmarkInterrupted, EpisodeErrors
 from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
 from pipeline.evaluation.team_benchmark import (
     TEAM_METRICS_CSV,
@@ -115,20 +115,29 @@ def benchmark(
                                mlflow=mlflow_log, speed=speed, backend=backend)
         return
     try:
-        frame = benchmark_folder(maps, list(planner), rules, out, workers=workers, seed=seed, baseline=baseline,
-                                 start=start, checkpoint=checkpoint, tracking_uri=tracking_uri,
-                                 experiment=experiment, mlflow=mlflow_log, warn=warn,
-                                 speed=speed, backend=backend).frame
+        run = benchmark_folder(maps, list(planner), rules, out, workers=workers, seed=seed, baseline=baseline,
+                               start=start, checkpoint=checkpoint, tracking_uri=tracking_uri,
+                               experiment=experiment, mlflow=mlflow_log, warn=warn,
+                               speed=speed, backend=backend)
     except BenchmarkInterrupted as stop:
         stop_interrupted(stop, "episodes", f"{out}/metrics.csv and summary.md hold them")
     except (MapError, ValueError, FileNotFoundError) as error:  # a malformed spec, an unknown option or name, no model
         fail(str(error))
+    frame = run.frame
     typer.echo((out / "summary.md").read_text(), nl=False)
     typer.echo(f"wrote {out}/metrics.csv, summary.md, exploration.csv, coverage.png, run.json and {len(frame)} "
                f"trajector{'ies' if len(frame) != 1 else 'y'} with their per-step files")
+    stop_on_planner_errors(run.errors, out)
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
         typer.echo(f"{incomplete} of {len(frame)} episodes did not complete (see summary.md)", err=True)
+        raise typer.Exit(code=1)
+
+
+def stop_on_planner_errors(errors: list[tuple[str, str, str]], out: Path) -> None:
+    """Exit 1 listing the episodes whose planner raised (map, planner, error), when any did."""
+    if errors:
+        typer.echo(str(EpisodeErrors(errors, out)), err=True)
         raise typer.Exit(code=1)
 
 
@@ -155,6 +164,7 @@ def team_benchmark_command(maps: Path, planners: list[str], rules: Protocol, out
     typer.echo(f"wrote {out}/{TEAM_METRICS_CSV}, team_coverage.csv, team_summary.json, team_coverage.png, "
                f"team_run.json and {len(frame)} team trajector{'ies' if len(frame) != 1 else 'y'} "
                "with their per-robot files")
+    stop_on_planner_errors(run.errors, out)
     incomplete = int((~frame["complete"].astype(bool)).sum())
     if incomplete:
         for row in frame[~frame["complete"].astype(bool)].itertuples():

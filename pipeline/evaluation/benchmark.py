@@ -43,7 +43,7 @@ from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_sp
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
-from pipeline.world.simulator import EpisodeResult, run_episode
+from pipeline.world.simulator import PLANNER_ERROR, EpisodeResult, run_episode
 from pipeline.world.trajectories import (
     METRICS_COLUMNS,
     steps_path,
@@ -56,6 +56,7 @@ RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and model
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
 OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
+ERRORS_FILE = "errors.txt"  # beside metrics.csv when a planner raised: each such episode and its traceback
 KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run not yet complete
 
 
@@ -215,6 +216,7 @@ class BenchmarkRun:
     exploration: pd.DataFrame
     summary: pd.DataFrame
     maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+    errors: list[tuple[str, str, str]] = field(default_factory=list)  # (map, planner, failure) where the planner raised
 
 
 def run_benchmark(
@@ -303,7 +305,38 @@ def run_benchmark(
     if warn is not None:
         for hint in failure_hints(run.frame, loaded):
             warn(hint)
+    run.errors = write_planner_errors([(r.map_name, r.planner, r.failure, r.error_traceback) for r in results], out_dir)
     return run
+
+
+class EpisodeErrors(RuntimeError):
+    """Episodes whose planner raised. The run went on and wrote every file (these episodes among
+    its failures, their trajectories up to the error); `errors` lists (map, planner, failure)."""
+
+    def __init__(self, errors: Sequence[tuple[str, str, str]], out_dir: Path):
+        lines = "\n".join(f"  {planner} on {name}: {failure}" for name, planner, failure in errors)
+        super().__init__(f"{len(errors)} episode{'s' if len(errors) != 1 else ''} failed with a planner error "
+                         f"(tracebacks in {Path(out_dir) / ERRORS_FILE}):\n{lines}")
+        self.errors, self.out_dir = list(errors), Path(out_dir)
+
+
+def write_planner_errors(episodes: Sequence[tuple[str, str, str, str]], out_dir: Path) -> list[tuple[str, str, str]]:
+    """The (map, planner, failure) of the (map, planner, failure, traceback) episodes whose planner
+    raised, their tracebacks written to OUT/errors.txt (removed when none did)."""
+    errors = [(name, planner, failure, trace) for name, planner, failure, trace in episodes
+              if failure.startswith(PLANNER_ERROR)]
+    (Path(out_dir) / ERRORS_FILE).unlink(missing_ok=True)
+    if errors:
+        atomic_write_text(Path(out_dir) / ERRORS_FILE, "".join(f"{planner} on {name}: {failure}\n{trace}\n"
+                                                               for name, planner, failure, trace in errors))
+    return [(name, planner, failure) for name, planner, failure, _ in errors]
+
+
+def raise_planner_errors(errors: Sequence[tuple[str, str, str]], out_dir: Path) -> None:
+    """EpisodeErrors when a run's planners raised (`BenchmarkRun.errors`): the last thing a command
+    or stage does, after every file is written, so that it exits non-zero with the list."""
+    if errors:
+        raise EpisodeErrors(errors, out_dir)
 
 
 def failure_hints(frame: pd.DataFrame, loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]]) -> list[str]:

@@ -42,6 +42,7 @@ from pipeline.evaluation.benchmark import (
     check_workers,
     read_benchmark_maps,
     recorded_protocol,
+    write_planner_errors,
     write_run_record,
 )
 from pipeline.evaluation.exploration_curves import SpeedModel
@@ -179,6 +180,7 @@ class TeamBenchmarkRun:
     episodes: list[tuple[TeamEpisodeTask, TeamEpisodeResult]]
     record: dict[str, Any]
     maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+    errors: list[tuple[str, str, str]] = field(default_factory=list)  # (map, run label, failure) where the planner raised
 
 
 def run_team_benchmark(
@@ -257,7 +259,11 @@ def run_team_benchmark(
             write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
         raise BenchmarkInterrupted(len(finished), len(tasks), out_dir) from None
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
-    return write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
+    episodes = [(tasks[i], finished[i]) for i in sorted(finished)]
+    run = write_team_tables(episodes, out_dir, record, loaded)
+    run.errors = write_planner_errors([(result.map_name, task.run_label, result.failure, "") for task, result in episodes],
+                                      out_dir)
+    return run
 
 
 def write_episode_files(result: TeamEpisodeResult, task: TeamEpisodeTask, out_dir: Path, speed: SpeedModel) -> Path:

@@ -16,6 +16,7 @@ from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
     DEFAULT_BASELINE,
     BenchmarkRun,
+    raise_planner_errors,
     run_benchmark,
     with_policy_checkpoint,
 )
@@ -134,20 +135,25 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
     planner_paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
     log_benchmark(run, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
     print((OUT_DIR / "summary.md").read_text())
-    benchmark_teams(section, protocol)
+    team_errors = benchmark_teams(section, protocol)
+    raise_planner_errors(run.errors, OUT_DIR)  # the stage fails, after every file is written, with the list
+    raise_planner_errors(team_errors, TEAMS_DIR)
 
 
-def benchmark_teams(section: dict, protocol: Protocol) -> None:
+def benchmark_teams(section: dict, protocol: Protocol) -> list[tuple[str, str, str]]:
     """The `team_planners` at each of the `robots` counts on the test mazes (`comm_range_m`:
     None, one shared belief): reports/teams/ (built whole, as reports/benchmark/) and the metrics
-    DVC tracks, reports/teams.json. No robots or no team planners: both written empty."""
+    DVC tracks, reports/teams.json. No robots or no team planners: both written empty. Returns
+    the episodes whose planner raised (`TeamBenchmarkRun.errors`)."""
     robots, planners = list(section.get("robots") or []), list(section.get("team_planners") or [])
     summary: dict = {}
+    errors: list[tuple[str, str, str]] = []
     with atomic_folder(TEAMS_DIR) as out_dir:
         if robots and planners:
             run = team_benchmark_folder(TEST_MAZES, planners, protocol, out_dir, robots,
                                         comm_range_m=section.get("comm_range_m"), workers=section["workers"],
                                         seed=int(section["seed"]), speed=SpeedModel(section["speed_mps"]),
                                         experiment="benchmark_teams", keep_dir=KEPT_TEAM_EPISODES)
-            summary = run.summary
+            summary, errors = run.summary, run.errors
     atomic_write_text(TEAMS_METRICS_PATH, json.dumps(summary, indent=2) + "\n")
+    return errors

@@ -241,3 +241,41 @@ def test_episodes_kept_outside_the_output_folder_carry_over_to_a_new_one(generat
                         keep_dir=keep)
     assert len(ran) == 2 and len(run.frame) == 3  # the kept episode was not run again
     assert not keep.exists()  # a complete run leaves nothing kept
+
+
+def test_a_planner_that_raises_fails_its_episode_and_the_run_goes_on(generated_maze_dir, tmp_path, monkeypatch):
+    """A planner raising on one map: that episode is recorded (map, planner, error, its trajectory so
+    far), the others run, the tracebacks go to errors.txt, and the CLI exits 1 with the list."""
+    from typer.testing import CliRunner
+
+    from pipeline.cli import app
+    from pipeline.planners.baselines.frontier import NearestFrontierPlanner
+
+    maps = list_maps(generated_maze_dir)
+    broken = maps[1].stem
+    reset, plan = NearestFrontierPlanner.reset, NearestFrontierPlanner.plan
+
+    def remember_the_map(self, frame, protocol, seed):
+        self.test_map = frame.name
+        reset(self, frame, protocol, seed)
+
+    def raise_on_one_map(self, observation):
+        if observation.step == 2 and self.test_map == broken:
+            raise RuntimeError("Padding size should be less than the corresponding input dimension")
+        return plan(self, observation)
+
+    monkeypatch.setattr(NearestFrontierPlanner, "reset", remember_the_map)
+    monkeypatch.setattr(NearestFrontierPlanner, "plan", raise_on_one_map)
+    run = run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path / "a", workers=1, progress=False)
+    assert len(pd.read_csv(tmp_path / "a" / "metrics.csv")) == len(maps)
+    failed = run.frame[~run.frame["complete"].astype(bool)]
+    assert list(failed["map"]) == [broken]
+    assert failed["failure"].iloc[0] == "planner error: RuntimeError: Padding size should be less than the corresponding input dimension"
+    assert len(read_trajectory_csv(tmp_path / "a" / "nearest_frontier" / f"{broken}.csv")) >= 2  # the trajectory so far
+    assert run.errors == [(broken, "nearest_frontier", failed["failure"].iloc[0])]
+    assert "Traceback" in (tmp_path / "a" / "errors.txt").read_text()
+    result = CliRunner().invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
+                                      "--out", str(tmp_path / "b"), "--workers", "1", "--no-mlflow"])
+    assert result.exit_code == 1
+    assert f"1 episode failed with a planner error (tracebacks in {tmp_path / 'b' / 'errors.txt'})" in result.output
+    assert f"nearest_frontier on {broken}: planner error: RuntimeError" in result.output
