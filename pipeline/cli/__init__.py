@@ -23,6 +23,7 @@ COMMANDS = {
     "benchmark": "pipeline.cli.benchmark",
     "replay": "pipeline.cli.maps",
     "resample-map": "pipeline.cli.maps",
+    "plans": "pipeline.cli.plans",
     "eval-predictor": "pipeline.cli.predictor",
     "bag": "pipeline.cli.bag",
     "repro": "pipeline.cli.repro",

@@ -178,7 +178,7 @@ def _opencv_quiet():
                 _opencv_saved_level = None
 
 
-def _read_gray_image(path: Path) -> np.ndarray:
+def read_gray_image(path: Path) -> np.ndarray:
     """An image file as a 2-D uint8 array (colour converted to gray, 16-bit reduced to 8)."""
     if not _is_file(path):
         raise MapError(path, "file not found")
@@ -262,7 +262,7 @@ def load_maze_png(
     """
     path = Path(path)
     cell_size = _check_cell_size(cell_size, path)
-    image = _read_gray_image(path)
+    image = read_gray_image(path)
     if image.shape[0] < 2 or image.shape[1] < 2:
         raise MapError(path, f"image of {image.shape[1]}x{image.shape[0]} pixels is too small for a 2x2 reduction")
     cells = maze_cells_from_image(image)
@@ -328,13 +328,9 @@ def _yaml_pair(value: object, what: str, path: Path) -> tuple[float, float]:
     return _as_float(value[0], what, path), _as_float(value[1], what, path)
 
 
-def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) -> GroundTruthMap:
-    """Load a ROS map_server map (YAML + PGM/PNG image) the way map_server's trinary mode does.
-
-    The start comes from `start_xy` (metres, map frame) or from a `start: [x, y]` YAML key.
-    Cells between the thresholds (map_server's "unknown") count as occupied: the ground
-    truth must say free or not.
-    """
+def read_ros_grid(path: str | Path) -> RosGrid:
+    """A ROS map_server map's free cells, resolution and origin, read as map_server's trinary mode
+    does (cells between the thresholds are not free); MapError naming the file for a bad one."""
     path = Path(path)
     meta = _read_yaml(path)
     if not isinstance(meta, dict):
@@ -369,18 +365,11 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     if mode not in ("trinary", "scale"):
         raise MapError(path, f"YAML key 'mode' {mode!r} is not supported (use trinary or scale)")
 
-    if start_xy is None:
-        if "start" not in meta:
-            raise MapError(path, "no start: pass --start X Y or add a 'start: [x, y]' key (metres, map frame)")
-        start_x, start_y = _yaml_pair(meta["start"], "YAML key 'start'", path)
-    else:
-        start_x, start_y = _yaml_pair(start_xy, "start (x, y)", path)
-
     image_path = Path(meta["image"])
     if not image_path.is_absolute():
         image_path = path.parent / image_path
     try:
-        image = _read_gray_image(image_path)
+        image = read_gray_image(image_path)
     except MapError as error:
         raise MapError(path, f"map image {error.path}: {error.reason}") from None
     # map_server: occupancy p = (255 - value) / 255 (or value / 255 when negated); p > occupied
@@ -393,6 +382,37 @@ def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) 
     free_rule = _ros_free_rule(free_lut, free_thresh, occupied_thresh, negate)
     if not free.any():
         raise MapError(path, f"map has no free cell: {free_rule}")
+    return RosGrid(free, resolution, (origin_x, origin_y), free_rule, meta)
+
+
+@dataclass(frozen=True)
+class RosGrid:
+    """A map_server map's cells as `read_ros_grid` reads them: rows grow with y (row 0 at the bottom)."""
+
+    free: np.ndarray
+    resolution: float
+    origin: tuple[float, float]
+    free_rule: str
+    meta: dict
+
+
+def load_ros_map(path: str | Path, start_xy: tuple[float, float] | None = None) -> GroundTruthMap:
+    """Load a ROS map_server map (YAML + PGM/PNG image) the way map_server's trinary mode does.
+
+    The start comes from `start_xy` (metres, map frame) or from a `start: [x, y]` YAML key.
+    Cells between the thresholds (map_server's "unknown") count as occupied: the ground
+    truth must say free or not.
+    """
+    path = Path(path)
+    grid = read_ros_grid(path)
+    meta, free, resolution, free_rule = grid.meta, grid.free, grid.resolution, grid.free_rule
+    origin_x, origin_y = grid.origin
+    if start_xy is None:
+        if "start" not in meta:
+            raise MapError(path, "no start: pass --start X Y or add a 'start: [x, y]' key (metres, map frame)")
+        start_x, start_y = _yaml_pair(meta["start"], "YAML key 'start'", path)
+    else:
+        start_x, start_y = _yaml_pair(start_xy, "start (x, y)", path)
 
     rows, cols = free.shape
     col_f = (start_x - origin_x) / resolution
@@ -439,7 +459,7 @@ def _ros_free_rule(free_lut: np.ndarray, free_thresh: float, occupied_thresh: fl
     return f"in this ROS map, {settings}, a pixel is free when its value is within {values[0]}-{values[-1]}"
 
 
-def _read_npy(path: Path) -> np.ndarray:
+def read_npy_array(path: Path) -> np.ndarray:
     """A 2-D boolean/integer array from a .npy file, checking its header before loading it."""
     if not _is_file(path):
         raise MapError(path, "file not found")
@@ -505,7 +525,7 @@ def load_npy_grid(
     """Load a NumPy boolean/uint8 grid (1 = free); the start cell (col, row) is required."""
     path = Path(path)
     cell_size = _check_cell_size(cell_size, path)
-    array = _read_npy(path)
+    array = read_npy_array(path)
     if start_cell is None:
         raise MapError(path, "a .npy grid needs its start cell: pass --start COL ROW")
     start = _start_cell(start_cell, path)

@@ -472,3 +472,27 @@ def test_explore_with_a_predicting_planner_records_its_trust(small_maze_path, tm
     assert "prediction_trust" not in json.loads((plain / "run.json").read_text())
     taller = cv2.imread(str(out / "small.png")).shape[0] - cv2.imread(str(plain / "small.png")).shape[0]
     assert taller > 0  # the trust strip
+
+
+def test_plans_import_writes_a_family_the_benchmark_reads_and_refuses_bad_input(tmp_path):
+    from pipeline.world.maps import load_map
+
+    image = np.zeros((100, 190), np.uint8)
+    image[10:90, 10:90] = 255
+    image[10:90, 93:180] = 255
+    image[40:52, 90:93] = 255
+    src = tmp_path / "plans"
+    src.mkdir()
+    cv2.imwrite(str(src / "floor.png"), image)
+    out = tmp_path / "family"
+    result = CliRunner().invoke(app, ["plans", "import", str(src), "--out", str(out), "--resolution", "0.05"])
+    assert result.exit_code == 0, result.output
+    assert "wrote 1 plan" in result.output and (out / "manifest.json").is_file()
+    assert load_map(out / "floor.yaml").cell_size == pytest.approx(0.2)
+    (src / "broken.png").write_bytes(b"not an image")
+    again = CliRunner().invoke(app, ["plans", "import", str(src), "--out", str(tmp_path / "other"), "--resolution", "0.05"])
+    assert again.exit_code == 2
+    assert again.output.strip().splitlines()[-1].startswith(f"error: {src / 'broken.png'}: not a readable image")
+    assert not (tmp_path / "other").exists()  # nothing half-written
+    unresolved = CliRunner().invoke(app, ["plans", "import", str(src / "floor.png"), "--out", str(tmp_path / "x")])
+    assert unresolved.exit_code == 2 and "no resolution" in unresolved.output
