@@ -59,6 +59,7 @@ class Stage:
 
 STAGES = [
     Stage("generate_mazes", "mazes", True, "_write_map_sets"),  # the first call that touches data/
+    Stage("import_plans", "plans", False, "import_plan_folder"),  # reads no protocol: the plans name their own cells
     Stage("fit_gate", "fit_gate", True, "fit_gate"),
     Stage("train_block_model", "train_block_model", True, "train_the_block_model"),
     Stage("train_drl", "train_drl", True, "train_the_drl_policy"),
@@ -78,6 +79,8 @@ STAGES = [
 ALLOWED = {
     # The protocol's every value has a default (Protocol's fields); stage tests write `protocol: {}`.
     ("protocol.*", "delete"),
+    # door_graph is on, off or null (on below a 2 m lattice): a bool is one of its values.
+    ("protocol.door_graph", "bool"),
     # generate_mazes reads these with MazeConfig's defaults, and no office floors without `offices`.
     ("mazes.block_m", "delete"), ("mazes.rooms", "delete"), ("mazes.room_blocks", "delete"),
     ("mazes.extra_loops", "delete"), ("mazes.offices", "delete"),
