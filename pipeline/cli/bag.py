@@ -32,6 +32,9 @@ def bag(
     seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = Checkpoint,
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
+    save_map: Optional[Path] = typer.Option(None, "--save-map", help="A folder to write the final belief into as a "
+                                                                      "ROS map (map.yaml + map.pgm), which `guide plans "
+                                                                      "import` takes as training data."),
 ) -> None:
     """Run a planner along a recorded bag: at every map the session decides afresh from the robot's
     recorded pose; the plans, graphs and records go to an MCAP next to the input."""
@@ -61,6 +64,11 @@ def bag(
             fail(f"{bag_path}: cannot read the bag ({error})")
         raise
     typer.echo(result.summary())
+    if save_map is not None:
+        if session.canvas is None:
+            warn(f"--save-map: no map to save (the bag gave no usable map on {map_topic})")
+        else:
+            typer.echo(f"wrote {session.save_map(save_map)}")
     if result.maps and not result.plans:
         warn(f"no plan: the bag's tf never placed {base_frame} in the map's frame; choose the robot's frame with "
              "--base-frame" if result.waiting == result.maps else f"no plan ({result.last_skip})")

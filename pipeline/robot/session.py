@@ -5,6 +5,7 @@
     session.update_pose(x, y, yaw)   # the robot in the map frame, metres (from tf: map -> base_link)
     plan = session.plan()            # plan.waypoints: the next waypoints in the map frame; plan.done
     session.goal_failed(x, y)        # the navigation stack could not reach that waypoint
+    session.save_map("maps/run_1.yaml")  # the belief as a ROS map: `guide plans import` takes it
 
 Inside, the belief lives on a grid of the protocol's cell size whose lattice is anchored at the
 first pose (`Canvas`); it grows by whole lattice steps as the SLAM map grows or its origin moves,
@@ -28,12 +29,13 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pipeline.planners import make_planner
-from pipeline.robot.occupancy_grid import BadMessage, Canvas, Grid, read_grid
+from pipeline.robot.occupancy_grid import BadMessage, Canvas, Grid, read_grid, write_belief_map
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner
@@ -210,6 +212,20 @@ class ExplorationSession:
         self.recent_failures.append((x, y, self.state.plans))
         self.state.failed_goals.append((x, y))
         self._changed_since += self.replan_changed_cells  # plan afresh
+
+    def save_map(self, path: str | Path) -> Path:
+        """Write the belief as a ROS map_server map: `path` (a .yaml, or a folder that gets
+        `map.yaml`) with its trinary PGM beside it (free 254, occupied 0, unknown 205) and a `start`
+        key at the first pose, in the map frame. `guide plans import` takes it, so that a robot's own
+        runs become training data. The YAML's path; ValueError before the first map and pose."""
+        if self.canvas is None:
+            raise ValueError("no map to save yet: the session needs a map and a pose first")
+        path = Path(path)
+        if path.suffix.lower() not in (".yaml", ".yml"):
+            path = path / "map.yaml"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_belief_map(self.canvas.belief, self.protocol.cell_size, self.canvas.origin, self.canvas.anchor, path)
+        return path
 
     # ------------------------------------------------------------------ decisions
     def plan(self, force: bool = False) -> Plan:

@@ -144,3 +144,18 @@ def test_tf_tree_composes_a_chain_and_waits_for_a_missing_link():
     assert (x, y, yaw) == (pytest.approx(10.0), pytest.approx(6.0), pytest.approx(math.pi))
     tree.update(ros.tf_message(math.nan, 0.0, 0.0, 0.0, "map", "odom"))  # a bad transform is ignored
     assert tree.pose()[0] == pytest.approx(10.0)
+
+
+def test_a_bag_saves_its_final_map_which_plans_import_takes(small_maze, tmp_path):
+    from pipeline.world.maps import load_map
+
+    write_slam_bag(tmp_path / "bag", small_maze, StoragePlugin.SQLITE3, maps=4)
+    result = runner.invoke(app, ["bag", "--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--planner",
+                                 "greedy_utility", "--protocol", "maze", "--no-progress", "--save-map", str(tmp_path / "saved")])
+    assert result.exit_code == 0, result.output
+    assert f"wrote {tmp_path / 'saved' / 'map.yaml'}" in result.output
+    imported = runner.invoke(app, ["plans", "import", str(tmp_path / "saved" / "map.yaml"), "--out", str(tmp_path / "plans"),
+                                   "--cell-size", "0.4", "--licence", "our lab's own run"])
+    assert imported.exit_code == 0, imported.output
+    plan = load_map(tmp_path / "plans" / "map.yaml")
+    assert plan.cell_size == pytest.approx(0.4) and 0 < plan.free_cell_count <= small_maze.free_cell_count

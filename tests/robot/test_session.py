@@ -236,3 +236,20 @@ def test_done_means_no_frontier_the_robot_can_reach_is_left():
     known = np.where(world.free, 0, 100).astype(np.int8)
     session.update_map(GridMessage(known.reshape(-1).tolist(), 120, 60, 0.2, 0.0, 0.0))
     assert session.plan(force=True).done  # everything seen: done
+
+
+def test_save_map_writes_the_belief_as_a_ros_map(small_maze, tmp_path):
+    from pipeline.robot.closed_loop import ClosedLoopConfig, run_closed_loop
+    from pipeline.world.maps import read_ros_grid
+    from pipeline.world.sensor import FREE
+
+    session = ExplorationSession("greedy_utility", Protocol())
+    with pytest.raises(ValueError, match="no map to save yet"):
+        session.save_map(tmp_path / "early.yaml")
+    run_closed_loop(small_maze, session, ClosedLoopConfig(max_decisions=5, cdr=False))
+    path = session.save_map(tmp_path / "runs")
+    assert path == tmp_path / "runs" / "map.yaml" and (tmp_path / "runs" / "map.pgm").is_file()
+    grid = read_ros_grid(path)
+    assert grid.resolution == pytest.approx(0.4) and grid.origin == pytest.approx(session.canvas.origin)
+    assert np.array_equal(grid.free, session.canvas.belief == FREE)
+    assert grid.meta["start"] == pytest.approx(list(session.canvas.anchor))
