@@ -14,6 +14,10 @@ A split's `kind: office` draws office floors instead of mazes (a side per floor 
 `real_robot` (building sizes, doors from 0.8 m). `kind: building` draws floors like real plans
 (`pipeline.world.buildings`: walls at any phase of the 1 m lattice, corridors, furniture) at
 `protocol.cell_size`: profiles/real_robot.yaml trains on these.
+A split's `plans_share` of its `count` is drawn from the real floor plans the import_plans stage
+wrote to data/plans/ instead (`pipeline.world.plans.generate_plan_floors`: a plan in one of its 8
+rotations and flips, cropped to a window of the split's `side_m`, a start of its own), written
+beside the split's other maps as plan_NNNN.png (seed sequence [seed, split word, 1, i]).
 The files keep the maze sets' names and folders, so every later stage reads them as it reads mazes.
 """
 
@@ -26,18 +30,21 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_folder
-from pipeline.common.config import Section, pair, positive, text, whole
+from pipeline.common.config import Section, fraction, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.world.buildings import BuildingConfig, generate_building_set
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
+from pipeline.world.plans import generate_plan_floors, load_plan_grids
 
 PREVIEW_PATH = REPORTS.mazes_preview
 OFFICE_PREVIEW_PATH = REPORTS.offices_preview
 SPLITS = {"train": 0, "test": 1}  # split name -> second word of the seed sequence
 SPLIT_DIRS = {"train": DATA.mazes_train, "test": DATA.mazes_test}
 OFFICE_DIR = DATA.offices_train
+PLANS_DIR = DATA.plans
+PLAN_SEED_WORD = 1  # a split's plan floors: seed sequence [seed, split word, PLAN_SEED_WORD, i]
 OFFICE_SEED_WORD = 2
 PREVIEW_COUNT = 6
 PREVIEW_COLUMNS = 3
@@ -52,6 +59,7 @@ class Split(Section):
     count: whole(0)
     side_m: pair(positive("metres"))
     kind: text(MAP_KINDS) = "maze"
+    plans_share: fraction("of count drawn from data/plans") = 0.0
 
 
 class Offices(Section):
@@ -108,7 +116,9 @@ def _draw_split(config: SplitConfig, count: int, folder: Path, seed: tuple[int, 
 
 
 def _write_map_sets(splits: dict[str, tuple[SplitConfig, int]], sides: dict[str, tuple[float, float]],
-                    offices: int, office_config: OfficeConfig, seed: int) -> tuple[dict[str, list[Path]], list[Path]]:
+                    offices: int, office_config: OfficeConfig, seed: int,
+                    plan_floors: dict[str, int] | None = None, plans: list[np.ndarray] | None = None,
+                    cell_size: float = 0.4) -> tuple[dict[str, list[Path]], list[Path]]:
     """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
 
     Each set is drawn into a temporary folder, and the three replace data/mazes/{train,test} and
@@ -121,6 +131,10 @@ def _write_map_sets(splits: dict[str, tuple[SplitConfig, int]], sides: dict[str,
         office_folder = stack.enter_context(atomic_folder(OFFICE_DIR))
         drawn = {split: _draw_split(config, count, folders[split], (seed, SPLITS[split]), sides[split])
                  for split, (config, count) in splits.items()}
+        for split, count in (plan_floors or {}).items():
+            if count:
+                drawn[split] += generate_plan_floors(plans, count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD),
+                                                     sides[split], cell_size)
         office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
         write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
         write_maze_png(preview_image(office_drawn), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
@@ -155,13 +169,17 @@ def main(params_path: str = "params.yaml") -> None:
     seed = mazes["seed"]
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
+    plan_floors = {split: int(round(mazes[split].get("plans_share", 0.0) * count)) for split, (_, count) in splits.items()}
+    splits = {split: (config, count - plan_floors[split]) for split, (config, count) in splits.items()}
+    plans = load_plan_grids(PLANS_DIR, cell_size) if any(plan_floors.values()) else None
     offices = mazes.get("offices", {"count": 0})["count"]
     office_config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), cell_size=cell_size)
     sides = {split: tuple(float(v) for v in mazes[split]["side_m"]) for split in SPLITS}
-    written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed)
+    written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed, plan_floors, plans, cell_size)
     for split, paths in written.items():
         what = {OfficeConfig: "office floors", BuildingConfig: "building floors"}.get(type(splits[split][0]), "mazes")
-        print(f"{split}: {len(paths)} {what} in {SPLIT_DIRS[split]}")
+        from_plans = f" ({plan_floors[split]} of them from the plans in {PLANS_DIR})" if plan_floors[split] else ""
+        print(f"{split}: {len(paths)} {what}{from_plans} in {SPLIT_DIRS[split]}")
     print(f"offices: {len(office_paths)} office floors in {OFFICE_DIR}")
     print(f"previews: {PREVIEW_PATH}, {OFFICE_PREVIEW_PATH}")
 

@@ -22,6 +22,11 @@ is dropped.
 The plans are written as ROS maps (YAML with its `start` + PGM) that `guide benchmark --maps DIR`
 reads, with `manifest.json` (source, resolution, licence line, free area, rooms, starts) and the
 sources' licence files beside them. Rows grow with y throughout (row 0 at the bottom), as ROS's.
+
+For training (`mazes.train.plans_share`, stages/generate_mazes.py) `generate_plan_floors` draws
+floors from imported plans as the generated families are drawn: each a plan in one of its 8
+rotations and flips, cropped to a window of the split's sides, with a start of its own, so that
+a few plans make many floors.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import hashlib
 import json
 import math
 import shutil
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -37,8 +43,10 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
-from pipeline.world.maps import (MAX_GRID_CELLS, NPY_SUFFIXES, ROS_YAML_SUFFIXES, GroundTruthMap, MapError,
-                                 read_gray_image, read_npy_array, read_ros_grid, ros_map_origin_and_image)
+from pipeline.world.maps import (MAX_GRID_CELLS, NPY_SUFFIXES, ROS_YAML_SUFFIXES, GroundTruthMap, MapError, list_maps,
+                                 load_map, read_gray_image, read_npy_array, read_ros_grid, ros_map_origin_and_image)
+from pipeline.world.mazes import generate_map_set
+from pipeline.world.offices import render_free_map
 from pipeline.world.resample import resample_map, write_ros_map
 
 IMAGE_FREE_MIN = 206  # a pixel at least this is free: map_server's free_thresh 0.196 on (255 - p) / 255
@@ -308,3 +316,59 @@ def import_plans(sources: list[PlanSource], out: str | Path, cell_size: float = 
                     "duplicates": [{"dropped": a, "equals": b} for a, b in duplicates], "licence_files": licences}
         atomic_write_text(folder / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     return ImportReport(plans, duplicates, licences)
+
+
+# ---------------------------------------------------------------------------- training floors
+MIN_FLOOR_SHARE = 0.15  # a crop keeps at least this share of its window free (else another is drawn)
+CROP_TRIES = 20
+
+
+def symmetric(grid: np.ndarray, k: int) -> np.ndarray:
+    """The `k`-th (0-7) of a grid's 8 rotations and flips."""
+    return np.ascontiguousarray(np.rot90(grid[:, ::-1] if k >= 4 else grid, k % 4))
+
+
+def plan_floor_image(plans: Sequence[np.ndarray], side_m: tuple[float, float], cell_size: float,
+                     rng: np.random.Generator) -> np.ndarray:
+    """A training floor drawn from real plans, as a map PNG image (`render_free_map`, start marked):
+    a plan at random, one of its 8 rotations and flips, a window of a side drawn from `side_m`
+    (the whole plan along a shorter side), its largest free component walled round, and a start
+    clear of walls. Windows keep at least MIN_FLOOR_SHARE of their cells free."""
+    for _ in range(CROP_TRIES):
+        free = symmetric(plans[int(rng.integers(len(plans)))], int(rng.integers(8)))
+        side = max(8, int(round(rng.uniform(*side_m) / cell_size)))
+        rows, cols = free.shape
+        height, width = min(side, rows), min(side, cols)
+        top, left = int(rng.integers(rows - height + 1)), int(rng.integers(cols - width + 1))
+        crop = largest_component(free[top:top + height, left:left + width])
+        if crop.sum() >= MIN_FLOOR_SHARE * height * width:
+            break
+    crop = np.pad(crop, 1)  # walls round the window: nothing leads off the floor
+    col, row = draw_starts(crop, cell_size, 1, rng)[0]
+    return render_free_map(crop, (row, col))
+
+
+def load_plan_grids(folder: str | Path, cell_size: float) -> list[np.ndarray]:
+    """The free grids of the plans `import_plans` wrote to `folder`; MapError when there are none
+    or when they are not at `cell_size`."""
+    folder = Path(folder)
+    paths = list_maps(folder) if folder.is_dir() else []
+    if not paths:
+        raise MapError(folder, "holds no imported plans (run the import_plans stage or `guide plans import` first)")
+    grids = []
+    for path in paths:
+        plan = load_map(path)
+        if abs(plan.cell_size - cell_size) > 1e-9:
+            raise MapError(path, f"its cells are {plan.cell_size:g} m, the protocol's {cell_size:g} m: import the plans "
+                                 f"at the protocol's cell size")
+        grids.append(plan.free)
+    return grids
+
+
+def generate_plan_floors(plans: Sequence[np.ndarray], count: int, out_dir: str | Path, seed: int | Sequence[int],
+                         side_m: tuple[float, float], cell_size: float, prefix: str = "plan",
+                         progress: bool = True) -> list[Path]:
+    """Write `count` training floors drawn from `plans` (`plan_floor_image`) as `{prefix}_{i:04d}.png`,
+    floor i from default_rng([*seed, i])."""
+    return generate_map_set(lambda rng: plan_floor_image(plans, side_m, cell_size, rng), count, out_dir, seed,
+                            prefix, progress)
