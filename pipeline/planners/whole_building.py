@@ -97,7 +97,12 @@ class WholeBuilding(PlannerWrapper):
             waypoints = self._through_doors(observation, passable, waypoints)
             self._remember(waypoints, PLANNER, None)
             return waypoints
-        route = path_to_nearest(passable, self._frontier(observation.belief), observation.cell)
+        frontier = self._frontier(observation.belief)
+        col, row = observation.cell
+        if frontier[row, col]:  # the robot stands on it (a session's robot stands near its cell): a visit did not clear it
+            self.tries[row, col] = MAX_TRIES
+            frontier[row, col] = False
+        route = path_to_nearest(passable, frontier, observation.cell)
         if len(route) < 2:
             self.decision_kind = DONE
             return []

@@ -62,3 +62,32 @@ def test_at_the_maze_scale_the_wrapper_changes_nothing(small_maze):
 
 def test_oracles_are_not_wrapped():
     assert not isinstance(make_planner("optimal"), WholeBuilding)
+
+
+def test_a_robot_standing_on_a_frontier_cell_goes_on_to_the_next_not_done():
+    """A session's robot stands near its cell, not on it, and may scan a frontier cell without
+    clearing it: standing there is a visit, the cell is given up, and the next frontier is the target."""
+    from pipeline.world.planner import Observation
+    from pipeline.world.protocol import PAPER_REAL_ROBOT
+    from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+    from pipeline.planners.whole_building import MAX_TRIES
+
+    belief = np.full((30, 40), OCCUPIED, np.uint8)
+    belief[5:25, 5:35] = FREE
+    belief[13:16, 5] = UNKNOWN  # beside the robot's own cell, (6, 14), which is so a frontier cell
+    belief[12:17, 0:5] = UNKNOWN  # behind it, 25 unknown cells
+    belief[5:25, 35:40] = UNKNOWN  # far away: a second unknown region
+    planner = make_planner("nearest_frontier")
+    from pipeline.world.maps import MapFrame
+    planner.reset(MapFrame(belief.shape, 0.2, (6, 14)), PAPER_REAL_ROBOT, 0)
+    innermost(planner).plan = lambda observation: []  # its own rule finds nothing
+    waypoints = planner.plan(Observation(belief=belief, position=(0.0, 0.0), cell=(6, 14), changed=None, step=0))
+    assert waypoints and planner.decision_kind == "fallback"  # before: its own cell was the nearest target, so "done"
+    assert (0.0, 0.0) not in waypoints
+    assert innermost_whole_building(planner).tries[14, 6] == MAX_TRIES
+
+
+def innermost_whole_building(planner):
+    while not isinstance(planner, WholeBuilding):
+        planner = planner.inner
+    return planner
