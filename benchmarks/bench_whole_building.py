@@ -28,13 +28,14 @@ import argparse
 import csv
 import json
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import torch
 from PIL import Image
+from tqdm import tqdm
 
 from pipeline.planners import make_planner
 from pipeline.reporting.render import auto_scale, episode_title, render_frame, save_png, whole_building_marks
@@ -131,7 +132,10 @@ def main() -> None:
              for name in planners for plan in plans for k in range(min(args.starts, len(starts[plan])))]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = list(pool.map(run_one, [str(args.plans)] * len(tasks), tasks))
+        futures = [pool.submit(run_one, str(args.plans), task) for task in tasks]
+        for _ in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
+            pass
+        rows = [future.result() for future in futures]
     print(f"{len(tasks)} episodes ({args.loop}, {'lattice only' if args.lattice_only else 'door-aware graph'}) "
           f"in {time.perf_counter() - started:.0f} s")
     print(f"{'size':<7} {'planner':<16} {'eps':>4} {'reach mean':>10} {'least':>7} {'early':>6} {'fallbk':>7} "
