@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import coo_matrix
+from scipy.spatial import cKDTree
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_UNOBSERVED, LatticeGraph
@@ -209,10 +210,11 @@ class GlobalGraph:
         v_u = np.concatenate([lattice.node_world[kept], centroid_xy])
 
         def within(points: np.ndarray) -> np.ndarray:
+            """Per active node, the `points` within the utility range (a k-d tree: a building's
+            thousands of nodes would make the pairwise distances the decision's largest cost)."""
             if len(points) == 0:
                 return np.zeros(len(xy))
-            d = np.hypot(xy[:, None, 0] - points[None, :, 0], xy[:, None, 1] - points[None, :, 1])
-            return (d <= r).sum(axis=1).astype(np.float64)
+            return cKDTree(points).query_ball_point(xy, r, return_length=True).astype(np.float64)
 
         n_u = within(v_u)
         n_um = within(unknown_xy)
