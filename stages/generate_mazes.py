@@ -12,8 +12,9 @@ gate is fitted on them beside the mazes, so that it holds on maps unlike the maz
 A split's `kind: office` draws office floors instead of mazes (a side per floor from its
 `side_m` range), and `office_scale` sets their sizes: `maze` (doors a 4 m lattice passes) or
 `real_robot` (building sizes, doors from 0.8 m). `kind: building` draws floors like real plans
-(`pipeline.world.buildings`: walls at any phase of the 1 m lattice, corridors, furniture) at
-`protocol.cell_size`: profiles/real_robot.yaml trains on these.
+(`pipeline.world.buildings`: wings and courtyards, corridors with rooms on both sides, rooms of
+one door, walls at any phase of the 1 m lattice, furniture) at `protocol.cell_size`:
+profiles/real_robot.yaml trains on these.
 A split's `plans_share` of its `count` is drawn from the real floor plans the import_plans stage
 wrote to data/plans/ instead (`pipeline.world.plans.generate_plan_floors`: a plan in one of its 8
 rotations and flips, cropped to a window of the split's `side_m`, a start of its own), written

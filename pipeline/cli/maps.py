@@ -34,9 +34,9 @@ def mazes(
     side: float = typer.Option(100.0, help="Side length in metres (for mazes, a multiple of the block size)."),
     kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
                                           "wide rooms, clutter), a family the sliver gate is also fitted on; "
-                                          "building: floors drawn like real plans at the real-robot scale (walls at "
-                                          "any phase of the 1 m lattice, doors 0.8-1.2 m, corridors, furniture; "
-                                          "--cell-size 0.2); cave: rough-walled caves, a family no model is fitted on."),
+                                          "building: floors drawn like real plans at the real-robot scale (wings, L, U and "
+                                          "courtyard shapes, corridors with rooms on both sides, rooms of one door, "
+                                          "walls at any phase of the 1 m lattice, furniture; --cell-size 0.2); cave: rough-walled caves, a family no model is fitted on."),
     scale: str = typer.Option("maze", help="Office floor sizes: maze (doors wider than the 4 m lattice) or "
                                            "real_robot (building sizes for 0.2 m cells and a 1 m lattice: "
                                            "doors from 0.8 m, walls 0.1-0.3 m, rooms from 3 m)."),

@@ -28,11 +28,12 @@ import numpy as np
 from pipeline.world.plans import convert_plan, find_plan_sources
 
 STAT_CELL_M = 0.2  # the cells every statistic is measured at
-LATTICE_M = 1.0  # the lattice whose nodes `nodes_on_walls` counts
 MIN_ROOM_M2 = 1.0  # a labelled region smaller than this (a label's sliver) is no room
 MIN_DOOR_M = 0.4  # an opening narrower than the robot's diameter is no door
-FOOTPRINT_CLOSE_M = 1.0  # walls and furniture thinner than this between free cells are inside the footprint
-FOOTPRINT_HOLE_M2 = 25.0  # an enclosed non-free region smaller than this (a block of furniture, a shaft) is too
+FOOTPRINT_CLOSE_M = 1.0  # walls and furniture thinner than this between free cells are inside the footprint,
+FOOTPRINT_HOLE_M2 = 25.0  # and so is an enclosed non-free region smaller than this (furniture, a shaft)
+CORRIDOR_WIDTH_M = 3.5  # a region at most this wide ...
+CORRIDOR_ELONGATION = 5.0  # ... and at least this many times as long is a corridor, labelled or not
 
 STATISTICS = {  # name: what it is, as a table row says it
     "free_share": "free share of the free area's bounding box",
@@ -52,10 +53,11 @@ def plan_statistics(free: np.ndarray, rooms: np.ndarray | None, cell_size: float
     """The floor-shape statistics (STATISTICS names them) of one floor at `cell_size` cells.
 
     `free` is the floor's free grid, `rooms` its room labels (same shape; 0 = no room, 1..N = a
-    room; only free cells count). Without labels the room and door statistics are NaN and the
-    corridor share is NaN. `nodes_on_walls` is the share of lattice nodes inside the footprint
-    that are not free, averaged over every phase of the lattice on the grid (a real plan has no
-    phase of its own), which is the non-free share of the footprint's cells.
+    room; only free cells count). A room is a label of at least MIN_ROOM_M2 that is no corridor
+    (`is_corridor`): real plans label their corridors as rooms. Without labels, the room, door
+    and corridor statistics are NaN. `nodes_on_walls` is the share of 1 m lattice nodes inside
+    the footprint (`footprint`) that are not free, averaged over every phase of the lattice on the
+    grid (a real plan has no phase of its own): the non-free share of the footprint's cells.
     """
     free = np.asarray(free, dtype=bool)
     nan = float("nan")
@@ -74,12 +76,12 @@ def plan_statistics(free: np.ndarray, rooms: np.ndarray | None, cell_size: float
         return out
     labels = np.where(free, np.asarray(rooms), 0)
     ids, counts = np.unique(labels[labels > 0], return_counts=True)
-    kept = ids[counts * cell_size**2 >= MIN_ROOM_M2]
-    room_cells = np.isin(labels, kept)
-    out["corridor_share"] = 1.0 - float(room_cells.sum()) / float(free.sum())
+    is_room = np.array([count * cell_size**2 >= MIN_ROOM_M2 and not is_corridor(labels == room, cell_size)
+                        for room, count in zip(ids, counts)], dtype=bool)
+    kept, areas = ids[is_room], counts[is_room] * cell_size**2
+    out["corridor_share"] = 1.0 - float(np.isin(labels, kept).sum()) / float(free.sum())
     if not len(kept):
         return out
-    areas = counts[counts * cell_size**2 >= MIN_ROOM_M2] * cell_size**2
     out["rooms_per_100m2"] = 100.0 * len(kept) / free_m2
     out["room_m2"] = float(np.median(areas))
     doors = [room_doors(labels, free, int(room), cell_size) for room in kept]
@@ -89,6 +91,20 @@ def plan_statistics(free: np.ndarray, rooms: np.ndarray | None, cell_size: float
     out["one_door_share"] = float((counts_per_room == 1).mean())
     out["door_m"] = float(np.median(widths)) if widths else nan
     return out
+
+
+def is_corridor(mask: np.ndarray, cell_size: float) -> bool:
+    """Whether a region is a corridor: with its holes (furniture inside a room) filled, at most
+    CORRIDOR_WIDTH_M wide (twice its largest distance from its edge) and at least
+    CORRIDOR_ELONGATION times as long as wide (its area over its width). Real plans label
+    corridors as rooms; this finds them there and on generated floors alike."""
+    rows, cols = np.nonzero(mask)
+    crop = np.pad(mask[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1], 1)
+    _, parts = cv2.connectedComponents((~crop).astype(np.uint8), connectivity=4)
+    filled = crop | (parts != parts[0, 0])
+    width = 2.0 * float(cv2.distanceTransform(filled.astype(np.uint8), cv2.DIST_L2, 5).max()) * cell_size
+    length = float(filled.sum()) * cell_size**2 / width
+    return bool(width <= CORRIDOR_WIDTH_M and length >= CORRIDOR_ELONGATION * width)
 
 
 def room_doors(labels: np.ndarray, free: np.ndarray, room: int, cell_size: float) -> list[float]:
@@ -113,7 +129,8 @@ def footprint(free: np.ndarray, cell_size: float) -> np.ndarray:
     kernel = np.ones((size, size), np.uint8)
     closed = cv2.morphologyEx(np.pad(free, size).astype(np.uint8), cv2.MORPH_CLOSE, kernel)[size:-size, size:-size]
     closed = closed.astype(bool) | free
-    count, parts, stats, _ = cv2.connectedComponentsWithStats(np.pad(~closed, 1).astype(np.uint8), connectivity=4)
+    around = np.pad(~closed, 1, constant_values=True).astype(np.uint8)  # the outside joined all round
+    count, parts, stats, _ = cv2.connectedComponentsWithStats(around, connectivity=4)
     small = np.zeros(count, dtype=bool)
     small[1:] = stats[1:, cv2.CC_STAT_AREA] * cell_size**2 < FOOTPRINT_HOLE_M2
     small[parts[0, 0]] = False  # the region around the grid is the outside, whatever its size
