@@ -26,6 +26,7 @@ from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.common.executor import default_workers, resolve_backend, run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
+from pipeline.evaluation.episode_errors import PLANNER_ERROR, ErrorsEndTheEpisode
 from pipeline.evaluation.exploration_curves import (
     EXPLORATION_CSV,
     SpeedModel,
@@ -43,7 +44,7 @@ from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_sp
 from pipeline.world.maps import GroundTruthMap, MapError, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
-from pipeline.world.simulator import PLANNER_ERROR, EpisodeResult, run_episode
+from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import (
     METRICS_COLUMNS,
     steps_path,
@@ -200,7 +201,11 @@ def run_task(task: EpisodeTask) -> EpisodeResult:
     with warnings.catch_warnings():
         # run_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        result = run_episode(ground_truth, task_planner(task), protocol, seed=task.seed)
+        planner = ErrorsEndTheEpisode(task_planner(task))  # a planner that raises fails this episode only
+        result = run_episode(ground_truth, planner, protocol, seed=task.seed)
+    if planner.error:
+        result.failure, result.error_traceback, result.complete, result.early_stop = \
+            planner.error, planner.error_traceback, False, False
     result.planner = task.label
     return result
 

@@ -45,6 +45,7 @@ from pipeline.evaluation.benchmark import (
     write_planner_errors,
     write_run_record,
 )
+from pipeline.evaluation.episode_errors import ErrorsEndTheEpisode
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.planners.specs import PlannerSpec, parse_planner_spec
 from pipeline.planners.team.registry import make_team_planner
@@ -161,8 +162,11 @@ def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpiso
     with warnings.catch_warnings():
         # run_team_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        result = run_team_episode(ground_truth, inputs.planners[task.planner_key], protocol, task.robots,
-                                  comm_range_m=task.comm_range_m, seed=task.seed)
+        planner = ErrorsEndTheEpisode(inputs.planners[task.planner_key])  # a planner that raises fails this episode only
+        result = run_team_episode(ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m,
+                                  seed=task.seed)
+    if planner.error:
+        result.failure, result.complete = planner.error, False
     result.map_name = Path(task.map_path).stem
     return result
 

@@ -8,7 +8,6 @@ planner can claim a distance the protocol would not allow.
 from __future__ import annotations
 
 import time
-import traceback
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -23,7 +22,6 @@ from pipeline.world.sensor import FREE, Belief, Lidar
 
 LATTICE_TOLERANCE_M = 1e-3
 STOPPED = "no reachable target left"  # the failure of an episode whose planner said it was done
-PLANNER_ERROR = "planner error"  # the failure's start when the planner raised: the run goes on, the episode fails
 PLANNER_DECISION = "planner"  # a planner's `decision_kind` when its own rule decided (pipeline.planners.whole_building)
 
 
@@ -62,7 +60,7 @@ class EpisodeResult:
     fallbacks: int = 0
     waypoint_fallback: list[bool | None] = field(default_factory=list)
     early_stop: bool = False
-    error_traceback: str = ""  # the planner's traceback when it raised (failure: PLANNER_ERROR ...)
+    error_traceback: str = ""  # where a benchmark's planner raised (pipeline/evaluation/episode_errors.py)
 
     def step_rows(self) -> list[dict]:
         """The per-step record (docs/protocol.md, "Per-step files"): one row per trajectory row up to
@@ -252,27 +250,20 @@ def run_episode(
 ) -> EpisodeResult:
     """Run `planner` until the map is explored, it fails, or `protocol.max_steps` waypoints."""
     episode = Episode(ground_truth, protocol)
-    failure, trace = "", ""
-    try:
-        reset_planner(planner, ground_truth, protocol, seed)
-    except Exception as error:  # a planner that fails on this map fails its episode, not the run
-        failure, trace = planner_error(error), traceback.format_exc()
+    reset_planner(planner, ground_truth, protocol, seed)
     decision_ms: list[float] = []
     waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
     waypoint_trust: list[float | None] = [None]
     waypoint_fallback: list[bool | None] = [False]
+    failure = ""
     violations = 0
     oracle = bool(getattr(planner, "ignores_motion_rule", False))
     if on_step is not None:
         on_step(episode)
-    while not failure and not episode.complete and episode.steps < protocol.max_steps:
+    while not episode.complete and episode.steps < protocol.max_steps:
         observation = episode.observe()
         t0 = time.perf_counter()
-        try:
-            waypoints = planner.plan(observation)
-        except Exception as error:  # recorded with the trajectory so far (PLANNER_ERROR)
-            failure, trace = planner_error(error), traceback.format_exc()
-            break
+        waypoints = planner.plan(observation)
         decision_ms.append((time.perf_counter() - t0) * 1e3)
         trust = getattr(planner, "prediction_trust", None)
         fallback = getattr(planner, "decision_kind", PLANNER_DECISION) != PLANNER_DECISION
@@ -300,13 +291,7 @@ def run_episode(
     result.waypoint_trust = waypoint_trust[: len(result.trajectory)]
     result.waypoint_fallback = waypoint_fallback[: len(result.trajectory)]
     result.fallbacks = int(getattr(planner, "fallbacks", 0))
-    result.error_traceback = trace
     return result
-
-
-def planner_error(error: BaseException) -> str:
-    """A planner's exception as an episode's failure: one line, PLANNER_ERROR, its type and message."""
-    return f"{PLANNER_ERROR}: {type(error).__name__}: {' '.join(str(error).split())}"
 
 
 def replay(

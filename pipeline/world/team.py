@@ -39,7 +39,7 @@ from pipeline.world.maps import GroundTruthMap, MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, Lidar
-from pipeline.world.simulator import LATTICE_TOLERANCE_M, MotionError, planner_error
+from pipeline.world.simulator import LATTICE_TOLERANCE_M, MotionError
 
 MAX_ROBOTS = 8
 TEAM_COLUMNS = ["time_s", "robot", "x", "y"]
@@ -407,12 +407,9 @@ def run_team_episode(
     motion rule, every robot waits with nothing to do, or a robot has made `max_steps` moves."""
     protocol = team_protocol(protocol)
     episode = TeamEpisode(ground_truth, protocol, robots, starts, comm_range_m)
-    failure, violations = "", 0
-    try:
-        reset_team_planner(planner, ground_truth, protocol, seed, robots)
-    except Exception as error:  # a planner that fails on this map fails its episode, not the run
-        failure = planner_error(error)
+    reset_team_planner(planner, ground_truth, protocol, seed, robots)
     decision_ms: list[list[float]] = [[] for _ in range(robots)]
+    failure, violations = "", 0
     oracle = bool(getattr(planner, "ignores_motion_rule", False))  # the ground-truth reference's rule only
     # Events: (time, waiting, robot). At one time, arrivals and decisions come before the
     # retries of waiting robots, and lower robot numbers first.
@@ -420,7 +417,7 @@ def run_team_episode(
     heapq.heapify(queue)
     if on_event is not None:
         on_event(episode)
-    while queue and not episode.complete and not failure:
+    while queue and not episode.complete:
         t, _, index = heapq.heappop(queue)
         robot = episode.robots[index]
         episode.time = t
@@ -438,11 +435,7 @@ def run_team_episode(
         if not robot.plan:
             observation = episode.observe(index)
             started = time.perf_counter()
-            try:
-                robot.plan = list(planner.plan(observation))
-            except Exception as error:  # recorded with the trajectories so far
-                failure = planner_error(error)
-                break
+            robot.plan = list(planner.plan(observation))
             decision_ms[index].append((time.perf_counter() - started) * 1e3)
             robot.target = tuple(map(float, robot.plan[-1])) if robot.plan else None
             episode.heard_targets[index][index] = robot.target

@@ -232,21 +232,3 @@ def test_a_cell_centre_off_the_lattice_is_a_waypoint_only_under_the_door_graph()
     with pytest.raises(MotionError, match="node lattice"):
         lattice.waypoint_cell(door)
 
-
-def test_a_planner_that_raises_fails_its_episode_with_the_trajectory_so_far(small_maze):
-    class Breaks(Planner):
-        name = "breaks"
-
-        def reset(self, frame, protocol, seed):
-            self.calls = 0
-
-        def plan(self, observation):
-            self.calls += 1
-            if self.calls == 2:
-                raise RuntimeError("Padding size should be less than\n the input dimension")
-            return [(4.0, 0.0)]
-
-    result = run_episode(small_maze, Breaks(), Protocol())
-    assert not result.complete and result.failure == "planner error: RuntimeError: Padding size should be less than the input dimension"
-    assert result.trajectory == [(0.0, 0.0), (4.0, 0.0)]
-    assert "Traceback" in result.error_traceback and "RuntimeError" in result.error_traceback

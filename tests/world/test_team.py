@@ -199,14 +199,3 @@ def test_a_start_shares_its_first_scan_with_the_whole_team(small_maze):
     assert (seen == FREE).sum() == episode.union.free_count > 0
     assert np.array_equal(seen, episode.observe(1).observation.belief)
 
-
-def test_a_team_planner_that_raises_fails_its_episode_with_the_moves_so_far(small_maze):
-    class Breaks(Scripted):
-        def plan(self, observation):
-            if observation.robot == 1:
-                raise ValueError("no node image for this lattice")
-            return super().plan(observation)
-
-    team = run_team_episode(small_maze, Breaks({0: [[(4.0, 0.0)]]}), Protocol(), robots=2)
-    assert not team.complete and team.failure == "planner error: ValueError: no node image for this lattice"
-    assert len(team.rows) >= 2
