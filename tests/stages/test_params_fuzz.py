@@ -91,6 +91,8 @@ ALLOWED = {
     ("train_drl.model.*", "delete"), ("train_block_model.model.*", "delete"), ("train_planner.model.*", "delete"),
     # The map kinds and office sizes default to the maze benchmark's (older params files lack them).
     ("mazes.office_scale", "delete"), ("mazes.train.kind", "delete"), ("mazes.test.kind", "delete"),
+    # No plans_share: no floors drawn from the imported plans (params files from before the plans).
+    ("mazes.train.plans_share", "delete"), ("mazes.test.plans_share", "delete"),
     # Lightning's devices may be a list of device indices.
     ("train_inpainter.devices", "list"), ("train_planner.devices", "list"),
     # PPOSettings takes any finite entropy and value coefficients (stable-baselines3 does).
