@@ -25,12 +25,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
-import yaml
 
-from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.world.reachability import passable_mask
+from pipeline.world.resample import ROS_FREE_VALUE, ROS_OCCUPIED_VALUE, ROS_UNKNOWN_VALUE, write_map_server
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 FREE_MAX = 19  # a probability (%) at or below this is free: ROS map_server's free_thresh, 0.196
@@ -204,26 +202,15 @@ class Canvas:
         return passable_mask(trinary, self.robot_radius_m / resolution)
 
 
-ROS_FREE, ROS_OCCUPIED, ROS_UNKNOWN = 254, 0, 205  # map_saver's trinary pixels
-
-
 def write_belief_map(belief: np.ndarray, cell_size: float, origin: tuple[float, float], start: tuple[float, float],
                      yaml_path: Path) -> Path:
-    """A belief grid (rows grow with y) as map_saver writes a map: a trinary PGM (free 254,
-    occupied 0, unknown 205) and its YAML with `origin` (the grid's corner, map frame) and a
-    `start` key (map frame); the YAML's path."""
-    yaml_path = Path(yaml_path)
-    image = np.full(belief.shape, ROS_UNKNOWN, np.uint8)
-    image[belief == FREE], image[belief == OCCUPIED] = ROS_FREE, ROS_OCCUPIED
-    image_path = yaml_path.with_suffix(".pgm")
-    with atomic_file(image_path) as tmp:
-        if not cv2.imwrite(str(tmp), image[::-1]):  # row 0 of the image is the top
-            raise OSError(f"{image_path}: cannot write the map image")
-    meta = {"image": image_path.name, "resolution": float(cell_size), "origin": [float(origin[0]), float(origin[1]), 0.0],
-            "negate": 0, "occupied_thresh": 0.65, "free_thresh": 0.196, "mode": "trinary",
-            "start": [float(start[0]), float(start[1])]}
-    atomic_write_text(yaml_path, yaml.safe_dump(meta, sort_keys=False))
-    return yaml_path
+    """A belief grid (rows grow with y) as map_saver writes a map (`write_map_server`: free 254,
+    occupied 0, unknown 205) with `origin` (the grid's corner) and a `start` key, map frame; the
+    YAML's path."""
+    image = np.full(belief.shape, ROS_UNKNOWN_VALUE, np.uint8)
+    image[belief == FREE], image[belief == OCCUPIED] = ROS_FREE_VALUE, ROS_OCCUPIED_VALUE
+    write_map_server(image, float(cell_size), origin, start, yaml_path)
+    return Path(yaml_path)
 
 
 def _steps(cells: int, step: int) -> int:

@@ -378,14 +378,14 @@ class ExplorationSession:
                     candidates.append((math.dist(node, world), node, (col, row)))
         candidates.sort()
         inside = 0 <= here[0] < cols and 0 <= here[1] < rows
-        straight = [(gap, node, cell) for gap, node, cell in candidates
-                    if inside and segment_is_known_free(free, here, cell)]
-        if self.protocol.uses_door_graph and (not straight or straight[0][0] > self.goal_tolerance_m):
+        straight = next(((gap, node, cell) for gap, node, cell in candidates
+                         if inside and segment_is_known_free(free, here, cell)), None)
+        if self.protocol.uses_door_graph and (straight is None or straight[0] > self.goal_tolerance_m):
             own = self._own_cell(free, here)
             if own is not None:
                 return own
-        if straight:
-            return straight[0][1], straight[0][2]
+        if straight is not None:
+            return straight[1], straight[2]
         return (candidates[0][1], candidates[0][2]) if candidates else None
 
     def _own_cell(self, free: np.ndarray, here: tuple[int, int]) -> tuple[tuple[float, float], tuple[int, int]] | None:

@@ -418,18 +418,22 @@ def _outline(drawing: _Drawing, wings: list[_Wing], outer: int) -> None:
             corridor[top:bottom, left:right] = True
     keep = cv2.dilate(corridor.astype(np.uint8), np.ones((2 * outer + 3,) * 2, np.uint8)).astype(bool)
 
-    def outline_cells() -> list[tuple[np.ndarray, tuple[int, int]]]:
-        """Per direction (dr, dc), the inside cells whose neighbour that way is outside."""
+    def outline_cell() -> tuple[int, int, int, int] | None:
+        """(row, col, dr, dc): an inside cell drawn at random whose neighbour (dr, dc) is outside, the
+        direction drawn first; None when no cell of the outline faces that way."""
         padded = np.pad(inside, 1)
-        return [(np.argwhere(inside & ~padded[1 + dr : n + 1 + dr, 1 + dc : n + 1 + dc]), (dr, dc))
-                for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+        dr, dc = ((-1, 0), (1, 0), (0, -1), (0, 1))[int(rng.integers(4))]
+        cells = np.argwhere(inside & ~padded[1 + dr : n + 1 + dr, 1 + dc : n + 1 + dc])
+        if not len(cells):
+            return None
+        row, col = cells[int(rng.integers(len(cells)))]
+        return row, col, dr, dc
 
     for _ in range(int(rng.integers(config.bays[0], config.bays[1] + 1))):
-        edges = outline_cells()
-        cells, (dr, dc) = edges[int(rng.integers(4))]
-        if not len(cells):
+        picked = outline_cell()
+        if picked is None:
             continue
-        row, col = cells[int(rng.integers(len(cells)))]
+        row, col, dr, dc = picked
         along, out = drawing.draw(config.bay_m), drawing.draw(config.bay_m)
         if dr:
             top = row + 1 if dr > 0 else row - out
@@ -441,11 +445,10 @@ def _outline(drawing: _Drawing, wings: list[_Wing], outer: int) -> None:
         if top >= 1 and left >= 1 and bottom <= n - 1 and right <= n - 1:
             inside[top:bottom, left:right] = True
     for _ in range(int(rng.integers(config.recesses[0], config.recesses[1] + 1))):
-        edges = outline_cells()
-        cells, (dr, dc) = edges[int(rng.integers(4))]
-        if not len(cells):
+        picked = outline_cell()
+        if picked is None:
             continue
-        row, col = cells[int(rng.integers(len(cells)))]
+        row, col, dr, dc = picked
         along, depth = drawing.draw((2.0, 8.0)), drawing.draw(config.recess_m) + outer
         if dr:
             top = row - depth + 1 if dr > 0 else row

@@ -263,9 +263,8 @@ def symmetry_key(free: np.ndarray, resolution: float) -> str:
     falls on other block boundaries)."""
     rows, cols = np.nonzero(free)
     crop = free[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
-    variants = [np.ascontiguousarray(np.rot90(grid, k)) for grid in (crop, crop[:, ::-1]) for k in range(4)]
     return min(hashlib.sha256(f"{resolution:.9g} {v.shape}".encode() + np.packbits(v).tobytes()).hexdigest()
-               for v in variants)
+               for v in (symmetric(crop, k) for k in range(8)))
 
 
 # ---------------------------------------------------------------------------- writing

@@ -31,6 +31,7 @@ from pipeline.world.sensor import FREE, OCCUPIED
 
 ROS_FREE_VALUE = 254
 ROS_OCCUPIED_VALUE = 0
+ROS_UNKNOWN_VALUE = 205  # map_saver's grey: neither free nor occupied
 
 
 def resample_factor(cell_size: float, new_cell_size: float) -> int:
@@ -115,23 +116,32 @@ def resample_map(
 
 def write_ros_map(ground_truth: GroundTruthMap, yaml_path: str | Path, origin: tuple[float, float] = (0.0, 0.0)) -> Path:
     """Write a map_server map (trinary PGM beside its YAML, with a `start` key), as `load_ros_map` reads it."""
-    yaml_path = Path(yaml_path)
-    image_path = yaml_path.with_suffix(".pgm")
-    image = np.where(ground_truth.free, ROS_FREE_VALUE, ROS_OCCUPIED_VALUE).astype(np.uint8)[::-1]  # row 0 is the top
-    with atomic_file(image_path) as tmp:
-        if not cv2.imwrite(str(tmp), image):
-            raise OSError(f"{image_path}: cannot write the map image")
     col, row = ground_truth.start_cell
     size = ground_truth.cell_size
+    image = np.where(ground_truth.free, ROS_FREE_VALUE, ROS_OCCUPIED_VALUE).astype(np.uint8)
+    return write_map_server(image, size, origin, (origin[0] + (col + 0.5) * size, origin[1] + (row + 0.5) * size),
+                            yaml_path)
+
+
+def write_map_server(image: np.ndarray, resolution: float, origin: tuple[float, float], start: tuple[float, float],
+                     yaml_path: str | Path) -> Path:
+    """A map_server map from its pixels (rows growing with y, as our grids'; 254 free, 0 occupied,
+    205 unknown): the PGM beside `yaml_path` and the YAML with `origin` (the grid's corner) and a
+    `start` key, both in map-frame metres. The PGM's path."""
+    yaml_path = Path(yaml_path)
+    image_path = yaml_path.with_suffix(".pgm")
+    with atomic_file(image_path) as tmp:
+        if not cv2.imwrite(str(tmp), np.ascontiguousarray(image[::-1])):  # row 0 of the image is the top
+            raise OSError(f"{image_path}: cannot write the map image")
     meta = {
         "image": image_path.name,
-        "resolution": size,
+        "resolution": resolution,
         "origin": [float(origin[0]), float(origin[1]), 0.0],
         "negate": 0,
         "occupied_thresh": 0.65,
         "free_thresh": 0.196,
         "mode": "trinary",
-        "start": [float(origin[0] + (col + 0.5) * size), float(origin[1] + (row + 0.5) * size)],
+        "start": [float(start[0]), float(start[1])],
     }
     atomic_write_text(yaml_path, yaml.safe_dump(meta, sort_keys=False))
     return image_path
