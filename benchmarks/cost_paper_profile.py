@@ -16,7 +16,7 @@ one 64-core machine with 8 GPUs, and a Ray cluster of 10 x 16 cores plus one GPU
 The model, stated so that its figures can be checked: episode and shard workloads scale with the
 cores they are spread over (the executor's engines; Ray's overhead ignored); a training takes
 its CPU step cost on a machine without a GPU, and on G GPUs the step cost measured on an H200
-(docs/findings.md, "The paper profile on an H200": the inpainter 107 s for one epoch of 230,000
+(the inpainter 107 s for one epoch of 230,000
 pairs at batch 64, the paper-size policy 4 epochs of 72,912 steps in 5 minutes at batch 256)
 divided by G (DDP); stages run one after another, as `dvc repro` runs them. The block model and
 the DRL baseline train on the CPU in every setting; their rates come from this project's
@@ -52,8 +52,8 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
 
 SHIPPED_INPAINTER = Path("pipeline/assets/inpainter.pt")
-H200_INPAINTER_S_PER_PAIR = 107.0 / 230_000  # one epoch, batch 64 (docs/findings.md)
-H200_POLICY_S_PER_SAMPLE = 300.0 / (4 * 72_912)  # paper-size policy, batch 256 (docs/findings.md)
+H200_INPAINTER_S_PER_PAIR = 107.0 / 230_000  # one epoch, batch 64
+H200_POLICY_S_PER_SAMPLE = 300.0 / (4 * 72_912)  # paper-size policy, batch 256
 SETTINGS = {  # name: (CPU nodes x cores, GPUs)
     "this machine": (1, os.cpu_count() or 1, 0),
     "one machine, 64 cores, 8 GPUs": (1, 64, 8),

@@ -59,7 +59,7 @@ EXPLORER = "nearest_frontier"
 # Table I's operating point is the planners' tau for graph nodes (node_predictor.DEFAULT_THRESHOLD
 # says why 0.8): Table I measures V_u, the predicted nodes the planners' global graph holds.
 # A higher tau helps only a predictor that generalises; what made ours generalise was more
-# training mazes (docs/findings.md, "The node predictor (Table I)").
+# training mazes.
 TABLE1_THRESHOLD = DEFAULT_THRESHOLD
 TABLE1_MIN_COMPONENT = 3
 TABLE1_KEEP_SHARE = 0.5

@@ -49,7 +49,7 @@ class DiffusionPolicyConfig:
     # Noise schedule (diffusers scheduler arguments)
     num_train_timesteps: whole(1) = 100
     beta_schedule: text(BETA_SCHEDULES) = "squaredcos_cap_v2"
-    # x0: makes the net use the observation (docs/findings.md, "The learned policy")
+    # x0: makes the net use the observation
     prediction_type: text(PREDICTION_TYPES) = "sample"
     clip_sample: flag() = True
     # Sampling

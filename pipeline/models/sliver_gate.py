@@ -20,10 +20,9 @@ Slivers are mostly wall: the unknown they would see lies next to walls already s
 inside of a wall whose face is known is never observed). So the share of open unknown
 carries most of the signal, the visible frontier the rest. Fitted by `stages.fit_gate` on
 greedy episodes in the training mazes and office floors (`pipeline.world.offices`), labelled with
-the scan the ground truth would give (docs/findings.md, "Small frontiers last"). A logistic
+the scan the ground truth would give. A logistic
 gate fitted on mazes alone rejected real targets on office floors; fitted on both families a
-logistic model must trade one for the other, the perceptron need not (docs/findings.md, "Off
-the maze generator").
+logistic model must trade one for the other, the perceptron need not.
 """
 
 from __future__ import annotations
@@ -205,8 +204,7 @@ def fit_perceptron(inputs: np.ndarray, labels: np.ndarray, hidden: tuple[int, ..
     samples and at least `min_steps` steps.
 
     Big batches keep the cost of millions of samples at seconds: three inputs leave the fit
-    limited by its number of steps, not by the noise of a batch (docs/findings.md, "The gate in
-    seconds"). Seeded: the same samples give the same layers on one torch build.
+    limited by its number of steps, not by the noise of a batch. Seeded: the same samples give the same layers on one torch build.
     """
     import torch
 

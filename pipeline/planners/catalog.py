@@ -70,8 +70,7 @@ class SingleNodeTargets(PlannerConfig):
     """guide's own defaults of the tour options (`TourOptions`' keys): the options the policy votes
     on are single useful nodes (spread 0, none dropped), scored by boosted utility per metre with no
     tour regret (beta 0). guide_tsp's clusters and regret, tuned for its tour on mazes, cost guide
-    distance on building floors and gained nothing on mazes or office floors (docs/findings.md,
-    issue 61). With no regret the tour only adds its own first target to the options, so it is
+    distance on building floors and gained nothing on mazes or office floors. With no regret the tour only adds its own first target to the options, so it is
     solved cheaply."""
 
     spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(

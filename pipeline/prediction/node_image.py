@@ -20,7 +20,7 @@ PIXEL_FREE, PIXEL_OBSTACLE, PIXEL_UNKNOWN = 255, 0, 128
 PIXEL_PADDING = PIXEL_OBSTACLE
 """Pixels outside the map. The authors' release pads with unknown, but then the network cannot
 tell where the map ends, and nothing beyond it is free: it predicted free nodes inside the
-outer wall (docs/findings.md, "The node predictor (Table I)")."""
+outer wall."""
 PAD_SIZES = (32, 40, 48)
 
 

@@ -27,7 +27,7 @@ InpaintFn = Callable[[np.ndarray], np.ndarray]
 # enter the global graph, V_p and after region evaluation V_u, which Table I measures; the count
 # tau (DEFAULT_COUNT_THRESHOLD) picks the predicted nodes the utility boost N_u counts.
 # One tau for both forced a trade: the graph wants few, precise nodes, the boost a broad count of
-# likely-free space; two taus give each its own (docs/findings.md, "Two taus").
+# likely-free space; two taus give each its own.
 DEFAULT_THRESHOLD = 0.8
 DEFAULT_COUNT_THRESHOLD = 0.5
 

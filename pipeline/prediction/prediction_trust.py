@@ -42,8 +42,7 @@ class PredictionTrustConfig:
     prior_base: float = 0.5  # the unknown's free share before any node is seen
     # Predictions no better than the base rate still point the planner at large unknown space, and
     # on generated building floors, where walls on lattice nodes leave every inpainter near the
-    # base rate, believing them in full made routes shorter than cutting them (docs/findings.md,
-    # "Trust in predictions"). So the cut is kept for predictions worse than the base rate.
+    # base rate, believing them in full made routes shorter than cutting them. So the cut is kept for predictions worse than the base rate.
     full_at: float = 0.0  # lift at or above which predictions are used in full
     none_at: float = -0.2  # lift at or below which none are used (the observed graph only)
 

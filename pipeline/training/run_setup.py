@@ -297,10 +297,9 @@ def training_host(device: torch.device | str = "cpu") -> dict[str, Any]:
     """What trained weights depend on beyond code, data and seeds: the torch build, the CPU
     and the kernels torch dispatches to on it, its thread count and the device.
 
-    The same pipeline trains other weights on another CPU: two AVX-512 hosts, one with AMX,
-    trained two inpainters, while a third host reproduced the first's byte for byte
-    (docs/findings.md, "Across hosts"). So every export and stage metrics file says where it
-    was made, and a user comparing figures can see why.
+    The same code, data and seeds can train other weights on a CPU with other kernels (AMX
+    or not, say), so every export and stage metrics file says where it was made, and a user
+    comparing figures can see why.
     """
     device = torch.device(device)
     name, flags = cpu_model()

@@ -4,7 +4,7 @@ Mazes (rooms of solid blocks) and office floors (thin straight walls) are the tw
 sliver gate is fitted on. A cave has neither straight walls nor rooms: its walls are rough
 curves and its open space is a web of chambers and passages of uneven width, as in a SLAM map
 of a mine or of rubble. That makes it a fair test of how the planners carry over to maps
-unlike any they were trained or tuned on (docs/findings.md, "A third family").
+unlike any they were trained or tuned on.
 
 A cave is grown by a cellular automaton on a grid of lattice-sized blocks: each block starts
 open by chance, and a few passes of the 3 x 3 majority rule turn the noise into chambers. The

@@ -14,8 +14,7 @@ narrower than the lattice step passes a lattice robot only where a lattice line 
 such doors are placed over a line of the lattice the floor's start cell fixes (`lattice_m`).
 
 The sliver gate is fitted on both families (`stages.fit_gate`): fitted on mazes alone it
-left real targets behind in office floors and made routes longer there
-(docs/findings.md, "Off the maze generator").
+left real targets behind in office floors and made routes longer there.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 ground truth; this planner does the same without the ground truth. At each decision the block model (`pipeline.models.modeling_block_model`)
 gives P(free) of every 5 m maze block from what has been seen; `samples` block maps are drawn
 from those probabilities, each cut to `horizon_m` beyond the known free space (a model sees
-no further with any use: docs/findings.md). On each drawn map, each of the `k` best targets
+no further with any use). On each drawn map, each of the `k` best targets
 (utility per metre) is tried: head for it until it is reached or stops being a target, then
 gated greedy until that map is explored. The robot steps toward the target whose rollouts are
 shortest on average and decides again. `k=1` is gated greedy itself.
@@ -25,7 +25,7 @@ with two free cores.
 
 With `temperature` T the maps are drawn from sigmoid(logit / T): the shipped model is
 overconfident, yet softer draws made routes no shorter, since every target is rolled out on
-the same maps. Both options stay off (docs/findings.md, "A lookahead on sampled maps").
+the same maps. Both options stay off.
 `BlockLookahead` (`pipeline.planners.extensions.lookahead`) is the simulator on its own, which
 `guide:lookahead=K` uses too.
 """

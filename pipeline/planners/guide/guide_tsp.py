@@ -197,7 +197,7 @@ class GuideTspPlanner(GlobalGraphPlanner):
 
     The defaults were tuned on dev mazes, never the test mazes. Predictions only boost
     utilities and shape the tour's distances; a coverage tour planned on the map the predictions
-    imply sends the robot on long errands through false free space (docs/findings.md, "guide_tsp").
+    imply sends the robot on long errands through false free space.
     """
 
     base_description = GuideTspConfig.description

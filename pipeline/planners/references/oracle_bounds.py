@@ -18,8 +18,7 @@ soonest. It bounds what a model of the unseen map, good enough to simulate a few
 routes, could win.
 
 They are diagnostics, never planners to deploy: `guide planners` marks them as oracles.
-What they measured: docs/results.md and docs/findings.md ("What a better gate can still win",
-"An oracle tail", "A one-step lookahead").
+What they measure is in docs/results.md.
 """
 
 from __future__ import annotations
