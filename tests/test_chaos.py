@@ -62,20 +62,22 @@ def kill_condition(project: Path, stage: str, seconds: float, rng: np.random.Gen
     pattern = PROGRESS.get(stage)
     wall, start, patience = time.time(), time.monotonic(), float(rng.uniform(0.1, 0.7)) * seconds
     if pattern is not None:
-        return lambda: any(path.stat().st_mtime >= wall for path in project.glob(pattern)) and stage_running(stage)
-    return lambda: time.monotonic() - start > patience and stage_running(stage)
+        return lambda: any(path.stat().st_mtime >= wall for path in project.glob(pattern)) and stage_running(project, stage)
+    return lambda: time.monotonic() - start > patience and stage_running(project, stage)
 
 
-def stage_running(stage: str) -> bool:
-    """Whether the stage's own command still runs: a kill after it ended would land in DVC's own
-    bookkeeping (writing dvc.lock is not atomic in DVC), which is not what this test is about."""
+def stage_running(project: Path, stage: str) -> bool:
+    """Whether the stage's own command still runs in `project`: a kill after it ended would land in
+    DVC's own bookkeeping (writing dvc.lock is not atomic in DVC), which is not what this test is
+    about. (Other projects' stages, of tests beside this one, run in other folders.)"""
     words = ["stages." + stage.split("@")[0], *(["--variant", stage.split("@")[1]] if "@" in stage else [])]
     for cmdline in Path("/proc").glob("[0-9]*/cmdline"):
         try:
             text = cmdline.read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            cwd = Path(os.readlink(cmdline.with_name("cwd")))
         except OSError:
             continue
-        if all(word in text for word in words) and "pytest" not in text:
+        if all(word in text for word in words) and "pytest" not in text and cwd == project.resolve():
             return True
     return False
 
@@ -106,6 +108,7 @@ def data_hashes(project: Path) -> dict[str, str]:
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("e2e")  # beside the other tests of the shared tiny run
 def test_dvc_repro_killed_inside_every_stage_ends_as_an_uninterrupted_run(tiny_reference, tmp_path):
     reference, seconds = tiny_reference.project, dict(tiny_reference.seconds)
     project = make_tiny_project(tmp_path / "chaos")

@@ -39,6 +39,7 @@ def produced_bytes(project: Path) -> dict[str, str]:
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("e2e")  # the shared tiny run's worker, one Ray cluster at a time
 def test_every_workload_gives_the_process_engines_bytes_on_a_two_node_ray_cluster(tiny_repro, tmp_path):
     ray = pytest.importorskip("ray", reason="the ray extra is not installed (pip install -e '.[dev]' brings it)")
     from ray.cluster_utils import Cluster
@@ -62,7 +63,8 @@ def test_every_workload_gives_the_process_engines_bytes_on_a_two_node_ray_cluste
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("protocol", [{}, HALF_SCALE], ids=["default", "half_scale"])
+@pytest.mark.parametrize("protocol", [pytest.param({}, marks=pytest.mark.xdist_group("e2e")), HALF_SCALE],
+                         ids=["default", "half_scale"])  # the default reads the shared tiny run; half scale runs its own
 def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
     if protocol:
         project = make_tiny_project(tmp_path / "project", protocol)
@@ -128,6 +130,7 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("e2e")
 def test_a_teammate_pulls_the_results_and_finds_nothing_to_rerun(tiny_repro, tmp_path):
     """`dvc push` to a shared remote (a local folder here; S3 or SSH in docs/scale-out.md), a fresh
     clone, `dvc pull`: `dvc status` is clean and `dvc repro` reruns nothing, also on a machine

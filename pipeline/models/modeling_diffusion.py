@@ -28,6 +28,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
+from pipeline.models.ddpm_update import DDPMUpdate
 from pipeline.models.exports import export_kind, read_weights_file, write_weights_file
 
 OBS_KEYS = ("features", "node_mask", "neighbors", "robot")
@@ -327,6 +328,7 @@ class DiffusionPolicy(nn.Module):
         # Same betas and prediction type as training; only the update rule differs.
         self.inference_scheduler = sampler_class.from_config(self.noise_scheduler.config)
         self.traced_denoiser: TracedDenoiser | None = None
+        self.ddpm_updates: dict[tuple, DDPMUpdate] = {}  # per (K, device): the DDPM step's coefficients
 
     def trace_denoiser(self) -> "DiffusionPolicy":
         """Sample with frozen TorchScript traces of the denoiser (the same outputs, faster per step).
@@ -392,6 +394,7 @@ class DiffusionPolicy(nn.Module):
         variant.config = replace(self.config, sampler=sampler)
         scheduler_class = DDIMScheduler if sampler == "ddim" else DDPMScheduler
         variant.inference_scheduler = scheduler_class.from_config(self.noise_scheduler.config)
+        variant.ddpm_updates = {}
         return variant
 
     def _conditioning(self, obs: Mapping[str, torch.Tensor] | torch.Tensor) -> torch.Tensor:
@@ -424,10 +427,24 @@ class DiffusionPolicy(nn.Module):
             timesteps.repeat_interleave(batch), obs_z.repeat(len(timesteps), 1, 1)
         ).unflatten(0, (len(timesteps), batch))  # (K, B, 1 + T_o, d)
         denoise = self.traced_denoiser or self.noise_net.denoise
-        for t, memory in zip(timesteps, memories):
+        update = self._ddpm_update(scheduler, steps, obs_z.device)
+        for k, (t, memory) in enumerate(zip(timesteps, memories)):
             predicted = denoise(x, memory)
-            x = scheduler.step(predicted, t, x, generator=generator).prev_sample
+            if update is None:
+                x = scheduler.step(predicted, t, x, generator=generator).prev_sample
+            else:
+                x = update(k, predicted, x, generator)
         return x.clamp(-1.0, 1.0)
+
+    def _ddpm_update(self, scheduler, steps: int, device: torch.device) -> DDPMUpdate | None:
+        """The DDPM step with its coefficients made once for these K steps (bit for bit diffusers'
+        `step`), or None for a scheduler it does not cover (DDIM, other variances)."""
+        if not DDPMUpdate.supports(scheduler):
+            return None
+        key = (int(steps), str(device))
+        if key not in self.ddpm_updates:
+            self.ddpm_updates[key] = DDPMUpdate(scheduler)
+        return self.ddpm_updates[key]
 
     @torch.no_grad()
     def predict_action(

@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+pytestmark = pytest.mark.xdist_group("e2e")  # one Ray cluster at a time on this machine
+
 ray = pytest.importorskip("ray", reason="the ray extra is not installed (pip install -e '.[dev]' brings it)")
 from ray.cluster_utils import Cluster  # noqa: E402
 

@@ -206,7 +206,7 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
     straight = graph.path_from_predecessors(pred, target)[:4]
     votes = planner.target_votes(robot, [straight, [robot]], options)
     assert votes[0] == pytest.approx(0.5)  # one plan of two heads straight at it, the other does not move
-    unreachable = dict(options, target_distance=np.full_like(options["target_distance"], np.inf))
+    unreachable = dict(options, option_distance=np.full_like(options["option_distance"], np.inf))
     assert np.all(planner.target_votes(robot, [straight], unreachable) == 0.0)  # no vote, no NaN
 
 

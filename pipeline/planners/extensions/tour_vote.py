@@ -189,7 +189,7 @@ class TourVote(PlannerWrapper):
         graph = self.paper.graph
         gg = self.paper.global_graph
         known_ids = gg.lattice_ids[gg.types == KNOWN]
-        distance = options["target_distance"][options["firsts"]]  # (options, global-graph rows)
+        distance = options["option_distance"]  # (options, global-graph rows)
         start = distance[:, np.searchsorted(known_ids, robot)]
         votes = np.zeros(len(options["firsts"]))
         for path in paths:

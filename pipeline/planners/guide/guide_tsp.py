@@ -136,8 +136,14 @@ class FrontierTour:
         `global_graph` must be updated for this decision. Returns `targets` and
         `weights` (the clusters), `firsts` (indices into targets of the first-target options),
         `scores` (their weight per metre of distance + beta x tour regret), `tours` (each
-        option's tour as lattice ids) and `target_distance` (global-graph distances from every
-        target to every global-graph row, for callers that compare other routes to them).
+        option's tour as lattice ids), `length` (the tour's) and `option_distance` (global-graph
+        distances from each option's target to every global-graph row, for callers that
+        compare other routes to them).
+
+        With no regret (`beta` 0) and a nearest-neighbour tour without moves (`max_moves` 0,
+        more targets than `exact_max`), the tour's first target is the nearest and its rest
+        changes no score: only the distances from the robot and from the options are computed,
+        each option's tour is its target alone and `length` is None (`first_target_options`).
         """
         gg = global_graph
         known_ids = gg.lattice_ids[gg.types == KNOWN]  # sorted: the first rows of the global graph
@@ -146,6 +152,8 @@ class FrontierTour:
         targets, weight = self.select_targets(graph, candidates, utility, dist, keep)
         kept = keep is not None and targets[0] == keep
         points = np.concatenate([[int(np.searchsorted(known_ids, robot))], np.searchsorted(known_ids, targets)])
+        if not self.tour_scores(len(points)):
+            return self.first_target_options(gg, points, targets, weight, kept)
         rows = dijkstra(gg.adjacency, directed=False, indices=points)
         d = rows[:, points]
         d = np.minimum(d, d.T)
@@ -171,7 +179,42 @@ class FrontierTour:
             "scores": np.asarray([options[j][0] for j in firsts]),
             "tours": [[int(targets[k - 1]) for k in options[j][1][1:]] for j in firsts],
             "length": length,
-            "target_distance": rows[1:],
+            "option_distance": rows[1:][[j - 1 for j in firsts]],
+        }
+
+    def tour_scores(self, points: int) -> bool:
+        """Whether the tour beyond its first target changes a score among `points` (the robot's
+        and the targets'): through the regret (`beta`), or through the first target of an exact
+        or improved tour, which need not be the nearest."""
+        nearest_neighbour = points <= 2 or (points > self.exact_max and self.max_moves == 0)
+        return self.beta != 0 or not nearest_neighbour
+
+    def first_target_options(self, gg: GlobalGraph, points: np.ndarray, targets: np.ndarray, weight: np.ndarray,
+                             kept: bool) -> dict:
+        """`first_target_scores` without a tour: each option scored by its weight per metre of
+        distance from the robot (global-graph rows `points`: the robot's, then the targets')."""
+        from_robot = dijkstra(gg.adjacency, directed=False, indices=points[:1])[0, points]
+        from_robot = np.where(np.isfinite(from_robot), from_robot, 1e6)
+        nearest = 1 + int(np.argmin(from_robot[1:]))  # the nearest-neighbour tour's first (lowest index on a tie)
+        firsts = {nearest}
+        if len(targets) > 1:
+            per_metre = weight / np.maximum(from_robot[1:], 1e-6)
+            firsts |= set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist())
+            if kept:
+                firsts.add(1)
+        firsts = sorted(firsts)
+        rows = dijkstra(gg.adjacency, directed=False, indices=points[firsts])
+        distance = np.minimum(from_robot[firsts], rows[:, points[0]])  # symmetric, as the tour's matrix
+        distance = np.where(np.isfinite(distance), distance, 1e6)
+        scores = weight[np.asarray(firsts) - 1] / (distance + 1e-6) if len(targets) > 1 else np.array([np.inf])
+        return {
+            "targets": targets,
+            "weights": weight,
+            "firsts": np.asarray([j - 1 for j in firsts], dtype=np.int64),
+            "scores": scores,
+            "tours": [[int(targets[j - 1])] for j in firsts],
+            "length": None,
+            "option_distance": rows,
         }
 
     def keep_through_cycles(self, observation: Observation, robot: int, candidates: np.ndarray, first: int) -> int:

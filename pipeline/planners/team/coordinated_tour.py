@@ -206,7 +206,7 @@ def route_options(split: FrontierSplit, tour: FrontierTour, kept: int | None) ->
         "scores": np.asarray([options[j][0] for j in firsts]),
         "tours": [[int(split.targets[route[k - 1]]) for k in options[j][1][1:]] for j in firsts],
         "length": length,
-        "target_distance": split.target_rows[route],
+        "option_distance": split.target_rows[route][[j - 1 for j in firsts]],
     }
 
 

@@ -47,7 +47,7 @@ def test_back_at_a_node_with_nothing_new_the_target_chosen_there_is_kept():
     first = episode.observe()
     planner.plan(first)
     chosen = planner.last_decision["target"]
-    assert len(planner.last_decision["tour"]) >= 2  # two options: the vote decides between them
+    assert len(planner.last_decision["votes"]) >= 2  # two options: the vote decides between them
     quiet = replace(first, changed=np.zeros(0, dtype=np.int64))  # the same node, nothing seen since
     planner.plan(quiet)
     assert planner.last_decision["target"] == chosen  # the vote swung, the target chosen here is kept

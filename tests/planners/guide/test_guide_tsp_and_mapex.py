@@ -300,3 +300,35 @@ def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_poli
     assert config.centroid_links == 1
     assert config.use_region_evaluation is region_evaluation
     assert config.max_nodes == planner.policy.config.max_nodes
+
+
+def test_without_regret_the_options_are_those_of_the_whole_tour(maze, monkeypatch):
+    """guide's tour options (beta 0, a nearest-neighbour tour): scored from the distances of the
+    robot and of the options alone, the same options, scores and first targets as when every
+    target's distances and the whole tour are computed, at each decision of an episode."""
+    from pipeline.planners.guide.guide_tsp import FrontierTour
+
+    seen = []
+    full = FrontierTour.first_target_scores
+
+    def both(tour, graph, global_graph, robot, dist, candidates):
+        previous = tour.previous
+        fast = full(tour, graph, global_graph, robot, dist, candidates)
+        with monkeypatch.context() as patch:
+            patch.setattr(FrontierTour, "tour_scores", lambda self, points: True)
+            tour.previous = previous
+            whole = full(tour, graph, global_graph, robot, dist, candidates)
+        assert np.array_equal(fast["firsts"], whole["firsts"])
+        assert np.allclose(fast["scores"], whole["scores"], rtol=1e-12, atol=0)
+        assert [t[0] for t in fast["tours"]] == [t[0] for t in whole["tours"]]
+        assert np.array_equal(fast["option_distance"], whole["option_distance"])
+        assert fast["length"] is None and whole["length"] > 0 or len(fast["firsts"]) == 1
+        seen.append(len(fast["firsts"]))
+        return fast
+
+    monkeypatch.setattr(FrontierTour, "first_target_scores", both)
+    planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2)
+    assert not planner.tour.tour_scores(2) and not planner.tour.tour_scores(10)
+    result = run_episode(maze, planner, PROTOCOL)
+    assert result.complete and len(seen) >= 5 and max(seen) >= 3
+    assert make_planner("guide_tsp").tour.tour_scores(10)  # guide_tsp's regret needs its whole tour
