@@ -141,8 +141,12 @@ def free_path(free: np.ndarray, start: tuple[int, int], goal: tuple[int, int]) -
 
 def slam_map(robot: SimulatedRobot | Episode, resolution: float, rng: np.random.Generator) -> dict[str, Any]:
     """The robot's (or a simulator episode's) belief as a SLAM map would give it: the fields of an
-    OccupancyGrid, cropped to the known area, with occupancy probabilities."""
-    grid = robot.belief.grid
+    OccupancyGrid, cropped to the known area, with occupancy probabilities.
+
+    The ground truth ends in a wall: a cell just outside it, beside a known-free cell on its edge,
+    reads as occupied, as a lidar would see the edge of a plan whose free space runs to its image
+    border (the simulator's belief has no cell beyond it, so no frontier there either)."""
+    grid = edge_walls(robot.belief.grid)
     c = robot.protocol.cell_size
     fine = max(1, int(round(c / resolution)))
     rows, cols = np.nonzero(grid != UNKNOWN)
@@ -151,9 +155,24 @@ def slam_map(robot: SimulatedRobot | Episode, resolution: float, rng: np.random.
     values = np.where(known == FREE, rng.integers(0, 15, known.shape),
                       np.where(known == OCCUPIED, rng.integers(70, 101, known.shape), -1)).astype(np.int8)
     values = np.repeat(np.repeat(values, fine, axis=0), fine, axis=1)
-    start_col, start_row = robot.map.start_cell
+    start_col, start_row = robot.map.start_cell[0] + 1, robot.map.start_cell[1] + 1  # in the grid with its edge
     return {"data": values.reshape(-1), "width": values.shape[1], "height": values.shape[0], "resolution": c / fine,
             "x": (c0 - start_col - 0.5) * c, "y": (r0 - start_row - 0.5) * c}
+
+
+def edge_walls(grid: np.ndarray) -> np.ndarray:
+    """`grid` with one cell more on each side: unknown, but occupied beside a known-free edge cell."""
+    edged = np.pad(grid, 1, constant_values=UNKNOWN)
+    free = edged == FREE
+    beside = free.copy()
+    beside[1:] |= free[:-1]
+    beside[:-1] |= free[1:]
+    beside[:, 1:] |= beside[:, :-1].copy()
+    beside[:, :-1] |= beside[:, 1:].copy()
+    ring = np.ones(edged.shape, dtype=bool)
+    ring[1:-1, 1:-1] = False
+    edged[ring & beside] = OCCUPIED
+    return edged
 
 
 def grid_message(fields: dict[str, Any]) -> GridMessage:

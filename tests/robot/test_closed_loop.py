@@ -8,9 +8,11 @@ import pytest
 from conftest import two_rooms
 
 from pipeline.robot import ExplorationSession
-from pipeline.robot.closed_loop import ClosedLoopConfig, as_ros_message, free_path, run_closed_loop
+from pipeline.robot.closed_loop import ClosedLoopConfig, as_ros_message, edge_walls, free_path, run_closed_loop
 from pipeline.robot.occupancy_grid import read_grid
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 
 @pytest.mark.parametrize("planner", ["greedy_utility", "guide_tsp", "guide"])
@@ -30,6 +32,27 @@ def test_the_session_explores_the_room_behind_a_door_the_lattice_misses(planner)
     session = ExplorationSession(planner, "real_robot", planner_options={"candidates": 2} if planner == "guide" else None)
     result = run_closed_loop(two_rooms(), session, ClosedLoopConfig(fail_every=0, max_decisions=400), seed=1)
     assert result.done and not result.early_stop and result.reachable_share >= 0.97, result
+
+
+def test_a_plan_whose_free_space_runs_to_its_border_is_done_when_seen():
+    """The ground truth ends in a wall: two rooms with no outer wall (free to the grid's edge), at
+    the real-robot protocol, say done once seen, as in the simulator."""
+    free = two_rooms().free.copy()
+    free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = True
+    world = GroundTruthMap(free=free, start_cell=(12, 32), cell_size=0.2, name="no_outer_wall")
+    session = ExplorationSession("greedy_utility", "real_robot")
+    result = run_closed_loop(world, session, ClosedLoopConfig(fail_every=0, max_decisions=400), seed=1)
+    assert result.done and not result.early_stop and result.reachable_share >= 0.97, result
+
+
+def test_the_edge_of_the_ground_truth_reads_as_a_wall_beside_free_cells_only():
+    grid = np.full((3, 4), UNKNOWN, np.uint8)
+    grid[0, 0] = FREE  # a corner cell: its three outside neighbours and their two neighbours
+    grid[1, 3] = OCCUPIED  # an occupied edge cell: nothing outside it
+    edged = edge_walls(grid)
+    assert edged.shape == (5, 6) and (edged[1:-1, 1:-1] == grid).all()
+    walls = {(int(r), int(c)) for r, c in zip(*np.nonzero(edged == OCCUPIED))} - {(2, 4)}
+    assert walls == {(0, 0), (0, 1), (0, 2), (1, 0), (2, 0)}
 
 
 def test_a_map_survives_cdr_with_rosbags_types():
