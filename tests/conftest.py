@@ -19,6 +19,13 @@ from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png  # no
 WALL, FREE, START = 127, 195, 208
 
 
+def pytest_collection_modifyitems(config, items) -> None:
+    """The tests of one `xdist_group` (the shared tiny `dvc repro` and the Ray clusters) first: they
+    run one after another on one worker, the longest chain of the suite, so it starts at once
+    while the other workers share the rest, the other slow tests first."""
+    items.sort(key=lambda item: (item.get_closest_marker("xdist_group") is None, item.get_closest_marker("slow") is None))
+
+
 def maze_from_blocks(blocks: list[str], block_px: int = 25) -> np.ndarray:
     """A maze PNG image from a picture of blocks: '#' wall, '.' free, 'S' the start block."""
     rows, cols = len(blocks), len(blocks[0])
