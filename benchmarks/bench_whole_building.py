@@ -17,8 +17,9 @@ rule on cells: the planners as they were before the whole-building graph.
 Prints per plan size (small: under 1,000 m^2 free, medium: under 3,000, big) and planner: the
 episodes, the explored share of the free area a robot of the protocol's radius reaches from the
 start (mean and least), the early stops (done with more than 40 m^2 of that area unseen), the
-fallback decisions, the distance and the median decision time. `--csv` writes one row per
-episode; `--figure` draws the first episode on the largest plan, door nodes and fallback
+fallback decisions, the episodes the step or decision limit ended before the planner said
+done, the distance and the median over episodes of each one's median decision time. `--csv`
+writes one row per episode; `--figure` draws the first episode on the largest plan, door nodes and fallback
 waypoints marked.
 """
 
@@ -67,6 +68,11 @@ def load_plan(folder: Path, plan: str, start: dict, protocol: Protocol) -> Groun
                           name=f"{plan}_{start.get('index', 0)}")
     world, _ = resample_map(fine, protocol.cell_size, robot_radius_m=protocol.robot_radius_m)
     return world
+
+
+def limit_reached(stopped: str) -> bool:
+    """Whether an episode ended at the decision limit (session) or step limit (simulator)."""
+    return stopped == "decision limit" or stopped.startswith("step limit")
 
 
 def size_of(world: GroundTruthMap) -> str:
@@ -138,8 +144,8 @@ def main() -> None:
         rows = [future.result() for future in futures]
     print(f"{len(tasks)} episodes ({args.loop}, {'lattice only' if args.lattice_only else 'door-aware graph'}) "
           f"in {time.perf_counter() - started:.0f} s")
-    print(f"{'size':<7} {'planner':<16} {'eps':>4} {'reach mean':>10} {'least':>7} {'early':>6} {'fallbk':>7} "
-          f"{'dist m':>8} {'dec ms':>7}")
+    print(f"{'size':<7} {'planner':<16} {'eps':>4} {'reach mean':>10} {'least':>7} {'early':>6} {'not done':>8} "
+          f"{'fallbk':>7} {'dist m':>8} {'dec ms':>7}")
     for _, size in SIZES:
         for name in planners:
             group = [r for r in rows if r["size"] == size and r["planner"] == name]
@@ -147,7 +153,8 @@ def main() -> None:
                 continue
             share = np.array([r["reachable_share"] for r in group])
             print(f"{size:<7} {name:<16} {len(group):>4} {100 * share.mean():>9.1f}% {100 * share.min():>6.1f}% "
-                  f"{sum(r['early_stop'] for r in group):>6} {np.mean([r['fallbacks'] for r in group]):>7.1f} "
+                  f"{sum(r['early_stop'] for r in group):>6} {sum(limit_reached(r['stopped']) for r in group):>8} "
+                  f"{np.mean([r['fallbacks'] for r in group]):>7.1f} "
                   f"{np.mean([r['distance_m'] for r in group]):>8.1f} "
                   f"{np.median([r['decision_ms_median'] for r in group]):>7.1f}")
     violations = sum(r["violations"] for r in rows)
