@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from pipeline.robot.occupancy_grid import GridMessage
@@ -163,12 +164,7 @@ def slam_map(robot: SimulatedRobot | Episode, resolution: float, rng: np.random.
 def edge_walls(grid: np.ndarray) -> np.ndarray:
     """`grid` with one cell more on each side: unknown, but occupied beside a known-free edge cell."""
     edged = np.pad(grid, 1, constant_values=UNKNOWN)
-    free = edged == FREE
-    beside = free.copy()
-    beside[1:] |= free[:-1]
-    beside[:-1] |= free[1:]
-    beside[:, 1:] |= beside[:, :-1].copy()
-    beside[:, :-1] |= beside[:, 1:].copy()
+    beside = cv2.dilate((edged == FREE).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     ring = np.ones(edged.shape, dtype=bool)
     ring[1:-1, 1:-1] = False
     edged[ring & beside] = OCCUPIED

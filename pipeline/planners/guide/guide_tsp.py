@@ -162,10 +162,7 @@ class FrontierTour:
         order, length = self._tour(d)
         options: dict[int, tuple[float, list[int]]] = {order[1]: (np.inf, order)}
         if len(targets) > 1:
-            per_metre = weight / np.maximum(d[0, 1:], 1e-6)
-            firsts = set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist()) | {order[1]}
-            if kept:
-                firsts.add(1)
+            firsts = self._options(weight, d[0, 1:], order[1], kept)
             options = {}
             for j in sorted(firsts):
                 o_j, l_j = (order, length) if j == order[1] else self._tour(d, j)
@@ -182,6 +179,12 @@ class FrontierTour:
             "option_distance": rows[1:][[j - 1 for j in firsts]],
         }
 
+    def _options(self, weight: np.ndarray, distance: np.ndarray, tour_first: int, kept: bool) -> list[int]:
+        """The first-target options (1-based target indices, ascending): the `first_k` best by
+        weight per metre of `distance` from the robot, the tour's own first, and the kept target."""
+        firsts = set((np.argsort(-(weight / np.maximum(distance, 1e-6)), kind="stable")[: self.first_k] + 1).tolist())
+        return sorted(firsts | {tour_first} | ({1} if kept else set()))
+
     def tour_scores(self, points: int) -> bool:
         """Whether the tour beyond its first target changes a score among `points` (the robot's
         and the targets'): through the regret (`beta`), or through the first target of an exact
@@ -196,13 +199,7 @@ class FrontierTour:
         from_robot = dijkstra(gg.adjacency, directed=False, indices=points[:1])[0, points]
         from_robot = np.where(np.isfinite(from_robot), from_robot, 1e6)
         nearest = 1 + int(np.argmin(from_robot[1:]))  # the nearest-neighbour tour's first (lowest index on a tie)
-        firsts = {nearest}
-        if len(targets) > 1:
-            per_metre = weight / np.maximum(from_robot[1:], 1e-6)
-            firsts |= set((np.argsort(-per_metre, kind="stable")[: self.first_k] + 1).tolist())
-            if kept:
-                firsts.add(1)
-        firsts = sorted(firsts)
+        firsts = self._options(weight, from_robot[1:], nearest, kept) if len(targets) > 1 else [nearest]
         rows = dijkstra(gg.adjacency, directed=False, indices=points[firsts])
         distance = np.minimum(from_robot[firsts], rows[:, points[0]])  # symmetric, as the tour's matrix
         distance = np.where(np.isfinite(distance), distance, 1e6)
