@@ -234,8 +234,8 @@ def _room_boxes(region: np.ndarray) -> dict[int, Rect]:
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     tops, bottoms = np.minimum.reduceat(rows, starts), np.maximum.reduceat(rows, starts) + 1
     lefts, rights = np.minimum.reduceat(cols, starts), np.maximum.reduceat(cols, starts) + 1
-    return {int(ids[s]): (int(t), int(l), int(b), int(r))
-            for s, t, l, b, r in zip(starts, tops, lefts, bottoms, rights)}
+    return {int(ids[s]): (int(top), int(left), int(bottom), int(right))
+            for s, top, left, bottom, right in zip(starts, tops, lefts, bottoms, rights)}
 
 
 def _crop(box: Rect) -> tuple[slice, slice]:
@@ -917,7 +917,7 @@ def floor_statistics(floor: BuildingFloor, cell_size: float) -> dict[str, float]
     inside = nodes != OUTSIDE_LABEL
     node_grid = np.zeros(labels.shape, dtype=bool)
     node_grid[row_phase::step, col_phase::step] = True
-    on_nodes = [node_grid[t:b, l:r].any() for t, l, b, r in floor.walls]
+    on_nodes = [node_grid[top:bottom, left:right].any() for top, left, bottom, right in floor.walls]
     out = plan_statistics(floor.free, floor.room_labels, cell_size)
     out["wall_runs_on_nodes"] = float(np.mean(on_nodes)) if on_nodes else 0.0
     out["nodes_on_furniture"] = float((nodes[inside] == FURNITURE_LABEL).mean()) if inside.any() else 0.0

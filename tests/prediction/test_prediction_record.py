@@ -8,16 +8,16 @@ import pytest
 from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN
 from pipeline.prediction.prediction_trust import PredictionRecord, PredictionTrustConfig, trusted_threshold
 
-U, F, O = NODE_UNKNOWN, NODE_FREE, NODE_OCCUPIED
+U, F, X = NODE_UNKNOWN, NODE_FREE, NODE_OCCUPIED
 
 
 def test_predicted_nodes_are_scored_once_when_observed_and_the_base_rate_counts_every_unknown_node():
     record = PredictionRecord(PredictionTrustConfig(prior_nodes=1e-6))
     record.check(np.array([U, U, U, U, F]))
     record.remember(np.array([True, True, True, True, False]), np.array([0, 1]))  # 0 and 1 predicted free
-    record.check(np.array([F, O, O, U, F]))  # 0 right, 1 wrong; 2 seen occupied (not predicted)
+    record.check(np.array([F, X, X, U, F]))  # 0 right, 1 wrong; 2 seen occupied (not predicted)
     assert (record.right, record.wrong, record.seen_free, record.seen_occupied) == (1, 1, 1, 2)
-    record.check(np.array([F, O, O, F, F]))  # nothing predicted is pending; node 3 adds to the base
+    record.check(np.array([F, X, X, F, F]))  # nothing predicted is pending; node 3 adds to the base
     assert (record.right, record.wrong, record.seen_free, record.seen_occupied) == (1, 1, 2, 2)
     assert record.precision == pytest.approx(0.5) and record.base == pytest.approx(0.5) and abs(record.lift) < 1e-5
 

@@ -35,6 +35,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from pipeline.lattice.tsp import EXACT_TSP_MAX_NODES, open_tsp_order
+from pipeline.planners.references.coverage_model import (
+    CoverageModel,
+    CoverageObjective,
+    coverage_model,
+)
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
@@ -45,12 +50,6 @@ DEFAULT_LNS_ITERATIONS = 30
 RESTART_METHODS = ("greedy", "insertion")
 _EPS = 1e-9
 
-
-from pipeline.planners.references.coverage_model import (
-    CoverageModel,
-    CoverageObjective,
-    coverage_model,
-)
 
 
 # --------------------------------------------------------------------------- plans

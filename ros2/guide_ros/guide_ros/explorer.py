@@ -18,7 +18,6 @@ A goal Nav2 aborts or rejects goes back to the session (`goal_failed`), which st
 from __future__ import annotations
 
 import json
-import math
 from typing import Any
 
 import rclpy
