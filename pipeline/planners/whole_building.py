@@ -11,7 +11,11 @@ Under the door-aware graph (`Protocol.uses_door_graph`: the real robot's scale) 
   reach through passable cells at its radius (`pipeline.lattice.reachability`), as ARiADNE's ROS
   planner falls back on the nearest frontier; it returns [] (done) only when no such cell is left.
   A robot standing on such a cell clears it; one its navigation stops short of is tried again, up
-  to MAX_TRIES straight drives, then given up.
+  to MAX_TRIES straight drives, then given up. A planner whose own rule has run dry but which
+  would still head for a node under its `min_utility` (a graph planner takes any node that sees
+  a frontier cell when none sees enough) is not followed there: such a node counts a cell its
+  rays only graze, which a robot stopping near it, not on it, may never clear, so a robot could
+  tour those nodes without end. The cell-level fallback decides instead, and it ends.
 - **Onward.** A robot that asks again before the end of a plan (a robot session drives a plan's
   first waypoint, then asks) and stands off the lattice (at a door node, on the way to a
   fallback target) goes on with that plan from where it stands, rather than back to the lattice:
@@ -30,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
-from pipeline.lattice.graph import LatticeSpec
+from pipeline.lattice.graph import NODE_FREE, LatticeSpec
 from pipeline.lattice.reachability import open_frontier, path_to_nearest, waypoints_along
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.geometry import segment_is_known_free
@@ -92,6 +96,8 @@ class WholeBuilding(PlannerWrapper):
                 return self._metres(waypoints_along(passable, route))
         self.pending, self.goal = [], None
         waypoints = self.inner.plan(self._with_kept_changes(observation))
+        if waypoints and self._rule_dry():
+            waypoints = []
         if waypoints:
             self.decision_kind = PLANNER
             waypoints = self._through_doors(observation, passable, waypoints)
@@ -109,6 +115,16 @@ class WholeBuilding(PlannerWrapper):
         return self._towards(passable, route, [], FALLBACK, route[-1])
 
     # ------------------------------------------------------------------ helpers
+    def _rule_dry(self) -> bool:
+        """Whether the inner planner's graph has no unvisited known-free node that sees
+        `min_utility` frontier cells (False for a planner without a graph, visits or threshold).
+        A utility the graph holds as a bound is at least the count, so "dry" is never said early."""
+        graph, visited = getattr(self.inner, "graph", None), getattr(self.inner, "visited", None)
+        least = getattr(self.inner, "min_utility", None)
+        if graph is None or visited is None or least is None:
+            return False
+        return not np.any((graph.utility >= least) & ~visited & (graph.node_state == NODE_FREE))
+
     def _frontier(self, belief: np.ndarray) -> np.ndarray:
         """The open frontier cells (`open_frontier`) not yet given up."""
         frontier = open_frontier(belief, self.leftover_cells, self.spec.frontier_min_unknown_neighbours)

@@ -91,3 +91,24 @@ def innermost_whole_building(planner):
     while not isinstance(planner, WholeBuilding):
         planner = planner.inner
     return planner
+
+
+def test_a_node_under_the_threshold_is_no_target_when_only_a_grazed_cell_is_left():
+    """Greedy's own rule takes any node that sees a frontier cell when none sees `min_utility`;
+    under the door-aware graph such a node is not followed, and with no open frontier left the
+    planner is done (a robot stopping near such nodes could tour them without end)."""
+    from pipeline.world.maps import MapFrame
+    from pipeline.world.planner import Observation
+    from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
+
+    belief = np.full((30, 60), OCCUPIED, np.uint8)
+    belief[5:25, 5:55] = FREE
+    belief[4, 49] = belief[4, 51] = UNKNOWN  # two single unknown cells in the wall: one frontier cell between
+    observation = Observation(belief=belief, position=(0.0, 0.0), cell=(10, 15), changed=None, step=0)
+    plain = innermost(make_planner("greedy_utility"))
+    plain.reset(MapFrame(belief.shape, 0.2, (10, 15)), UNTIL_DONE, 0)
+    assert plain.plan(observation)  # its own rule heads for a node that sees the one frontier cell
+    assert not np.any((plain.graph.utility >= plain.min_utility) & ~plain.visited)
+    wrapped = make_planner("greedy_utility")
+    wrapped.reset(MapFrame(belief.shape, 0.2, (10, 15)), UNTIL_DONE, 0)
+    assert wrapped.plan(observation) == [] and wrapped.decision_kind == "done"
