@@ -51,7 +51,6 @@ RESTART_METHODS = ("greedy", "insertion")
 _EPS = 1e-9
 
 
-
 # --------------------------------------------------------------------------- plans
 @dataclass
 class CoveragePlan:
