@@ -7,6 +7,7 @@ from typing import Optional
 import typer
 
 from pipeline.cli.options import fail
+from pipeline.planners.protocol_defaults import PROTOCOL_OPTIONS, protocol_options
 from pipeline.planners.registry import UnknownPlannerError, planner_config, planner_names
 
 app = typer.Typer(rich_markup_mode=None)
@@ -16,24 +17,42 @@ app = typer.Typer(rich_markup_mode=None)
 def planners(
     options: Optional[str] = typer.Option(None, "--options", metavar="NAME",
                                           help="Print one planner's options: key, default and what it does."),
+    protocol: Optional[str] = typer.Option(None, "--protocol", metavar="NAME",
+                                           help=f"With --options: the defaults at this protocol "
+                                                f"({', '.join(PROTOCOL_OPTIONS)}); without it, the config's, "
+                                                "each protocol's own noted beside them."),
 ) -> None:
     """List every registered planner name with a one-line description (or, with --options NAME, its options).
 
     Options are set as label=name:key=value,... on the command line and in params.yaml, and as
-    make_planner(name, key=value) in Python.
+    make_planner(name, key=value) in Python. Some defaults depend on the protocol a planner runs
+    at (the maze benchmark's or the real robot's): --protocol NAME prints that protocol's table.
     """
+    if protocol is not None and options is None:
+        fail("--protocol goes with --options NAME: guide planners --options guide --protocol maze")
     if options is not None:
         try:
             config = planner_config(options)
-        except UnknownPlannerError as error:
+            at_protocol = protocol_options(options, protocol) if protocol is not None else {}
+        except (UnknownPlannerError, ValueError) as error:
             fail(str(error))
+        others = {name: protocol_options(options, name) for name in PROTOCOL_OPTIONS}
         typer.echo(f"{options}: {config.description}")
         if config.composition:
             typer.echo(f"  built as: {config.composition}")
+        if protocol is not None:
+            typer.echo(f"  defaults at protocol {protocol}"
+                       + (f" ({len(at_protocol)} differ from the config's, marked *)" if at_protocol else
+                          " (the config's own)"))
         for info in config.options():
             if info.kinds is None:
                 continue  # a Python object: not set from a spec
-            typer.echo(f"  {info.name} = {_shown(info.default)}")
+            if protocol is not None:
+                mark = " *" if info.name in at_protocol else ""
+                typer.echo(f"  {info.name} = {_shown(at_protocol.get(info.name, info.default))}{mark}")
+            else:
+                beside = [f"{name}: {_shown(table[info.name])}" for name, table in others.items() if info.name in table]
+                typer.echo(f"  {info.name} = {_shown(info.default)}" + (f"   ({'; '.join(beside)})" if beside else ""))
             typer.echo(f"      {info.help}")
         if config.objects and config.objects != ("base_options",):
             typer.echo(f"  (from Python only: {', '.join(o for o in config.objects if o != 'base_options')})")

@@ -1,12 +1,14 @@
-"""A learned planner that takes, at each reset, the default models trained at the protocol it runs at.
+"""A planner that takes, at each reset, the defaults of the protocol it runs at: its trained
+models and its options.
 
 A planner loads its models when it is made, before any protocol is known: the pipeline's
 (models/), else the shipped maze-scale ones. Run at another scale (the real robot's 1 m lattice
 and 10 m sensor), those models see inputs they were never trained on. This wrapper holds the
 planner built as asked and, at each reset, picks every model the options leave to the default
-for that protocol (`pipeline.models.defaults.pick_model`); when a pick differs from what the
-planner holds, the planner is built again with the picks named. A model the options name is
-never replaced, and a protocol no model matches keeps the first default, whose planner warns.
+for that protocol (`pipeline.models.defaults.pick_model`) and every option default that protocol
+sets for it (`pipeline.planners.protocol_defaults`); when the picks differ from what the planner
+holds, the planner is built again with them. A model or option the caller named is never
+replaced, and a protocol no model matches keeps the first default, whose planner warns.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Any
 
 from pipeline.models.defaults import pick_model
 from pipeline.planners.config import PlannerConfig
+from pipeline.planners.protocol_defaults import protocol_name, protocol_options
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol
@@ -28,40 +31,53 @@ def default_slots(config: PlannerConfig) -> dict[str, str]:
 
 
 class ProtocolMatchedModels(Planner):
-    """`build(config)`, rebuilt at a reset whose protocol picks other default models.
+    """`build(config, **objects)`, rebuilt at a reset whose protocol picks other default models or
+    options. `explicit` names the options the caller set (never replaced); with Python objects
+    injected (a model in memory) only the options are picked.
 
     Transparent: reading or setting any other attribute reaches the held planner (an oracle
     bound swaps its base planner's gate after each reset, for one).
     """
 
-    OWN = frozenset({"config", "build", "name", "slots", "inner", "picked", "_picks"})
+    OWN = frozenset({"config", "build", "name", "slots", "explicit", "objects", "inner", "picked", "_picks",
+                     "protocol_defaults"})
 
-    def __init__(self, config: PlannerConfig, build: Callable[[PlannerConfig], Planner], name: str):
+    def __init__(self, config: PlannerConfig, build: Callable[..., Planner], name: str,
+                 explicit: frozenset[str] = frozenset(), objects: dict[str, Any] | None = None):
         self.config, self.build, self.name = config, build, name
-        self.slots = default_slots(config)
-        self.inner = build(config)
+        self.explicit, self.objects = frozenset(explicit), dict(objects or {})
+        self.slots = {} if self.objects else default_slots(config)
+        self.inner = build(config, **self.objects)
         self.inner.name = name
-        self.picked: dict[str, str | None] = {slot: None for slot in self.slots}  # None: the first default
-        self._picks: dict[tuple[float, ...], dict[str, str | None]] = {}
+        self.picked: dict[str, Any] = {}  # the options the held planner was built with beyond `config`
+        self.protocol_defaults = ""  # the named protocol whose option defaults it holds ("": the config's)
+        self._picks: dict[tuple[float, ...], dict[str, Any]] = {}
 
-    def picks_for(self, protocol: Protocol) -> dict[str, str | None]:
-        """Option -> the model file that protocol picks (None where it is the first default anyway)."""
+    def picks_for(self, protocol: Protocol) -> dict[str, Any]:
+        """Option -> its value at that protocol, where it is not the config's: each model file that
+        protocol picks (where not the first default anyway) and each option default it sets."""
         key = tuple(float(getattr(protocol, field)) for field in MODEL_INPUT_FIELDS)
         if key not in self._picks:
             picks = {}
             for slot, kind in self.slots.items():
                 path, first = pick_model(kind, protocol), pick_model(kind)
-                picks[slot] = None if path is None or path == first else str(path)
+                if path is not None and path != first:
+                    picks[slot] = str(path)
+            for option, value in protocol_options(self.name, protocol).items():
+                if option not in self.explicit and getattr(self.config, option) != value:
+                    picks[option] = value
             self._picks[key] = picks
         return self._picks[key]
 
     def use_models_for(self, protocol: Protocol) -> None:
-        """Hold the planner built with the default models `protocol` picks."""
+        """Hold the planner built with the default models and options `protocol` picks."""
         picks = self.picks_for(protocol)
         if picks != self.picked:
-            self.inner = self.build(replace(self.config, **{k: v for k, v in picks.items() if v is not None}))
+            self.inner = self.build(replace(self.config, **picks), **self.objects)
             self.inner.name = self.name
             self.picked = picks
+        options = sorted(set(picks) - set(self.slots))
+        self.protocol_defaults = protocol_name(protocol) if options else ""
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.use_models_for(protocol)
@@ -75,8 +91,16 @@ class ProtocolMatchedModels(Planner):
         self.use_models_for(protocol)
         self.inner.check_protocol(protocol)
 
-    # The Planner attributes with class defaults are the held planner's, not the wrapper's.
-    description = property(lambda self: self.inner.description)
+    @property
+    def description(self) -> str:
+        """The held planner's, naming the protocol's option defaults it was built with."""
+        options = {k: v for k, v in self.picked.items() if k not in self.slots}
+        if not options:
+            return self.inner.description
+        shown = ",".join(f"{k}={'null' if v is None else v}" for k, v in options.items())
+        return f"{self.inner.description} [{self.protocol_defaults} defaults: {shown}]"
+
+    # The other Planner attributes with class defaults are the held planner's, not the wrapper's.
     needs_policy = property(lambda self: self.inner.needs_policy)
     uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
     ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)

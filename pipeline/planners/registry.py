@@ -13,6 +13,7 @@ from typing import Any, Callable, TypeVar
 from pipeline.common.config import validate
 from pipeline.planners.config import OptionInfo, PlannerConfig
 from pipeline.planners.matched_models import ProtocolMatchedModels, default_slots
+from pipeline.planners.protocol_defaults import has_protocol_options
 from pipeline.planners.whole_building import WholeBuilding
 from pipeline.world.planner import Planner
 
@@ -92,27 +93,34 @@ def make_config(name: str, **options: Any) -> tuple[PlannerConfig, dict[str, Any
     """(the planner's config from `options`, the Python objects among them); ValueError for an
     option it does not take or a value its config refuses, in one line (`option: must be ..., got
     value`), never pydantic's multi-line ValidationError."""
+    config, objects, _ = _config_and_fields(name, options)
+    return config, objects
+
+
+def _config_and_fields(name: str, options: dict[str, Any]) -> tuple[PlannerConfig, dict[str, Any], frozenset[str]]:
+    """`make_config`'s pair and the names of the config fields `options` set."""
     config = planner_config(name)
     fields, objects, unknown = config.split(options)
     if unknown:
         settable = [n for n, info in accepted_options(name, options).items()
                     if info.kinds is not None and n not in config.renamed]
         raise ValueError(f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}")
-    return validate(config, fields), objects
+    return validate(config, fields), objects, frozenset(fields)
 
 
 def make_planner(name: str, **options: Any) -> Planner:
     """A fresh planner by its registered name, with options as the command line and params.yaml give them.
 
-    A planner with trained models left to the default (and no Python object injected) comes
-    wrapped in `ProtocolMatchedModels`, so that each reset takes the models trained at its protocol.
-    Every planner but an oracle is wrapped in `WholeBuilding` (door nodes, the done rule on cells),
-    which acts only under the door-aware graph.
+    A planner with trained models left to the default (and no Python object injected), or with
+    option defaults of its own at some protocol (`pipeline.planners.protocol_defaults`), comes
+    wrapped in `ProtocolMatchedModels`, so that each reset takes the models trained at its protocol
+    and the options it sets. Every planner but an oracle is wrapped in `WholeBuilding` (door nodes,
+    the done rule on cells), which acts only under the door-aware graph.
     """
-    config, objects = make_config(name, **options)
+    config, objects, explicit = _config_and_fields(name, options)
     build = whole_building(planner_entry(name).build)
-    if default_slots(config) and not objects:
-        return ProtocolMatchedModels(config, build, name)
+    if (default_slots(config) and not objects) or has_protocol_options(name):
+        return ProtocolMatchedModels(config, build, name, explicit, objects)
     planner = build(config, **objects)
     planner.name = name
     return planner

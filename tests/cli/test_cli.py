@@ -454,6 +454,21 @@ def test_planners_options_says_what_guide_is_built_of():
     assert names[:2] == ["min_utility", "inpainter_file"] and "policy_file" in names[:8]  # the paper's options first
 
 
+def test_planners_options_prints_each_protocols_defaults():
+    maze = runner.invoke(app, ["planners", "--options", "guide", "--protocol", "maze"])
+    assert maze.exit_code == 0, maze.output
+    assert "defaults at protocol maze (5 differ" in maze.output
+    assert "  spread = None *" in maze.output and "  min_weight = 30.0 *" in maze.output
+    real = runner.invoke(app, ["planners", "--options", "guide", "--protocol", "real_robot"])
+    assert "(the config's own)" in real.output and "  spread = 0.0\n" in real.output and " *" not in real.output
+    plain = runner.invoke(app, ["planners", "--options", "guide"])
+    assert "  spread = 0.0   (maze: None)" in plain.output
+    unknown = runner.invoke(app, ["planners", "--options", "guide", "--protocol", "moon"])
+    assert unknown.exit_code == 2 and "unknown protocol 'moon'" in _one_error_line(unknown)
+    alone = runner.invoke(app, ["planners", "--protocol", "maze"])
+    assert alone.exit_code == 2 and "--protocol goes with --options" in _one_error_line(alone)
+
+
 def test_explore_with_a_predicting_planner_records_its_trust(small_maze_path, tmp_path):
     """run.json holds the record of checked predictions, the per-step file the trust at each
     waypoint, and the final figure a trust strip under the map."""

@@ -10,6 +10,7 @@ from pipeline.planners import make_planner
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode
+from tests.conftest import SINGLE_NODES
 
 PROTOCOL = Protocol(sensor_range=16.0, utility_range=8.0, done_unknown_cells=20, max_steps=120)
 
@@ -26,7 +27,7 @@ def swinging_guide(favoured: list[int]):
     """`guide` (nothing predicted, one executed step per decision) whose vote at decision i goes
     wholly to first-target option `favoured[i]`."""
     planner = make_planner("guide", inpaint=lambda image: np.zeros(image.shape, np.float32), prior_weight=1000.0,
-                           candidates=2, num_inference_steps=2, action_steps=1)
+                           candidates=2, num_inference_steps=2, action_steps=1, **SINGLE_NODES)
     turn = [0]
 
     def votes(robot, paths, options):

@@ -17,6 +17,7 @@ from pipeline.planners import make_planner, planner_names
 from pipeline.planners.registry import make_config
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
+from tests.conftest import SINGLE_NODES
 from pipeline.world.simulator import Episode, run_episode
 
 PROTOCOL = Protocol()
@@ -327,7 +328,8 @@ def test_without_regret_the_options_are_those_of_the_whole_tour(maze, monkeypatc
         return fast
 
     monkeypatch.setattr(FrontierTour, "first_target_scores", both)
-    planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2)
+    planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2,
+                           **SINGLE_NODES)
     assert not planner.tour.tour_scores(2) and not planner.tour.tour_scores(10)
     result = run_episode(maze, planner, PROTOCOL)
     assert result.complete and len(seen) >= 5 and max(seen) >= 3
