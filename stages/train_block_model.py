@@ -5,7 +5,7 @@ snapshot_every, epochs, batch_size, lr, reveal_share, model, workers, seed) and 
 `protocol` section of params.yaml. Draws its own `mazes` mazes of `side_m` metres (maze i from
 seed [maze_seed, i], as `guide mazes` draws them): the block model is a prior of one maze
 family and size, and one fitted on the pipeline's 100-180 m training mazes was weaker on the
-100 m test mazes (docs/findings.md). Runs gated `greedy_utility` on each, takes the
+100 m test mazes. Runs gated `greedy_utility` on each, takes the
 belief's block shares every `snapshot_every` steps with the maze's true blocks, trains the
 block model on all but the last `holdout_mazes` and measures its error on those (the unknown
 blocks within 20 m of the known free space, where the lookahead draws its maps).
