@@ -3,7 +3,8 @@
 A planner's config carries one set of defaults. Some options are shortest at one scale and
 cost distance at another: the targets `guide`'s policy votes on are best as single useful nodes
 on building floors (1 m lattice, 10 m sensor) and as `guide_tsp`'s clusters in the maze
-benchmark (4 m lattice, 20 m sensor). A planner is made before any protocol is known; at each
+benchmark (4 m lattice, 20 m sensor), for `guide` and `guide_noregion`; `dare`, whose policy sees
+the observed graph only, is no shorter with the clusters there and keeps single nodes. A planner is made before any protocol is known; at each
 reset `ProtocolMatchedModels` takes the options this table gives for the protocol it runs at,
 except those the caller set. `guide planners --options NAME --protocol PROTOCOL` prints them.
 
@@ -23,7 +24,7 @@ CLUSTERS: dict[str, Any] = {"spread": None, "min_weight": 30.0, "beta": 1.5, "ex
 """guide_tsp's clusters (its tour options' defaults) as the targets the policy votes on."""
 
 PROTOCOL_OPTIONS: dict[str, dict[str, dict[str, Any]]] = {
-    "maze": {"guide": CLUSTERS, "guide_noregion": CLUSTERS, "dare": CLUSTERS},
+    "maze": {"guide": CLUSTERS, "guide_noregion": CLUSTERS},
     "real_robot": {},  # every planner at its config's own defaults
 }
 """protocol name -> planner name -> option -> its default at that protocol (none: the config's)."""

@@ -49,6 +49,6 @@ def test_guide_takes_the_maze_defaults_at_the_maze_protocol_except_what_the_call
     assert planner.inner.config.spread == 0.0 and planner.inner.config.beta == 0.0
     assert "defaults:" not in planner.description
 
-    chosen = make_planner("dare", spread=0.0, beta=0.0, candidates=2)
+    chosen = make_planner("guide_noregion", spread=0.0, beta=0.0, candidates=2)
     chosen.reset(small_maze, Protocol(), 0)
     assert (chosen.inner.config.spread, chosen.inner.config.beta, chosen.inner.config.min_weight) == (0.0, 0.0, 30.0)
