@@ -120,7 +120,7 @@ def mlflow_uri(tmp_path_factory) -> str:
     """
     import mlflow
 
-    from pipeline.reporting.report import TABLE_EXPERIMENTS
+    from pipeline.reporting.mlflow_tables import TABLE_EXPERIMENTS
 
     folder = tmp_path_factory.mktemp("mlflow")
     uri = f"sqlite:///{folder / 'mlflow.db'}"

@@ -319,28 +319,6 @@ def _sweep_frame(taus: Sequence[float], frames: Sequence[pd.DataFrame]) -> pd.Da
     return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
 
 
-def sweep_markdown(sweep: pd.DataFrame) -> str:
-    """Precision and |V_u| per map at each tau and step, as a markdown table."""
-    steps = sorted(sweep["step"].unique())
-    lines = [
-        "## Precision against tau",
-        "",
-        "The same exploration and network, other thresholds: precision of V_u, and in brackets its "
-        "nodes per map (the fewer the nodes, the less the planners have to go on).",
-        "",
-        "| tau | " + " | ".join(f"step {s}" for s in steps) + " |",
-        "|---:|" + "---:|" * len(steps),
-    ]
-    for tau, group in sweep.groupby("threshold", sort=True):
-        by_step = group.set_index("step")
-        cells = []
-        for s in steps:
-            row = by_step.loc[s]
-            cells.append("n/a" if not np.isfinite(row.precision) else f"{100 * row.precision:.1f} % ({row.nodes_per_map:.1f})")
-        lines.append(f"| {tau:g} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
 class _LastCall:
     """Shares one network call among predictors that differ only in tau: `record` runs the
     network and keeps its last answer, `reuse` returns that answer for the same image."""
@@ -427,67 +405,3 @@ def _evaluate(
             )
         frames.append(pd.DataFrame(rows, columns=list(DETAIL_COLUMNS)))
     return frames
-
-
-def table1_markdown(frame: pd.DataFrame, title: str = "Structural inference precision (paper Table I)",
-                    threshold: float | None = None) -> str:
-    """Our precision per step beside the paper's; `threshold` (tau), when given, is named in the text."""
-    at_tau = "" if threshold is None else f" Predicted free at P(free) >= tau = {threshold:g}."
-    lines = [
-        f"# {title}",
-        "",
-        "Nodes of V_u (region-evaluated predictions and centroid nodes) that are free in the ground "
-        "truth, pooled over maps, as the paper's Pre(k) = |V_u ∩ free| / |V_u|; `predictions only` leaves the "
-        f"centroids out. Exploration by `{EXPLORER}`.{at_tau}",
-        "",
-        "Paper (100 mazes): step "
-        + "/".join(str(s) for s in PAPER_PRECISION)
-        + " = "
-        + "/".join(f"{v:.2f}" for v in PAPER_PRECISION.values())
-        + f" %, prediction {PAPER_PREDICTION_MS[0]}-{PAPER_PREDICTION_MS[1]} ms.",
-        "",
-        "Base rate: the free share of the nodes the network was asked about (unknown in its input) in the "
-        "regions whose predictions are kept, what calling them all free would score.",
-        "",
-        "| step | precision (ours) | precision (paper) | base rate | V_u nodes | of them centroids | predictions only "
-        "| maps | prediction ms (median, ours) |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-
-    def percent(value: float) -> str:
-        return "n/a" if not np.isfinite(value) else f"{100.0 * value:.2f} %"
-
-    def count(value: float) -> str:
-        return "n/a" if not np.isfinite(value) else str(int(value))
-
-    frame = frame.reindex(columns=list(DETAIL_COLUMNS))  # precision.csv alone: the centroid columns read n/a
-    for row in frame.itertuples(index=False):
-        paper = f"{PAPER_PRECISION[row.step]:.2f} %" if row.step in PAPER_PRECISION else "-"
-        ms = "n/a" if not np.isfinite(row.prediction_ms_median) else f"{row.prediction_ms_median:.2f}"
-        lines.append(
-            f"| {row.step} | {percent(row.precision)} | {paper} | {percent(row.base_rate)} | {count(row.predicted_nodes)} "
-            f"| {count(row.centroids)} "
-            f"| {percent(row.predictions_precision)} | {row.maps} | {ms} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def comparison_markdown(frame: pd.DataFrame, label: str) -> str:
-    """Another inpainter's Table I on the same explorations, beside the paper's: a section for table1.md."""
-    lines = [
-        f"## {label}",
-        "",
-        "The same test mazes, explorations, tau and region evaluation; only the network differs.",
-        "",
-        "| step | precision | paper | at least the paper's | V_u nodes per map | prediction ms (median) |",
-        "|---:|---:|---:|---|---:|---:|",
-    ]
-    for row in frame.itertuples(index=False):
-        paper = PAPER_PRECISION.get(row.step)
-        ok = "-" if paper is None or not np.isfinite(row.precision) else ("yes" if 100.0 * row.precision >= paper else "no")
-        per_map = row.predicted_nodes / row.maps if row.maps else float("nan")
-        lines.append(
-            f"| {row.step} | {'n/a' if not np.isfinite(row.precision) else f'{100.0 * row.precision:.2f} %'} "
-            f"| {'-' if paper is None else f'{paper:.2f} %'} | {ok} | {per_map:.1f} | {row.prediction_ms_median:.2f} |"
-        )
-    return "\n".join(lines) + "\n"

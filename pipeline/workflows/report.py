@@ -16,24 +16,17 @@ from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
 from pipeline.planners.specs import PlannerSpec
 from pipeline.reporting.coverage_figure import coverage_figure
-from pipeline.reporting.report import (
-    log_tables_to_mlflow,
-    metrics_json,
-    read_metrics,
-    read_precision,
+from pipeline.reporting.mlflow_tables import log_tables_to_mlflow, metrics_json
+from pipeline.reporting.table_markdown import (
     report_markdown,
-    sweep_label,
     table1_markdown,
-    table2,
     table2_markdown,
-    table3,
     table3_markdown,
-    table4,
     table4_markdown,
-    table5,
     table5_markdown,
-    trajectory_figure,
 )
+from pipeline.reporting.tables import read_metrics, read_precision, sweep_label, table2, table3, table4, table5
+from pipeline.reporting.trajectory_figure import trajectory_figure
 from pipeline.workflows import table1
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.maps import MapError

@@ -25,16 +25,14 @@ from pipeline.evaluation.predictor_eval import (
     TABLE1_KEEP_SHARE,
     TABLE1_MIN_COMPONENT,
     TABLE1_THRESHOLD,
-    comparison_markdown,
     evaluate_predictor,
     evaluate_with_sweep,
     load_inpaint_fn,
-    sweep_markdown,
-    table1_markdown,
 )
 from pipeline.prediction.global_graph import GlobalGraphConfig, RegionEvaluationConfig
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.reporting.predictor_figures import plot_threshold_sweep, prediction_figure
+from pipeline.reporting.table_markdown import comparison_markdown, sweep_markdown, table1_markdown
 from pipeline.world.maps import MapError, list_maps, load_map
 from pipeline.world.protocol import Protocol
 
@@ -83,7 +81,7 @@ def run(
         frame.to_csv(tmp, columns=list(COLUMNS), index=False)
     with atomic_file(out_dir / DETAIL_CSV) as tmp:
         frame.to_csv(tmp, index=False)
-    table = table1_markdown(frame, threshold=predictor_config.threshold)
+    table = table1_markdown(frame, title="Structural inference precision (paper Table I)", threshold=predictor_config.threshold, level=1)
     if sweep is not None:
         with atomic_file(out_dir / "precision_by_threshold.csv") as tmp:
             sweep.to_csv(tmp, index=False)

@@ -16,10 +16,10 @@ from pipeline.evaluation.predictor_eval import (
     load_inpaint_fn,
     oracle_inpaint_for,
     precision_by_threshold,
-    table1_markdown,
 )
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.reporting.predictor_figures import prediction_figure
+from pipeline.reporting.table_markdown import table1_markdown
 from pipeline.workflows import table1
 from pipeline.world.maps import list_maps
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png

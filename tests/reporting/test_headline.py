@@ -76,7 +76,7 @@ def test_a_planner_label_that_clashes_with_a_group_is_refused():
 
 def test_the_reference_and_baseline_names_match_the_report_stages():
     from pipeline.evaluation.benchmark import DEFAULT_BASELINE
-    from pipeline.reporting.report import PAIRED_BASELINE, REFERENCE_PLANNER
+    from pipeline.reporting.tables import PAIRED_BASELINE, REFERENCE_PLANNER
 
     assert hl.PAIRED_BASELINE == DEFAULT_BASELINE == PAIRED_BASELINE
     assert hl.REFERENCE_PLANNER == REFERENCE_PLANNER

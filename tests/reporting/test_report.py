@@ -1,4 +1,4 @@
-"""Tests of the report tables (pipeline/reports.py), labelled planner variants in the
+"""Tests of the report tables (pipeline/reporting/tables.py, table_markdown.py, mlflow_tables.py), labelled planner variants in the
 benchmark, and the report stage (stages/report.py) on a tiny setup built in tmp_path."""
 
 from __future__ import annotations
@@ -13,8 +13,20 @@ import yaml
 
 from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import SpeedModel, episode_table, planner_table, step_record
+from pipeline.evaluation.statistics import paired_difference
 from pipeline.planners.specs import PlannerSpec, parse_planner_spec
-from pipeline.reporting import report as reports
+from pipeline.reporting.mlflow_tables import log_tables_to_mlflow, metrics_json
+from pipeline.reporting.table_markdown import (
+    COMPARE_LABEL,
+    report_markdown,
+    table1_markdown,
+    table2_markdown,
+    table3_markdown,
+    table4_markdown,
+    team_table_markdown,
+)
+from pipeline.reporting.tables import table2, table3, table4
+from pipeline.reporting.trajectory_figure import trajectory_figure
 from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay
@@ -158,7 +170,7 @@ def bench_frame() -> pd.DataFrame:
 
 
 def test_table2_gap_and_paper_columns(bench_frame):
-    table = reports.table2(bench_frame)
+    table = table2(bench_frame)
     assert list(table["planner"]) == ["optimal", "guide", "guide_tsp", "nearest_frontier"]  # by distance
     guide = table.set_index("planner").loc["guide"]
     assert guide.distance_mean_m == 115.0 and guide.distance_std_m == 5.0
@@ -171,11 +183,11 @@ def test_table2_gap_and_paper_columns(bench_frame):
     assert rows.loc["nearest_frontier", "gap_to_optimal"] == pytest.approx(0.4)
     assert rows.loc["nearest_frontier", "paper_row"] == "—" and np.isnan(rows.loc["nearest_frontier", "paper_distance_m"])
     assert (rows.loc["guide_tsp", "paper_distance_m"], rows.loc["guide_tsp", "paper_source"]) == (580.0, "Table III")
-    text = reports.table2_markdown(table)
+    text = table2_markdown(table)
     assert "| guide | GUIDE | 2 | 115.0 +- 5.0 | +15.0 % | — | 100 % | 4.00 | 545 | 8.8 % |" in text
     assert "| nearest_frontier | — | 2 | 140.0 +- 10.0 | +40.0 % | — | 50 % | 1.00 | — | — |" in text
     assert "| guide_tsp | w/o diffusion | 2 | 125.0 +- 0.0 | +25.0 % | — | 100 % | 1.00 | 580 (Table III) | 15.7 % |" in text
-    assert reports.table2_markdown(bench_frame) == text  # a raw metrics frame works too
+    assert table2_markdown(bench_frame) == text  # a raw metrics frame works too
 
 
 def test_table2_paired_difference_to_greedy_utility():
@@ -184,32 +196,32 @@ def test_table2_paired_difference_to_greedy_utility():
         + metrics_rows("guide", [90, 170, 280])  # 10, 30, 20 m shorter
         + metrics_rows("guide_tsp", [120])  # one shared map only
     )
-    mean, half, maps = reports.paired_difference(frame, "guide", "greedy_utility")
+    mean, half, maps = paired_difference(frame, "guide", "greedy_utility")
     assert maps == 3 and mean == pytest.approx(-20 / 200)
     assert half == pytest.approx(4.3027 * 10 / np.sqrt(3) / 200, rel=1e-4)  # std of (-10, -30, -20) is 10; t(2 dof)
-    assert reports.paired_difference(frame, "guide_tsp", "greedy_utility")[::2] == (pytest.approx(0.2), 1)
-    assert np.isnan(reports.paired_difference(frame, "guide_tsp", "greedy_utility")[1])  # no interval from one map
-    assert np.isnan(reports.paired_difference(frame, "optimal", "greedy_utility")[0])  # did not run
-    text = reports.table2_markdown(frame)
+    assert paired_difference(frame, "guide_tsp", "greedy_utility")[::2] == (pytest.approx(0.2), 1)
+    assert np.isnan(paired_difference(frame, "guide_tsp", "greedy_utility")[1])  # no interval from one map
+    assert np.isnan(paired_difference(frame, "optimal", "greedy_utility")[0])  # did not run
+    text = table2_markdown(frame)
     assert "| guide | GUIDE | 3 | 180.0 +- 77.9 | — | -10.0 % +- 12.4 |" in text
     assert "| greedy_utility | — | 3 | 200.0 +- 81.6 | — | — |" in text
     assert "| guide_tsp | w/o diffusion | 1 | 120.0 | — | +20.0 % |" in text  # one episode: no spread
-    assert "120.0 |" in reports.table3_markdown(reports.table3(frame)) and "+- 0.0" not in reports.table3_markdown(reports.table3(frame))
+    assert "120.0 |" in table3_markdown(table3(frame)) and "+- 0.0" not in table3_markdown(table3(frame))
 
 
 def test_table2_without_optimal_has_no_gap(bench_frame):
-    table = reports.table2(bench_frame[bench_frame["planner"] != "optimal"])
+    table = table2(bench_frame[bench_frame["planner"] != "optimal"])
     assert table["gap_to_optimal"].isna().all()
-    assert "No `optimal` episodes" in reports.table2_markdown(table)
+    assert "No `optimal` episodes" in table2_markdown(table)
 
 
 def test_table2_names_missing_columns():
     with pytest.raises(ValueError, match="missing column"):
-        reports.table2(pd.DataFrame({"planner": ["a"]}))
+        table2(pd.DataFrame({"planner": ["a"]}))
 
 
 def test_table3_marks_missing_planners_not_run(bench_frame):
-    table = reports.table3(bench_frame)
+    table = table3(bench_frame)
     assert list(table["planner"]) == ["guide", "guide_noregion", "guide_tsp", "dare"]
     rows = table.set_index("planner")
     assert list(table["status"]) == ["ok", "not run", "ok", "not run"]
@@ -217,7 +229,7 @@ def test_table3_marks_missing_planners_not_run(bench_frame):
     assert (rows.loc["guide_noregion", "paper_row"], rows.loc["guide_noregion", "paper_distance_m"]) == ("w/o region evaluation", 561.0)
     assert rows.loc["dare", "paper_source"] == "Table II" and rows.loc["dare", "paper_distance_m"] == 565.0
     assert np.isnan(rows.loc["dare", "distance_mean_m"]) and rows.loc["dare", "episodes"] == 0
-    text = reports.table3_markdown(table)
+    text = table3_markdown(table)
     assert "| guide_noregion | w/o region evaluation | not run | — | — | — | 561 | 11.9 % |" in text
     assert "| dare | DARE | not run | — | — | — | 565 (Table II) | 12.8 % |" in text
     assert "| guide_tsp | w/o diffusion | 125.0 +- 0.0 | +25.0 % | 100 % | 1.00 | 580 | 15.7 % |" in text
@@ -230,7 +242,7 @@ def test_table4_from_sweep():
         + metrics_rows("dare_k10", [200], complete=[False], ms=[8.0], p95=[9.0])
         + metrics_rows("nearest_frontier", [99])  # not part of the sweep
     )
-    table = reports.table4(sweep, [10, 30])
+    table = table4(sweep, [10, 30])
     assert list(zip(table["planner"], table["K"])) == [("guide", 10), ("guide", 30), ("dare", 10), ("dare", 30)]
     rows = table.set_index("label")
     assert rows.loc["guide_k10", "decision_ms_median"] == 20.0 and rows.loc["guide_k10", "decision_ms_p95"] == 30.0
@@ -238,11 +250,11 @@ def test_table4_from_sweep():
     assert rows.loc["guide_k10", "paper_decision_s"] == 0.177 and rows.loc["guide_k30", "paper_distance_m"] == 533.0
     assert rows.loc["dare_k10", "completion_rate"] == 0.0 and rows.loc["dare_k10", "paper_distance_m"] == 762.0
     assert rows.loc["dare_k30", "status"] == "not run" and rows.loc["dare_k30", "episodes"] == 0
-    text = reports.table4_markdown(table)
+    text = table4_markdown(table)
     assert "| guide | 10 | 2 | 20.00 | 30.00 | 125.0 | 100 % | 0.177 | 579 |" in text
     assert "| dare | 30 | 0 | not run | — | — | — | 0.211 | 747 |" in text
     # K values the paper did not measure have no paper numbers
-    other = reports.table4(sweep, [5], planners=["guide"])
+    other = table4(sweep, [5], planners=["guide"])
     assert other.loc[0, "status"] == "not run" and np.isnan(other.loc[0, "paper_decision_s"])
 
 
@@ -255,28 +267,28 @@ def precision_frame() -> pd.DataFrame:
 
 def test_table1_reads_a_precision_csv_from_before_the_centroid_columns():
     old = precision_frame().drop(columns=["centroids", "predictions_precision"])
-    text = reports.table1_markdown(old)
+    text = table1_markdown(old)
     assert "| 15 | 80.00 % | 75.92 % | n/a | 10 | n/a | n/a | 2 | 5.00 |" in text
-    assert "| 15 | 80.00 % | 75.92 % | n/a | 10 | 1 | 85.00 % | 2 | 5.00 |" in reports.table1_markdown(precision_frame())
+    assert "| 15 | 80.00 % | 75.92 % | n/a | 10 | 1 | 85.00 % | 2 | 5.00 |" in table1_markdown(precision_frame())
 
 
 def test_table1_adds_another_inpainters_rows_when_compared():
     """precision_compare.csv: its rows after ours, each saying whether it reaches the paper's step."""
     compare = pd.DataFrame({"step": [15, 30], "precision": [0.8, 0.7], "predicted_nodes": [10, 20], "maps": [2, 2],
                             "prediction_ms_median": [3.0, 3.5]})
-    text = reports.table1_markdown(precision_frame(), compare)
-    assert text.index("Table I: structural inference precision") < text.index(reports.COMPARE_LABEL)
+    text = table1_markdown(precision_frame(), compare)
+    assert text.index("Table I: structural inference precision") < text.index(COMPARE_LABEL)
     assert "| 15 | 80.00 % | 75.92 % | yes | 5.0 | 3.00 |" in text
     assert "| 30 | 70.00 % | 79.73 % | no | 10.0 | 3.50 |" in text
     # an empty file (eval_predictor ran no comparison) or none at all: Table I alone
     for absent in (compare.iloc[0:0], None):
-        assert reports.COMPARE_LABEL not in reports.table1_markdown(precision_frame(), absent)
+        assert COMPARE_LABEL not in table1_markdown(precision_frame(), absent)
 
 
 def test_report_markdown_has_every_table(bench_frame):
-    t2, t3 = reports.table2(bench_frame), reports.table3(bench_frame)
-    t4 = reports.table4(pd.DataFrame(metrics_rows("guide_k10", [1.0])), [10])
-    text = reports.report_markdown(
+    t2, t3 = table2(bench_frame), table3(bench_frame)
+    t4 = table4(pd.DataFrame(metrics_rows("guide_k10", [1.0])), [10])
+    text = report_markdown(
         t2, t3, t4, precision_frame(), maps=["maze_0000", "maze_0001"], sweep_maps=["maze_0000"],
         protocol=Protocol(), params={"k_values": [10]}, figure="trajectories.png",
     )
@@ -284,7 +296,7 @@ def test_report_markdown_has_every_table(bench_frame):
         assert heading in text
     assert "maze_0000, maze_0001" in text and "sensor_range=20.0" in text and "k_values=[10]" in text
     assert "| 15 | 80.00 % | 75.92 % |" in text
-    missing = reports.report_markdown(t2, t3, None, None)
+    missing = report_markdown(t2, t3, None, None)
     assert "## Table I" in missing and "eval_predictor" in missing and "## Table IV" in missing
 
 
@@ -292,20 +304,20 @@ def test_the_team_table_has_a_row_per_planner_and_size_with_the_metrics_defined(
     row = {"label": "greedy_utility", "robots": 3, "episodes": 12, "makespan_mean_m": 200.04, "makespan_std_m": 20.5,
            "total_distance_mean_m": 580.0, "time_to_90_mean_m": 150.25, "makespan_over_single_distance": 0.4035,
            "completion_rate": 1.0}
-    text = reports.team_table_markdown({"greedy_utility@3": row, "greedy_utility@1": {
+    text = team_table_markdown({"greedy_utility@3": row, "greedy_utility@1": {
         **row, "robots": 1, "makespan_over_single_distance": 1.0, "completion_rate": 0.5}}, "teams/team_coverage.png")
     assert "| greedy_utility | 3 | 12 | 200.0 +- 20.5 | 580.0 | 150.2 | 0.40 | 100 % |" in text
     assert "| greedy_utility | 1 | 12 |" in text and "| 1.00 | 50 % |" in text
     assert "MARVEL" in text and "IR2" in text and "![team coverage](teams/team_coverage.png)" in text
     for none in (None, {}):
-        assert "not run" in reports.team_table_markdown(none).lower()
-    assert "## Teams" in reports.report_markdown(reports.table2(bench_frame), reports.table3(bench_frame),
+        assert "not run" in team_table_markdown(none).lower()
+    assert "## Teams" in report_markdown(table2(bench_frame), table3(bench_frame),
                                                  teams={"greedy_utility@3": row})
 
 
 def test_metrics_json_is_flat_numbers(bench_frame):
-    tables = {"table1": precision_frame(), "table2": reports.table2(bench_frame), "table3": reports.table3(bench_frame)}
-    metrics = reports.metrics_json(tables)
+    tables = {"table1": precision_frame(), "table2": table2(bench_frame), "table3": table3(bench_frame)}
+    metrics = metrics_json(tables)
     json.dumps(metrics, allow_nan=False)
     assert metrics["table2"]["guide"]["gap_to_optimal"] == pytest.approx(0.15)
     assert metrics["table1"]["step15"]["precision"] == 0.8
@@ -320,11 +332,11 @@ def test_log_tables_to_mlflow_one_experiment_per_table(bench_frame, mlflow_uri):
     sweep = pd.DataFrame(metrics_rows("guide_k10", [1.0]) + metrics_rows("guide_k30", [2.0]))
     tables = {
         "table1": precision_frame(),
-        "table2": reports.table2(bench_frame),
-        "table3": reports.table3(bench_frame),
-        "table4": reports.table4(sweep, [10, 30], planners=["guide"]),
+        "table2": table2(bench_frame),
+        "table3": table3(bench_frame),
+        "table4": table4(sweep, [10, 30], planners=["guide"]),
     }
-    run_ids = reports.log_tables_to_mlflow(tables, tracking_uri=mlflow_uri, params={"maps": "test"})
+    run_ids = log_tables_to_mlflow(tables, tracking_uri=mlflow_uri, params={"maps": "test"})
     assert {name: len(ids) for name, ids in run_ids.items()} == {
         "table1_inference": 2, "table2_benchmark": 4, "table3_ablation": 4, "table4_denoising_steps": 2,
     }
@@ -348,10 +360,10 @@ def test_trajectory_figure_grid(small_maze_path, tmp_path):
     frame["map"] = "small"
     write_trajectory_csv(tmp_path / "a" / "small.csv", [(0, 0), (4, 0)])
     write_trajectory_csv(tmp_path / "b" / "small.csv", [(0, 0), (4, 0), (4, 4)])
-    path = reports.trajectory_figure([small_maze_path], frame, tmp_path, ["b", "missing", "a"], tmp_path / "fig.png")
+    path = trajectory_figure([small_maze_path], frame, tmp_path, ["b", "missing", "a"], tmp_path / "fig.png")
     assert path.is_file() and path.stat().st_size > 1000
     with pytest.raises(ValueError, match="no trajectories"):
-        reports.trajectory_figure([small_maze_path], frame, tmp_path, ["missing"], tmp_path / "none.png")
+        trajectory_figure([small_maze_path], frame, tmp_path, ["missing"], tmp_path / "none.png")
 
 
 @pytest.fixture
