@@ -39,7 +39,8 @@ from PIL import Image
 from tqdm import tqdm
 
 from pipeline.planners import make_planner
-from pipeline.reporting.render import auto_scale, episode_title, render_frame, save_png, whole_building_marks
+from pipeline.reporting.render import auto_scale, episode_title, render_frame, save_png
+from pipeline.reporting.panels import whole_building_marks
 from pipeline.robot import ExplorationSession
 from pipeline.robot.closed_loop import ClosedLoopConfig, run_closed_loop
 from pipeline.world.maps import GroundTruthMap

@@ -13,7 +13,8 @@ from pipeline.common.atomic import atomic_write_text
 from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
 from pipeline.planners.specs import build_planner, resolve_planner_specs
-from pipeline.reporting.render import EpisodeRecorder, render_final
+from pipeline.reporting.panels import render_final
+from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.robot.recording import EpisodeRecording
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pipeline.reporting import render
+from pipeline.reporting import panels, render
+from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.world.maps import GroundTruthMap
 from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
@@ -35,7 +36,7 @@ def small_map() -> GroundTruthMap:
 def run_recorded(max_frames: int = 50, every: int = 1, scale: int = 3):
     ground_truth = small_map()
     planner = make_planner("nearest_frontier")
-    recorder = render.EpisodeRecorder(
+    recorder = EpisodeRecorder(
         every=every, max_frames=max_frames, graph_provider=lambda: planner.graph, scale=scale, label=planner.name
     )
     seen = []
@@ -226,7 +227,7 @@ def test_save_png_round_trips_through_cv2(recorded, tmp_path):
 def test_render_final_writes_the_png(recorded, tmp_path):
     ground_truth, planner, _, result, seen = recorded
     belief = seen[-1][2]
-    image = render.render_final(result, ground_truth, belief, planner.graph, scale=2, path=tmp_path / "final.png")
+    image = panels.render_final(result, ground_truth, belief, planner.graph, scale=2, path=tmp_path / "final.png")
     assert image.shape == (header_height(COLS * 2) + ROWS * 2, COLS * 2, 3)
     loaded = cv2.imread(str(tmp_path / "final.png"))
     assert loaded is not None and loaded.shape == image.shape
@@ -239,12 +240,12 @@ def test_render_comparison_puts_panels_in_a_row(recorded):
         ("b", result.trajectory[:3], 8.0, seen[2][2]),
         ("c", [(0.0, 0.0)], 0.0, None),
     ]
-    image = render.render_comparison(ground_truth, results, scale=2, gap=4)
+    image = panels.render_comparison(ground_truth, results, scale=2, gap=4)
     assert image.dtype == np.uint8
     assert image.shape[1] == 3 * COLS * 2 + 4 * 4
     assert image.shape[0] > ROWS * 2
     with pytest.raises(ValueError):
-        render.render_comparison(ground_truth, [])
+        panels.render_comparison(ground_truth, [])
 
 
 def test_header_height_does_not_depend_on_the_title():
