@@ -20,7 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.world.buildings import FURNITURE_LABEL, BuildingConfig, BuildingFloor, draw_building
+from pipeline.world.buildings import BuildingFloor, draw_building
+from pipeline.world.building_config import FURNITURE_LABEL, BuildingConfig
 from pipeline.world.floor_shape import STAT_CELL_M, STATISTICS, PlanGrid, plan_statistics, real_plan_grids
 
 FIGURE_PX_PER_M = 4.0  # the figure's scale, the same for every tile

@@ -34,7 +34,8 @@ from pipeline.common.atomic import atomic_folder
 from pipeline.common.config import Section, fraction, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.world.buildings import BuildingConfig, generate_building_set
+from pipeline.world.buildings import generate_building_set
+from pipeline.world.building_config import BuildingConfig
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.plans import generate_plan_floors, load_plan_grids

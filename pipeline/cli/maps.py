@@ -12,7 +12,8 @@ import typer
 
 from pipeline.cli.options import (CellSize, DoneCells, DoorGraph, NodeRes, RobotRadius, SensorRange, check_out_dir, fail,
                                   protocol, warn)
-from pipeline.world.buildings import BuildingConfig, generate_building_set
+from pipeline.world.buildings import generate_building_set
+from pipeline.world.building_config import BuildingConfig
 from pipeline.world.caves import CaveConfig, generate_cave_set
 from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
