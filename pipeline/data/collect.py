@@ -18,7 +18,8 @@ import cv2
 import numpy as np
 
 from pipeline.data.shards import ShardJob, shard_path, write_shard
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.planners import make_planner
 from pipeline.prediction.node_image import PAD_SIZES, node_image_pair
 from pipeline.world.maps import GroundTruthMap, load_map

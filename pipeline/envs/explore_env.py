@@ -33,7 +33,8 @@ from pipeline.prediction.observed_graph import (
     slot_of_offset,
     window_moves,
 )
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.prediction.global_graph import FEATURE_NAMES, GlobalGraphConfig
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import OCCUPIED

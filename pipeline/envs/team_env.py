@@ -40,7 +40,8 @@ from pettingzoo import ParallelEnv
 from pipeline.envs.configuration_team import TeamExploreEnvConfig
 from pipeline.envs.explore_env import ExploreEnv, checked_action
 from pipeline.envs.map_sources import DrawnMap
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.prediction.observed_graph import (
     STAY_SLOT,
     ObservedStep,

@@ -18,7 +18,8 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from pipeline.lattice.graph import NODE_UNKNOWN, LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import NODE_UNKNOWN, LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.models.defaults import inpainter_path
 from pipeline.models.modeling_inpainter import TracedInpainter, load_inpainter
 from pipeline.planners import make_planner

@@ -9,8 +9,6 @@ near the cells that changed; nothing is rebuilt from scratch.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
-from functools import lru_cache
 
 import cv2
 import numba
@@ -19,72 +17,16 @@ from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.lattice.doors import MAX_DETOUR, door_edges_kernel
-from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS, frontier_mask, update_frontier_window
-from pipeline.world.geometry import ray_table, sensor_angles, walk_offsets
+from pipeline.lattice.frontier import frontier_mask, update_frontier_window
+from pipeline.lattice.spec import LatticeSpec
+from pipeline.lattice.visibility import visible_counts
+from pipeline.world.geometry import walk_offsets
 from pipeline.world.reachability import clearance_cells
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 NODE_UNKNOWN, NODE_FREE, NODE_OCCUPIED = 0, 1, 2
 REGION_UNOBSERVED, REGION_EXPLORED, REGION_BOUNDARY = 0, 1, 2
 WINDOW_RADIUS = 2  # neighbours in the 5x5 lattice window
-UTILITY_ANGLES = sensor_angles(1.0)
-
-
-@dataclass(frozen=True)
-class LatticeSpec:
-    """Where the lattice and the regions sit on a grid; pure geometry, no belief."""
-
-    shape: tuple[int, int]  # grid (rows, cols)
-    start_cell: tuple[int, int]  # (col, row)
-    cell_size: float
-    node_resolution: float
-    utility_range: float
-    region_size: float
-    frontier_min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS
-    # The robot's radius in cells when edges may pass through door nodes (`pipeline.lattice.doors`),
-    # None for DARE's lattice of straight edges only.
-    door_radius_cells: float | None = None
-
-    @classmethod
-    def for_map(cls, ground_truth, protocol) -> "LatticeSpec":
-        """The lattice every planner uses on a map under a protocol (door nodes where it says)."""
-        return cls(
-            shape=ground_truth.shape,
-            start_cell=ground_truth.start_cell,
-            cell_size=protocol.cell_size,
-            node_resolution=protocol.node_resolution,
-            utility_range=protocol.utility_range,
-            region_size=protocol.region_size,
-            door_radius_cells=protocol.robot_radius_cells if protocol.uses_door_graph else None,
-        )
-
-    @property
-    def node_step_cells(self) -> float:
-        return self.node_resolution / self.cell_size
-
-    def lattice_range(self, axis: int) -> np.ndarray:
-        """Lattice indices along x (axis 0) or y (axis 1) whose cells lie in the grid."""
-        start = self.start_cell[axis]
-        size = self.shape[1 - axis]
-        step = self.node_step_cells
-        low = int(np.ceil((-start - 0.5) / step))
-        high = int(np.floor((size - 1 - start + 0.5) / step))
-        idx = np.arange(low - 1, high + 2)
-        cells = start + np.round(idx * step).astype(np.int64)
-        return idx[(cells >= 0) & (cells < size)]
-
-    def node_indices(self) -> np.ndarray:
-        """(i, j) lattice index of every node, ids row-major over the lattice (rows along y)."""
-        grid_j, grid_i = np.meshgrid(self.lattice_range(1), self.lattice_range(0), indexing="ij")
-        return np.stack([grid_i.ravel(), grid_j.ravel()], axis=1)
-
-    def world_to_cell(self, xy: np.ndarray) -> np.ndarray:
-        """World metres (x, y) to grid cells (col, row), origin at the start cell."""
-        xy = np.asarray(xy, dtype=np.float64)
-        return np.round(xy / self.cell_size).astype(np.int64) + np.asarray(self.start_cell)
-
-    def cell_to_world(self, cells: np.ndarray) -> np.ndarray:
-        return (np.asarray(cells, dtype=np.float64) - np.asarray(self.start_cell)) * self.cell_size
 
 
 def node_states_in(belief: np.ndarray, node_flat: np.ndarray) -> np.ndarray:
@@ -552,114 +494,3 @@ def _validate_edges(valid, edge_box, box, walk_rows, belief_flat, free_value):  
     return changed
 
 
-def visible_counts(
-    free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float
-) -> np.ndarray:
-    """For each origin cell, how many `targets` cells a ray fan reaches through free cells.
-
-    A ray walks from the origin and stops at the first cell that is not free; the cells
-    before that are visible. Each visible cell counts once per origin however many rays
-    reach it. Compiled with numba: in NumPy this ray walk was most of the simulator's time.
-    The walk is `nested_visible_counts`' with one count and no inner fan, in a kernel of its
-    own: the utility update counts it at every rollout step.
-    """
-    return _visible_counts_kernel(*_fan_kernel_inputs((free, targets), origins, range_cells))
-
-
-def nested_visible_counts(
-    outer_free: np.ndarray, outer_targets: tuple[np.ndarray, np.ndarray], inner_free: np.ndarray,
-    inner_targets: np.ndarray, origins: np.ndarray, range_cells: float,
-) -> np.ndarray:
-    """(n, 3): `visible_counts` of both `outer_targets` through `outer_free` and of
-    `inner_targets` through `inner_free`, in one walk per ray.
-
-    `inner_free` must lie inside `outer_free`, so that each ray's inner walk is a prefix of its
-    outer one. The sliver gate counts three fans per candidate at every decision (two through
-    the cells not known occupied, one through the known free ones), and walking them together
-    takes about half the time of three `visible_counts` calls, with the same counts.
-    """
-    outer, inner = np.asarray(outer_free, dtype=np.bool_), np.asarray(inner_free, dtype=np.bool_)
-    if inner.shape != outer.shape or any(np.shape(t) != outer.shape for t in (*outer_targets, inner_targets)):
-        raise ValueError("nested_visible_counts: the masks differ in shape")
-    if np.any(inner & ~outer):
-        raise ValueError("nested_visible_counts: inner_free must lie inside outer_free")
-    return _nested_counts_kernel(*_fan_kernel_inputs((outer, *outer_targets, inner, inner_targets), origins, range_cells))
-
-
-@lru_cache(maxsize=16)
-def utility_fan(range_cells: float):
-    """The utility's ray fan from the origin: `ray_table`'s, without recomputing its ray ends at
-    every call (the fans are counted thousands of times a lookahead decision)."""
-    return ray_table(0, 0, range_cells, UTILITY_ANGLES)
-
-
-def _fan_kernel_inputs(masks, origins, range_cells: float) -> tuple:
-    """A fan kernel's arguments: contiguous bool copies of `masks`, the origins as int64 (col, row)
-    rows, and the utility fan's table (the callers check the masks)."""
-    table = utility_fan(float(range_cells))
-    return (
-        *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in masks),
-        np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
-        table.offsets, table.valid, table.unique_index, len(table.unique_offsets),
-    )
-
-
-# The walk of `_nested_counts_kernel` with one count, written out again on purpose: 10.7 against
-# 13.0 us an origin, and a shared inline helper for the ray step made both kernels 17 times slower.
-@numba.njit(cache=True, nogil=True)
-def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
-    rows, cols = free.shape
-    n_rays, n_steps = valid.shape
-    counts = np.zeros(len(origins), np.int64)
-    last = np.zeros(n_unique, np.int64)  # origin + 1 that last counted each fan cell
-    for o in range(len(origins)):
-        ox, oy = origins[o, 0], origins[o, 1]
-        for r in range(n_rays):
-            for k in range(n_steps):
-                if not valid[r, k]:
-                    break
-                x = ox + offsets[r, k, 0]
-                y = oy + offsets[r, k, 1]
-                if x < 0 or x >= cols or y < 0 or y >= rows or not free[y, x]:
-                    break
-                u = unique_index[r, k]
-                if last[u] != o + 1:
-                    last[u] = o + 1
-                    if targets[y, x]:
-                        counts[o] += 1
-    return counts
-
-
-@numba.njit(cache=True, nogil=True)
-def _nested_counts_kernel(outer, first, second, inner, third, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
-    rows, cols = outer.shape
-    n_rays, n_steps = valid.shape
-    counts = np.zeros((len(origins), 3), np.int64)
-    last_outer = np.zeros(n_unique, np.int64)  # origin + 1 that last counted each fan cell, per walk
-    last_inner = np.zeros(n_unique, np.int64)
-    for o in range(len(origins)):
-        ox, oy = origins[o, 0], origins[o, 1]
-        for r in range(n_rays):
-            inner_open = True
-            for k in range(n_steps):
-                if not valid[r, k]:
-                    break
-                x = ox + offsets[r, k, 0]
-                y = oy + offsets[r, k, 1]
-                if x < 0 or x >= cols or y < 0 or y >= rows or not outer[y, x]:
-                    break
-                u = unique_index[r, k]
-                if last_outer[u] != o + 1:
-                    last_outer[u] = o + 1
-                    if first[y, x]:
-                        counts[o, 0] += 1
-                    if second[y, x]:
-                        counts[o, 1] += 1
-                if inner_open:
-                    if not inner[y, x]:
-                        inner_open = False
-                    elif last_inner[u] != o + 1:
-                        last_inner[u] = o + 1
-                        if third[y, x]:
-                            counts[o, 2] += 1
-    return counts

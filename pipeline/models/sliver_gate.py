@@ -39,7 +39,7 @@ import numpy as np
 from pipeline.common.atomic import atomic_write_text
 from pipeline.common.config import validate
 from pipeline.lattice.frontier import frontier_mask
-from pipeline.lattice.graph import nested_visible_counts
+from pipeline.lattice.visibility import nested_visible_counts
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Lidar

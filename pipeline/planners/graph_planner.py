@@ -9,7 +9,8 @@ import numpy as np
 
 from pipeline.common.config import config_dataclass, flag, maybe, text, whole
 from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.models.sliver_gate import SliverGate, load_gate
 from pipeline.planners.config import PlannerConfig, option

@@ -34,7 +34,8 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
-from pipeline.lattice.graph import NODE_FREE, LatticeSpec
+from pipeline.lattice.graph import NODE_FREE
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.lattice.reachability import open_frontier, path_to_nearest, waypoints_along
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.geometry import segment_is_known_free

@@ -15,7 +15,8 @@ from pettingzoo.test import parallel_api_test
 from import_graph import ROOT
 from pipeline.envs import ExploreEnv
 from pipeline.envs.team_env import TEAMMATE_COLUMNS, TeamExploreEnv
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.planners import make_planner
 from pipeline.planners.team.registry import make_team_planner
 from pipeline.prediction.observed_graph import SLOT_OFFSETS, STAY_SLOT

@@ -7,7 +7,8 @@ import numpy as np
 from conftest import two_rooms
 
 from pipeline.lattice.doors import find_door_node, via_waypoints
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol

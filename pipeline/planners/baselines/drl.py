@@ -20,7 +20,8 @@ import warnings
 import numpy as np
 
 from pipeline.common.config import config_dataclass, maybe, text, whole
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.models.defaults import SHIPPED_DRL, cached_drl_policy, resolve_drl_path
 from pipeline.models.modeling_drl import DRLPolicy
 from pipeline.planners.config import PlannerConfig, option

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from pipeline.common.config import config_dataclass, fraction, whole
-from pipeline.lattice.graph import visible_counts
+from pipeline.lattice.visibility import visible_counts
 from pipeline.planners.config import option
 from pipeline.planners.predicting import PredictingPlanner, PredictorOptions
 from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, InpaintFn

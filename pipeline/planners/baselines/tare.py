@@ -55,7 +55,7 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.common.config import config_dataclass, flag, maybe, real, whole
-from pipeline.lattice.graph import utility_fan
+from pipeline.lattice.visibility import utility_fan
 from pipeline.lattice.tsp import tsp_path
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pipeline.lattice.frontier import frontier_mask
-from pipeline.lattice.graph import visible_counts
+from pipeline.lattice.visibility import visible_counts
 from pipeline.world.maps import GroundTruthMap, load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_names

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.lattice.graph import LatticeGraph, LatticeSpec
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.world.maps import GroundTruthMap, load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.prediction.node_image import ground_truth_states, node_states_image
