@@ -15,7 +15,7 @@ from typing import Any, Callable
 
 from pipeline.common.config import Section, validate
 from pipeline.common.params import load_params, params_section
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 
 UPSTREAM_HINT = " (run the upstream stages first: `dvc repro`)"

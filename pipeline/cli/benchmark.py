@@ -33,7 +33,7 @@ from pipeline.evaluation.team_benchmark import (
 )
 from pipeline.workflows.benchmark import benchmark_folder
 from pipeline.workflows.team_benchmark import team_benchmark_folder
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.world.team import MAX_ROBOTS
 

@@ -32,7 +32,7 @@ from pipeline.evaluation.team_benchmark import check_comm_range
 from pipeline.planners.matched_models import model_files
 from pipeline.workflows import explore as exploration
 from pipeline.workflows import team_explore
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.world.team import MAX_ROBOTS
 

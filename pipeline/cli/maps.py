@@ -15,7 +15,8 @@ from pipeline.cli.options import (CellSize, DoneCells, DoorGraph, NodeRes, Robot
 from pipeline.world.buildings import generate_building_set
 from pipeline.world.building_config import BuildingConfig
 from pipeline.world.caves import CaveConfig, generate_cave_set
-from pipeline.world.maps import MapError, load_map, ros_map_origin_and_image
+from pipeline.world.maps import load_map, ros_map_origin_and_image
+from pipeline.world.map_files import MapError
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.protocol import Protocol, protocol_for_map

@@ -9,7 +9,7 @@ import typer
 from tqdm import tqdm
 
 from pipeline.cli.options import fail
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.plans import MANIFEST, find_plan_sources, import_plans
 from pipeline.world.protocol import PAPER_REAL_ROBOT
 

@@ -10,7 +10,7 @@ import typer
 from pipeline.cli.options import check_out_dir, fail
 from pipeline.models.defaults import inpainter_path
 from pipeline.workflows.table1 import table1_for_folder
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 
 app = typer.Typer(rich_markup_mode=None)
 

@@ -27,7 +27,8 @@ from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
-from pipeline.world.maps import MapError, list_maps
+from pipeline.world.maps import list_maps
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 
 

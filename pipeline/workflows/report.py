@@ -29,7 +29,7 @@ from pipeline.reporting.tables import read_metrics, read_precision, sweep_label,
 from pipeline.reporting.trajectory_figure import trajectory_figure
 from pipeline.workflows import table1
 from pipeline.workflows.stage_inputs import generated_maps
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 
 TEST_MAZES = DATA.mazes_test

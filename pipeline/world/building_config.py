@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pipeline.world.maps import MAX_IMAGE_PIXELS
+from pipeline.world.map_files import MAX_IMAGE_PIXELS
 
 FREE_LABEL, WALL_LABEL, FURNITURE_LABEL, OUTSIDE_LABEL = 0, 1, 2, 3
 

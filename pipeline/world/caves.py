@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.world.maps import MAX_IMAGE_PIXELS
+from pipeline.world.map_files import MAX_IMAGE_PIXELS
 from pipeline.world.mazes import generate_map_set
 from pipeline.world.offices import render_free_map
 

@@ -28,7 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from pipeline.common.atomic import atomic_write_bytes
-from pipeline.world.maps import MAX_IMAGE_PIXELS
+from pipeline.world.map_files import MAX_IMAGE_PIXELS
 
 WALL_VALUE = 127
 FREE_VALUE = 195

@@ -28,7 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from pipeline.world.maps import MAX_IMAGE_PIXELS
+from pipeline.world.map_files import MAX_IMAGE_PIXELS
 from pipeline.world.mazes import FREE_VALUE, START_VALUE, WALL_VALUE, generate_map_set
 
 OFFICE_SCALES = ("maze", "real_robot")  # the sizes of `OfficeConfig.for_scale`

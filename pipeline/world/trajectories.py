@@ -11,7 +11,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from pipeline.common.atomic import atomic_file
-from pipeline.world.maps import _is_file  # the loaders' check, shared: a bad file name is not an OSError
+from pipeline.world.map_files import is_file_named  # the loaders' check, shared: a bad file name is not an OSError
 from pipeline.world.simulator import LATTICE_TOLERANCE_M  # the tolerance replay uses for the start
 
 METRICS_COLUMNS = [
@@ -66,7 +66,7 @@ def write_trajectory_csv(path: str | Path, trajectory: Sequence[Sequence[float]]
 
 
 def _is_dir(path: Path) -> bool:
-    """Path.is_dir that says False (not raises) for a name the OS rejects, as maps._is_file does."""
+    """Path.is_dir that says False (not raises) for a name the OS rejects, as map_files.is_file_named does."""
     try:
         return path.is_dir()
     except (OSError, ValueError):
@@ -89,7 +89,7 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
     path = Path(path)
     if _is_dir(path):
         raise ValueError(f"{path}: is a folder, not a trajectory file (pass one CSV file)")
-    if not _is_file(path):
+    if not is_file_named(path):
         raise ValueError(f"{path}: file not found")
     try:
         with path.open(newline="", encoding="utf-8-sig") as handle:
@@ -173,7 +173,7 @@ def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
     where empty); ValueError naming the file when it is missing or its header is not STEP_COLUMNS
     (or an older one of LEGACY_STEP_COLUMNS, read with the missing columns all NaN)."""
     path = Path(path)
-    if not _is_file(path):
+    if not is_file_named(path):
         raise ValueError(f"{path}: file not found (guide benchmark writes one per trajectory; "
                          "guide replay --steps makes one from a trajectory)")
     with path.open(newline="", encoding="utf-8-sig") as handle:

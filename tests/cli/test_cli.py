@@ -358,7 +358,7 @@ def test_explore_at_the_real_robots_lattice_and_lidar_runs_the_real_robot_models
 
 def test_maps_with_one_name_are_refused(tmp_path):
     from pipeline.evaluation.benchmark import check_unique_map_names
-    from pipeline.world.maps import MapError
+    from pipeline.world.map_files import MapError
 
     check_unique_map_names([tmp_path / "a.png", tmp_path / "b.png"], ["a", "b"])
     with pytest.raises(MapError, match="same name 'a'.*overwrite"):

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.planners.registry import UnknownPlannerError
 from pipeline.stage_runner import UPSTREAM_HINT, run_stage_main, user_error_message
 from import_graph import ROOT

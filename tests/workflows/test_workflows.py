@@ -8,7 +8,7 @@ import mlflow
 import numpy as np
 import pytest
 
-from pipeline.world.maps import MapError
+from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.workflows import explore
 from pipeline.workflows.benchmark import benchmark_folder
