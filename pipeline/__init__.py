@@ -3,7 +3,8 @@
 __version__ = "0.1.0"
 
 try:  # the Gymnasium environment (pipeline/envs/, docs/environment.md), registered by name: nothing heavy loads here
-    from gymnasium.envs.registration import register as _register, registry as _registry
+    from gymnasium.envs.registration import register as _register
+    from gymnasium.envs.registration import registry as _registry
 except ImportError:  # pragma: no cover - gymnasium is a dependency; without it only the environment is missing
     pass
 else:

@@ -13,6 +13,7 @@ os.environ.setdefault("MLFLOW_DISABLE_TELEMETRY", "true")
 os.environ.setdefault("DVC_NO_ANALYTICS", "1")
 
 from tiny_project import TinyRun, tiny_reference_run  # noqa: E402
+
 from pipeline.world.maps import GroundTruthMap, load_maze_png  # noqa: E402
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png  # noqa: E402
 
@@ -134,8 +135,8 @@ def mlflow_uri(tmp_path_factory) -> str:
 def expert_shard_dir(generated_maze_dir, tmp_path_factory) -> Path:
     """Two expert episodes on generated 50 m mazes, stored as the collect_expert stage stores them."""
     from pipeline.data.collect import ExpertConfig, collect_expert_shard
-    from pipeline.world.maps import list_maps
     from pipeline.data.shards import run_shards
+    from pipeline.world.maps import list_maps
 
     directory = tmp_path_factory.mktemp("expert")
     config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), episodes_per_shard=1,

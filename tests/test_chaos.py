@@ -25,7 +25,6 @@ from typing import Callable
 import numpy as np
 import pytest
 import yaml
-
 from tiny_project import dvc, make_tiny_project, streamed_repro
 
 # Where each stage's own progress shows on disk (relative to the project): killed once it exists.

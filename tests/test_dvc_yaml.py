@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import yaml
-
 from import_graph import ROOT, closure, code_unit
 
 

@@ -6,10 +6,9 @@ import ast
 import os
 import subprocess
 import sys
+
 import tomllib
-
 import yaml
-
 from import_graph import ROOT, all_modules, module_path
 
 

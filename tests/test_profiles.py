@@ -3,13 +3,11 @@
 
 import pytest
 import yaml
+from import_graph import ROOT
 
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.training.policy import PlannerTrainConfig
-from import_graph import ROOT
-
-
 
 OPTION_MAPS = {"planner_options", "options"}  # a planner's options: any keys it takes
 
@@ -43,9 +41,9 @@ def test_every_profile_uses_the_planners_tau():
     """The benchmark's planners use node_predictor's two taus (graph nodes, utility count); the policy's
     training observations and Table I must see predictions at the same ones, or the policy is trained
     on another graph and Table I measures nodes the planners never hold."""
-    from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
     from pipeline.planners.baselines.mapex import MapExPlanner
     from pipeline.planners.guide.guide_tsp import GuideTspPlanner
+    from pipeline.prediction.node_predictor import DEFAULT_COUNT_THRESHOLD, DEFAULT_THRESHOLD, NodePredictorConfig
 
     assert DEFAULT_COUNT_THRESHOLD < DEFAULT_THRESHOLD
     assert NodePredictorConfig().threshold == DEFAULT_THRESHOLD

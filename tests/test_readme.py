@@ -6,9 +6,9 @@ from __future__ import annotations
 import re
 import shlex
 
+from import_graph import ROOT
 from typer.testing import CliRunner
 
-from import_graph import ROOT
 from pipeline.cli import COMMANDS, app
 
 README = (ROOT / "README.md").read_text()

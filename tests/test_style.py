@@ -6,7 +6,6 @@ import shutil
 import subprocess
 
 import pytest
-
 from import_graph import ROOT
 
 

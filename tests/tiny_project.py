@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any, Callable
 
 import yaml
-
 from import_graph import ROOT
 
 

@@ -10,19 +10,31 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli.options import (CellSize, DoneCells, DoorGraph, NodeRes, RobotRadius, SensorRange, check_out_dir, fail,
-                                  protocol, warn)
-from pipeline.world.buildings import generate_building_set
+from pipeline.cli.options import (
+    CellSize,
+    DoneCells,
+    DoorGraph,
+    NodeRes,
+    RobotRadius,
+    SensorRange,
+    check_out_dir,
+    fail,
+    protocol,
+    warn,
+)
 from pipeline.world.building_config import BuildingConfig
+from pipeline.world.buildings import generate_building_set
 from pipeline.world.caves import CaveConfig, generate_cave_set
-from pipeline.world.maps import load_map, ros_map_origin_and_image
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import load_map, ros_map_origin_and_image
 from pipeline.world.mazes import MIN_BLOCK_PIXELS, MazeConfig, generate_maze_set
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.resample import resample_map, write_ros_map
-from pipeline.world.simulator import MotionError, replay as replay_trajectory
-from pipeline.world.team import TEAM_SUFFIX, read_team_csv, replay_team
+from pipeline.world.simulator import MotionError
+from pipeline.world.simulator import replay as replay_trajectory
+from pipeline.world.team import replay_team
+from pipeline.world.team_files import TEAM_SUFFIX, read_team_csv
 from pipeline.world.trajectories import read_trajectory_csv, recorded_start, write_steps_csv
 
 app = typer.Typer(rich_markup_mode=None)

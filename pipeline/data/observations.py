@@ -20,8 +20,8 @@ from pipeline.common.atomic import atomic_file
 from pipeline.data.expert_episodes import ExpertEpisode, load_expert_episodes
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
-from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.models.defaults import cached_inpainter
+from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.prediction.graph_observation import expert_action_deltas, observe, rotate_steps
 from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig
 from pipeline.world.maps import GroundTruthMap

@@ -23,6 +23,9 @@ from gymnasium import spaces
 
 from pipeline.envs.configuration_explore import ExploreEnvConfig
 from pipeline.envs.map_sources import DrawnMap, map_source
+from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.spec import LatticeSpec
+from pipeline.prediction.global_graph import FEATURE_NAMES, GlobalGraphConfig
 from pipeline.prediction.observed_graph import (
     SLOT_OFFSETS,
     SLOTS,
@@ -33,9 +36,6 @@ from pipeline.prediction.observed_graph import (
     slot_of_offset,
     window_moves,
 )
-from pipeline.lattice.graph import LatticeGraph
-from pipeline.lattice.spec import LatticeSpec
-from pipeline.prediction.global_graph import FEATURE_NAMES, GlobalGraphConfig
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import OCCUPIED
 from pipeline.world.simulator import Episode

@@ -14,8 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.world.maps import MAZE_FREE_RULE, MAZE_START_INDEX, MAZE_START_VALUE, GroundTruthMap, list_maps, load_map, maze_cells_from_image, maze_free_mask, validate_grid
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import (
+    MAZE_FREE_RULE,
+    MAZE_START_INDEX,
+    MAZE_START_VALUE,
+    GroundTruthMap,
+    list_maps,
+    load_map,
+    maze_cells_from_image,
+    maze_free_mask,
+    validate_grid,
+)
 from pipeline.world.mazes import MazeConfig, generate_maze
 from pipeline.world.protocol import Protocol, protocol_for_map
 

@@ -50,8 +50,8 @@ from pipeline.prediction.observed_graph import (
     slot_of_offset,
     window_moves,
 )
-from pipeline.world.maps import GroundTruthMap
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import MotionError
 from pipeline.world.team import MAX_ROBOTS, TeamEpisode, TeamEpisodeResult

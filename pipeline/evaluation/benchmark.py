@@ -41,8 +41,8 @@ from pipeline.models.exports import require_file
 from pipeline.planners.config import PlannerConfig
 from pipeline.planners.registry import make_planner, planner_config
 from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
-from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode

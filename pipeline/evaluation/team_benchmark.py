@@ -51,16 +51,8 @@ from pipeline.planners.specs import PlannerSpec, parse_planner_spec
 from pipeline.planners.team.registry import make_team_planner
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning
-from pipeline.world.team import (
-    MAX_ROBOTS,
-    TEAM_SUFFIX,
-    TeamEpisodeResult,
-    TeamPlanner,
-    merges_path,
-    run_team_episode,
-    write_merges_csv,
-    write_team_csv,
-)
+from pipeline.world.team import MAX_ROBOTS, TeamEpisodeResult, TeamPlanner, run_team_episode
+from pipeline.world.team_files import TEAM_SUFFIX, merges_path, write_merges_csv, write_team_csv
 
 TEAM_METRICS_CSV = "team_metrics.csv"
 TEAM_COVERAGE_CSV = "team_coverage.csv"

@@ -15,8 +15,8 @@ here comes wrapped in the trust in its predictions (`extensions/prediction_trust
 from __future__ import annotations
 
 from pipeline.common.config import config_dataclass, flag, maybe, real, text, whole
-from pipeline.planners.config import OptionInfo, PlannerConfig, option
 from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
+from pipeline.planners.config import OptionInfo, PlannerConfig, option
 from pipeline.planners.extensions.lookahead import LookaheadConfig
 from pipeline.planners.extensions.prediction_trust import PredictionTrustOptions, with_trust
 from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig

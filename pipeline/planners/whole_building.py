@@ -35,8 +35,8 @@ import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
 from pipeline.lattice.graph import NODE_FREE
-from pipeline.lattice.spec import LatticeSpec
 from pipeline.lattice.reachability import open_frontier, path_to_nearest, waypoints_along
+from pipeline.lattice.spec import LatticeSpec
 from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame, map_frame

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import coo_matrix
-from scipy.spatial import cKDTree
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
 from pipeline.lattice.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_UNOBSERVED, LatticeGraph
 from pipeline.world.geometry import walk_cells

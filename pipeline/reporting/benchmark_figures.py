@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline.common.atomic import atomic_file
-from pipeline.reporting.render import save_png
 from pipeline.reporting.panels import render_comparison
+from pipeline.reporting.render import save_png
 from pipeline.world.trajectories import read_trajectory_csv
 
 

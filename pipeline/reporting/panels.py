@@ -1,16 +1,28 @@
 """Finished episodes as figures: the final frame, the whole-building marks, the trust strip, and planners side by side on one map."""
 
 from __future__ import annotations
+
 from pathlib import Path
 from typing import Sequence
+
 import cv2
 import numpy as np
+
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import LatticeGraph
+from pipeline.reporting.render import (
+    FONT,
+    PANEL_GAP_RGB,
+    Point,
+    auto_scale,
+    episode_title,
+    render_frame,
+    render_header,
+    save_png,
+)
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.sensor import FREE, OCCUPIED
 from pipeline.world.simulator import EpisodeResult
-from pipeline.reporting.render import FONT, PANEL_GAP_RGB, Point, auto_scale, episode_title, render_frame, render_header, save_png
 
 
 def render_final(

@@ -1,13 +1,16 @@
 """EpisodeRecorder: an episode's frames drawn as it runs, written as a GIF and a final PNG."""
 
 from __future__ import annotations
+
 from pathlib import Path
 from typing import Callable
+
 import numpy as np
+
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.graph import LatticeGraph
-from pipeline.world.simulator import Episode
 from pipeline.reporting.render import episode_title, render_frame, save_gif
+from pipeline.world.simulator import Episode
 
 
 class EpisodeRecorder:

@@ -8,8 +8,8 @@ from typing import Sequence
 import numpy as np
 import pandas as pd
 
-from pipeline.reporting.render import PANEL_GAP_RGB, save_png
 from pipeline.reporting.panels import render_comparison
+from pipeline.reporting.render import PANEL_GAP_RGB, save_png
 from pipeline.reporting.tables import check_metrics
 from pipeline.world.maps import load_map
 from pipeline.world.protocol import Protocol

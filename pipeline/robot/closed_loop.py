@@ -29,7 +29,6 @@ from pipeline.world.reachability import LEFTOVER_M2, largest_unseen_region, reac
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Belief, Lidar
 from pipeline.world.simulator import Episode
 
-
 DECISION_S = 0.5  # simulated seconds between decisions (2 Hz)
 
 

@@ -8,7 +8,6 @@ import json
 from pathlib import Path
 from typing import Callable
 
-
 from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
@@ -27,8 +26,8 @@ from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
-from pipeline.world.maps import list_maps
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
 
 

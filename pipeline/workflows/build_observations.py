@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, POLICIES, REPORTS
 from pipeline.data.observations import concatenate, save_observations, shard_observations
 from pipeline.data.shards import MANIFEST, read_manifest

@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 
 from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_json
+from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, log_generated_maze_set, log_maze_set, resolve_tracking_uri
-from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, POLICIES, REPORTS
 from pipeline.data.collect import COLLECTION_SOURCES
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
-from pipeline.common.executor import run_tasks
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.gate_samples import gate_samples
 from pipeline.models.defaults import PIPELINE_GATE

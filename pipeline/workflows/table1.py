@@ -33,8 +33,8 @@ from pipeline.prediction.global_graph import GlobalGraphConfig, RegionEvaluation
 from pipeline.prediction.node_predictor import NodePredictorConfig
 from pipeline.reporting.predictor_figures import plot_threshold_sweep, prediction_figure
 from pipeline.reporting.table_markdown import comparison_markdown, sweep_markdown, table1_markdown
-from pipeline.world.maps import list_maps, load_map
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 
 EXPERIMENT = "table1"

@@ -19,9 +19,10 @@ from pipeline.evaluation.team_benchmark import (
 from pipeline.planners.team.registry import team_config
 from pipeline.reporting.team_figures import team_coverage_figure, team_paths_figure
 from pipeline.reporting.tracking import log_team_benchmark
-from pipeline.world.maps import list_maps
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
+
 
 def maps_text(count: int) -> str:
     """"1 map", "12 maps": for figure titles."""

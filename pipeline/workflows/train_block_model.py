@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.common.mlflow_store import import_mlflow, resolve_tracking_uri, log_generated_maze_set
-from pipeline.common.executor import run_tasks
+from pipeline.common.mlflow_store import import_mlflow, log_generated_maze_set, resolve_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.defaults import PIPELINE_BLOCK_MODEL

@@ -43,8 +43,16 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
-from pipeline.world.maps import NPY_SUFFIXES, ROS_YAML_SUFFIXES, GroundTruthMap, list_maps, load_map, read_ros_grid, ros_map_origin_and_image
 from pipeline.world.map_files import MAX_GRID_CELLS, MapError, read_gray_image, read_npy_array
+from pipeline.world.maps import (
+    NPY_SUFFIXES,
+    ROS_YAML_SUFFIXES,
+    GroundTruthMap,
+    list_maps,
+    load_map,
+    read_ros_grid,
+    ros_map_origin_and_image,
+)
 from pipeline.world.mazes import generate_map_set
 from pipeline.world.offices import render_free_map
 from pipeline.world.resample import resample_map, write_ros_map

@@ -8,9 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.common.config import config_dataclass, flag, maybe, positive, real, validate, whole
-from pipeline.world.maps import GroundTruthMap
 from pipeline.world.map_files import MapError
-
+from pipeline.world.maps import GroundTruthMap
 
 DOOR_GRAPH_BELOW_M = 2.0  # lattice spacings under this are the building scale (`Protocol.uses_door_graph`)
 

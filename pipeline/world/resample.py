@@ -25,8 +25,8 @@ import numpy as np
 import yaml
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
-from pipeline.world.maps import GroundTruthMap
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.reachability import passable_mask
 from pipeline.world.sensor import FREE, OCCUPIED
 

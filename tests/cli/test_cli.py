@@ -5,12 +5,12 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from import_graph import ROOT
 from typer.testing import CliRunner
 
 from pipeline.cli import app
 from pipeline.world.mazes import write_maze_png
 from tests.conftest import maze_from_blocks
-from import_graph import ROOT
 
 runner = CliRunner()
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.common.params import load_params, params_section
-from pipeline.world.protocol import Protocol
+from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.training.policy import PlannerTrainConfig
+from pipeline.world.protocol import Protocol
 
 
 def test_load_params_reads_sections_and_names_the_file_when_it_cannot(tmp_path):

@@ -1,7 +1,6 @@
 import numpy as np
+from import_graph import ROOT
 
-from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.data.pairs import load_pairs
 from pipeline.data.collect import (
     ExpertConfig,
     PairsConfig,
@@ -10,11 +9,12 @@ from pipeline.data.collect import (
     future_waypoints,
     random_open_start,
 )
+from pipeline.data.expert_episodes import load_expert_episodes
+from pipeline.data.pairs import load_pairs
+from pipeline.data.shards import read_manifest, run_shards, shard_path
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
-from pipeline.data.shards import read_manifest, run_shards, shard_path
 from pipeline.world.simulator import Episode
-from import_graph import ROOT
 
 
 def pairs_config(maze_dir, **overrides):
@@ -91,8 +91,8 @@ def test_collection_sources_exist_and_are_the_stages_dvc_deps():
 
     import yaml
 
-    from pipeline.data.collect import EXPERT_SOURCES, PAIRS_SOURCES
     from pipeline.common.fingerprints import source_digest
+    from pipeline.data.collect import EXPERT_SOURCES, PAIRS_SOURCES
 
     root = ROOT
     stages = yaml.safe_load((root / "dvc.yaml").read_text())["stages"]

@@ -1,6 +1,7 @@
 """DAgger's shards: labelled episodes in the expert shards' format, deterministic, the policy driving."""
 
 import numpy as np
+from import_graph import ROOT
 
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard, step_labels
 from pipeline.data.expert_episodes import load_expert_episodes
@@ -10,7 +11,6 @@ from pipeline.data.teacher_labels import TeacherLabelledDriver
 from pipeline.planners import make_planner
 from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
-from import_graph import ROOT
 
 SHIPPED_POLICY = ROOT / "pipeline" / "assets" / "planner_guide.pt"
 

@@ -2,8 +2,6 @@ import numpy as np
 import pytest
 
 from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.prediction.graph_observation import expert_action_deltas, rotate_steps
-from pipeline.prediction.node_predictor import NodePredictor
 from pipeline.data.observations import (
     ObservationConfig,
     PlannerDataset,
@@ -14,8 +12,10 @@ from pipeline.data.observations import (
     load_observations,
     save_observations,
 )
-from pipeline.world.protocol import Protocol
 from pipeline.data.shards import shard_path
+from pipeline.prediction.graph_observation import expert_action_deltas, rotate_steps
+from pipeline.prediction.node_predictor import NodePredictor
+from pipeline.world.protocol import Protocol
 
 
 @pytest.fixture(scope="module")

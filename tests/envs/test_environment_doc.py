@@ -8,7 +8,6 @@ import subprocess
 import sys
 
 import pytest
-
 from import_graph import ROOT
 
 DOC = (ROOT / "docs" / "environment.md").read_text()

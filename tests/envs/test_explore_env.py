@@ -12,18 +12,18 @@ import warnings
 import gymnasium
 import numpy as np
 import pytest
+from conftest import write_ros_map
 from gymnasium.utils.env_checker import check_env
+from import_graph import ROOT
 
 import pipeline  # noqa: F401  (registers the id)
-from conftest import write_ros_map
-from import_graph import ROOT
 from pipeline.envs import ENV_ID, ExploreEnv, ExploreEnvConfig
 from pipeline.envs.map_sources import maze_from_image
-from pipeline.prediction.observed_graph import SLOT_OFFSETS, STAY_SLOT, slot_of_offset
 from pipeline.planners import make_planner
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.prediction.global_graph import GlobalGraph, GlobalGraphConfig
 from pipeline.prediction.graph_observation import observe
+from pipeline.prediction.observed_graph import SLOT_OFFSETS, STAY_SLOT, slot_of_offset
 from pipeline.world.maps import load_map, load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.world.protocol import Protocol

@@ -10,9 +10,9 @@ import warnings
 
 import numpy as np
 import pytest
+from import_graph import ROOT
 from pettingzoo.test import parallel_api_test
 
-from import_graph import ROOT
 from pipeline.envs import ExploreEnv
 from pipeline.envs.team_env import TEAMMATE_COLUMNS, TeamExploreEnv
 from pipeline.lattice.graph import LatticeGraph

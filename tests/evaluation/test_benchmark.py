@@ -3,8 +3,8 @@ import pandas as pd
 import pytest
 
 from pipeline.evaluation.benchmark import run_benchmark
-from pipeline.world.maps import list_maps, load_map
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay
 from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv

@@ -3,7 +3,6 @@
 from dataclasses import replace
 
 import numpy as np
-
 from conftest import two_rooms
 
 from pipeline.lattice.doors import find_door_node, via_waypoints

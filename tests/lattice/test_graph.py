@@ -1,11 +1,18 @@
 import numpy as np
 import pytest
 
-from pipeline.world.geometry import segment_is_known_free
-from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED, REGION_BOUNDARY, REGION_EXPLORED, REGION_UNOBSERVED, LatticeGraph
+from pipeline.lattice.graph import (
+    NODE_FREE,
+    NODE_OCCUPIED,
+    REGION_BOUNDARY,
+    REGION_EXPLORED,
+    REGION_UNOBSERVED,
+    LatticeGraph,
+)
 from pipeline.lattice.spec import LatticeSpec
 from pipeline.lattice.visibility import nested_visible_counts, visible_counts
 from pipeline.planners import make_planner
+from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.world.simulator import Episode, run_episode
@@ -220,8 +227,8 @@ def test_lattice_at_real_robot_resolution():
 
 def reference_visible_counts(free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float) -> np.ndarray:
     """The ray-fan count written plainly in NumPy: every ray's cells up to its first non-free cell."""
-    from pipeline.world.geometry import ray_table
     from pipeline.lattice.visibility import UTILITY_ANGLES
+    from pipeline.world.geometry import ray_table
 
     rows, cols = free.shape
     table = ray_table(0, 0, range_cells, UTILITY_ANGLES)

@@ -6,10 +6,10 @@ import dataclasses
 
 import pytest
 import torch
+from test_modeling_diffusion import TINY, observation
 
 from pipeline.models import DiffusionPolicy
 from pipeline.models.ddpm_update import DDPMUpdate
-from test_modeling_diffusion import TINY, observation
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 

@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
 from pipeline.models.sliver_gate import (
     FEATURES,
@@ -18,6 +17,7 @@ from pipeline.models.sliver_gate import (
     roc_auc,
     save_gate,
 )
+from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 RANGE_CELLS = 50.0  # 20 m at 0.4 m cells
 

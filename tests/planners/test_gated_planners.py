@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from pipeline.models.defaults import SHIPPED_GATE
+from pipeline.models.sliver_gate import SliverGate, save_gate
 from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
-from pipeline.models.sliver_gate import SliverGate, save_gate
 
 
 @pytest.mark.parametrize(("name", "gated"), [("greedy_utility", False), ("nearest_frontier", False),

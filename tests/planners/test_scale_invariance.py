@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.world.maps import load_maze_png
-from pipeline.planners import make_planner
 from pipeline.models.defaults import SHIPPED_INPAINTER, SHIPPED_POLICY
+from pipeline.planners import make_planner
+from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
 from tests.conftest import SINGLE_NODES

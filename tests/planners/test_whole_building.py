@@ -67,10 +67,10 @@ def test_oracles_are_not_wrapped():
 def test_a_robot_standing_on_a_frontier_cell_goes_on_to_the_next_not_done():
     """A session's robot stands near its cell, not on it, and may scan a frontier cell without
     clearing it: standing there is a visit, the cell is given up, and the next frontier is the target."""
+    from pipeline.planners.whole_building import MAX_TRIES
     from pipeline.world.planner import Observation
     from pipeline.world.protocol import PAPER_REAL_ROBOT
     from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
-    from pipeline.planners.whole_building import MAX_TRIES
 
     belief = np.full((30, 40), OCCUPIED, np.uint8)
     belief[5:25, 5:35] = FREE

@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.prediction.block_maps import (block_index, block_shares, border_ring, drawn_world, exit_steps, grow_within,
-                                 imagined_free, true_blocks)
+from pipeline.prediction.block_maps import (
+    block_index,
+    block_shares,
+    border_ring,
+    drawn_world,
+    exit_steps,
+    grow_within,
+    imagined_free,
+    true_blocks,
+)
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from tests.conftest import SMALL_MAZE
 

@@ -2,12 +2,25 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import connected_components
 
-from pipeline.prediction.global_graph import CENTROID, KNOWN, PREDICTED, GlobalGraph, GlobalGraphConfig, RegionEvaluationConfig, region_scores
 from pipeline.lattice.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_EXPLORED, REGION_UNOBSERVED
-from pipeline.world.geometry import walk_cells
-from pipeline.prediction.node_image import ground_truth_states, node_states_image, observed_node_states
-from pipeline.prediction.node_predictor import NodePredictor, NodePredictorConfig, drop_small_components, pad_to_multiple
 from pipeline.planners import make_planner
+from pipeline.prediction.global_graph import (
+    CENTROID,
+    KNOWN,
+    PREDICTED,
+    GlobalGraph,
+    GlobalGraphConfig,
+    RegionEvaluationConfig,
+    region_scores,
+)
+from pipeline.prediction.node_image import ground_truth_states, node_states_image, observed_node_states
+from pipeline.prediction.node_predictor import (
+    NodePredictor,
+    NodePredictorConfig,
+    drop_small_components,
+    pad_to_multiple,
+)
+from pipeline.world.geometry import walk_cells
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import OCCUPIED
 from pipeline.world.simulator import Episode

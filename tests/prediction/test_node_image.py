@@ -1,8 +1,7 @@
 import numpy as np
 
-from pipeline.lattice.graph import LatticeGraph
+from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN, LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
-from pipeline.lattice.graph import NODE_FREE, NODE_OCCUPIED, NODE_UNKNOWN
 from pipeline.prediction.node_image import (
     PIXEL_FREE,
     PIXEL_OBSTACLE,

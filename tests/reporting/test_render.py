@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from pipeline.planners import make_planner
 from pipeline.reporting import panels, render
 from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.world.maps import GroundTruthMap
-from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.world.simulator import run_episode

@@ -13,7 +13,6 @@ import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
 import yaml
-
 from import_graph import ROOT
 
 PACKAGE = ROOT / "ros2" / "guide_ros"

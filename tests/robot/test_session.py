@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from conftest import two_rooms
 import pytest
+from conftest import two_rooms
 
 from pipeline.robot import ExplorationSession, GridMessage
 from pipeline.robot.closed_loop import grid_message, slam_map

@@ -10,16 +10,16 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from import_graph import ROOT
 
 from pipeline.data.collect import ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import ExpertEpisode, load_expert_episodes
+from pipeline.data.observations import load_observations
+from pipeline.data.shards import MANIFEST, run_shards, shard_path
 from pipeline.prediction.global_graph import FEATURE_NAMES
 from pipeline.world.maps import list_maps
-from pipeline.data.observations import load_observations
 from pipeline.world.protocol import Protocol
-from pipeline.data.shards import MANIFEST, run_shards, shard_path
 from stages import build_observations
-from import_graph import ROOT
 
 SHIPPED_INPAINTER = ROOT / "pipeline/assets/inpainter.pt"
 SECTION = dict(max_nodes=64, max_neighbors=16, threshold=0.5, count_threshold=0.5, min_component=3,

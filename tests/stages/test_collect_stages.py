@@ -13,10 +13,10 @@ import yaml
 
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.pairs import load_pairs
-from pipeline.world.maps import load_map
-from pipeline.prediction.node_image import PAD_SIZES
-from pipeline.world.protocol import Protocol
 from pipeline.data.shards import MANIFEST, read_manifest, shard_path
+from pipeline.prediction.node_image import PAD_SIZES
+from pipeline.world.maps import load_map
+from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import LATTICE_TOLERANCE_M
 from stages import collect_expert, collect_pairs
 

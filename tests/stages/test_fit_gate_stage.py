@@ -8,10 +8,9 @@ import shutil
 import pytest
 import yaml
 
-from pipeline.world.offices import OfficeConfig, generate_office_set
 from pipeline.models.sliver_gate import load_gate
+from pipeline.world.offices import OfficeConfig, generate_office_set
 from stages import fit_gate
-
 
 # These tests' own settings, over which each test writes its changes: a logistic gate on mazes alone.
 BASE = {"maps": 48, "holdout_maps": 12, "offices": 0, "office_holdout": 0, "hidden": [], "min_gain": 50,

@@ -9,10 +9,10 @@ import sys
 import cv2
 import pytest
 import yaml
+from import_graph import ROOT
 
 from pipeline.world.maps import load_maze_png
 from stages.generate_mazes import main
-from import_graph import ROOT
 
 PARAMS = {
     "protocol": {"cell_size": 0.4},

@@ -29,8 +29,8 @@ from typing import Any, Iterator
 
 import pytest
 import yaml
-
 from import_graph import ROOT
+
 from pipeline.stage_runner import run_stage_main
 
 UNKNOWN_KEY = "zz_not_a_setting"

@@ -7,12 +7,11 @@ import subprocess
 import sys
 
 import pytest
-
-from pipeline.world.map_files import MapError
-from pipeline.planners.registry import UnknownPlannerError
-from pipeline.stage_runner import UPSTREAM_HINT, run_stage_main, user_error_message
 from import_graph import ROOT
 
+from pipeline.planners.registry import UnknownPlannerError
+from pipeline.stage_runner import UPSTREAM_HINT, run_stage_main, user_error_message
+from pipeline.world.map_files import MapError
 
 
 @pytest.mark.parametrize(

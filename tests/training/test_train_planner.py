@@ -2,8 +2,8 @@
 
 import dataclasses
 import shutil
-from pathlib import Path
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest

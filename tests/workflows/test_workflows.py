@@ -8,11 +8,11 @@ import mlflow
 import numpy as np
 import pytest
 
-from pipeline.world.map_files import MapError
-from pipeline.world.protocol import Protocol
 from pipeline.workflows import explore
 from pipeline.workflows.benchmark import benchmark_folder
 from pipeline.workflows.distil_policy import observation_settings
+from pipeline.world.map_files import MapError
+from pipeline.world.protocol import Protocol
 
 
 def test_explore_prepares_checks_and_writes_every_file(small_maze_path, tmp_path):

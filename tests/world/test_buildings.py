@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pipeline.planners import make_planner
-from pipeline.world.buildings import draw_building, floor_statistics, generate_building, generate_building_set
 from pipeline.world.building_config import FREE_LABEL, OUTSIDE_LABEL, WALL_LABEL, BuildingConfig
+from pipeline.world.buildings import draw_building, floor_statistics, generate_building, generate_building_set
 from pipeline.world.floor_shape import block_mode_labels, plan_statistics, real_plan_grids
 from pipeline.world.maps import load_maze_png
 from pipeline.world.offices import OfficeConfig, draw_office

@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.world.caves import CaveConfig, draw_cave, generate_cave, generate_cave_set, grow_chambers
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
+from pipeline.world.caves import CaveConfig, draw_cave, generate_cave, generate_cave_set, grow_chambers
 from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import Protocol
 

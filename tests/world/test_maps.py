@@ -14,8 +14,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pipeline.world.maps import GroundTruthMap, list_maps, load_map, load_maze_png, load_npy_grid, load_ros_map
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import GroundTruthMap, list_maps, load_map, load_maze_png, load_npy_grid, load_ros_map
 from tests.conftest import write_ros_map
 
 WALL, FREE, START = 127, 195, 208

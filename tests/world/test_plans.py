@@ -9,8 +9,8 @@ import cv2
 import numpy as np
 import pytest
 
-from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.map_files import MapError
+from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.plans import find_plan_sources, import_plans, symmetry_key
 from pipeline.world.reachability import reachable_free
 from pipeline.world.resample import write_ros_map

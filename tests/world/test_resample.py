@@ -4,9 +4,8 @@ import pytest
 from typer.testing import CliRunner
 
 from pipeline.cli import app
-from pipeline.world.resample import remove_specks, resample_factor, resample_free, resample_map, write_ros_map
 from pipeline.world.maps import GroundTruthMap, load_ros_map
-
+from pipeline.world.resample import remove_specks, resample_factor, resample_free, resample_map, write_ros_map
 from tests.conftest import write_ros_map as write_fine_ros_map
 
 runner = CliRunner()

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
+from protocol_reference import reference_scan
 
 from pipeline.world.geometry import sensor_angles
 from pipeline.world.sensor import FREE, Belief, scan
-from protocol_reference import reference_scan
 
 
 def test_720_rays():

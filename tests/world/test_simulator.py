@@ -4,14 +4,13 @@ import numpy as np
 import pytest
 from conftest import two_rooms
 
+from pipeline.planners import make_planner, planner_config, planner_names
 from pipeline.world.geometry import walk_cells
 from pipeline.world.maps import GroundTruthMap, load_map
-from pipeline.planners import make_planner, planner_config, planner_names
-from pipeline.world.planner import Planner, Waypoint
+from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.world.simulator import Episode, MotionError, replay, run_episode
-from pipeline.world.planner import Observation
 from pipeline.world.trajectories import read_trajectory_csv, write_trajectory_csv
 from tests.conftest import write_ros_map
 

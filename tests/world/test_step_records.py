@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 import pytest
+from protocol_reference import reference_explored_cells
 from typer.testing import CliRunner
 
 from pipeline.cli import app
@@ -25,7 +26,6 @@ from pipeline.world.trajectories import (
     steps_path,
     write_steps_csv,
 )
-from protocol_reference import reference_explored_cells
 
 REPLAYED = ["step", "distance_m", "explored_m2", "explored_share"]  # a replay measures no decision time
 

@@ -55,8 +55,8 @@ import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
 from pipeline.common.config import config_dataclass, flag, maybe, real, whole
-from pipeline.lattice.visibility import utility_fan
 from pipeline.lattice.tsp import tsp_path
+from pipeline.lattice.visibility import utility_fan
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GraphPlanner, LatticePlannerConfig
 from pipeline.planners.registry import register_planner

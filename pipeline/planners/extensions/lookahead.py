@@ -29,7 +29,6 @@ from pipeline.world.maps import GroundTruthMap, MapFrame, map_frame
 from pipeline.world.planner import Observation
 from pipeline.world.simulator import Episode
 
-
 LOOKAHEAD_TARGETS = ("greedy", "tour")
 LOOKAHEAD_ROLLOUTS = ("full", "fast")
 WORKERS_NOTE = "2: the rollouts shared with a second process"

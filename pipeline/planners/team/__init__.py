@@ -11,6 +11,8 @@
   min-max routes on the true map.
 """
 
-from pipeline.planners.team import coordinated_greedy  # noqa: F401  (registers the team greedy_utility)
-from pipeline.planners.team import coordinated_tour  # noqa: F401  (registers the team guide_tsp and guide)
-from pipeline.planners.team import team_optimal  # noqa: F401  (registers the team optimal reference)
+from pipeline.planners.team import (
+    coordinated_greedy,  # noqa: F401  (registers the team greedy_utility)
+    coordinated_tour,  # noqa: F401  (registers the team guide_tsp and guide)
+    team_optimal,  # noqa: F401  (registers the team optimal reference)
+)

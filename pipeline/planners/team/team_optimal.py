@@ -34,7 +34,7 @@ import numpy as np
 
 from pipeline.common.config import config_dataclass, whole
 from pipeline.planners.config import option
-from pipeline.planners.references.coverage import viewpoint_detours, greedy_cover, plan_coverage
+from pipeline.planners.references.coverage import greedy_cover, plan_coverage, viewpoint_detours
 from pipeline.planners.references.coverage_model import CoverageModel, CoverageObjective, coverage_model
 from pipeline.planners.references.coverage_planners import OptimalConfig
 from pipeline.planners.team.coordinated_tour import TeamRouteOptions

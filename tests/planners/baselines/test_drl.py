@@ -15,9 +15,9 @@ from pipeline.envs.explore_env import ExploreEnv
 from pipeline.models import defaults
 from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.modeling_drl import DRLPolicy, save_drl_policy
-from pipeline.planners.wrapper import innermost
 from pipeline.planners import make_planner
 from pipeline.planners.baselines.drl import DRLPlanner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.mazes import write_maze_png
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.world.geometry import ray_end_offsets, walk_offsets
 from pipeline.lattice.graph import NODE_FREE
-from pipeline.world.maps import GroundTruthMap
 from pipeline.planners import make_planner, planner_names
 from pipeline.planners.baselines.nbvp import NBVPConfig, NBVPPlanner, view_gains
+from pipeline.planners.wrapper import innermost
+from pipeline.world.geometry import ray_end_offsets, walk_offsets
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import DEFAULT_ANGLES, FREE, OCCUPIED, UNKNOWN, Belief, scan
 from pipeline.world.simulator import Episode, replay, run_episode
-from pipeline.planners.wrapper import innermost
 
 PROTOCOL = Protocol()
 

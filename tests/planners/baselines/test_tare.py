@@ -2,21 +2,20 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from pipeline.lattice.frontier import frontier_mask
 from pipeline.lattice.visibility import visible_counts
-from pipeline.world.maps import GroundTruthMap, load_maze_png
-from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.planners import make_planner, planner_names
 from pipeline.planners.baselines.tare import TareConfig, TarePlanner, greedy_set_cover, visible_frontier_cells
+from pipeline.planners.wrapper import innermost
+from pipeline.world.maps import GroundTruthMap, load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
+from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 from pipeline.world.simulator import Episode, replay, run_episode
-from pipeline.world.planner import Observation
-from pipeline.planners.wrapper import innermost
 
 PROTOCOL = Protocol()
 

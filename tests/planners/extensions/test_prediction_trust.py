@@ -9,11 +9,12 @@ from pipeline.planners import make_planner
 from pipeline.planners.wrapper import innermost
 from pipeline.prediction.node_image import ground_truth_states, node_states_image
 from pipeline.prediction.node_predictor import pad_to_multiple
-from pipeline.world.buildings import generate_building_set
 from pipeline.world.building_config import BuildingConfig
+from pipeline.world.buildings import generate_building_set
 from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import PAPER_REAL_ROBOT
 from pipeline.world.simulator import run_episode
+
 
 @pytest.fixture(scope="module")
 def building(tmp_path_factory):

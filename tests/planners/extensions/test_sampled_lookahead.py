@@ -7,12 +7,12 @@ import os
 import numpy as np
 import pytest
 
-from pipeline.prediction.block_maps import block_index, true_blocks
-from pipeline.world.maps import GroundTruthMap
 from pipeline.models.configuration_block_model import BlockModelConfig
+from pipeline.models.defaults import SHIPPED_BLOCK_MODEL, resolve_block_model
 from pipeline.models.modeling_block_model import BlockModel, save_block_model
 from pipeline.planners import make_planner, planner_config
-from pipeline.models.defaults import SHIPPED_BLOCK_MODEL, resolve_block_model
+from pipeline.prediction.block_maps import block_index, true_blocks
+from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
 

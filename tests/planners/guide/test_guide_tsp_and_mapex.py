@@ -2,24 +2,24 @@
 
 from __future__ import annotations
 
-import numpy as np
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
-from pipeline.world.maps import GroundTruthMap, load_maze_png
-from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.prediction.node_image import ground_truth_states, node_states_image
-from pipeline.prediction.node_predictor import pad_to_multiple
 from pipeline.models import defaults
 from pipeline.planners import make_planner, planner_names
 from pipeline.planners.registry import make_config
+from pipeline.prediction.node_image import ground_truth_states, node_states_image
+from pipeline.prediction.node_predictor import pad_to_multiple
+from pipeline.world.maps import GroundTruthMap, load_maze_png
+from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
-from tests.conftest import SINGLE_NODES
 from pipeline.world.simulator import Episode, run_episode
+from tests.conftest import SINGLE_NODES
 
 PROTOCOL = Protocol()
 
@@ -59,8 +59,8 @@ def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkey
 def test_the_shipped_models_record_the_protocol_they_were_trained_at():
     """pipeline/assets/README.md: the maze benchmark's defaults, which the planners check against."""
     from pipeline.models.defaults import SHIPPED_POLICY
-    from pipeline.models.modeling_inpainter import read_inpainter_export
     from pipeline.models.modeling_diffusion import read_policy_export
+    from pipeline.models.modeling_inpainter import read_inpainter_export
 
     shipped = defaults.ASSETS / "inpainter.pt"
     # Recorded before the protocol had a robot radius and a door-graph switch: those read as the defaults.
@@ -291,8 +291,8 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
 @pytest.mark.parametrize("name, region_evaluation", [("guide", True), ("guide_noregion", False)])
 def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_policy_fixes(name, region_evaluation, maze):
     """max_nodes comes from the policy and region evaluation from the variant; the rest of the option is used."""
-    from pipeline.prediction.global_graph import GlobalGraphConfig
     from pipeline.models.defaults import SHIPPED_POLICY
+    from pipeline.prediction.global_graph import GlobalGraphConfig
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
     option = GlobalGraphConfig(centroid_links=1, max_nodes=7, use_region_evaluation=not region_evaluation)

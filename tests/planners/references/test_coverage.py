@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from pipeline.lattice import tsp
+from pipeline.lattice.graph import WINDOW_RADIUS
 from pipeline.planners.references import coverage as cov
 from pipeline.planners.references import coverage_model as cm
 from pipeline.world.geometry import segment_is_known_free
-from pipeline.lattice.graph import WINDOW_RADIUS
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.world.protocol import Protocol

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline.planners import make_planner, planner_config, planner_names
 from pipeline.planners.references import coverage as cov
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.planners import make_planner, planner_config, planner_names
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay, run_episode
 

@@ -5,13 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.models.sliver_gate import TrueGain
+from pipeline.models.sliver_gate import SliverGate, TrueGain
 from pipeline.planners import make_planner, planner_config
 from pipeline.planners.references.oracle_bounds import TrueGainGate
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
 from pipeline.world.simulator import Episode, run_episode
-from pipeline.models.sliver_gate import SliverGate
 
 
 def test_true_gain_counts_the_free_cells_a_scan_would_add(small_maze):
