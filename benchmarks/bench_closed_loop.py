@@ -75,9 +75,11 @@ def main() -> None:
         sim, loop = np.asarray(simulated), np.asarray(looped)
         diff = (loop - sim) / sim.mean()
         half = student_t_975(len(diff) - 1) * diff.std(ddof=1) / math.sqrt(len(diff)) if len(diff) > 1 else float("nan")
-        print(f"{name:<16} closed loop complete {complete}/{len(maps)}  simulator {sim.mean():7.1f} m  "
-              f"closed loop {loop.mean():7.1f} m  paired {100 * diff.mean():+.1f} % +- {100 * half:.1f}  "
-              f"({time.perf_counter() - started:.0f} s)")
+        print(
+            f"{name:<16} closed loop complete {complete}/{len(maps)}  simulator {sim.mean():7.1f} m  "
+            f"closed loop {loop.mean():7.1f} m  paired {100 * diff.mean():+.1f} % +- {100 * half:.1f}  "
+            f"({time.perf_counter() - started:.0f} s)"
+        )
 
 
 if __name__ == "__main__":

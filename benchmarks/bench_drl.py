@@ -48,8 +48,10 @@ def main() -> None:
                 result = run_episode(ground_truth, make_planner(name, **options), protocol)
                 ms = np.asarray(result.decision_ms)
                 times[name].extend(ms.tolist())
-                print(f"{path.name} {name:>16}: {len(ms):4d} decisions, median {np.median(ms):6.2f} ms, "
-                      f"p95 {np.percentile(ms, 95):6.2f} ms, {result.distance_m:6.1f} m, complete {result.complete}")
+                print(
+                    f"{path.name} {name:>16}: {len(ms):4d} decisions, median {np.median(ms):6.2f} ms, "
+                    f"p95 {np.percentile(ms, 95):6.2f} ms, {result.distance_m:6.1f} m, complete {result.complete}"
+                )
     medians = {name: float(np.median(values)) for name, values in times.items()}
     for name, value in medians.items():
         print(f"all mazes {name:>16}: median {value:.2f} ms over {len(times[name])} decisions")

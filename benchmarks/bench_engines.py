@@ -41,11 +41,18 @@ def main() -> None:
             run_benchmark(maps, planners, protocol, Path(scratch) / engine, workers=args.workers, backend=engine)
             seconds[engine] = time.perf_counter() - started
             print(f"{engine}: {seconds[engine]:.1f} s")
-        files = sorted(p.relative_to(Path(scratch) / "process") for p in (Path(scratch) / "process").glob("*/*.csv")
-                       if not p.name.endswith(".steps.csv"))
-        same = all((Path(scratch) / "process" / f).read_bytes() == (Path(scratch) / "ray" / f).read_bytes() for f in files)
-    print(f"{len(maps)} maps x {len(planners)} planners, {args.workers} workers: ray / process = "
-          f"{seconds['ray'] / seconds['process']:.2f}; {len(files)} trajectories byte-identical: {same}")
+        files = sorted(
+            p.relative_to(Path(scratch) / "process")
+            for p in (Path(scratch) / "process").glob("*/*.csv")
+            if not p.name.endswith(".steps.csv")
+        )
+        same = all(
+            (Path(scratch) / "process" / f).read_bytes() == (Path(scratch) / "ray" / f).read_bytes() for f in files
+        )
+    print(
+        f"{len(maps)} maps x {len(planners)} planners, {args.workers} workers: ray / process = "
+        f"{seconds['ray'] / seconds['process']:.2f}; {len(files)} trajectories byte-identical: {same}"
+    )
 
 
 if __name__ == "__main__":

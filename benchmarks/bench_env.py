@@ -66,12 +66,16 @@ def main() -> None:
     protocol = Protocol()
     with tempfile.TemporaryDirectory() as folder:
         paths = [
-            write_maze_png(generate_maze(MazeConfig(side_m=(args.side, args.side)), np.random.default_rng([args.seed, i])),
-                           Path(folder) / f"maze_{i:04d}.png")
+            write_maze_png(
+                generate_maze(MazeConfig(side_m=(args.side, args.side)), np.random.default_rng([args.seed, i])),
+                Path(folder) / f"maze_{i:04d}.png",
+            )
             for i in range(args.count)
         ]
         simulator_loop(paths[0], protocol)  # compile and warm the caches before timing anything
-        print(f"{'maze':<10} {'waypoints':>9} {'distance m':>10} {'simulator ms/step':>18} {'env ms/step':>12} {'ratio':>6}")
+        print(
+            f"{'maze':<10} {'waypoints':>9} {'distance m':>10} {'simulator ms/step':>18} {'env ms/step':>12} {'ratio':>6}"
+        )
         total_sim = total_env = 0.0
         total_steps = 0
         for path in paths:
@@ -86,8 +90,14 @@ def main() -> None:
                     raise SystemExit(f"{path.name}: the environment's replay differs from run_episode's episode")
             steps = len(trajectory) - 1
             sim_ms, env_ms = min(sim_times) / steps * 1e3, min(env_times) / steps * 1e3
-            total_sim, total_env, total_steps = total_sim + min(sim_times), total_env + min(env_times), total_steps + steps
-            print(f"{path.stem:<10} {steps:>9} {distance:>10.1f} {sim_ms:>18.3f} {env_ms:>12.3f} {env_ms / sim_ms:>6.2f}")
+            total_sim, total_env, total_steps = (
+                total_sim + min(sim_times),
+                total_env + min(env_times),
+                total_steps + steps,
+            )
+            print(
+                f"{path.stem:<10} {steps:>9} {distance:>10.1f} {sim_ms:>18.3f} {env_ms:>12.3f} {env_ms / sim_ms:>6.2f}"
+            )
         sim_ms, env_ms = total_sim / total_steps * 1e3, total_env / total_steps * 1e3
         print(f"{'all':<10} {total_steps:>9} {'':>10} {sim_ms:>18.3f} {env_ms:>12.3f} {env_ms / sim_ms:>6.2f}")
 

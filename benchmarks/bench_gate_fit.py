@@ -33,12 +33,14 @@ def main() -> None:
     section = yaml.safe_load(args.params.read_text())["fit_gate"]
     items = sorted(args.samples.glob("item_*.pkl"))
     if len(items) != section["maps"] + section["offices"]:
-        raise SystemExit(f"error: {args.samples} holds {len(items)} maps' samples, fit_gate counts "
-                         f"{section['maps']} + {section['offices']}; run `dvc repro fit_gate` first")
+        raise SystemExit(
+            f"error: {args.samples} holds {len(items)} maps' samples, fit_gate counts "
+            f"{section['maps']} + {section['offices']}; run `dvc repro fit_gate` first"
+        )
     samples = [pickle.loads(path.read_bytes()) for path in items]
-    mazes, offices = samples[: section["maps"]], samples[section["maps"]:]
+    mazes, offices = samples[: section["maps"]], samples[section["maps"] :]
     fit = mazes[: -section["holdout_maps"]] + offices[: -section["office_holdout"]]
-    held = {"mazes": mazes[-section["holdout_maps"]:], "offices": offices[-section["office_holdout"]:]}
+    held = {"mazes": mazes[-section["holdout_maps"] :], "offices": offices[-section["office_holdout"] :]}
     inputs = gate_inputs(np.concatenate([counts for counts, _ in fit]))
     labels = np.concatenate([gains for _, gains in fit]) >= section["min_gain"]
     started = time.perf_counter()
@@ -50,8 +52,10 @@ def main() -> None:
         counts = np.concatenate([c for c, _ in maps])
         big = np.concatenate([g for _, g in maps]) >= section["min_gain"]
         passes = gate.probability(counts) >= gate.threshold
-        print(f"  {family} held out: AUC {roc_auc(gate.probability(counts), big):.4f}, slivers passed "
-              f"{passes[~big].mean():.1%}, big passed {passes[big].mean():.1%}")
+        print(
+            f"  {family} held out: AUC {roc_auc(gate.probability(counts), big):.4f}, slivers passed "
+            f"{passes[~big].mean():.1%}, big passed {passes[big].mean():.1%}"
+        )
 
 
 if __name__ == "__main__":

@@ -66,8 +66,10 @@ def main() -> None:
     print(f"inpainter ({name}): {model.num_parameters():,} parameters; ngf {config.ngf}, {config.n_blocks} FFC blocks")
     for label, runner in (("eager", model), ("traced", TracedInpainter(model))):
         times = time_predictions(runner, args.size, args.repeats)
-        print(f"{args.size}x{args.size} prediction, {label:>6}, {args.threads} thread(s): median {np.median(times):.3f} ms, "
-              f"p95 {np.percentile(times, 95):.3f} ms, min {times.min():.3f} ms over {args.repeats} predictions")
+        print(
+            f"{args.size}x{args.size} prediction, {label:>6}, {args.threads} thread(s): median {np.median(times):.3f} ms, "
+            f"p95 {np.percentile(times, 95):.3f} ms, min {times.min():.3f} ms over {args.repeats} predictions"
+        )
 
 
 if __name__ == "__main__":

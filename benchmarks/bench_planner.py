@@ -26,11 +26,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from pipeline.planners import make_planner
 from pipeline.planners.specs import parse_option_value
 from pipeline.world.maps import list_maps, load_map
-from pipeline.planners import make_planner
 from pipeline.world.protocol import PROTOCOLS
-
 from pipeline.world.simulator import run_episode
 
 
@@ -51,8 +50,13 @@ class TimedPlanner:
         t0 = time.perf_counter()
         out = self.planner.plan(observation)
         decision = self.planner.last_decision
-        self.calls.append(((time.perf_counter() - t0) * 1e3, bool(decision.get("sampled", False)),
-                           decision.get("lookahead_costs") is not None))
+        self.calls.append(
+            (
+                (time.perf_counter() - t0) * 1e3,
+                bool(decision.get("sampled", False)),
+                decision.get("lookahead_costs") is not None,
+            )
+        )
         return out
 
 
@@ -64,9 +68,15 @@ def main() -> None:
     parser.add_argument("--planner", action="append", default=None)
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--checkpoint", default=None)
-    parser.add_argument("--protocol", choices=sorted(PROTOCOLS), default="maze",
-                        help="maze: the benchmark's (0.4 m / 4 m / 20 m); real_robot: 0.2 m / 1 m / 10 m")
-    parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="a planner option; repeatable")
+    parser.add_argument(
+        "--protocol",
+        choices=sorted(PROTOCOLS),
+        default="maze",
+        help="maze: the benchmark's (0.4 m / 4 m / 20 m); real_robot: 0.2 m / 1 m / 10 m",
+    )
+    parser.add_argument(
+        "--option", action="append", default=[], metavar="KEY=VALUE", help="a planner option; repeatable"
+    )
     args = parser.parse_args()
     for option in args.option:
         if "=" not in option:
@@ -74,7 +84,9 @@ def main() -> None:
     torch.set_num_threads(1)
     maps = list_maps(Path(args.maps))[: args.count]
     protocol = replace(PROTOCOLS[args.protocol], max_steps=args.steps)
-    print(f"{'planner':<8} {'K':>4} {'full decision ms (median / p95)':>32} {'all calls ms (median)':>22} {'full decisions':>15}")
+    print(
+        f"{'planner':<8} {'K':>4} {'full decision ms (median / p95)':>32} {'all calls ms (median)':>22} {'full decisions':>15}"
+    )
     for name in args.planner or ["guide", "dare"]:
         for k in args.k:
             options = {key: parse_option_value(value) for key, value in (o.split("=", 1) for o in args.option)}
@@ -89,10 +101,14 @@ def main() -> None:
                 full += [ms for ms, sampled, _ in calls if sampled]
                 rolled += [ms for ms, sampled, rolled_out in calls if sampled and rolled_out]
                 every += [ms for ms, _, _ in calls]
-            print(f"{name:<8} {k:>4} {np.median(full):>18.1f} / {np.percentile(full, 95):>8.1f} {np.median(every):>22.1f} {len(full):>15}")
+            print(
+                f"{name:<8} {k:>4} {np.median(full):>18.1f} / {np.percentile(full, 95):>8.1f} {np.median(every):>22.1f} {len(full):>15}"
+            )
             if rolled:
-                print(f"{'':<8} {'':>4} {np.median(rolled):>18.1f} / {np.percentile(rolled, 95):>8.1f} {'':>22} {len(rolled):>15}"
-                      "  <- of which rolled out")
+                print(
+                    f"{'':<8} {'':>4} {np.median(rolled):>18.1f} / {np.percentile(rolled, 95):>8.1f} {'':>22} {len(rolled):>15}"
+                    "  <- of which rolled out"
+                )
 
 
 if __name__ == "__main__":

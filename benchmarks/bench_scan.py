@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.planners import make_planner
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
-from pipeline.planners import make_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import Lidar
 from pipeline.world.simulator import run_episode
@@ -42,14 +42,18 @@ def main() -> None:
         lidar.scan((int(col), int(row)))
         times.append(time.perf_counter() - t0)
     times_ms = np.array(times) * 1e3
-    print(f"scan (720 rays, {protocol.sensor_range} m): median {np.median(times_ms):.3f} ms, "
-          f"p95 {np.percentile(times_ms, 95):.3f} ms over {args.repeats} random free cells")
+    print(
+        f"scan (720 rays, {protocol.sensor_range} m): median {np.median(times_ms):.3f} ms, "
+        f"p95 {np.percentile(times_ms, 95):.3f} ms over {args.repeats} random free cells"
+    )
     t0 = time.perf_counter()
     result = run_episode(ground_truth, make_planner("nearest_frontier"), protocol)
     elapsed = time.perf_counter() - t0
-    print(f"nearest_frontier episode on {args.maze.name}: {elapsed:.2f} s, {result.steps} waypoints, "
-          f"{result.distance_m:.1f} m, complete={result.complete}, "
-          f"decision median {np.median(result.decision_ms):.2f} ms")
+    print(
+        f"nearest_frontier episode on {args.maze.name}: {elapsed:.2f} s, {result.steps} waypoints, "
+        f"{result.distance_m:.1f} m, complete={result.complete}, "
+        f"decision median {np.median(result.decision_ms):.2f} ms"
+    )
 
 
 if __name__ == "__main__":

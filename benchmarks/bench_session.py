@@ -61,8 +61,10 @@ def main() -> None:
         if waypoints:
             episode.move(waypoints[0])
     first = moments[0][0]
-    print(f"{args.side:g} m floor, beliefs after {args.steps} to {args.steps + args.repeats} greedy waypoints, as "
-          f"OccupancyGrids of {args.resolution:g} m cells (the first {first.width} x {first.height})")
+    print(
+        f"{args.side:g} m floor, beliefs after {args.steps} to {args.steps + args.repeats} greedy waypoints, as "
+        f"OccupancyGrids of {args.resolution:g} m cells (the first {first.width} x {first.height})"
+    )
     for name in args.planner or ["guide", "greedy_utility"]:
         session = ExplorationSession(name, protocol)
         session.update_pose(0.0, 0.0)
@@ -78,9 +80,11 @@ def main() -> None:
                 convert.append((t1 - t0) * 1e3)
                 decide.append((t2 - t1) * 1e3)
                 whole.append((t2 - t0) * 1e3)
-        print(f"{name:<16} conversion {np.median(convert):7.1f} ms (p95 {np.percentile(convert, 95):.1f})  "
-              f"planning {np.median(decide):7.1f} ms (p95 {np.percentile(decide, 95):.1f})  "
-              f"decision {np.median(whole):7.1f} ms (p95 {np.percentile(whole, 95):.1f})")
+        print(
+            f"{name:<16} conversion {np.median(convert):7.1f} ms (p95 {np.percentile(convert, 95):.1f})  "
+            f"planning {np.median(decide):7.1f} ms (p95 {np.percentile(decide, 95):.1f})  "
+            f"decision {np.median(whole):7.1f} ms (p95 {np.percentile(whole, 95):.1f})"
+        )
 
 
 if __name__ == "__main__":

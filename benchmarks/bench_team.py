@@ -45,9 +45,11 @@ def main() -> None:
             decisions += [ms for robot in result.decision_ms for ms in robot]
             makespans.append(result.makespan_m)
         ms = np.asarray(decisions)
-        print(f"{name}, {args.robots} robots, {len(maps)} maps: {ms.size} decisions, median {np.median(ms):.1f} ms, "
-              f"p95 {np.percentile(ms, 95):.1f} ms, max {ms.max():.1f} ms; mean makespan {np.mean(makespans):.1f} m",
-              flush=True)
+        print(
+            f"{name}, {args.robots} robots, {len(maps)} maps: {ms.size} decisions, median {np.median(ms):.1f} ms, "
+            f"p95 {np.percentile(ms, 95):.1f} ms, max {ms.max():.1f} ms; mean makespan {np.mean(makespans):.1f} m",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -39,8 +39,8 @@ from PIL import Image
 from tqdm import tqdm
 
 from pipeline.planners import make_planner
-from pipeline.reporting.render import auto_scale, episode_title, render_frame, save_png
 from pipeline.reporting.panels import whole_building_marks
+from pipeline.reporting.render import auto_scale, episode_title, render_frame, save_png
 from pipeline.robot import ExplorationSession
 from pipeline.robot.closed_loop import ClosedLoopConfig, run_closed_loop
 from pipeline.world.maps import GroundTruthMap
@@ -65,8 +65,12 @@ class Task:
 def load_plan(folder: Path, plan: str, start: dict, protocol: Protocol) -> GroundTruthMap:
     """The plan at the protocol's cell size from the start pose's pixel (`starts.json`'s row and col)."""
     image = np.asarray(Image.open(folder / f"{plan}.png"))
-    fine = GroundTruthMap(free=image > 127, start_cell=(int(start["col"]), int(start["row"])), cell_size=PLAN_PIXEL_M,
-                          name=f"{plan}_{start.get('index', 0)}")
+    fine = GroundTruthMap(
+        free=image > 127,
+        start_cell=(int(start["col"]), int(start["row"])),
+        cell_size=PLAN_PIXEL_M,
+        name=f"{plan}_{start.get('index', 0)}",
+    )
     world, _ = resample_map(fine, protocol.cell_size, robot_radius_m=protocol.robot_radius_m)
     return world
 
@@ -86,19 +90,37 @@ def run_one(folder: str, task: Task) -> dict:
     starts = json.loads((Path(folder) / "starts.json").read_text())
     world = load_plan(Path(folder), task.plan, {**starts[task.plan][task.start], "index": task.start}, task.protocol)
     started = time.perf_counter()
-    row = {"plan": task.plan, "start": task.start, "planner": task.planner, "loop": task.loop, "size": size_of(world),
-           "free_m2": round(world.free_cell_count * world.cell_size**2, 1)}
+    row = {
+        "plan": task.plan,
+        "start": task.start,
+        "planner": task.planner,
+        "loop": task.loop,
+        "size": size_of(world),
+        "free_m2": round(world.free_cell_count * world.cell_size**2, 1),
+    }
     if task.loop == "simulator":
         result = run_episode(world, make_planner(task.planner), task.protocol)
-        row.update(distance_m=result.distance_m, reachable_share=result.reachable_share, early_stop=result.early_stop,
-                   fallbacks=result.fallbacks, stopped=result.failure, violations=result.motion_violations,
-                   decision_ms_median=float(np.median(result.decision_ms)) if result.decision_ms else float("nan"))
+        row.update(
+            distance_m=result.distance_m,
+            reachable_share=result.reachable_share,
+            early_stop=result.early_stop,
+            fallbacks=result.fallbacks,
+            stopped=result.failure,
+            violations=result.motion_violations,
+            decision_ms_median=float(np.median(result.decision_ms)) if result.decision_ms else float("nan"),
+        )
     else:
         session = ExplorationSession(task.planner, task.protocol)
         result = run_closed_loop(world, session, ClosedLoopConfig(max_decisions=task.max_decisions))
-        row.update(distance_m=result.distance_m, reachable_share=result.reachable_share, early_stop=result.early_stop,
-                   fallbacks=result.fallbacks, stopped="done" if result.done else "decision limit", violations=0,
-                   decision_ms_median=float(np.median(result.decision_ms)) if result.decision_ms else float("nan"))
+        row.update(
+            distance_m=result.distance_m,
+            reachable_share=result.reachable_share,
+            early_stop=result.early_stop,
+            fallbacks=result.fallbacks,
+            stopped="done" if result.done else "decision limit",
+            violations=0,
+            decision_ms_median=float(np.median(result.decision_ms)) if result.decision_ms else float("nan"),
+        )
     row["seconds"] = round(time.perf_counter() - started, 1)
     return row
 
@@ -109,10 +131,20 @@ def draw(folder: Path, plan: str, planner: str, protocol: Protocol, path: Path) 
     world = load_plan(folder, plan, starts[plan][0], protocol)
     result = run_episode(world, make_planner(planner), protocol)
     doors, fallbacks = whole_building_marks(result, protocol.node_resolution)
-    title = episode_title(plan, planner, result.distance_m, result.steps, result.reachable_share) + \
-        f" of the reachable area | {len(doors)} door nodes, {result.fallbacks} fallbacks"
-    image = render_frame(world, final_belief(world, result.trajectory, protocol), result.trajectory, None,
-                         auto_scale(world.shape, 1600), title, doors=doors, fallbacks=fallbacks)
+    title = (
+        episode_title(plan, planner, result.distance_m, result.steps, result.reachable_share)
+        + f" of the reachable area | {len(doors)} door nodes, {result.fallbacks} fallbacks"
+    )
+    image = render_frame(
+        world,
+        final_belief(world, result.trajectory, protocol),
+        result.trajectory,
+        None,
+        auto_scale(world.shape, 1600),
+        title,
+        doors=doors,
+        fallbacks=fallbacks,
+    )
     save_png(image, path)
     print(f"wrote {path}")
 
@@ -122,7 +154,9 @@ def main() -> None:
     parser.add_argument("--plans", type=Path, default=Path("data/real_plans/kth"))
     parser.add_argument("--planner", action="append", default=None)
     parser.add_argument("--loop", choices=("simulator", "session"), default="simulator")
-    parser.add_argument("--lattice-only", action="store_true", help="DARE's lattice, no door nodes, no done rule on cells")
+    parser.add_argument(
+        "--lattice-only", action="store_true", help="DARE's lattice, no door nodes, no done rule on cells"
+    )
     parser.add_argument("--starts", type=int, default=3, help="start poses per plan (starts.json's first)")
     parser.add_argument("--only", action="append", default=None, help="run only these plans")
     parser.add_argument("--workers", type=int, default=2)
@@ -130,37 +164,52 @@ def main() -> None:
     parser.add_argument("--csv", type=Path, default=None)
     parser.add_argument("--figure", type=Path, default=None)
     args = parser.parse_args()
-    protocol = replace(PAPER_REAL_ROBOT, done_unknown_cells=0, max_steps=args.max_steps,
-                       door_graph=False if args.lattice_only else None)
+    protocol = replace(
+        PAPER_REAL_ROBOT,
+        done_unknown_cells=0,
+        max_steps=args.max_steps,
+        door_graph=False if args.lattice_only else None,
+    )
     starts = json.loads((args.plans / "starts.json").read_text())
     plans = [plan for plan in starts if args.only is None or plan in args.only]
     planners = args.planner or ["greedy_utility", "guide_tsp", "guide"]
-    tasks = [Task(plan, k, name, args.loop, protocol, args.max_steps)
-             for name in planners for plan in plans for k in range(min(args.starts, len(starts[plan])))]
+    tasks = [
+        Task(plan, k, name, args.loop, protocol, args.max_steps)
+        for name in planners
+        for plan in plans
+        for k in range(min(args.starts, len(starts[plan])))
+    ]
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
         futures = [pool.submit(run_one, str(args.plans), task) for task in tasks]
         for _ in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
             pass
         rows = [future.result() for future in futures]
-    print(f"{len(tasks)} episodes ({args.loop}, {'lattice only' if args.lattice_only else 'door-aware graph'}) "
-          f"in {time.perf_counter() - started:.0f} s")
-    print(f"{'size':<7} {'planner':<16} {'eps':>4} {'reach mean':>10} {'least':>7} {'early':>6} {'not done':>8} "
-          f"{'fallbk':>7} {'dist m':>8} {'dec ms':>7}")
+    print(
+        f"{len(tasks)} episodes ({args.loop}, {'lattice only' if args.lattice_only else 'door-aware graph'}) "
+        f"in {time.perf_counter() - started:.0f} s"
+    )
+    print(
+        f"{'size':<7} {'planner':<16} {'eps':>4} {'reach mean':>10} {'least':>7} {'early':>6} {'not done':>8} "
+        f"{'fallbk':>7} {'dist m':>8} {'dec ms':>7}"
+    )
     for _, size in SIZES:
         for name in planners:
             group = [r for r in rows if r["size"] == size and r["planner"] == name]
             if not group:
                 continue
             share = np.array([r["reachable_share"] for r in group])
-            print(f"{size:<7} {name:<16} {len(group):>4} {100 * share.mean():>9.1f}% {100 * share.min():>6.1f}% "
-                  f"{sum(r['early_stop'] for r in group):>6} {sum(limit_reached(r['stopped']) for r in group):>8} "
-                  f"{np.mean([r['fallbacks'] for r in group]):>7.1f} "
-                  f"{np.mean([r['distance_m'] for r in group]):>8.1f} "
-                  f"{np.median([r['decision_ms_median'] for r in group]):>7.1f}")
+            print(
+                f"{size:<7} {name:<16} {len(group):>4} {100 * share.mean():>9.1f}% {100 * share.min():>6.1f}% "
+                f"{sum(r['early_stop'] for r in group):>6} {sum(limit_reached(r['stopped']) for r in group):>8} "
+                f"{np.mean([r['fallbacks'] for r in group]):>7.1f} "
+                f"{np.mean([r['distance_m'] for r in group]):>8.1f} "
+                f"{np.median([r['decision_ms_median'] for r in group]):>7.1f}"
+            )
     violations = sum(r["violations"] for r in rows)
-    print(f"motion-rule violations: {violations}; episodes under 97 %: "
-          f"{sum(r['reachable_share'] < 0.97 for r in rows)}")
+    print(
+        f"motion-rule violations: {violations}; episodes under 97 %: {sum(r['reachable_share'] < 0.97 for r in rows)}"
+    )
     if args.csv is not None:
         args.csv.parent.mkdir(parents=True, exist_ok=True)
         with args.csv.open("w", newline="") as handle:

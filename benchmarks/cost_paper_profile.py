@@ -128,9 +128,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="profiles/paper.yaml")
     parser.add_argument("--mazes", type=int, default=2, help="mazes each unit is measured on")
-    parser.add_argument("--skip-benchmark-planners", default="",
-                        help="comma-separated planners of the benchmark list to leave out of the measurement "
-                             "(their episodes are then costed as the mean of the others)")
+    parser.add_argument(
+        "--skip-benchmark-planners",
+        default="",
+        help="comma-separated planners of the benchmark list to leave out of the measurement "
+        "(their episodes are then costed as the mean of the others)",
+    )
     parser.add_argument("--save-units", help="write the measured unit costs to this JSON file")
     parser.add_argument("--units", help="cost from unit costs saved earlier (--save-units) instead of measuring")
     args = parser.parse_args()
@@ -147,15 +150,27 @@ def main() -> None:
         test = draw_mazes(scratch / "test", args.mazes, tuple(profile["mazes"]["test"]["side_m"]), 32)
 
         pairs = profile["collect_pairs"]
-        config = PairsConfig(maps=tuple(train), pairs_per_shard=40, planners=tuple(pairs["planners"]),
-                             snapshot_every=pairs["snapshot_every"], stop_steps=tuple(pairs["stop_steps"]), protocol=protocol)
+        config = PairsConfig(
+            maps=tuple(train),
+            pairs_per_shard=40,
+            planners=tuple(pairs["planners"]),
+            snapshot_every=pairs["snapshot_every"],
+            stop_steps=tuple(pairs["stop_steps"]),
+            protocol=protocol,
+        )
         seconds, _ = timed(collect_pairs_shard, ShardJob(0, str(scratch), "", {"config": config}))
         unit["pair"] = seconds / 40
         print(f"one Stage I pair: {unit['pair'] * 1e3:.0f} ms")
 
         expert = profile["collect_expert"]
-        econfig = ExpertConfig(maps=tuple(train), episodes_per_shard=1, planner=expert["planner"], horizon=expert["horizon"],
-                               protocol=protocol, random_starts=bool(expert["random_starts"]))
+        econfig = ExpertConfig(
+            maps=tuple(train),
+            episodes_per_shard=1,
+            planner=expert["planner"],
+            horizon=expert["horizon"],
+            protocol=protocol,
+            random_starts=bool(expert["random_starts"]),
+        )
         seconds, _ = timed(collect_expert_shard, ShardJob(1, str(scratch), "", {"config": econfig}))
         steps = int(read_shard(shard_path(scratch, 1))["summary_steps"])
         unit["expert_episode"], unit["expert_steps"] = seconds, steps
@@ -175,7 +190,9 @@ def main() -> None:
         print(f"one policy step at batch {tp['train']['batch_size']}: {unit['policy_step_cpu']:.2f} s (CPU)")
 
         teacher = profile["distil_policy"]["teacher"]
-        spec = teacher["planner"] + (":" + ",".join(f"{k}={v}" for k, v in teacher["options"].items()) if teacher["options"] else "")
+        spec = teacher["planner"] + (
+            ":" + ",".join(f"{k}={v}" for k, v in teacher["options"].items()) if teacher["options"] else ""
+        )
         seconds, steps = episode_seconds(f"teacher={spec}", test[0], protocol)
         unit["dagger_episode"], unit["dagger_steps"] = seconds, steps
         print(f"one DAgger episode (teacher {spec}): {seconds:.1f} s, {steps} steps")
@@ -219,24 +236,33 @@ def stage_costs(profile: dict, unit: dict, nodes: int, cores: int, gpus: int) ->
     r = p["report"]
     report_episodes = len(r["k_values"]) * len(r["k_planners"]) * r["k_maps"]
     block_maze_epochs = (block.get("mazes_fit", 0) + block.get("mazes_holdout", 0)) * len(block.get("history", []))
-    default_block_rate = block.get("train_seconds", 0.0) / max(1, block_maze_epochs)  # s per maze-epoch of the default run
+    default_block_rate = block.get("train_seconds", 0.0) / max(
+        1, block_maze_epochs
+    )  # s per maze-epoch of the default run
     bm = p["train_block_model"]
     costs = {
         "collect_pairs": p["collect_pairs"]["pairs"] * unit["pair"] / total_cores,
         "collect_expert": episodes * unit["expert_episode"] / total_cores,
         "build_observations": episodes * unit["observations_episode"] / total_cores,
         "fit_gate": gate_mazes * unit["greedy_episode"] / total_cores,
-        "train_block_model": bm["mazes"] * unit["greedy_episode"] / total_cores + default_block_rate * bm["mazes"] * bm["epochs"],
-        "train_inpainter": inpainter_steps * (unit["inpainter_step_cpu"] if not gpus
-                                              else ti["batch_size"] * H200_INPAINTER_S_PER_PAIR / gpus),
-        "train_planner (x2)": 2 * policy_steps * (unit["policy_step_cpu"] if not gpus
-                                                  else tp["batch_size"] * H200_POLICY_S_PER_SAMPLE / gpus),
+        "train_block_model": bm["mazes"] * unit["greedy_episode"] / total_cores
+        + default_block_rate * bm["mazes"] * bm["epochs"],
+        "train_inpainter": inpainter_steps
+        * (unit["inpainter_step_cpu"] if not gpus else ti["batch_size"] * H200_INPAINTER_S_PER_PAIR / gpus),
+        "train_planner (x2)": 2
+        * policy_steps
+        * (unit["policy_step_cpu"] if not gpus else tp["batch_size"] * H200_POLICY_S_PER_SAMPLE / gpus),
         "distil_policy": (dagger_episodes * unit["dagger_episode"] + dagger_evals * unit["guide_episode"]) / total_cores
-        + (d["rounds"] + 1) * dagger_samples * d["train"]["max_epochs"]
+        + (d["rounds"] + 1)
+        * dagger_samples
+        * d["train"]["max_epochs"]
         * (unit["policy_step_cpu"] / d["train"]["batch_size"] if not gpus else H200_POLICY_S_PER_SAMPLE / gpus),
         # the default profile's 6,144 PPO steps (when that run trained them, not resumed), per core up to 16 environments
-        "train_drl": (drl["train_seconds"] / drl["timesteps"]) * p["train_drl"]["timesteps"] / max(1, min(16, total_cores) / 2)
-        if drl.get("train_seconds", 0.0) > 10 else float("nan"),
+        "train_drl": (drl["train_seconds"] / drl["timesteps"])
+        * p["train_drl"]["timesteps"]
+        / max(1, min(16, total_cores) / 2)
+        if drl.get("train_seconds", 0.0) > 10
+        else float("nan"),
         "benchmark": p["mazes"]["test"]["count"] * unit["benchmark_maze"] / total_cores,
         "report": report_episodes * unit["guide_episode"] / total_cores,
     }
@@ -259,8 +285,11 @@ def print_costs(profile: dict, unit: dict) -> None:
     print("|---|" + "---:|" * len(table))
     for stage in stages:
         print(f"| {stage} | " + " | ".join(duration(table[name][stage]) for name in table) + " |")
-    print("| **total** | " + " | ".join(f"**{duration(sum(v for v in costs.values() if v == v))}**"
-                                       for costs in table.values()) + " |")
+    print(
+        "| **total** | "
+        + " | ".join(f"**{duration(sum(v for v in costs.values() if v == v))}**" for costs in table.values())
+        + " |"
+    )
     print("\nunit costs (s): " + ", ".join(f"{k} {v:.3g}" for k, v in unit.items()))
 
 

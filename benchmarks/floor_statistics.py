@@ -20,8 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.world.buildings import BuildingFloor, draw_building
 from pipeline.world.building_config import FURNITURE_LABEL, BuildingConfig
+from pipeline.world.buildings import BuildingFloor, draw_building
 from pipeline.world.floor_shape import STAT_CELL_M, STATISTICS, PlanGrid, plan_statistics, real_plan_grids
 
 FIGURE_PX_PER_M = 4.0  # the figure's scale, the same for every tile
@@ -60,8 +60,9 @@ def picture(free: np.ndarray, furniture: np.ndarray | None = None) -> np.ndarray
         image[furniture] = COLOUR_FURNITURE
     rows, cols = np.nonzero(free)
     margin = WALL_REACH_CELLS + 1
-    image = image[max(0, rows.min() - margin) : rows.max() + 1 + margin,
-                  max(0, cols.min() - margin) : cols.max() + 1 + margin]
+    image = image[
+        max(0, rows.min() - margin) : rows.max() + 1 + margin, max(0, cols.min() - margin) : cols.max() + 1 + margin
+    ]
     return np.ascontiguousarray(np.rot90(image)) if image.shape[0] > image.shape[1] else image
 
 
@@ -70,8 +71,9 @@ def figure(plans: list[PlanGrid], floors: list[tuple[float, BuildingFloor]], pat
     scale = FIGURE_PX_PER_M * STAT_CELL_M
     tiles = [(f"real: {plan.name}", picture(plan.free[::-1])) for plan in plans]  # row 0 back at the top
     split = len(tiles)
-    tiles += [(f"generated: {side:g} m side", picture(floor.free, floor.labels == FURNITURE_LABEL))
-              for side, floor in floors]
+    tiles += [
+        (f"generated: {side:g} m side", picture(floor.free, floor.labels == FURNITURE_LABEL)) for side, floor in floors
+    ]
     tiles = [(name, cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)) for name, image in tiles]
     width = max(image.shape[1] for _, image in tiles) + 8
     caption = 18
@@ -98,8 +100,14 @@ def main() -> None:
     parser.add_argument("--plans", default="data/real_plans/kth", help="folder of labelled plans at 0.05 m per pixel")
     parser.add_argument("--count", type=int, default=30, help="generated floors")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--side", type=float, nargs=2, default=(20.0, 80.0), metavar=("LOW", "HIGH"),
-                        help="generated floors' sides (m), drawn in whole metres")
+    parser.add_argument(
+        "--side",
+        type=float,
+        nargs=2,
+        default=(20.0, 80.0),
+        metavar=("LOW", "HIGH"),
+        help="generated floors' sides (m), drawn in whole metres",
+    )
     parser.add_argument("--figure", default=None, help="PNG of the plans and generated floors side by side")
     args = parser.parse_args()
     plans = real_plan_grids(args.plans)
@@ -110,10 +118,12 @@ def main() -> None:
         side = float(rng.integers(low, high + 1))
         floors.append((side, draw_building(BuildingConfig(side_m=side, cell_size=STAT_CELL_M), rng)))
     columns = {
-        f"real plans ({len(plans)}, {Path(args.plans).name})":
-            [plan_statistics(plan.free, plan.rooms, STAT_CELL_M) for plan in plans],
-        f"generated floors ({args.count}, sides {low}-{high} m)":
-            [plan_statistics(floor.free, floor.room_labels, STAT_CELL_M) for _, floor in floors],
+        f"real plans ({len(plans)}, {Path(args.plans).name})": [
+            plan_statistics(plan.free, plan.rooms, STAT_CELL_M) for plan in plans
+        ],
+        f"generated floors ({args.count}, sides {low}-{high} m)": [
+            plan_statistics(floor.free, floor.room_labels, STAT_CELL_M) for _, floor in floors
+        ],
     }
     print(f"{STAT_CELL_M:g} m cells; median (10th-90th percentile) over floors")
     print(table(columns))

@@ -28,13 +28,16 @@ def main() -> None:
     parser.add_argument("--steps", type=int, nargs="+", default=[30, 60, 90, 120])
     args = parser.parse_args()
     checkpoint = args.checkpoint or pick_model("inpainter", PAPER_REAL_ROBOT)
-    frame = evaluate_predictor(list_maps(args.maps), load_inpaint_fn(checkpoint), steps=args.steps,
-                               protocol=PAPER_REAL_ROBOT, progress=True)
+    frame = evaluate_predictor(
+        list_maps(args.maps), load_inpaint_fn(checkpoint), steps=args.steps, protocol=PAPER_REAL_ROBOT, progress=True
+    )
     print(f"inpainter: {checkpoint}")
     print("| step | precision | base rate | V_u nodes | maps |")
     print("|---:|---:|---:|---:|---:|")
     for row in frame.itertuples(index=False):
-        print(f"| {row.step} | {100 * row.precision:.1f} % | {100 * row.base_rate:.1f} % | {row.predicted_nodes} | {row.maps} |")
+        print(
+            f"| {row.step} | {100 * row.precision:.1f} % | {100 * row.base_rate:.1f} % | {row.predicted_nodes} | {row.maps} |"
+        )
 
 
 if __name__ == "__main__":

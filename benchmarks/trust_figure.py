@@ -21,8 +21,8 @@ from pipeline.planners.wrapper import innermost
 from pipeline.prediction.node_image import ground_truth_states, node_states_image
 from pipeline.prediction.node_predictor import pad_to_multiple
 from pipeline.reporting.panels import render_final
-from pipeline.world.buildings import generate_building_set
 from pipeline.world.building_config import BuildingConfig
+from pipeline.world.buildings import generate_building_set
 from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import PAPER_REAL_ROBOT
 from pipeline.world.simulator import final_belief, run_episode
@@ -30,11 +30,13 @@ from pipeline.world.simulator import final_belief, run_episode
 
 def always_wrong(ground_truth, holder: dict):
     """Free probability 1 exactly at the lattice nodes the ground truth has occupied."""
+
     def inpaint(image: np.ndarray) -> np.ndarray:
         graph = innermost(holder["planner"]).graph
         truth = node_states_image(graph, ground_truth_states(graph, ground_truth.free))
         padded, _ = pad_to_multiple(truth, 8, 255)
         return (padded == 0).astype(np.float32) if padded.shape == image.shape else np.zeros(image.shape, np.float32)
+
     return inpaint
 
 
@@ -57,8 +59,13 @@ def main() -> None:
         distances[label] = result.distance_m
         if label == "trusted":
             print("record at the end:", planner.trust_state.as_dict())
-            render_final(result, world, final_belief(world, result.trajectory, PAPER_REAL_ROBOT),
-                         graph=innermost(planner).graph, path=args.out)
+            render_final(
+                result,
+                world,
+                final_belief(world, result.trajectory, PAPER_REAL_ROBOT),
+                graph=innermost(planner).graph,
+                path=args.out,
+            )
     print(f"distance: trusted {distances['trusted']:.1f} m, believed {distances['believed']:.1f} m; wrote {args.out}")
 
 

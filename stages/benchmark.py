@@ -17,12 +17,16 @@ from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, sta
 from pipeline.workflows.benchmark import benchmark_test_mazes
 
 # A planner entry as on the command line, checked by the benchmark's own parser and the registry.
-PLANNER_SPEC = satisfies(lambda spec: resolve_planner_specs([spec]),
-                         "a planner spec: a registered planner's name or label=name:option=value,...")
+PLANNER_SPEC = satisfies(
+    lambda spec: resolve_planner_specs([spec]),
+    "a planner spec: a registered planner's name or label=name:option=value,...",
+)
 # A team planner entry: a coordinated team name, uncoordinated_<name>, or a single planner's name.
-TEAM_PLANNER_SPEC = satisfies(lambda spec: resolve_team_specs([spec]),
-                              "a team planner spec: a planner's name (its coordinated team version where there is "
-                              "one) or uncoordinated_<name>, with label=...:option=value,... as for planners")
+TEAM_PLANNER_SPEC = satisfies(
+    lambda spec: resolve_team_specs([spec]),
+    "a team planner spec: a planner's name (its coordinated team version where there is "
+    "one) or uncoordinated_<name>, with label=...:option=value,... as for planners",
+)
 
 
 class Settings(Section):

@@ -41,8 +41,11 @@ class Settings(Section):
         accepted = accepted_options(planner, options)
         for key in options:
             if key not in accepted:
-                raise PydanticCustomError("unknown_key", "{planner} has no option {key}",
-                                          {"key": key, "known": ", ".join(accepted), "planner": planner})
+                raise PydanticCustomError(
+                    "unknown_key",
+                    "{planner} has no option {key}",
+                    {"key": key, "known": ", ".join(accepted), "planner": planner},
+                )
         make_config(planner, **options)
         return options
 
@@ -53,8 +56,12 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 
 if __name__ == "__main__":
     parser = stage_arguments(__doc__)
-    parser.add_argument("--backend", choices=["process", "ray"], default=None,
-                        help="where the shards are made: process (this machine's cores) or ray (the cluster "
-                             "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]")
+    parser.add_argument(
+        "--backend",
+        choices=["process", "ray"],
+        default=None,
+        help="where the shards are made: process (this machine's cores) or ray (the cluster "
+        "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]",
+    )
     args = parser.parse_args()
     run_stage_main(main, args.params, args.backend)

@@ -30,8 +30,12 @@ def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:
 
 if __name__ == "__main__":
     parser = stage_arguments(__doc__)
-    parser.add_argument("--backend", choices=["process", "ray"], default=None,
-                        help="where the shards are made: process (this machine's cores) or ray (the cluster "
-                             "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]")
+    parser.add_argument(
+        "--backend",
+        choices=["process", "ray"],
+        default=None,
+        help="where the shards are made: process (this machine's cores) or ray (the cluster "
+        "$RAY_ADDRESS names) [default: $GUIDE_BACKEND or process]",
+    )
     args = parser.parse_args()
     run_stage_main(main, args.params, args.backend)

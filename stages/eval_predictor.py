@@ -54,8 +54,17 @@ def main(params_path: str = "params.yaml") -> pd.DataFrame:
     section, protocol = read_params(params_path)
     config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
     graph_config = table1_graph_config(float(section["keep_share"]))
-    frame = predictor_folder(TEST_MAZES, OUT_DIR, section["checkpoint"], section["compare_checkpoint"], section["steps"],
-                             config, protocol, graph_config=graph_config, sweep_thresholds=section["sweep_thresholds"])
+    frame = predictor_folder(
+        TEST_MAZES,
+        OUT_DIR,
+        section["checkpoint"],
+        section["compare_checkpoint"],
+        section["steps"],
+        config,
+        protocol,
+        graph_config=graph_config,
+        sweep_thresholds=section["sweep_thresholds"],
+    )
     log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame

@@ -22,6 +22,7 @@ from pipeline.common.config import Section, fraction, list_of, maybe, whole
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.workflows.fit_gate import fit_gate
 
+
 class Settings(Section):
     """The `fit_gate` section of params.yaml."""
 

@@ -34,8 +34,8 @@ from pipeline.common.atomic import atomic_folder
 from pipeline.common.config import Section, fraction, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.world.buildings import generate_building_set
 from pipeline.world.building_config import BuildingConfig
+from pipeline.world.buildings import generate_building_set
 from pipeline.world.mazes import MazeConfig, generate_maze_set, write_maze_png
 from pipeline.world.offices import OFFICE_SCALES, OfficeConfig, generate_office_set
 from pipeline.world.plans import generate_plan_floors, load_plan_grids
@@ -101,14 +101,17 @@ def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[SplitConfi
         if kind == "building":
             return BuildingConfig(side_m=high, cell_size=cell_size), section["count"]
         return OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size), section["count"]
-    config = MazeConfig(side_m=tuple(section["side_m"]), cell_size=cell_size, **{
-        key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()
-    })
+    config = MazeConfig(
+        side_m=tuple(section["side_m"]),
+        cell_size=cell_size,
+        **{key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()},
+    )
     return config, section["count"]
 
 
-def _draw_split(config: SplitConfig, count: int, folder: Path, seed: tuple[int, int],
-                side_m: tuple[float, float]) -> list[Path]:
+def _draw_split(
+    config: SplitConfig, count: int, folder: Path, seed: tuple[int, int], side_m: tuple[float, float]
+) -> list[Path]:
     """One split's maps: mazes, or office or building floors with a side per floor from `side_m`."""
     if isinstance(config, BuildingConfig):
         return generate_building_set(config, count, folder, seed=seed, side_m=side_m)
@@ -117,10 +120,16 @@ def _draw_split(config: SplitConfig, count: int, folder: Path, seed: tuple[int, 
     return generate_maze_set(config, count, folder, seed=seed)
 
 
-def _write_map_sets(splits: dict[str, tuple[SplitConfig, int]], sides: dict[str, tuple[float, float]],
-                    offices: int, office_config: OfficeConfig, seed: int,
-                    plan_floors: dict[str, int] | None = None, plans: list[np.ndarray] | None = None,
-                    cell_size: float = 0.4) -> tuple[dict[str, list[Path]], list[Path]]:
+def _write_map_sets(
+    splits: dict[str, tuple[SplitConfig, int]],
+    sides: dict[str, tuple[float, float]],
+    offices: int,
+    office_config: OfficeConfig,
+    seed: int,
+    plan_floors: dict[str, int] | None = None,
+    plans: list[np.ndarray] | None = None,
+    cell_size: float = 0.4,
+) -> tuple[dict[str, list[Path]], list[Path]]:
     """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
 
     Each set is drawn into a temporary folder, and the three replace data/mazes/{train,test} and
@@ -131,15 +140,20 @@ def _write_map_sets(splits: dict[str, tuple[SplitConfig, int]], sides: dict[str,
     with ExitStack() as stack:
         folders = {split: stack.enter_context(atomic_folder(SPLIT_DIRS[split])) for split in splits}
         office_folder = stack.enter_context(atomic_folder(OFFICE_DIR))
-        drawn = {split: _draw_split(config, count, folders[split], (seed, SPLITS[split]), sides[split])
-                 for split, (config, count) in splits.items()}
+        drawn = {
+            split: _draw_split(config, count, folders[split], (seed, SPLITS[split]), sides[split])
+            for split, (config, count) in splits.items()
+        }
         for split, count in (plan_floors or {}).items():
             if count:
-                drawn[split] += generate_plan_floors(plans, count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD),
-                                                     sides[split], cell_size)
+                drawn[split] += generate_plan_floors(
+                    plans, count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD), sides[split], cell_size
+                )
         office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
         write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
-        write_maze_png(preview_image(office_drawn), OFFICE_PREVIEW_PATH)  # blank without floors, so the output always exists
+        write_maze_png(
+            preview_image(office_drawn), OFFICE_PREVIEW_PATH
+        )  # blank without floors, so the output always exists
     written = {split: [SPLIT_DIRS[split] / path.name for path in paths] for split, paths in drawn.items()}
     return written, [OFFICE_DIR / path.name for path in office_drawn]
 
@@ -171,7 +185,9 @@ def main(params_path: str = "params.yaml") -> None:
     seed = mazes["seed"]
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
-    plan_floors = {split: int(round(mazes[split].get("plans_share", 0.0) * count)) for split, (_, count) in splits.items()}
+    plan_floors = {
+        split: int(round(mazes[split].get("plans_share", 0.0) * count)) for split, (_, count) in splits.items()
+    }
     splits = {split: (config, count - plan_floors[split]) for split, (config, count) in splits.items()}
     plans = load_plan_grids(PLANS_DIR, cell_size) if any(plan_floors.values()) else None
     offices = mazes.get("offices", {"count": 0})["count"]

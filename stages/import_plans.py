@@ -32,8 +32,14 @@ class Settings(Section):
 def import_plan_folder(plans: dict) -> ImportReport:
     """The `plans` settings' source read and written to data/plans/."""
     sources = find_plan_sources(plans["source"], float(plans["resolution"]))
-    return import_plans(sources, OUT_DIR, float(plans["cell_size"]), float(plans["robot_radius_m"]),
-                        int(plans["starts"]), int(plans["seed"]))
+    return import_plans(
+        sources,
+        OUT_DIR,
+        float(plans["cell_size"]),
+        float(plans["robot_radius_m"]),
+        int(plans["starts"]),
+        int(plans["seed"]),
+    )
 
 
 def main(params_path: str = "params.yaml") -> None:
@@ -41,8 +47,10 @@ def main(params_path: str = "params.yaml") -> None:
     report = import_plan_folder(read_stage(params_path, "plans", Settings))
     for dropped, equals in report.duplicates:
         print(f"dropped {dropped}: the same plan as {equals} (up to rotation and flip)")
-    print(f"plans: {len(report.plans)} in {OUT_DIR} ({sum(p.free_m2 for p in report.plans):,.0f} m^2 free), "
-          f"licence files: {', '.join(report.licences) or 'none'}")
+    print(
+        f"plans: {len(report.plans)} in {OUT_DIR} ({sum(p.free_m2 for p in report.plans):,.0f} m^2 free), "
+        f"licence files: {', '.join(report.licences) or 'none'}"
+    )
 
 
 if __name__ == "__main__":

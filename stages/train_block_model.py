@@ -28,6 +28,7 @@ from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, sta
 from pipeline.workflows.train_block_model import maze_config, train_the_block_model
 from pipeline.world.protocol import Protocol
 
+
 class Settings(Section):
     """The `train_block_model` section of params.yaml."""
 

@@ -22,6 +22,7 @@ from pipeline.training.drl_imitation import ImitationSettings
 from pipeline.workflows.train_drl import train_the_drl_policy
 from pipeline.world.protocol import Protocol
 
+
 class Settings(Section):
     """The `train_drl` section of params.yaml."""
 
@@ -77,7 +78,11 @@ def main(params_path: str = "params.yaml", timesteps: int | None = None) -> dict
 
 if __name__ == "__main__":
     parser = stage_arguments(__doc__)
-    parser.add_argument("--timesteps", type=int, default=None,
-                        help="train for this many environment steps in all instead of train_drl.timesteps")
+    parser.add_argument(
+        "--timesteps",
+        type=int,
+        default=None,
+        help="train for this many environment steps in all instead of train_drl.timesteps",
+    )
     arguments = parser.parse_args()
     run_stage_main(main, arguments.params, arguments.timesteps)

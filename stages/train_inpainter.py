@@ -27,7 +27,10 @@ from pipeline.workflows.train_inpainter import train_and_report
 # The `train_inpainter` section: TrainConfig's fields and the run's own settings side by side.
 # Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults.
 Settings = pydantic.create_model(
-    "Settings", __base__=Section, __module__=__name__, __doc__="The `train_inpainter` section of params.yaml.",
+    "Settings",
+    __base__=Section,
+    __module__=__name__,
+    __doc__="The `train_inpainter` section of params.yaml.",
     **fields_of(TrainConfig),
     model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
     accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
@@ -50,12 +53,23 @@ def main(
     artifact_location: Optional[str] = None,
 ) -> dict[str, Any]:
     section = read_stage(params_path, "train_inpainter", Settings)
-    metrics = train_and_report(section, read_protocol(params_path), accelerator, devices, afresh,
-                               init_checkpoint, tracking_uri, progress, artifact_location)
+    metrics = train_and_report(
+        section,
+        read_protocol(params_path),
+        accelerator,
+        devices,
+        afresh,
+        init_checkpoint,
+        tracking_uri,
+        progress,
+        artifact_location,
+    )
     if metrics:
-        print(f"inpainter: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "
-              f"{metrics['train_seconds']:.0f} s; val precision {metrics['val_precision']:.3f}, recall "
-              f"{metrics['val_recall']:.3f}, F1 {metrics['val_f1']:.3f} at tau={metrics['threshold']} -> {MODELS.inpainter}")
+        print(
+            f"inpainter: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "
+            f"{metrics['train_seconds']:.0f} s; val precision {metrics['val_precision']:.3f}, recall "
+            f"{metrics['val_recall']:.3f}, F1 {metrics['val_f1']:.3f} at tau={metrics['threshold']} -> {MODELS.inpainter}"
+        )
     return metrics
 
 
@@ -63,11 +77,27 @@ if __name__ == "__main__":
     parser = stage_arguments(__doc__)
     parser.add_argument("--accelerator", default=None, help="Lightning accelerator (cpu, gpu, auto) [params]")
     parser.add_argument("--devices", default=None, help="Lightning devices (1, 2, auto) [params]")
-    parser.add_argument("--afresh", action="store_true",
-                        help="train from the start even if checkpoints/inpainter holds a run of the same settings and data")
-    parser.add_argument("--init-checkpoint", default=None, help="official Big-LaMa checkpoint, or an inpainter.pt export, to start from")
-    parser.add_argument("--tracking-uri", default=None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]")
+    parser.add_argument(
+        "--afresh",
+        action="store_true",
+        help="train from the start even if checkpoints/inpainter holds a run of the same settings and data",
+    )
+    parser.add_argument(
+        "--init-checkpoint", default=None, help="official Big-LaMa checkpoint, or an inpainter.pt export, to start from"
+    )
+    parser.add_argument(
+        "--tracking-uri", default=None, help="MLflow store [default: $MLFLOW_TRACKING_URI or sqlite:///mlflow.db]"
+    )
     parser.add_argument("--progress", action="store_true", help="show Lightning's progress bar")
     args = parser.parse_args()
     devices = int(args.devices) if args.devices and args.devices.isdigit() else args.devices
-    run_stage_main(main, args.params, args.accelerator, devices, args.afresh, args.init_checkpoint, args.tracking_uri, args.progress)
+    run_stage_main(
+        main,
+        args.params,
+        args.accelerator,
+        devices,
+        args.afresh,
+        args.init_checkpoint,
+        args.tracking_uri,
+        args.progress,
+    )

@@ -28,7 +28,9 @@ def pytest_collection_modifyitems(config, items) -> None:
     """The tests of one `xdist_group` (the shared tiny `dvc repro` and the Ray clusters) first: they
     run one after another on one worker, the longest chain of the suite, so it starts at once
     while the other workers share the rest, the other slow tests first."""
-    items.sort(key=lambda item: (item.get_closest_marker("xdist_group") is None, item.get_closest_marker("slow") is None))
+    items.sort(
+        key=lambda item: (item.get_closest_marker("xdist_group") is None, item.get_closest_marker("slow") is None)
+    )
 
 
 def maze_from_blocks(blocks: list[str], block_px: int = 25) -> np.ndarray:
@@ -86,7 +88,9 @@ def generated_maze_dir(tmp_path_factory) -> Path:
     return directory
 
 
-def write_ros_map(directory: Path, free: np.ndarray, resolution: float, start_xy: tuple[float, float], name: str = "office") -> Path:
+def write_ros_map(
+    directory: Path, free: np.ndarray, resolution: float, start_xy: tuple[float, float], name: str = "office"
+) -> Path:
     """A ROS map_server map (PGM + YAML); `free[row, col]` with row 0 at y = origin (bottom)."""
     image = np.where(free, 254, 0).astype(np.uint8)[::-1]  # image row 0 is the top
     cv2.imwrite(str(directory / f"{name}.pgm"), image)
@@ -109,7 +113,15 @@ def no_pipeline_models(monkeypatch, tmp_path):
         monkeypatch.setitem(defaults.MODEL_FILES, kind, (absent / pipeline.name, shipped))
 
 
-TEST_EXPERIMENTS = ("benchmark", "table1", "cli-test", "test_planner", "sliver_gate", "block_model", "drl")  # "inpainter-test" sets its own location
+TEST_EXPERIMENTS = (
+    "benchmark",
+    "table1",
+    "cli-test",
+    "test_planner",
+    "sliver_gate",
+    "block_model",
+    "drl",
+)  # "inpainter-test" sets its own location
 
 
 @pytest.fixture(scope="session")
@@ -139,8 +151,13 @@ def expert_shard_dir(generated_maze_dir, tmp_path_factory) -> Path:
     from pipeline.world.maps import list_maps
 
     directory = tmp_path_factory.mktemp("expert")
-    config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), episodes_per_shard=1,
-                          planner="expert", horizon=8, seed=3)
+    config = ExpertConfig(
+        maps=tuple(str(p) for p in list_maps(generated_maze_dir)),
+        episodes_per_shard=1,
+        planner="expert",
+        horizon=8,
+        seed=3,
+    )
     run_shards(collect_expert_shard, 2, directory, {"config": config}, progress=False)
     return directory
 
@@ -162,5 +179,5 @@ def two_rooms(door_row: int = 28) -> GroundTruthMap:
     free = np.ones((60, 120), bool)
     free[0, :] = free[-1, :] = free[:, 0] = free[:, -1] = False
     free[:, 27] = False
-    free[door_row:door_row + 2, 27] = True
+    free[door_row : door_row + 2, 27] = True
     return GroundTruthMap(free=free, start_cell=(12, 32), cell_size=0.2, name="two_rooms")

@@ -40,8 +40,9 @@ def reference_scan(ground_free: np.ndarray, x0: int, y0: int, range_cells: float
     return belief
 
 
-def reference_explored_cells(ground_free: np.ndarray, start_cell: tuple[int, int], trajectory, cell_size: float,
-                             range_cells: float) -> list[int]:
+def reference_explored_cells(
+    ground_free: np.ndarray, start_cell: tuple[int, int], trajectory, cell_size: float, range_cells: float
+) -> list[int]:
     """Known free cells after sensing at each row of a trajectory (metres from the start, first row 0,0)."""
     known = np.full(ground_free.shape, UNKNOWN, dtype=np.uint8)
     counts = []

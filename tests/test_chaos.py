@@ -61,7 +61,9 @@ def kill_condition(project: Path, stage: str, seconds: float, rng: np.random.Gen
     pattern = PROGRESS.get(stage)
     wall, start, patience = time.time(), time.monotonic(), float(rng.uniform(0.1, 0.7)) * seconds
     if pattern is not None:
-        return lambda: any(path.stat().st_mtime >= wall for path in project.glob(pattern)) and stage_running(project, stage)
+        return lambda: (
+            any(path.stat().st_mtime >= wall for path in project.glob(pattern)) and stage_running(project, stage)
+        )
     return lambda: time.monotonic() - start > patience and stage_running(project, stage)
 
 
@@ -102,8 +104,12 @@ def stage_is_done(project: Path, stage: str) -> bool:
 def data_hashes(project: Path) -> dict[str, str]:
     """DVC's recorded hash of every data output (data/*), from the project's dvc.lock."""
     lock = yaml.safe_load((project / "dvc.lock").read_text())
-    return {out["path"]: out["md5"] for stage in lock["stages"].values() for out in stage.get("outs", [])
-            if out["path"].startswith("data/")}
+    return {
+        out["path"]: out["md5"]
+        for stage in lock["stages"].values()
+        for out in stage.get("outs", [])
+        if out["path"].startswith("data/")
+    }
 
 
 @pytest.mark.slow

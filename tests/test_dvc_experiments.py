@@ -27,6 +27,7 @@ PLANNER_KEYS = {"distance_m", "gap_pct", "vs_greedy_pct", "vs_greedy_ci95_pct"}
 
 def _resolve(path: str, variables: dict[str, Any], item: dict[str, Any] | None = None) -> str:
     """A dvc.yaml path with its ${group.name} (and a foreach's ${item.name}) filled in from pipeline/paths.yaml."""
+
     def value(match: re.Match) -> str:
         node: Any = {**variables, "item": item or {}}
         for part in match.group(1).split("."):
@@ -61,8 +62,9 @@ def test_git_tracks_exactly_the_uncached_json_outputs():
     tracked = sorted(path for _, path, options in outputs if path.endswith(".json") and options.get("cache") is False)
     others = sorted(path for _, path, _ in outputs if path not in tracked and path.startswith("reports/"))
     assert HEADLINE in tracked and "reports/report.json" in tracked and others
-    done = subprocess.run(["git", "check-ignore", "--no-index", *tracked, *others], cwd=ROOT, capture_output=True, text=True,
-                          check=False)  # exit status 1 when nothing is ignored
+    done = subprocess.run(
+        ["git", "check-ignore", "--no-index", *tracked, *others], cwd=ROOT, capture_output=True, text=True, check=False
+    )  # exit status 1 when nothing is ignored
     ignored = set(done.stdout.split())
     assert not ignored & set(tracked), f".gitignore hides {sorted(ignored & set(tracked))}"
     assert ignored == set(others), f".gitignore lets through {sorted(set(others) - ignored)}"
@@ -91,7 +93,9 @@ def _test_count(row: dict[str, Any]) -> int:
 def check_headline(metrics: dict[str, Any], planners: set[str], steps: list[int]) -> None:
     """Every benchmark planner's headline numbers, Table I's precision and the stage times, all numbers
     (Table I has no precision at a step where nothing was predicted, as on the tiny profile's small mazes)."""
-    assert planners | {"seconds"} <= set(metrics) <= planners | HEADLINE_GROUPS, sorted(metrics)  # DVC drops an empty group
+    assert planners | {"seconds"} <= set(metrics) <= planners | HEADLINE_GROUPS, sorted(
+        metrics
+    )  # DVC drops an empty group
     for planner in planners:
         assert set(metrics[planner]) <= PLANNER_KEYS and "distance_m" in metrics[planner], (planner, metrics[planner])
     assert set(metrics.get("precision", {})) <= {f"step{step}" for step in steps}, metrics["precision"]
@@ -111,8 +115,9 @@ def check_experiments(project: Path) -> None:
     # git sees, under reports/, exactly the headline and the stages' summary JSONs
     status = git(project, "status", "--porcelain", "--untracked-files=all").stdout.splitlines()
     in_reports = {line[3:] for line in status if line[3:].startswith("reports/")}
-    tracked = {path for _, path, options in dvc_outputs(project)
-               if path.endswith(".json") and options.get("cache") is False}
+    tracked = {
+        path for _, path, options in dvc_outputs(project) if path.endswith(".json") and options.get("cache") is False
+    }
     assert in_reports == tracked, sorted(in_reports ^ tracked)
     git(project, "add", "-A")
     git(project, "commit", "-qm", "tiny baseline")

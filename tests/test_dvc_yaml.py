@@ -15,7 +15,11 @@ def code_deps(name: str) -> set[str]:
     stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
     stage = stages[name]
     deps = stage.get("deps") or stage["do"]["deps"]
-    return {dep for dep in deps if dep.startswith("stages/") or (dep.startswith("pipeline/") and not dep.startswith("pipeline/assets"))}
+    return {
+        dep
+        for dep in deps
+        if dep.startswith("stages/") or (dep.startswith("pipeline/") and not dep.startswith("pipeline/assets"))
+    }
 
 
 def test_every_stage_depends_on_exactly_the_code_it_imports():
@@ -61,7 +65,8 @@ def test_machine_settings_are_not_part_of_any_stages_identity():
             elif keys and any(k in values for k in MACHINE_KEYS):
                 assert keys == set(values) - set(MACHINE_KEYS), (
                     f"{name}: lists {sorted(keys)} of {section}, not every key but the machine settings "
-                    f"{sorted(set(values) - set(MACHINE_KEYS) - keys)}")
+                    f"{sorted(set(values) - set(MACHINE_KEYS) - keys)}"
+                )
 
 
 def test_every_output_travels_through_a_dvc_remote_or_git():

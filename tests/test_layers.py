@@ -17,8 +17,13 @@ def test_the_layers_contract_is_kept():
     (contract,) = [c for c in config["contracts"] if c["type"] == "layers" and "containers" not in c]
     layers = {name.strip() for layer in contract["layers"] for name in layer.split("|")}
     assert len({name for name in layers if name.startswith("pipeline.")}) >= 6
-    done = subprocess.run(["lint-imports", "--config", str(ROOT / "pyproject.toml")], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300)
+    done = subprocess.run(
+        ["lint-imports", "--config", str(ROOT / "pyproject.toml")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stdout[-3000:]
 
 
@@ -30,10 +35,15 @@ def test_inside_planners_registration_sits_above_both_wings():
     (contract,) = [c for c in config["contracts"] if c.get("containers") == ["pipeline.planners"]]
     order = [set(name.strip() for name in layer.split("|")) for layer in contract["layers"]]
     rank = {name: i for i, layer in enumerate(order) for name in layer}
-    assert rank["team"] < rank["catalog"] < rank["extensions"] < rank["guide"] == rank["baselines"] < rank["graph_planner"]
+    assert (
+        rank["team"] < rank["catalog"] < rank["extensions"] < rank["guide"] == rank["baselines"] < rank["graph_planner"]
+    )
     planners = ROOT / "pipeline" / "planners"
-    parts = {path.stem if path.is_file() else path.name for path in planners.iterdir()
-             if (path.suffix == ".py" and path.stem != "__init__") or (path / "__init__.py").is_file()}
+    parts = {
+        path.stem if path.is_file() else path.name
+        for path in planners.iterdir()
+        if (path.suffix == ".py" and path.stem != "__init__") or (path / "__init__.py").is_file()
+    }
     assert parts <= set(rank), sorted(parts - set(rank))  # every module of planners/ has its place
 
 
@@ -54,25 +64,41 @@ def test_no_project_module_is_imported_inside_a_function():
         tree = ast.parse(path.read_text(), str(path))
         for function in (n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))):
             for node in ast.walk(function):
-                names = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                         else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
-                found += [f"{path.relative_to(ROOT)}:{node.lineno} {name}" for name in names
-                          if name.split(".")[0] in ("pipeline", "stages")]
+                names = (
+                    [a.name for a in node.names]
+                    if isinstance(node, ast.Import)
+                    else [node.module or ""]
+                    if isinstance(node, ast.ImportFrom)
+                    else []
+                )
+                found += [
+                    f"{path.relative_to(ROOT)}:{node.lineno} {name}"
+                    for name in names
+                    if name.split(".")[0] in ("pipeline", "stages")
+                ]
     assert not found, found
 
 
 def _modules_loaded(code: str, cwd) -> set[str]:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    done = subprocess.run([sys.executable, "-c", code + "\nimport sys; print(' '.join(sorted(sys.modules)))"], cwd=cwd,
-                          env=env, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", code + "\nimport sys; print(' '.join(sorted(sys.modules)))"],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     return set(done.stdout.strip().splitlines()[-1].split())
 
 
 def test_drawing_mazes_never_loads_torch(tmp_path):
     """`guide mazes` and the generate_mazes stage need no model: starting them must not cost torch's import."""
-    cli = ("from pipeline.cli import app\n"
-           "app(['mazes', '--out', 'm', '--count', '1', '--side', '50'], standalone_mode=False)")
+    cli = (
+        "from pipeline.cli import app\n"
+        "app(['mazes', '--out', 'm', '--count', '1', '--side', '50'], standalone_mode=False)"
+    )
     loaded = _modules_loaded(cli, tmp_path)
     assert "pipeline.cli.maps" in loaded and "torch" not in loaded
     params = yaml.safe_load((ROOT / "params.yaml").read_text())

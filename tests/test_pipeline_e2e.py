@@ -29,8 +29,12 @@ def produced_bytes(project: Path) -> dict[str, str]:
     (The models differ between any two runs by the training time their exports record, and the
     per-step files by the decision times.)"""
     lock = yaml.safe_load((project / "dvc.lock").read_text())
-    made = {out["path"]: out["md5"] for stage in lock["stages"].values() for out in stage.get("outs", [])
-            if out["path"].startswith(("data/", "models/sliver_gate"))}
+    made = {
+        out["path"]: out["md5"]
+        for stage in lock["stages"].values()
+        for out in stage.get("outs", [])
+        if out["path"].startswith(("data/", "models/sliver_gate"))
+    }
     for folder in ("reports/benchmark", "reports/denoising_steps"):
         for path in sorted((project / folder).glob("*/*.csv")):
             if not path.name.endswith(".steps.csv"):
@@ -63,8 +67,9 @@ def test_every_workload_gives_the_process_engines_bytes_on_a_two_node_ray_cluste
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("protocol", [pytest.param({}, marks=pytest.mark.xdist_group("e2e")), HALF_SCALE],
-                         ids=["default", "half_scale"])  # the default reads the shared tiny run; half scale runs its own
+@pytest.mark.parametrize(
+    "protocol", [pytest.param({}, marks=pytest.mark.xdist_group("e2e")), HALF_SCALE], ids=["default", "half_scale"]
+)  # the default reads the shared tiny run; half scale runs its own
 def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
     if protocol:
         project = make_tiny_project(tmp_path / "project", protocol)
@@ -101,9 +106,18 @@ def test_dvc_repro_on_a_fresh_copy(tmp_path, protocol, request):
     assert all(row["completion_rate"] == 1.0 for row in teams.values()) and "## Teams" in report
     assert len(list((project / "reports/teams/guide_tsp@2").glob("*.team.csv"))) == 2
     assert "guide_k2" in (project / "reports/denoising_steps/metrics.csv").read_text()
-    figures = ("reports/benchmark_distance.png", "reports/benchmark_trajectories.png", "reports/mazes_preview.png",
-               "reports/pairs_preview.png", "reports/expert_episode.png", "reports/trajectories.png",
-               "reports/planner_guide_curves.png", "reports/drl_curves.png", "reports/coverage.png", "reports/benchmark/coverage.png")
+    figures = (
+        "reports/benchmark_distance.png",
+        "reports/benchmark_trajectories.png",
+        "reports/mazes_preview.png",
+        "reports/pairs_preview.png",
+        "reports/expert_episode.png",
+        "reports/trajectories.png",
+        "reports/planner_guide_curves.png",
+        "reports/drl_curves.png",
+        "reports/coverage.png",
+        "reports/benchmark/coverage.png",
+    )
     for figure in figures:
         assert (project / figure).stat().st_size > 1000
     assert (project / "mlflow.db").is_file()

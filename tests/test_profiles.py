@@ -1,6 +1,5 @@
 """The paper profile is a complete params file: the same keys as the default, valid model configs."""
 
-
 import pytest
 import yaml
 from import_graph import ROOT
@@ -34,7 +33,10 @@ def test_paper_profile_has_the_default_keys_and_parses():
     assert paper["collect_pairs"]["pairs"] >= max(10000, default["collect_pairs"]["pairs"])
     assert paper["mazes"]["train"]["count"] >= default["mazes"]["train"]["count"]
     assert paper["mazes"]["test"]["count"] == 100
-    assert DiffusionPolicyConfig.from_dict(paper["train_planner"]["model"]).d_model == DiffusionPolicyConfig.paper().d_model
+    assert (
+        DiffusionPolicyConfig.from_dict(paper["train_planner"]["model"]).d_model
+        == DiffusionPolicyConfig.paper().d_model
+    )
 
 
 def test_every_profile_uses_the_planners_tau():
@@ -52,7 +54,9 @@ def test_every_profile_uses_the_planners_tau():
     assert planner.predictor.config.threshold == DEFAULT_THRESHOLD
     assert planner.predictor.config.count_threshold == DEFAULT_COUNT_THRESHOLD
     mapex = MapExPlanner(inpaint=lambda image: image / 255.0)  # a predicted map, not graph nodes: the count's tau
-    assert mapex.predictor.config.threshold == DEFAULT_COUNT_THRESHOLD and mapex.predictor.config.count_threshold is None
+    assert (
+        mapex.predictor.config.threshold == DEFAULT_COUNT_THRESHOLD and mapex.predictor.config.count_threshold is None
+    )
     for name in ("params.yaml", "profiles/paper.yaml"):
         params = yaml.safe_load((ROOT / name).read_text())
         assert params["build_observations"]["threshold"] == DEFAULT_THRESHOLD, name
@@ -72,14 +76,24 @@ def test_real_robot_profile_has_the_default_keys_the_papers_scale_and_passes_eve
     assert set(key_paths(default)) == set(key_paths(real))
     protocol = Protocol.from_dict(real["protocol"])
     assert protocol == PAPER_REAL_ROBOT
-    assert protocol.done_unknown_cells * protocol.cell_size ** 2 == pytest.approx(40.0)  # the 40 m^2 done rule
+    assert protocol.done_unknown_cells * protocol.cell_size**2 == pytest.approx(40.0)  # the 40 m^2 done rule
     assert real["mazes"]["train"]["kind"] == real["mazes"]["test"]["kind"] == "building"  # floors drawn like real plans
     assert real["train_planner"]["model"]["max_nodes"] == real["build_observations"]["max_nodes"]
-    stages = {"benchmark": "benchmark", "build_observations": "build_observations", "collect_expert": "collect_expert",
-              "collect_pairs": "collect_pairs", "distil_policy": "distil_policy", "eval_predictor": "eval_predictor",
-              "fit_gate": "fit_gate", "generate_mazes": "mazes", "report": "report",
-              "train_block_model": "train_block_model", "train_drl": "train_drl", "train_inpainter": "train_inpainter",
-              "train_planner": "train_planner"}
+    stages = {
+        "benchmark": "benchmark",
+        "build_observations": "build_observations",
+        "collect_expert": "collect_expert",
+        "collect_pairs": "collect_pairs",
+        "distil_policy": "distil_policy",
+        "eval_predictor": "eval_predictor",
+        "fit_gate": "fit_gate",
+        "generate_mazes": "mazes",
+        "report": "report",
+        "train_block_model": "train_block_model",
+        "train_drl": "train_drl",
+        "train_inpainter": "train_inpainter",
+        "train_planner": "train_planner",
+    }
     for module, section in stages.items():
         read_stage(path, section, importlib.import_module(f"stages.{module}").Settings)
     read_protocol(path)

@@ -24,8 +24,13 @@ from import_graph import ROOT
 
 
 def git(cwd: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["git", "-c", "user.name=ci", "-c", "user.email=ci@example.com", *args], cwd=cwd, check=True,
-                          capture_output=True, text=True)
+    return subprocess.run(
+        ["git", "-c", "user.name=ci", "-c", "user.email=ci@example.com", *args],
+        cwd=cwd,
+        check=True,
+        capture_output=True,
+        text=True,
+    )
 
 
 def dvc_env() -> dict[str, str]:
@@ -56,11 +61,18 @@ def tiny_params(params: dict[str, Any], protocol: dict[str, Any] | None = None) 
     params["train_inpainter"].update(max_epochs=2, batch_size=4)
     params["build_observations"].update(max_nodes=64)
     params["train_planner"]["model"].update(max_nodes=64, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1)
-    params["train_planner"]["train"].update(max_epochs=2, batch_size=16, warmup_steps=2)  # 2: a checkpoint to resume from
+    params["train_planner"]["train"].update(
+        max_epochs=2, batch_size=16, warmup_steps=2
+    )  # 2: a checkpoint to resume from
     params["report"].update(k_values=[2, 4], k_maps=1)
     params["train_block_model"].update(mazes=3, holdout_mazes=1, side_m=50.0, epochs=2, model={"width": 8, "groups": 4})
-    params["train_drl"].update(model={"max_nodes": 32, "d_model": 16, "heads": 2, "encoder_layers": 1}, timesteps=128,
-                               checkpoint_every=32, eval_mazes=1, eval_side_m=50)
+    params["train_drl"].update(
+        model={"max_nodes": 32, "d_model": 16, "heads": 2, "encoder_layers": 1},
+        timesteps=128,
+        checkpoint_every=32,
+        eval_mazes=1,
+        eval_side_m=50,
+    )
     params["train_drl"]["env"].update(maze_sides_m=[50], max_steps=30)
     params["train_drl"]["ppo"].update(n_envs=2, n_steps=32, batch_size=32, n_epochs=1)
     params["train_drl"]["imitation"].update(episodes=2, epochs=1, dagger_rounds=1, dagger_episodes=1, dagger_epochs=1)
@@ -92,15 +104,26 @@ def make_tiny_project(dest: Path, protocol: dict[str, Any] | None = None) -> Pat
 RUNNING = re.compile(r"Running stage '([^']+)'")
 
 
-def streamed_repro(project: Path, on_stage: Callable[[str], Callable[[], bool] | None] = lambda stage: None,
-                   log: list[str] | None = None, args: tuple[str, ...] = (),
-                   env: dict[str, str] | None = None) -> tuple[bool, str | None, dict[str, float]]:
+def streamed_repro(
+    project: Path,
+    on_stage: Callable[[str], Callable[[], bool] | None] = lambda stage: None,
+    log: list[str] | None = None,
+    args: tuple[str, ...] = (),
+    env: dict[str, str] | None = None,
+) -> tuple[bool, str | None, dict[str, float]]:
     """`guide repro [args]`, streamed: at each stage's start `on_stage(stage)` may give a condition, and once
     it holds the run is SIGKILLed with its whole process group. Returns (finished, the stage
     killed in, seconds per stage); the output goes to `log`."""
     guide = str(Path(sys.executable).with_name("guide"))
-    run = subprocess.Popen([guide, "repro", *args], cwd=project, env=env or dvc_env(), stdout=subprocess.PIPE,
-                           stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    run = subprocess.Popen(
+        [guide, "repro", *args],
+        cwd=project,
+        env=env or dvc_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
     lines: queue.Queue[str | None] = queue.Queue()
 
     def read() -> None:

@@ -20,21 +20,36 @@ app = typer.Typer(rich_markup_mode=None)
 
 @app.command()
 def bag(
-    bag_path: Path = typer.Option(..., "--bag", help="ROS 2 bag: a rosbag2 folder (sqlite3 or MCAP) or a .mcap file, "
-                                                     "with the map topic and /tf (map -> base_link)."),
-    out: Path = typer.Option(..., "--out", help="Output MCAP: the input maps, the poses, and each decision's plan "
-                                                "(/guide/plan), next waypoint, graph markers and record."),
+    bag_path: Path = typer.Option(
+        ...,
+        "--bag",
+        help="ROS 2 bag: a rosbag2 folder (sqlite3 or MCAP) or a .mcap file, "
+        "with the map topic and /tf (map -> base_link).",
+    ),
+    out: Path = typer.Option(
+        ...,
+        "--out",
+        help="Output MCAP: the input maps, the poses, and each decision's plan "
+        "(/guide/plan), next waypoint, graph markers and record.",
+    ),
     planner: str = typer.Option("guide", help="Planner name (see `guide planners`) or label=name:key=value,..."),
     map_topic: str = typer.Option("/map", "--map-topic", help="The nav_msgs/OccupancyGrid topic."),
     base_frame: str = typer.Option("base_link", "--base-frame", help="The robot's tf frame."),
-    protocol: str = typer.Option("real_robot", help=f"The planner's protocol: {' or '.join(PROTOCOLS)} "
-                                                    "(lattice spacing, lidar range, cell size the map is brought to)."),
+    protocol: str = typer.Option(
+        "real_robot",
+        help=f"The planner's protocol: {' or '.join(PROTOCOLS)} "
+        "(lattice spacing, lidar range, cell size the map is brought to).",
+    ),
     seed: int = typer.Option(0, min=0, help="Seed for randomised planners."),
     checkpoint: Optional[Path] = Checkpoint,
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar on stderr."),
-    save_map: Optional[Path] = typer.Option(None, "--save-map", help="A folder to write the final belief into as a "
-                                                                      "ROS map (map.yaml + map.pgm), which `guide plans "
-                                                                      "import` takes as training data."),
+    save_map: Optional[Path] = typer.Option(
+        None,
+        "--save-map",
+        help="A folder to write the final belief into as a "
+        "ROS map (map.yaml + map.pgm), which `guide plans "
+        "import` takes as training data.",
+    ),
 ) -> None:
     """Run a planner along a recorded bag: at every map the session decides afresh from the robot's
     recorded pose; the plans, graphs and records go to an MCAP next to the input."""
@@ -70,6 +85,10 @@ def bag(
         else:
             typer.echo(f"wrote {session.save_map(save_map)}")
     if result.maps and not result.plans:
-        warn(f"no plan: the bag's tf never placed {base_frame} in the map's frame; choose the robot's frame with "
-             "--base-frame" if result.waiting == result.maps else f"no plan ({result.last_skip})")
+        warn(
+            f"no plan: the bag's tf never placed {base_frame} in the map's frame; choose the robot's frame with "
+            "--base-frame"
+            if result.waiting == result.maps
+            else f"no plan ({result.last_skip})"
+        )
         raise typer.Exit(code=1)

@@ -42,18 +42,26 @@ app = typer.Typer(rich_markup_mode=None)
 
 @app.command()
 def mazes(
-    out: Path = typer.Option(..., help="Folder to write maze_NNNN.png (office_, building_, cave_NNNN.png) into (created if missing)."),
+    out: Path = typer.Option(
+        ..., help="Folder to write maze_NNNN.png (office_, building_, cave_NNNN.png) into (created if missing)."
+    ),
     count: int = typer.Option(..., min=1, help="How many mazes."),
     seed: int = typer.Option(0, min=0, help="Maze i is drawn from seed sequence [seed, i]."),
     side: float = typer.Option(100.0, help="Side length in metres (for mazes, a multiple of the block size)."),
-    kind: str = typer.Option("maze", help="maze: like the benchmark's; office: office floors (thin walls, "
-                                          "wide rooms, clutter), a family the sliver gate is also fitted on; "
-                                          "building: floors drawn like real plans at the real-robot scale (wings, L, U and "
-                                          "courtyard shapes, corridors with rooms on both sides, rooms of one door, "
-                                          "walls at any phase of the 1 m lattice, furniture; --cell-size 0.2); cave: rough-walled caves, a family no model is fitted on."),
-    scale: str = typer.Option("maze", help="Office floor sizes: maze (doors wider than the 4 m lattice) or "
-                                           "real_robot (building sizes for 0.2 m cells and a 1 m lattice: "
-                                           "doors from 0.8 m, walls 0.1-0.3 m, rooms from 3 m)."),
+    kind: str = typer.Option(
+        "maze",
+        help="maze: like the benchmark's; office: office floors (thin walls, "
+        "wide rooms, clutter), a family the sliver gate is also fitted on; "
+        "building: floors drawn like real plans at the real-robot scale (wings, L, U and "
+        "courtyard shapes, corridors with rooms on both sides, rooms of one door, "
+        "walls at any phase of the 1 m lattice, furniture; --cell-size 0.2); cave: rough-walled caves, a family no model is fitted on.",
+    ),
+    scale: str = typer.Option(
+        "maze",
+        help="Office floor sizes: maze (doors wider than the 4 m lattice) or "
+        "real_robot (building sizes for 0.2 m cells and a 1 m lattice: "
+        "doors from 0.8 m, walls 0.1-0.3 m, rooms from 3 m).",
+    ),
     cell_size: float = CellSize,
 ) -> None:
     """Draw mazes like the benchmark's (the pipeline's generator and defaults), office floors or caves, into a folder.
@@ -70,12 +78,17 @@ def mazes(
     if not (math.isfinite(side) and side > 0):
         fail(f"--side must be a positive number of metres, got {side:g}")
     if kind != "maze":
-        config_class, write_set, what = {"office": (OfficeConfig, generate_office_set, "office floor"),
-                                         "building": (BuildingConfig, generate_building_set, "building floor"),
-                                         "cave": (CaveConfig, generate_cave_set, "cave")}[kind]
+        config_class, write_set, what = {
+            "office": (OfficeConfig, generate_office_set, "office floor"),
+            "building": (BuildingConfig, generate_building_set, "building floor"),
+            "cave": (CaveConfig, generate_cave_set, "cave"),
+        }[kind]
         try:
-            family = (OfficeConfig.for_scale(scale, side, cell_size) if kind == "office"
-                      else config_class(side_m=side, cell_size=cell_size))
+            family = (
+                OfficeConfig.for_scale(scale, side, cell_size)
+                if kind == "office"
+                else config_class(side_m=side, cell_size=cell_size)
+            )
         except ValueError as error:  # named by this command's words, not the config's fields
             message = str(error).replace(f"{config_class.__name__} needs", f"{what}s need")
             message = message.replace("BuildingConfig.lattice_m (1 m)", "the 1 m lattice of building floors")
@@ -90,8 +103,10 @@ def mazes(
         config = MazeConfig(side_m=(side, side), cell_size=cell_size)
     except ValueError as error:  # named by this command's options, not the config's fields
         if "MazeConfig.block_m" in str(error):
-            fail(f"--cell-size {cell_size:g} does not fit the mazes' {MazeConfig.block_m:g} m blocks: a block must be "
-                 f"a whole number (at least {MIN_BLOCK_PIXELS}) of half-cells ({cell_size / 2:g} m); 0.2, 0.4 or 0.5 m fit")
+            fail(
+                f"--cell-size {cell_size:g} does not fit the mazes' {MazeConfig.block_m:g} m blocks: a block must be "
+                f"a whole number (at least {MIN_BLOCK_PIXELS}) of half-cells ({cell_size / 2:g} m); 0.2, 0.4 or 0.5 m fit"
+            )
         message = re.sub(r"MazeConfig\.side_m \([^)]*\)", f"--side {side:g}", str(error))
         fail(message.replace("MazeConfig.side_m", "--side").replace("MazeConfig.cell_size", "--cell-size"))
     check_out_dir(out)  # after the settings: a refused one leaves no folder behind
@@ -106,16 +121,27 @@ def mazes(
 def resample_map_command(
     map_path: Path = typer.Option(..., "--map", help="Maze PNG, ROS map YAML or .npy grid."),
     out: Path = typer.Option(..., help="The ROS map YAML to write (its .pgm image beside it)."),
-    to_cell_size: float = typer.Option(0.4, help="Metres per cell of the new map: a whole multiple of the map's own "
-                                                 "(the benchmark's 0.4 m, which the shipped models were trained at)."),
+    to_cell_size: float = typer.Option(
+        0.4,
+        help="Metres per cell of the new map: a whole multiple of the map's own "
+        "(the benchmark's 0.4 m, which the shipped models were trained at).",
+    ),
     wall_cells: int = typer.Option(
-        1, min=1, help="A new cell is an obstacle when it holds at least this many of the old map's obstacle cells "
-                       "(1: any, so no wall is ever erased; more keeps walls thin but opens holes in thin oblique ones)."),
-    speck_area: float = typer.Option(0.1, help="Obstacles of at most this many square metres (chair legs, scan noise) "
-                                               "are erased first, so they do not become whole cells; 0 keeps every one."),
+        1,
+        min=1,
+        help="A new cell is an obstacle when it holds at least this many of the old map's obstacle cells "
+        "(1: any, so no wall is ever erased; more keeps walls thin but opens holes in thin oblique ones).",
+    ),
+    speck_area: float = typer.Option(
+        0.1,
+        help="Obstacles of at most this many square metres (chair legs, scan noise) "
+        "are erased first, so they do not become whole cells; 0 keeps every one.",
+    ),
     start: Optional[tuple[float, float]] = typer.Option(
-        None, help="Start, as in `explore`: COL ROW cell for a .npy grid or a maze PNG, X Y metres for a ROS map "
-                   "(else its YAML 'start')."),
+        None,
+        help="Start, as in `explore`: COL ROW cell for a .npy grid or a maze PNG, X Y metres for a ROS map "
+        "(else its YAML 'start').",
+    ),
     cell_size: float = CellSize,
 ) -> None:
     """Write a coarser copy of a map as a ROS map (YAML + PGM) with its start: a 0.05 m SLAM map on the 0.4 m grid.
@@ -141,28 +167,41 @@ def resample_map_command(
     out.parent.mkdir(parents=True, exist_ok=True)
     image = write_ros_map(coarse, out, origin)
     if moved > 0:
-        warn(f"the start's {to_cell_size:g} m cell is not free (a wall or speck covers part of it): "
-             f"moved {moved:.2f} m to the nearest free cell")
+        warn(
+            f"the start's {to_cell_size:g} m cell is not free (a wall or speck covers part of it): "
+            f"moved {moved:.2f} m to the nearest free cell"
+        )
     rows, cols = coarse.free.shape
-    typer.echo(f"{map_path.name}: {ground_truth.free.shape[1]}x{ground_truth.free.shape[0]} cells of "
-               f"{ground_truth.cell_size:g} m -> {cols}x{rows} cells of {to_cell_size:g} m, "
-               f"{coarse.free_cell_count} free")
+    typer.echo(
+        f"{map_path.name}: {ground_truth.free.shape[1]}x{ground_truth.free.shape[0]} cells of "
+        f"{ground_truth.cell_size:g} m -> {cols}x{rows} cells of {to_cell_size:g} m, "
+        f"{coarse.free_cell_count} free"
+    )
     typer.echo(f"wrote {out} and {image}")
 
 
 @app.command()
 def replay(
     map_path: Path = typer.Option(..., "--map", help="The map the trajectory was run on."),
-    trajectory: Path = typer.Option(..., help="Trajectory CSV (header x,y; first row 0,0), or a team trajectory "
-                                              "<map>.team.csv of `benchmark --robots` (header time_s,robot,x,y)."),
+    trajectory: Path = typer.Option(
+        ...,
+        help="Trajectory CSV (header x,y; first row 0,0), or a team trajectory "
+        "<map>.team.csv of `benchmark --robots` (header time_s,robot,x,y).",
+    ),
     start: Optional[tuple[float, float]] = typer.Option(None, help="Start for .npy / ROS maps, as in `explore`."),
-    cell_size: float = CellSize, node_resolution: float = NodeRes, sensor_range: float = SensorRange,
+    cell_size: float = CellSize,
+    node_resolution: float = NodeRes,
+    sensor_range: float = SensorRange,
     done_unknown_cells: int = DoneCells,
-    robot_radius: float = RobotRadius, door_graph: Optional[bool] = DoorGraph,
+    robot_radius: float = RobotRadius,
+    door_graph: Optional[bool] = DoorGraph,
     oracle: bool = typer.Option(False, "--oracle", help="Replay under the ground-truth planner's rule (optimal)."),
-    steps_csv: Optional[Path] = typer.Option(None, help="Also write the per-step record (step, distance, explored "
-                                                    "area and share) recomputed from the trajectory alone, as "
-                                                    "benchmark's OUT/<label>/<map>.steps.csv without decision times."),
+    steps_csv: Optional[Path] = typer.Option(
+        None,
+        help="Also write the per-step record (step, distance, explored "
+        "area and share) recomputed from the trajectory alone, as "
+        "benchmark's OUT/<label>/<map>.steps.csv without decision times.",
+    ),
 ) -> None:
     """Replay a trajectory file through a fresh simulator; prints its distance and completion as JSON.
 
@@ -176,7 +215,9 @@ def replay(
 
     Exits 1 when the trajectory breaks the motion rule or does not complete the map.
     """
-    rules = protocol(cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9, robot_radius, door_graph)
+    rules = protocol(
+        cell_size, node_resolution, sensor_range, None, 20.0, done_unknown_cells, 10**9, robot_radius, door_graph
+    )
     if trajectory.name.endswith(TEAM_SUFFIX):
         if steps_csv is not None:
             fail("--steps-csv is a single robot's per-step record; a team file has none")
@@ -209,14 +250,23 @@ def replay(
     if start is None and (not result.complete or result.motion_violations):
         recorded = recorded_start(trajectory)
         if recorded is not None:
-            typer.echo(f"note: {recorded[0]} says the run started at --start {recorded[1][0]:g} {recorded[1][1]:g}; "
-                       "replay it with the same --start", err=True)
+            typer.echo(
+                f"note: {recorded[0]} says the run started at --start {recorded[1][0]:g} {recorded[1][1]:g}; "
+                "replay it with the same --start",
+                err=True,
+            )
     if not result.complete or result.motion_violations:
         raise typer.Exit(code=1)  # as `explore`: scripts can test the exit status
 
 
-def replay_team_file(map_path: Path, trajectory: Path, rules: Protocol, start: Optional[tuple[float, float]],
-                     cell_size: float, oracle: bool) -> None:
+def replay_team_file(
+    map_path: Path,
+    trajectory: Path,
+    rules: Protocol,
+    start: Optional[tuple[float, float]],
+    cell_size: float,
+    oracle: bool,
+) -> None:
     """`guide replay` of a team file: its figures as JSON; exit 1 when it breaks the rule or does not complete."""
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)

@@ -63,9 +63,15 @@ def given(ctx: Optional[typer.Context], name: str) -> bool:
 
 
 def protocol(
-    cell_size: float, node_resolution: float, sensor_range: float, utility_range: Optional[float],
-    region_size: Optional[float], done_unknown_cells: int, max_steps: int,
-    robot_radius_m: float = Protocol().robot_radius_m, door_graph: Optional[bool] = None,
+    cell_size: float,
+    node_resolution: float,
+    sensor_range: float,
+    utility_range: Optional[float],
+    region_size: Optional[float],
+    done_unknown_cells: int,
+    max_steps: int,
+    robot_radius_m: float = Protocol().robot_radius_m,
+    door_graph: Optional[bool] = None,
 ) -> Protocol:
     """The protocol the options name; a refused value is an error naming its option."""
     values = dict(
@@ -86,24 +92,37 @@ def protocol(
 
 
 _DEFAULT = Protocol()
-CellSize = typer.Option(_DEFAULT.cell_size, help="Metres per cell for maze PNGs and .npy grids (a ROS map has its own).")
+CellSize = typer.Option(
+    _DEFAULT.cell_size, help="Metres per cell for maze PNGs and .npy grids (a ROS map has its own)."
+)
 NodeRes = typer.Option(_DEFAULT.node_resolution, help="Node lattice spacing d_n in metres.")
 SensorRange = typer.Option(_DEFAULT.sensor_range, help="Lidar range in metres.")
 UtilityRange = typer.Option(None, help="Frontier-utility range in metres [default: sensor range / 2].")
 # Regions as wide as the sensor reaches: 20 m at the maze benchmark's 20 m sensor, 10 m at the real
 # robot's 10 m (the best of 5, 10 and 20 m for guide_tsp on generated real-robot floors).
 RegionSize = typer.Option(None, help="Side of the fixed regions in metres [default: the sensor range].")
-DoneCells = typer.Option(_DEFAULT.done_unknown_cells, help="Done when ground-truth free minus belief free cells is at most this.")
-RobotRadius = typer.Option(_DEFAULT.robot_radius_m, "--robot-radius",
-                           help="The robot's radius in metres: what fits through a door (door-aware graph, done rule).")
-DoorGraph = typer.Option(None, "--door-graph/--lattice-only",
-                         help="Door nodes off the lattice and 'done' checked on cells (docs/protocol.md, \"The whole "
-                              "building\") [default: on below a 2 m lattice, the building scale; DARE's lattice above].")
+DoneCells = typer.Option(
+    _DEFAULT.done_unknown_cells, help="Done when ground-truth free minus belief free cells is at most this."
+)
+RobotRadius = typer.Option(
+    _DEFAULT.robot_radius_m,
+    "--robot-radius",
+    help="The robot's radius in metres: what fits through a door (door-aware graph, done rule).",
+)
+DoorGraph = typer.Option(
+    None,
+    "--door-graph/--lattice-only",
+    help="Door nodes off the lattice and 'done' checked on cells (docs/protocol.md, \"The whole "
+    "building\") [default: on below a 2 m lattice, the building scale; DARE's lattice above].",
+)
 MaxSteps = typer.Option(_DEFAULT.max_steps, help="Waypoints before an episode ends as a failure.")
 Start = typer.Option(
-    None, help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "
-               "X Y metres for a ROS map (else its YAML 'start')."
+    None,
+    help="Start: COL ROW cell for a .npy grid or a maze PNG (overrides its marked start), "
+    "X Y metres for a ROS map (else its YAML 'start').",
 )
 Checkpoint = typer.Option(
-    None, help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
-               "[default: models/ under the current folder, else the shipped one].")
+    None,
+    help="Trained policy for the diffusion planners (guide, guide_noregion, dare) "
+    "[default: models/ under the current folder, else the shipped one].",
+)

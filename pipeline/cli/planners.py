@@ -15,12 +15,17 @@ app = typer.Typer(rich_markup_mode=None)
 
 @app.command()
 def planners(
-    options: Optional[str] = typer.Option(None, "--options", metavar="NAME",
-                                          help="Print one planner's options: key, default and what it does."),
-    protocol: Optional[str] = typer.Option(None, "--protocol", metavar="NAME",
-                                           help=f"With --options: the defaults at this protocol "
-                                                f"({', '.join(PROTOCOL_OPTIONS)}); without it, the config's, "
-                                                "each protocol's own noted beside them."),
+    options: Optional[str] = typer.Option(
+        None, "--options", metavar="NAME", help="Print one planner's options: key, default and what it does."
+    ),
+    protocol: Optional[str] = typer.Option(
+        None,
+        "--protocol",
+        metavar="NAME",
+        help=f"With --options: the defaults at this protocol "
+        f"({', '.join(PROTOCOL_OPTIONS)}); without it, the config's, "
+        "each protocol's own noted beside them.",
+    ),
 ) -> None:
     """List every registered planner name with a one-line description (or, with --options NAME, its options).
 
@@ -41,9 +46,14 @@ def planners(
         if config.composition:
             typer.echo(f"  built as: {config.composition}")
         if protocol is not None:
-            typer.echo(f"  defaults at protocol {protocol}"
-                       + (f" ({len(at_protocol)} differ from the config's, marked *)" if at_protocol else
-                          " (the config's own)"))
+            typer.echo(
+                f"  defaults at protocol {protocol}"
+                + (
+                    f" ({len(at_protocol)} differ from the config's, marked *)"
+                    if at_protocol
+                    else " (the config's own)"
+                )
+            )
         for info in config.options():
             if info.kinds is None:
                 continue  # a Python object: not set from a spec

@@ -14,27 +14,43 @@ from pipeline.world.plans import MANIFEST, find_plan_sources, import_plans
 from pipeline.world.protocol import PAPER_REAL_ROBOT
 
 app = typer.Typer(rich_markup_mode=None)
-plans_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True,
-                        help="Floor plans and saved SLAM maps as a map family.")
+plans_app = typer.Typer(
+    rich_markup_mode=None, no_args_is_help=True, help="Floor plans and saved SLAM maps as a map family."
+)
 app.add_typer(plans_app, name="plans")
 
 
 @plans_app.command("import")
 def import_command(
-    src: Path = typer.Argument(..., help="A floor plan or saved map (ROS map .yaml, .png/.pgm, .npy), a MapEx-style "
-                                         "folder (occ_map.npy, valid_space.npy), or a folder of them."),
-    out: Path = typer.Option(..., help="The folder to write the plans (ROS maps) and manifest.json into; replaced "
-                                       "as a whole once every plan is written."),
-    cell_size: float = typer.Option(PAPER_REAL_ROBOT.cell_size, help="Metres per cell of the written plans: a whole "
-                                                                     "multiple of each source's resolution."),
-    resolution: Optional[float] = typer.Option(None, help="Metres per pixel of .png/.pgm/.npy plans and MapEx "
-                                                          "folders (a ROS map YAML says its own)."),
-    robot_radius: float = typer.Option(PAPER_REAL_ROBOT.robot_radius_m, "--robot-radius",
-                                       help="Metres: a gap this robot fits through stays open at the coarser cells."),
+    src: Path = typer.Argument(
+        ...,
+        help="A floor plan or saved map (ROS map .yaml, .png/.pgm, .npy), a MapEx-style "
+        "folder (occ_map.npy, valid_space.npy), or a folder of them.",
+    ),
+    out: Path = typer.Option(
+        ...,
+        help="The folder to write the plans (ROS maps) and manifest.json into; replaced "
+        "as a whole once every plan is written.",
+    ),
+    cell_size: float = typer.Option(
+        PAPER_REAL_ROBOT.cell_size,
+        help="Metres per cell of the written plans: a whole multiple of each source's resolution.",
+    ),
+    resolution: Optional[float] = typer.Option(
+        None, help="Metres per pixel of .png/.pgm/.npy plans and MapEx folders (a ROS map YAML says its own)."
+    ),
+    robot_radius: float = typer.Option(
+        PAPER_REAL_ROBOT.robot_radius_m,
+        "--robot-radius",
+        help="Metres: a gap this robot fits through stays open at the coarser cells.",
+    ),
     starts: int = typer.Option(3, min=1, help="Start cells drawn per plan, apart from each other and clear of walls."),
     seed: int = typer.Option(0, min=0, help="The draw of the starts."),
-    licence: Optional[str] = typer.Option(None, help="The licence line of every plan in the manifest [default: the "
-                                                     "first line of a LICENSE file beside the sources]."),
+    licence: Optional[str] = typer.Option(
+        None,
+        help="The licence line of every plan in the manifest [default: the "
+        "first line of a LICENSE file beside the sources].",
+    ),
 ) -> None:
     """Bring floor plans or saved SLAM maps to the protocol's cells as a map family `guide benchmark --maps` reads.
 
@@ -51,8 +67,15 @@ def import_command(
         fail(f"--robot-radius must be at least 0 m, got {robot_radius:g}")
     try:
         sources = find_plan_sources(src, resolution, licence)
-        report = import_plans(sources, out, cell_size, robot_radius, starts, seed,
-                              progress=lambda items: tqdm(items, desc="plans", unit="plan"))
+        report = import_plans(
+            sources,
+            out,
+            cell_size,
+            robot_radius,
+            starts,
+            seed,
+            progress=lambda items: tqdm(items, desc="plans", unit="plan"),
+        )
     except MapError as error:
         fail(str(error))
     except (ValueError, OSError) as error:
@@ -60,6 +83,7 @@ def import_command(
     for dropped, equals in report.duplicates:
         typer.echo(f"dropped {dropped}: the same plan as {equals} (up to rotation and flip)")
     area = sum(plan.free_m2 for plan in report.plans)
-    typer.echo(f"wrote {len(report.plans)} plan{'s' if len(report.plans) != 1 else ''} ({area:,.0f} m^2 free) at "
-               f"{cell_size:g} m to {out}, with {MANIFEST}"
-               + (f" and {', '.join(report.licences)}" if report.licences else ""))
+    typer.echo(
+        f"wrote {len(report.plans)} plan{'s' if len(report.plans) != 1 else ''} ({area:,.0f} m^2 free) at "
+        f"{cell_size:g} m to {out}, with {MANIFEST}" + (f" and {', '.join(report.licences)}" if report.licences else "")
+    )

@@ -20,8 +20,12 @@ def eval_predictor(
     maps: Path = typer.Option(..., help="Folder of maps to explore (nearest_frontier)."),
     out: Path = typer.Option(Path("runs/predictor"), help="Output folder (precision.csv, table1.md, fig3.png)."),
     checkpoint: Optional[Path] = typer.Option(
-        None, help="Inpainter export [default: models/inpainter/inpainter.pt when the pipeline has trained one, else the shipped one]."),
-    sweep: bool = typer.Option(False, "--sweep", help="Also at tau 0.5-0.9: precision_by_threshold.csv, threshold_sweep.png."),
+        None,
+        help="Inpainter export [default: models/inpainter/inpainter.pt when the pipeline has trained one, else the shipped one].",
+    ),
+    sweep: bool = typer.Option(
+        False, "--sweep", help="Also at tau 0.5-0.9: precision_by_threshold.csv, threshold_sweep.png."
+    ),
     threshold: Optional[float] = typer.Option(
         None,
         help="tau: P(free) at or above which a node is predicted, as the planners' `threshold=` [default: theirs].",
@@ -40,6 +44,13 @@ def eval_predictor(
         fail(str(error))
     typer.echo(f"inpainter: {used}")
     typer.echo(frame.to_string(index=False))
-    names = ("precision.csv", "precision_detail.csv", "table1.md", "precision_by_threshold.csv", "threshold_sweep.png", "fig3.png")
+    names = (
+        "precision.csv",
+        "precision_detail.csv",
+        "table1.md",
+        "precision_by_threshold.csv",
+        "threshold_sweep.png",
+        "fig3.png",
+    )
     written = [out / name for name in names]
     typer.echo("wrote " + ", ".join(str(path) for path in written if path.is_file()))

@@ -30,8 +30,26 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
-    "Section", "ValidationError", "any_of", "check_value", "config_dataclass", "every_key", "explain", "fields_of", "flag", "fraction", "identifier", "list_of",
-    "maybe", "pair", "positive", "real", "satisfies", "text", "validate", "whole",
+    "Section",
+    "ValidationError",
+    "any_of",
+    "check_value",
+    "config_dataclass",
+    "every_key",
+    "explain",
+    "fields_of",
+    "flag",
+    "fraction",
+    "identifier",
+    "list_of",
+    "maybe",
+    "pair",
+    "positive",
+    "real",
+    "satisfies",
+    "text",
+    "validate",
+    "whole",
 ]
 
 T = TypeVar("T")
@@ -51,7 +69,9 @@ def _refusing(what: str, deeper: bool = True) -> WrapValidator:
                 raise
             raise PydanticCustomError(REFUSED, "must be {what}", {"what": what}) from None
         except (ValueError, AssertionError) as error:  # a rule of the type's own validators
-            raise PydanticCustomError(REFUSED, "must be {what} ({reason})", {"what": what, "reason": str(error)}) from None
+            raise PydanticCustomError(
+                REFUSED, "must be {what} ({reason})", {"what": what, "reason": str(error)}
+            ) from None
 
     validate.what = what  # type: ignore[attr-defined]  # what the types that hold this one say of it
     return WrapValidator(validate)
@@ -68,8 +88,15 @@ def whole(minimum: int | None = 0, maximum: int | None = None, note: str = "") -
     else:
         rule = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
     bounds = ([at.Ge(minimum)] if minimum is not None else []) + ([at.Le(maximum)] if maximum is not None else [])
-    return Annotated[(int, Strict(), *bounds, _refusing(_noted(f"a whole number {rule}".rstrip(), note)),
-                      pydantic.BeforeValidator(_plain_int))]
+    return Annotated[
+        (
+            int,
+            Strict(),
+            *bounds,
+            _refusing(_noted(f"a whole number {rule}".rstrip(), note)),
+            pydantic.BeforeValidator(_plain_int),
+        )
+    ]
 
 
 def _plain_int(value: Any) -> Any:
@@ -77,8 +104,14 @@ def _plain_int(value: Any) -> Any:
     return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
 
 
-def real(low: float | None = None, high: float | None = None, *, low_open: bool = False, high_open: bool = False,
-         note: str = "") -> Any:
+def real(
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+    note: str = "",
+) -> Any:
     """A finite number (an int or a float, never a bool, NaN or +-inf) between `low` and `high`
     (closed ends unless `low_open` / `high_open`; None: unbounded on that side). Kept as a float."""
     if low is not None and high is not None:
@@ -116,14 +149,16 @@ def text(choices: tuple[str, ...] = (), note: str = "") -> Any:
     """A non-empty string; with `choices`, one of them."""
     if choices:
         return Annotated[Literal[choices], _refusing(_noted("one of " + ", ".join(map(repr, choices)), note))]
-    return Annotated[str, Strict(), at.Predicate(lambda value: bool(value.strip())),
-                     _refusing(_noted("a non-empty string", note))]
+    return Annotated[
+        str, Strict(), at.Predicate(lambda value: bool(value.strip())), _refusing(_noted("a non-empty string", note))
+    ]
 
 
 def identifier(note: str = "") -> Any:
     """A Python identifier (letters, digits, '_'): a name that becomes a key or a file name."""
-    return Annotated[str, Strict(), at.Predicate(str.isidentifier),
-                     _refusing(_noted("an identifier (letters, digits, '_')", note))]
+    return Annotated[
+        str, Strict(), at.Predicate(str.isidentifier), _refusing(_noted("an identifier (letters, digits, '_')", note))
+    ]
 
 
 def maybe(inner: Any, meaning: str = "") -> Any:
@@ -134,15 +169,21 @@ def maybe(inner: Any, meaning: str = "") -> Any:
 def list_of(item: Any, min_length: int = 1, description: str = "") -> Any:
     """A list (a tuple from Python) of at least `min_length` items of type `item` (paths key[i])."""
     if not description:
-        size = {0: "a list (maybe empty)", 1: "a non-empty list"}.get(min_length, f"a list of at least {min_length} items")
+        size = {0: "a list (maybe empty)", 1: "a non-empty list"}.get(
+            min_length, f"a list of at least {min_length} items"
+        )
         description = f"{size} of {_what(item)}"
     return Annotated[list[item], at.MinLen(min_length), _refusing(description)]
 
 
 def pair(item: Any) -> Any:
     """An inclusive range [low, high]: two values of type `item`, low <= high."""
-    return Annotated[list[item], at.Len(2, 2), at.Predicate(lambda value: value[0] <= value[1]),
-                     _refusing(f"a range [low, high] of {_what(item)}, low <= high")]
+    return Annotated[
+        list[item],
+        at.Len(2, 2),
+        at.Predicate(lambda value: value[0] <= value[1]),
+        _refusing(f"a range [low, high] of {_what(item)}, low <= high"),
+    ]
 
 
 def any_of(*options: Any, description: str = "") -> Any:
@@ -162,7 +203,9 @@ def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any) -> 
             test(value)
         except (ValueError, TypeError, KeyError) as error:
             reason = str(error.args[0]) if isinstance(error, KeyError) and error.args else str(error)
-            raise PydanticCustomError(REFUSED, "must be {what} ({reason})", {"what": description, "reason": reason}) from None
+            raise PydanticCustomError(
+                REFUSED, "must be {what} ({reason})", {"what": description, "reason": reason}
+            ) from None
         return value
 
     return Annotated[kind, pydantic.AfterValidator(check)]
@@ -211,8 +254,11 @@ class Section(BaseModel):
         if isinstance(values, Mapping):
             for key in values:
                 if key not in cls.model_fields:
-                    raise PydanticCustomError("unknown_key", "unknown setting {key!r} (known: {known})",
-                                              {"key": key, "known": ", ".join(cls.model_fields)})
+                    raise PydanticCustomError(
+                        "unknown_key",
+                        "unknown setting {key!r} (known: {known})",
+                        {"key": key, "known": ", ".join(cls.model_fields)},
+                    )
         return values
 
 
@@ -227,7 +273,9 @@ def config_dataclass(cls: type[T]) -> type[T]:
     """A frozen dataclass whose fields are validated when it is made (a planner's or a model's
     config): `dataclasses.fields`, `replace` and pickling work as on any dataclass, an unknown
     keyword is refused, and a refused value is a ValueError of one line, `Name: key: must be ...`."""
-    made = pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(cls)
+    made = pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(
+        cls
+    )
     validating_init = made.__init__
 
     @functools.wraps(validating_init)
@@ -305,7 +353,11 @@ def explain(error: ValidationError, root: str = "", kind_checked: Any = None) ->
         value = dataclasses.MISSING  # its message says what was wrong with which values
     elif kind in ("model_type", "dataclass_type", "model_attributes_type", "dict_type", "dataclass_args_type"):
         config = _config_at(kind_checked, loc)
-        message = f"must be a mapping of {config.__name__} settings" if config is not None else "must be a mapping of settings"
+        message = (
+            f"must be a mapping of {config.__name__} settings"
+            if config is not None
+            else "must be a mapping of settings"
+        )
     elif kind != REFUSED:
         message = message[:1].lower() + message[1:]
     if isinstance(value, ArgsKwargs):  # a dataclass's arguments as a whole: not a value to show
@@ -350,8 +402,10 @@ def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") ->
         known = [field.name for field in dataclasses.fields(kind)]
         for key in values:
             if key not in known:
-                raise ValueError(f"{_path(((root,) if root else ()) + (key,))}: unknown setting "
-                                 f"(known: {', '.join(known)}), got {values[key]!r}")
+                raise ValueError(
+                    f"{_path(((root,) if root else ()) + (key,))}: unknown setting "
+                    f"(known: {', '.join(known)}), got {values[key]!r}"
+                )
         return _adapter(kind).validate_python(values)
     except ValidationError as error:
         raise ValueError(explain(error, root, kind)) from None

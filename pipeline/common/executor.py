@@ -63,7 +63,9 @@ def resolve_backend(backend: str | None = None) -> str:
         source = "" if backend is not None else f" (from ${BACKEND_ENV})"
         raise ValueError(f"unknown backend {chosen!r}{source}: use one of {', '.join(BACKENDS)}")
     if chosen == "ray" and importlib.util.find_spec("ray") is None:
-        raise ValueError("backend 'ray' needs Ray, which is not installed: pip install -e '.[ray]' (or use backend process)")
+        raise ValueError(
+            "backend 'ray' needs Ray, which is not installed: pip install -e '.[ray]' (or use backend process)"
+        )
     return chosen
 
 
@@ -107,8 +109,14 @@ def _with_shared(function: Callable[[Any, T], R], token: int, task: T) -> R:
     return function(_SHARED[token], task)
 
 
-def results_as_finished(function: Callable[..., R], tasks: Sequence[T], indices: Sequence[int], workers: int,
-                        backend: str, shared: Any = None) -> Iterator[tuple[int, R]]:
+def results_as_finished(
+    function: Callable[..., R],
+    tasks: Sequence[T],
+    indices: Sequence[int],
+    workers: int,
+    backend: str,
+    shared: Any = None,
+) -> Iterator[tuple[int, R]]:
     """(index, function(tasks[index])) for each of `indices`, in the order they finish
     (function(shared, tasks[index]) when `shared` is given)."""
     if backend == "ray":
@@ -140,7 +148,9 @@ def results_as_finished(function: Callable[..., R], tasks: Sequence[T], indices:
         token = id(shared)
         _SHARED[token] = shared
         call = function if shared is None else partial(_with_shared, function, token)
-        pool = ProcessPoolExecutor(max_workers=min(workers, len(indices)), mp_context=multiprocessing.get_context("fork"))
+        pool = ProcessPoolExecutor(
+            max_workers=min(workers, len(indices)), mp_context=multiprocessing.get_context("fork")
+        )
         try:
             futures = {pool.submit(call, tasks[index]): index for index in indices}
             for future in as_completed(futures):
@@ -150,9 +160,19 @@ def results_as_finished(function: Callable[..., R], tasks: Sequence[T], indices:
             _SHARED.pop(token, None)
 
 
-def run_tasks(function: Callable[[T], R], tasks: Sequence[T], workers: int | None, desc: str, unit: str,
-              keep: KeptResults | None = None, backend: str | None = None, progress: bool = True,
-              on_result: Callable[[int, R], None] | None = None, collect: bool = True, shared: Any = None) -> list[R]:
+def run_tasks(
+    function: Callable[[T], R],
+    tasks: Sequence[T],
+    workers: int | None,
+    desc: str,
+    unit: str,
+    keep: KeptResults | None = None,
+    backend: str | None = None,
+    progress: bool = True,
+    on_result: Callable[[int, R], None] | None = None,
+    collect: bool = True,
+    shared: Any = None,
+) -> list[R]:
     """[function(t) for t in tasks], in task order, on `backend`'s engine (see the module docstring).
 
     `function` and the tasks must be picklable (a module-level function) unless `workers` is 1

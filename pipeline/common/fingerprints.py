@@ -47,7 +47,11 @@ def files_digest(paths: Iterable[str | Path]) -> str:
     """
     digest = hashlib.sha256()
     for root in sorted(Path(p) for p in paths):
-        files = sorted(f for f in root.rglob("*") if f.is_file() and not f.name.startswith(".")) if root.is_dir() else [root]
+        files = (
+            sorted(f for f in root.rglob("*") if f.is_file() and not f.name.startswith("."))
+            if root.is_dir()
+            else [root]
+        )
         for path in files:
             digest.update(path.as_posix().encode())
             if path.is_file():

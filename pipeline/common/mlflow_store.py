@@ -45,8 +45,10 @@ def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
     scheme = uri.split(":", 1)[0].lower() if ":" in uri else ""
     if scheme == "sqlite":
         if not uri.startswith("sqlite:///"):
-            raise ValueError(f"tracking store {uri!r}: a sqlite store is sqlite:///RELATIVE/PATH.db or sqlite:////ABSOLUTE/PATH.db")
-        path = Path(uri[len("sqlite:///"):])
+            raise ValueError(
+                f"tracking store {uri!r}: a sqlite store is sqlite:///RELATIVE/PATH.db or sqlite:////ABSOLUTE/PATH.db"
+            )
+        path = Path(uri[len("sqlite:///") :])
         folder = path.parent  # "." for a bare file name
         if not folder.is_dir():
             raise ValueError(f"tracking store {uri!r}: folder {folder} does not exist")
@@ -130,8 +132,9 @@ def log_generated_maze_set(name: str, settings: dict, context: str = "training")
     mlflow.log_input(dataset, context=context, tags={"dvc_hash": "none (drawn in the run)", "context": context})
 
 
-def log_maze_set(folder: str | Path, context: str = "evaluation", run_id: str | None = None,
-                 client: object | None = None) -> None:
+def log_maze_set(
+    folder: str | Path, context: str = "evaluation", run_id: str | None = None, client: object | None = None
+) -> None:
     """Record the maze set `folder` as a dataset input of the active MLflow run (or of `run_id`
     through `client`, for a run Lightning's logger holds)."""
     dataset, tags = maze_set_input(folder, context)
@@ -141,5 +144,7 @@ def log_maze_set(folder: str | Path, context: str = "evaluation", run_id: str | 
         return
     from mlflow.entities import DatasetInput, InputTag
 
-    input_tags = [InputTag("mlflow.data.context", context)] + [InputTag(k, v) for k, v in tags.items() if k != "context"]
+    input_tags = [InputTag("mlflow.data.context", context)] + [
+        InputTag(k, v) for k, v in tags.items() if k != "context"
+    ]
     client.log_inputs(run_id, datasets=[DatasetInput(dataset._to_mlflow_entity(), input_tags)])

@@ -44,8 +44,10 @@ def load_params(path: str | Path) -> dict[str, Any]:
     if params is None:
         return {}
     if not isinstance(params, dict):
-        raise ValueError(f"{path}: a params file is a YAML mapping of sections (mazes:, benchmark:, ...), "
-                         f"not a {type(params).__name__}")
+        raise ValueError(
+            f"{path}: a params file is a YAML mapping of sections (mazes:, benchmark:, ...), "
+            f"not a {type(params).__name__}"
+        )
     return params
 
 

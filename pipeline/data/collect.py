@@ -29,7 +29,17 @@ from pipeline.world.simulator import Episode, run_episode
 # The library code that determines each data set, as the folders (and files) of the pipeline
 # package that its collection runs: the resume fingerprints hash them (never the data), and they are the stages'
 # code dependencies in dvc.yaml (a test derives both from the import graph).
-COLLECTION_SOURCES = ("__init__.py", "common", "data", "lattice", "models", "planners", "prediction", "stage_runner.py", "world")
+COLLECTION_SOURCES = (
+    "__init__.py",
+    "common",
+    "data",
+    "lattice",
+    "models",
+    "planners",
+    "prediction",
+    "stage_runner.py",
+    "world",
+)
 PAIRS_SOURCES = COLLECTION_SOURCES
 EXPERT_SOURCES = COLLECTION_SOURCES
 
@@ -71,7 +81,13 @@ def collect_pairs_shard(job: ShardJob) -> dict[str, Any]:
             if episode.steps % config.snapshot_every == offset and len(captured) + count < config.pairs_per_shard:
                 captured.append(node_image_pair(graph, episode.belief.grid, ground_truth.free))
 
-        run_episode(ground_truth, planner, replace(config.protocol, max_steps=stop), seed=int(rng.integers(1 << 31)), on_step=snapshot)
+        run_episode(
+            ground_truth,
+            planner,
+            replace(config.protocol, max_steps=stop),
+            seed=int(rng.integers(1 << 31)),
+            on_step=snapshot,
+        )
         episodes += 1
         for pair in captured:
             sizes[pair.observed.shape[0]].append(pair)
@@ -104,7 +120,9 @@ class ExpertConfig:
     random_starts: bool = False  # each episode from a random open cell instead of the map's marked start
 
 
-def random_open_start(ground_truth: GroundTruthMap, rng: np.random.Generator, clearance_m: float = 0.8) -> GroundTruthMap:
+def random_open_start(
+    ground_truth: GroundTruthMap, rng: np.random.Generator, clearance_m: float = 0.8
+) -> GroundTruthMap:
     """The map with its start moved to a random cell whose square of +-`clearance_m` is free.
 
     The expert is deterministic on a map, so episodes from one marked start repeat each other
@@ -156,11 +174,15 @@ def record_episode(ground_truth: GroundTruthMap, planner, protocol: Protocol, se
 
 def record_expert_episode(ground_truth: GroundTruthMap, config: ExpertConfig, seed: int) -> dict[str, Any]:
     """Run the expert; its labels (`targets`) are its own next T_p waypoints."""
-    record = record_episode(ground_truth, make_planner(config.planner, **dict(config.planner_options)), config.protocol, seed)
+    record = record_episode(
+        ground_truth, make_planner(config.planner, **dict(config.planner_options)), config.protocol, seed
+    )
     return {**record, "targets": future_waypoints(record["trajectory"], config.horizon)}
 
 
-def episode_shard_arrays(ground_truths: list[GroundTruthMap], map_names: list[str], records: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+def episode_shard_arrays(
+    ground_truths: list[GroundTruthMap], map_names: list[str], records: list[dict[str, Any]]
+) -> dict[str, np.ndarray]:
     """The arrays of one Stage II shard: per episode its map and diffs, per step the position and
     its label (`future_waypoints`, T_p waypoints), read back by `load_expert_episodes`."""
     grids = [np.packbits(g.free.reshape(-1)) for g in ground_truths]
@@ -204,4 +226,9 @@ def collect_expert_shard(job: ShardJob) -> dict[str, Any]:
     path = shard_path(job.out_dir, job.index)
     write_shard(path, arrays)
     steps = int(arrays["summary_steps"])
-    return {"episodes": len(records), "steps": steps, "complete": int(arrays["summary_complete"]), "bytes": path.stat().st_size}
+    return {
+        "episodes": len(records),
+        "steps": steps,
+        "complete": int(arrays["summary_complete"]),
+        "bytes": path.stat().st_size,
+    }

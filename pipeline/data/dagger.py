@@ -86,5 +86,11 @@ def collect_dagger_shard(job: ShardJob) -> dict[str, Any]:
     arrays["summary_agreements"] = np.array(int(sum(a[:-1].sum() for a in agreements)))
     path = shard_path(job.out_dir, job.index)
     write_shard(path, arrays)
-    return {"episodes": len(records), "steps": int(arrays["summary_steps"]), "complete": int(arrays["summary_complete"]),
-            "moves": moves, "agreements": int(arrays["summary_agreements"]), "bytes": path.stat().st_size}
+    return {
+        "episodes": len(records),
+        "steps": int(arrays["summary_steps"]),
+        "complete": int(arrays["summary_complete"]),
+        "moves": moves,
+        "agreements": int(arrays["summary_agreements"]),
+        "bytes": path.stat().st_size,
+    }

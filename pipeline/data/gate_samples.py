@@ -41,8 +41,9 @@ class _LabellingGreedy(GreedyUtilityPlanner):
         return waypoints
 
 
-def gate_samples(ground_truth: GroundTruthMap, protocol: Protocol, wall_margin: int = 2,
-                 seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def gate_samples(
+    ground_truth: GroundTruthMap, protocol: Protocol, wall_margin: int = 2, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """(counts (n, 3), true gains (n,)) of every reachable target at every decision of one greedy episode."""
     probe = _LabellingGreedy(wall_margin, protocol.sensor_range_cells)
     run_episode(ground_truth, probe, protocol, seed)

@@ -91,8 +91,14 @@ def episode_observations(
     return {v: {k: np.asarray(a) for k, a in arrays.items()} for v, arrays in out.items()}
 
 
-def shard_observations(shard: str | Path, first_episode_id: int, protocol: Protocol, inpainter: str | Path, settings: dict,
-                       variants: tuple[str, ...] = VARIANTS) -> dict[str, dict[str, np.ndarray]]:
+def shard_observations(
+    shard: str | Path,
+    first_episode_id: int,
+    protocol: Protocol,
+    inpainter: str | Path,
+    settings: dict,
+    variants: tuple[str, ...] = VARIANTS,
+) -> dict[str, dict[str, np.ndarray]]:
     """{variant: arrays} for every episode of one Stage II shard (expert or DAgger), replayed with the
     inpainter at `inpainter` and the predictor and observation `settings` (threshold,
     count_threshold, min_component, max_nodes, max_neighbors); episode ids from `first_episode_id`.
@@ -100,11 +106,17 @@ def shard_observations(shard: str | Path, first_episode_id: int, protocol: Proto
     import torch
 
     torch.set_num_threads(1)
-    predictor = NodePredictor(cached_inpainter(inpainter), NodePredictorConfig(
-        settings["threshold"], settings["min_component"], count_threshold=settings["count_threshold"]))
+    predictor = NodePredictor(
+        cached_inpainter(inpainter),
+        NodePredictorConfig(
+            settings["threshold"], settings["min_component"], count_threshold=settings["count_threshold"]
+        ),
+    )
     config = ObservationConfig(settings["max_nodes"], settings["max_neighbors"])
-    parts = [episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k, variants=variants)
-             for k, episode in enumerate(load_expert_episodes(shard))]
+    parts = [
+        episode_observations(episode, protocol, predictor, config, episode_id=first_episode_id + k, variants=variants)
+        for k, episode in enumerate(load_expert_episodes(shard))
+    ]
     return {variant: concatenate(p[variant] for p in parts) for variant in variants}
 
 
@@ -152,8 +164,12 @@ def crop_observations(arrays: dict[str, np.ndarray], max_nodes: int) -> dict[str
         raise ValueError("the robot's row lies beyond the crop")
     neighbors = arrays["neighbors"][:, :max_nodes].copy()
     neighbors[neighbors >= max_nodes] = -1
-    return {**arrays, "features": arrays["features"][:, :max_nodes], "node_mask": arrays["node_mask"][:, :max_nodes],
-            "neighbors": neighbors}
+    return {
+        **arrays,
+        "features": arrays["features"][:, :max_nodes],
+        "node_mask": arrays["node_mask"][:, :max_nodes],
+        "neighbors": neighbors,
+    }
 
 
 def history_index(episode: np.ndarray, step: np.ndarray, obs_steps: int) -> np.ndarray:
@@ -168,7 +184,14 @@ def history_index(episode: np.ndarray, step: np.ndarray, obs_steps: int) -> np.n
 class PlannerDataset:
     """Torch-style dataset of (T_o observations, T_p actions), with random dihedral augmentation."""
 
-    def __init__(self, arrays: dict[str, np.ndarray], obs_steps: int, rows: np.ndarray | None = None, augment: bool = False, seed: int = 0):
+    def __init__(
+        self,
+        arrays: dict[str, np.ndarray],
+        obs_steps: int,
+        rows: np.ndarray | None = None,
+        augment: bool = False,
+        seed: int = 0,
+    ):
         self.arrays = arrays
         self.history = history_index(arrays["episode"], arrays["step"], obs_steps)
         self.rows = np.arange(len(arrays["episode"])) if rows is None else np.asarray(rows)

@@ -89,11 +89,18 @@ def code_version() -> str:
     """The git commit of the code that made the data (or 'unknown' outside a checkout)."""
     try:
         out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
             cwd=Path(__file__).resolve().parent,
         )
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True,
-                               cwd=Path(__file__).resolve().parent).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            cwd=Path(__file__).resolve().parent,
+        ).stdout.strip()
         return out.stdout.strip() + ("-dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
@@ -156,8 +163,17 @@ def run_shards(
         atomic_write_json(_record_path(path), {"fingerprint": fp})
 
     jobs = [ShardJob(k, "", fp, params) for k in todo]
-    run_tasks(partial(shard_bytes, make_shard), jobs, workers, description, "shard", backend=backend,
-              progress=progress, on_result=finished, collect=False)
+    run_tasks(
+        partial(shard_bytes, make_shard),
+        jobs,
+        workers,
+        description,
+        "shard",
+        backend=backend,
+        progress=progress,
+        on_result=finished,
+        collect=False,
+    )
     # Counts read back from every shard file, made now or earlier, so a resume writes the same manifest.
     shards = [{"file": shard_path(work, k).name, **summarise_shard(shard_path(work, k))} for k in range(shard_count)]
     manifest = {"params": params, "shards": shards, "totals": _totals(shards)}
@@ -210,8 +226,10 @@ def shard_count_for(requested: int, per_shard: int, what: str) -> int:
         raise ValueError(f"{what}: {requested} requested, {per_shard} per shard; both must be at least 1")
     count = -(-requested // per_shard)
     if count * per_shard != requested:
-        print(f"note: {requested} {what} is not a multiple of {per_shard} per shard; "
-              f"collecting {count} shards = {count * per_shard} {what}")
+        print(
+            f"note: {requested} {what} is not a multiple of {per_shard} per shard; "
+            f"collecting {count} shards = {count * per_shard} {what}"
+        )
     return count
 
 

@@ -29,8 +29,10 @@ def teacher_target(teacher: Planner) -> int:
     """The lattice node the teacher's last decision heads for."""
     decision = getattr(teacher, "last_decision", None) or {}
     if decision.get("target") is None:
-        raise NoTargetError(f"planner {teacher.name!r} does not report the node it heads for (last_decision['target']); "
-                            "a teacher must: guide, guide_tsp, mapex or tare (with their options)")
+        raise NoTargetError(
+            f"planner {teacher.name!r} does not report the node it heads for (last_decision['target']); "
+            "a teacher must: guide, guide_tsp, mapex or tare (with their options)"
+        )
     return int(decision["target"])
 
 
@@ -67,7 +69,7 @@ def path_label(graph: LatticeGraph, position: tuple[float, float], target: int |
     points = graph.node_world[path[:horizon]] if path else np.asarray(graph.node_world[robot])[None]
     label = np.empty((horizon, 2), dtype=np.float32)
     label[: len(points)] = points
-    label[len(points):] = points[-1]
+    label[len(points) :] = points[-1]
     return label
 
 
@@ -77,7 +79,9 @@ def follows(position: tuple[float, float], waypoint: tuple[float, float], label:
     if np.allclose(waypoint, label[0], atol=1e-3):
         return True
     middle = (np.asarray(position) + np.asarray(waypoint)) / 2.0
-    return len(label) > 1 and bool(np.allclose(middle, label[0], atol=1e-3) and np.allclose(waypoint, label[1], atol=1e-3))
+    return len(label) > 1 and bool(
+        np.allclose(middle, label[0], atol=1e-3) and np.allclose(waypoint, label[1], atol=1e-3)
+    )
 
 
 class TeacherLabelledDriver(Planner):

@@ -57,8 +57,9 @@ def _two(values: list) -> None:
 
 def _pair_of(item: Any, what: str) -> Any:
     """Two values of type `item` (a tuple, a list or an array of them), kept as a tuple."""
-    return Annotated[satisfies(_two, what, list_of(item, 2, description=what)), BeforeValidator(_as_tuple),
-                     AfterValidator(tuple)]
+    return Annotated[
+        satisfies(_two, what, list_of(item, 2, description=what)), BeforeValidator(_as_tuple), AfterValidator(tuple)
+    ]
 
 
 MapName = Annotated[text(note=f"a map file, a folder of maps or {GENERATED_MAZE!r}"), BeforeValidator(_path_text)]
@@ -70,7 +71,9 @@ class ExploreEnvConfig:
     and reward weights. Defaults are the maze benchmark's protocol and ARiADNE-style weights."""
 
     # --- maps
-    map: MapName = GENERATED_MAZE  # a map file (maze .png, ROS .yaml, .npy), a folder of maps, or "maze": a new maze each reset
+    map: MapName = (
+        GENERATED_MAZE  # a map file (maze .png, ROS .yaml, .npy), a folder of maps, or "maze": a new maze each reset
+    )
     # start override as load_map takes it: (col, row) for .png/.npy, (x, y) m for ROS
     start: maybe(_pair_of(real(), "a pair of finite numbers"), "the map's") = None
     maze_side_m: positive("metres") = 100.0  # side of the generated mazes (map="maze"), a whole number of 5 m blocks
@@ -79,16 +82,26 @@ class ExploreEnvConfig:
     node_resolution: positive("metres") = 4.0  # spacing of the waypoint lattice
     sensor_range: positive("metres") = 20.0  # lidar range
     utility_range: positive("metres") = 10.0  # a node's frontier utility counts frontier cells this close
-    region_size: positive("metres") = 20.0  # side of the fixed regions (kept for the protocol; the observed graph ignores it)
-    done_unknown_cells: whole(0, note="cells") = 250  # the episode is complete when at most this many free cells are unseen
+    region_size: positive("metres") = (
+        20.0  # side of the fixed regions (kept for the protocol; the observed graph ignores it)
+    )
+    done_unknown_cells: whole(0, note="cells") = (
+        250  # the episode is complete when at most this many free cells are unseen
+    )
     max_steps: whole(1) = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
     robot_radius_m: real(0.0) = 0.2  # metres: what fits through a door (the protocol's; unused on the lattice)
     # --- actions and observations
-    action: text(ACTION_MODES) = "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
-    max_nodes: whole(1, MAX_PADDED_NODES) = 320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
+    action: text(ACTION_MODES) = (
+        "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
+    )
+    max_nodes: whole(1, MAX_PADDED_NODES) = (
+        320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
+    )
     max_neighbors: whole(1) = 25  # neighbour slots per row (-1 padded); a lattice node has at most 24
     belief_image: flag() = False  # add the belief as a uint8 image ("belief") and the robot's cell ("robot_cell")
-    belief_shape: maybe(_pair_of(whole(1), "two cell counts (rows, cols)"), "the largest map's") = None  # cells (rows, cols) of the padded belief
+    belief_shape: maybe(_pair_of(whole(1), "two cell counts (rows, cols)"), "the largest map's") = (
+        None  # cells (rows, cols) of the padded belief
+    )
     # --- reward (ARiADNE-style): area_weight * new free area - distance_weight * distance + completion_bonus
     area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area (50 m^2 -> 1)
     distance_weight: real(0.0) = 0.1  # penalty per metre travelled (one 4 m lattice step -> 0.4)
@@ -101,12 +114,16 @@ class ExploreEnvConfig:
         if self.belief_shape is not None and not self.belief_image:
             raise ValueError("belief_shape is given but belief_image is off; add belief_image=True")
         if self.generates_mazes and self.start is not None:
-            raise ValueError("start applies to map files (a generated maze has its own start); drop start or pass a map")
+            raise ValueError(
+                "start applies to map files (a generated maze has its own start); drop start or pass a map"
+            )
         if self.generates_mazes:
             try:
                 self.maze_config()
             except ValueError as error:  # the generator's own refusal
-                raise ValueError(f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {error}") from None
+                raise ValueError(
+                    f"maze_side_m {self.maze_side_m:g} with cell_size {self.cell_size:g}: {error}"
+                ) from None
 
     @property
     def generates_mazes(self) -> bool:
@@ -128,7 +145,9 @@ class ExploreEnvConfig:
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"unknown parameter(s) {', '.join(unknown)}; the environment takes {', '.join(sorted(known))}")
+            raise ValueError(
+                f"unknown parameter(s) {', '.join(unknown)}; the environment takes {', '.join(sorted(known))}"
+            )
         if protocol is not None:
             if isinstance(protocol, dict):
                 protocol = Protocol.from_dict(protocol)
@@ -136,4 +155,3 @@ class ExploreEnvConfig:
                 raise ValueError(f"protocol must be a Protocol or a dict of its fields, got {protocol!r}")
             values = {**{k: v for k, v in protocol.to_dict().items() if k in PROTOCOL_FIELDS}, **values}
         return validate(cls, values)
-

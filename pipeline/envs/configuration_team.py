@@ -26,8 +26,9 @@ class TeamExploreEnvConfig(ExploreEnvConfig):
 
     robots: whole(1, MAX_ROBOTS) = 2  # agents robot_0 .. robot_{robots-1}
     # each robot's start in metres from the map's start, on the node lattice (None: all at the map's start)
-    starts: maybe(list_of(list_of(real(), 2, "an (x, y) pair of finite numbers")),
-                  "every robot at the map's start") = None
+    starts: maybe(list_of(list_of(real(), 2, "an (x, y) pair of finite numbers")), "every robot at the map's start") = (
+        None
+    )
     comm_range_m: maybe(positive("metres"), "full communication: one shared belief") = None
     step_limit: maybe(whole(1), "robots * max_steps") = None  # environment steps before the episode is truncated
 

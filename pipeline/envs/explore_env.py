@@ -64,8 +64,13 @@ class ExploreEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-    def __init__(self, config: ExploreEnvConfig | None = None, render_mode: str | None = None,
-                 protocol: Protocol | dict | None = None, **values: Any):
+    def __init__(
+        self,
+        config: ExploreEnvConfig | None = None,
+        render_mode: str | None = None,
+        protocol: Protocol | dict | None = None,
+        **values: Any,
+    ):
         if config is not None and (values or protocol is not None):
             raise ValueError("pass either config= or keyword parameters, not both")
         self.config = config if config is not None else ExploreEnvConfig.from_kwargs(protocol, **values)
@@ -179,8 +184,9 @@ class ExploreEnv(gymnasium.Env):
         self._steps, self._over = 0, False
         self._visited[self._lattice.nearest_node(self._episode.position)] = True
         self._observe()
-        return self._observation(), self._info(invalid=False, stuck=False, parts=(0.0, 0.0, 0.0, 0.0), area=0.0,
-                                               distance=0.0)
+        return self._observation(), self._info(
+            invalid=False, stuck=False, parts=(0.0, 0.0, 0.0, 0.0), area=0.0, distance=0.0
+        )
 
     def step(self, action):
         if self._episode is None or self._over:
@@ -239,8 +245,14 @@ class ExploreEnv(gymnasium.Env):
 
     def _observe(self) -> None:
         """Build the observation of the current state and the action mask."""
-        view = observe_lattice(self._lattice, self._table, self._episode.position, self._visited, self.graph_config,
-                               self.config.max_neighbors)
+        view = observe_lattice(
+            self._lattice,
+            self._table,
+            self._episode.position,
+            self._visited,
+            self.graph_config,
+            self.config.max_neighbors,
+        )
         self._view = view
         mask = np.zeros(self.action_count, dtype=np.int8)
         if self.config.action == "neighbour":
@@ -275,14 +287,17 @@ class ExploreEnv(gymnasium.Env):
         grid = self._episode.belief.grid
         rows, cols = grid.shape
         if rows > self.belief_shape[0] or cols > self.belief_shape[1]:
-            raise ValueError(f"belief_shape {self.belief_shape} is smaller than map {self._drawn.ground_truth.name}'s "
-                             f"grid {grid.shape}; pass a larger belief_shape")
+            raise ValueError(
+                f"belief_shape {self.belief_shape} is smaller than map {self._drawn.ground_truth.name}'s "
+                f"grid {grid.shape}; pass a larger belief_shape"
+            )
         image = np.full(self.belief_shape, OCCUPIED, dtype=np.uint8)
         image[:rows, :cols] = grid
         return image
 
-    def _info(self, invalid: bool, stuck: bool, parts: tuple[float, float, float, float], area: float,
-              distance: float) -> dict[str, Any]:
+    def _info(
+        self, invalid: bool, stuck: bool, parts: tuple[float, float, float, float], area: float, distance: float
+    ) -> dict[str, Any]:
         episode = self._episode
         return {
             "map_name": self._drawn.ground_truth.name,

@@ -149,8 +149,9 @@ def maze_from_image(image: np.ndarray, cell_size: float, name: str) -> GroundTru
     return GroundTruthMap(free=free, start_cell=start, cell_size=cell_size, name=name, free_rule=MAZE_FREE_RULE)
 
 
-def map_source(map_value: str, start: tuple[float, float] | None, protocol: Protocol,
-               maze: MazeConfig | None) -> MapSource:
+def map_source(
+    map_value: str, start: tuple[float, float] | None, protocol: Protocol, maze: MazeConfig | None
+) -> MapSource:
     """The source a `map` parameter names: `maze` (with its config), a folder, or a map file."""
     if maze is not None:
         return MazeSource(maze, protocol)

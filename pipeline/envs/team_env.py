@@ -73,8 +73,9 @@ class TeamExploreEnv(ParallelEnv):
 
     metadata = {"name": ENV_NAME, "render_modes": [], "is_parallelizable": True}
 
-    def __init__(self, config: TeamExploreEnvConfig | None = None, protocol: Protocol | dict | None = None,
-                 **values: Any):
+    def __init__(
+        self, config: TeamExploreEnvConfig | None = None, protocol: Protocol | dict | None = None, **values: Any
+    ):
         if config is not None and (values or protocol is not None):
             raise ValueError("pass either config= or keyword parameters, not both")
         self.config = config if config is not None else TeamExploreEnvConfig.from_kwargs(protocol, **values)
@@ -203,8 +204,10 @@ class TeamExploreEnv(ParallelEnv):
         options = dict(options or {})
         unknown = sorted(set(options) - set(OPTION_KEYS))
         if unknown:
-            warnings.warn(f"reset options {', '.join(unknown)} are not used; the options are {', '.join(OPTION_KEYS)}",
-                          stacklevel=2)
+            warnings.warn(
+                f"reset options {', '.join(unknown)} are not used; the options are {', '.join(OPTION_KEYS)}",
+                stacklevel=2,
+            )
         drawn = self._draw(options.get("map"))
         starts = options.get("starts", self.config.starts)
         cfg = self.config
@@ -296,8 +299,12 @@ class TeamExploreEnv(ParallelEnv):
         for k, agent in enumerate(self.agents):
             area = self._scanned[k] * cell_area
             distance = episode.robots[k].travelled - travelled_before[k]
-            parts = (cfg.area_weight * area, -cfg.distance_weight * distance, bonus,
-                     -cfg.invalid_action_penalty if invalid[k] else 0.0)
+            parts = (
+                cfg.area_weight * area,
+                -cfg.distance_weight * distance,
+                bonus,
+                -cfg.invalid_action_penalty if invalid[k] else 0.0,
+            )
             rewards[agent] = float(sum(parts))
             infos[agent] = self._info(k, invalid=invalid[k], area=area, distance=distance, parts=parts)
         terminations = {agent: bool(terminated) for agent in self.agents}
@@ -348,8 +355,11 @@ class TeamExploreEnv(ParallelEnv):
         self._ended = True
         if not episode.complete and not self._failure:
             self._move_limit = any(r.stopped for r in episode.robots)
-            self._failure = (f"step limit ({self._protocol.max_steps} moves of a robot) reached" if self._move_limit
-                             else "no reachable target left for any robot")
+            self._failure = (
+                f"step limit ({self._protocol.max_steps} moves of a robot) reached"
+                if self._move_limit
+                else "no reachable target left for any robot"
+            )
 
     def _decide(self, index: int, waypoints: list[tuple[float, float]]) -> None:
         """Robot `index`'s decision: its plan, or waiting when it is empty (as in `run_team_episode`)."""
@@ -412,8 +422,14 @@ class TeamExploreEnv(ParallelEnv):
         self._views: list[ObservedStep] = []
         self._masks: list[np.ndarray] = []
         for k, robot in enumerate(episode.robots):
-            view = observe_lattice(self._lattices[k], self._table, robot.position, self._visited[k],
-                                   self.graph_config, self.config.max_neighbors)
+            view = observe_lattice(
+                self._lattices[k],
+                self._table,
+                robot.position,
+                self._visited[k],
+                self.graph_config,
+                self.config.max_neighbors,
+            )
             mask = np.zeros(self.action_count, dtype=np.int8)
             if k == self._acting:
                 if self.config.action == "neighbour":
@@ -458,8 +474,9 @@ class TeamExploreEnv(ParallelEnv):
                 rows[row, 4:] = (1.0, (target[0] - x) / scale, (target[1] - y) / scale)
         return rows
 
-    def _info(self, k: int, invalid: bool, area: float, distance: float,
-              parts: tuple[float, float, float, float]) -> dict[str, Any]:
+    def _info(
+        self, k: int, invalid: bool, area: float, distance: float, parts: tuple[float, float, float, float]
+    ) -> dict[str, Any]:
         episode = self._episode
         robot = episode.robots[k]
         return {

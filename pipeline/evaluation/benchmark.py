@@ -56,14 +56,21 @@ from pipeline.world.trajectories import (
 
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
-OUTPUT_FILES = ("metrics.csv", "summary.md", RUN_RECORD, EXPLORATION_CSV, COVERAGE_FIGURE)  # a label names a folder beside these
+OUTPUT_FILES = (
+    "metrics.csv",
+    "summary.md",
+    RUN_RECORD,
+    EXPLORATION_CSV,
+    COVERAGE_FIGURE,
+)  # a label names a folder beside these
 DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
 ERRORS_FILE = "errors.txt"  # beside metrics.csv when a planner raised: each such episode and its traceback
 KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run not yet complete
 
 
-def with_policy_checkpoint(specs: list[str], checkpoint: str | Path | None,
-                           config_of: Callable[[str], type[PlannerConfig]] = planner_config) -> list[str]:
+def with_policy_checkpoint(
+    specs: list[str], checkpoint: str | Path | None, config_of: Callable[[str], type[PlannerConfig]] = planner_config
+) -> list[str]:
     """`specs` with policy_file=PATH added to each diffusion planner's (the command line's --checkpoint);
     ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too.
     `config_of` finds a name's config (the team registry's `team_config` for team names)."""
@@ -115,8 +122,11 @@ def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]
     seen: dict[str, str | Path] = {}
     for path, name in zip(map_paths, names):
         if name in seen:
-            raise MapError(path, f"has the same name {name!r} as {seen[name]}: their trajectories would overwrite "
-                                 "each other in OUT/<label>/<name>.csv; rename one")
+            raise MapError(
+                path,
+                f"has the same name {name!r} as {seen[name]}: their trajectories would overwrite "
+                "each other in OUT/<label>/<name>.csv; rename one",
+            )
         seen[name] = path
 
 
@@ -151,8 +161,13 @@ def check_workers(workers: int | None) -> None:
         raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
 
 
-def read_benchmark_maps(map_paths: Sequence[str | Path], protocol: Protocol, seed: int,
-                        start: tuple[float, float] | None, warn: Callable[[str], None] | None) -> BenchmarkMaps:
+def read_benchmark_maps(
+    map_paths: Sequence[str | Path],
+    protocol: Protocol,
+    seed: int,
+    start: tuple[float, float] | None,
+    warn: Callable[[str], None] | None,
+) -> BenchmarkMaps:
     """Every map of a run loaded (`start` overrides each map's) and checked: `warn` hears of each one
     no planner can complete; MapError when two share a name."""
     by_path: dict[str, tuple[GroundTruthMap, Protocol]] = {}
@@ -205,8 +220,12 @@ def run_task(task: EpisodeTask) -> EpisodeResult:
         planner = ErrorsEndTheEpisode(task_planner(task))  # a planner that raises fails this episode only
         result = run_episode(ground_truth, planner, protocol, seed=task.seed)
     if planner.error:
-        result.failure, result.error_traceback, result.complete, result.early_stop = \
-            planner.error, planner.error_traceback, False, False
+        result.failure, result.error_traceback, result.complete, result.early_stop = (
+            planner.error,
+            planner.error_traceback,
+            False,
+            False,
+        )
     result.planner = task.label
     return result
 
@@ -270,13 +289,24 @@ def run_benchmark(
     labels = {spec.label for spec in specs}
     stale = sorted(d.name for d in out_dir.iterdir() if d.is_dir() and d.name not in labels and any(d.glob("*.csv")))
     if stale:
-        warnings.warn(f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
-                      "its metrics.csv and summary.md list only this run's", stacklevel=2)
+        warnings.warn(
+            f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
+            "its metrics.csv and summary.md list only this run's",
+            stacklevel=2,
+        )
     protocol_record = recorded_protocol(protocol, maps.cell_sizes)
     for planner in built:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)  # (a learned planner takes the protocol's models first: the record names them)
-    write_run_record(out_dir / RUN_RECORD, specs, [planner.description for planner in built], seed, start,
-                     protocol_record, [str(path) for path in map_paths], speed)
+    write_run_record(
+        out_dir / RUN_RECORD,
+        specs,
+        [planner.description for planner in built],
+        seed,
+        start,
+        protocol_record,
+        [str(path) for path in map_paths],
+        speed,
+    )
     tasks = [
         EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
         for spec in specs
@@ -284,13 +314,23 @@ def run_benchmark(
     ]
     for spec, planner in zip(specs, built):  # the episodes take these planners
         _PLANNERS[spec.name, json.dumps(dict(spec.options), sort_keys=True, default=str)] = planner
-    inputs = EpisodeInputs({task_key: _MAPS[task_key] for task_key in {(t.map_path, t.start, t.protocol) for t in tasks}},
-                           {key: _PLANNERS[key] for key in {(t.planner, json.dumps(t.options, sort_keys=True, default=str))
-                                                            for t in tasks}})
-    identity = {"tasks": [[t.map_path, t.planner, t.label, json.dumps(t.options, sort_keys=True, default=str), t.seed,
-                           t.start] for t in tasks],
-                "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
-                "planners": [planner.description for planner in built], "source": source_digest()}
+    inputs = EpisodeInputs(
+        {task_key: _MAPS[task_key] for task_key in {(t.map_path, t.start, t.protocol) for t in tasks}},
+        {
+            key: _PLANNERS[key]
+            for key in {(t.planner, json.dumps(t.options, sort_keys=True, default=str)) for t in tasks}
+        },
+    )
+    identity = {
+        "tasks": [
+            [t.map_path, t.planner, t.label, json.dumps(t.options, sort_keys=True, default=str), t.seed, t.start]
+            for t in tasks
+        ],
+        "protocol": protocol.to_dict(),
+        "maps": files_digest(map_paths),
+        "planners": [planner.description for planner in built],
+        "source": source_digest(),
+    }
     keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / KEPT_EPISODES, identity)
     results: list[EpisodeResult] = []
 
@@ -299,8 +339,19 @@ def run_benchmark(
 
     workers = default_workers() if workers is None else workers
     try:
-        run_tasks(run_shared_task, tasks, min(workers, len(tasks)), "episodes", "ep", keep=keep, backend=backend,
-                  progress=progress, on_result=finished, collect=False, shared=inputs)
+        run_tasks(
+            run_shared_task,
+            tasks,
+            min(workers, len(tasks)),
+            "episodes",
+            "ep",
+            keep=keep,
+            backend=backend,
+            progress=progress,
+            on_result=finished,
+            collect=False,
+            shared=inputs,
+        )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         if results:
             _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
@@ -321,20 +372,27 @@ class EpisodeErrors(RuntimeError):
 
     def __init__(self, errors: Sequence[tuple[str, str, str]], out_dir: Path):
         lines = "\n".join(f"  {planner} on {name}: {failure}" for name, planner, failure in errors)
-        super().__init__(f"{len(errors)} episode{'s' if len(errors) != 1 else ''} failed with a planner error "
-                         f"(tracebacks in {Path(out_dir) / ERRORS_FILE}):\n{lines}")
+        super().__init__(
+            f"{len(errors)} episode{'s' if len(errors) != 1 else ''} failed with a planner error "
+            f"(tracebacks in {Path(out_dir) / ERRORS_FILE}):\n{lines}"
+        )
         self.errors, self.out_dir = list(errors), Path(out_dir)
 
 
 def write_planner_errors(episodes: Sequence[tuple[str, str, str, str]], out_dir: Path) -> list[tuple[str, str, str]]:
     """The (map, planner, failure) of the (map, planner, failure, traceback) episodes whose planner
     raised, their tracebacks written to OUT/errors.txt (removed when none did)."""
-    errors = [(name, planner, failure, trace) for name, planner, failure, trace in episodes
-              if failure.startswith(PLANNER_ERROR)]
+    errors = [
+        (name, planner, failure, trace)
+        for name, planner, failure, trace in episodes
+        if failure.startswith(PLANNER_ERROR)
+    ]
     (Path(out_dir) / ERRORS_FILE).unlink(missing_ok=True)
     if errors:
-        atomic_write_text(Path(out_dir) / ERRORS_FILE, "".join(f"{planner} on {name}: {failure}\n{trace}\n"
-                                                               for name, planner, failure, trace in errors))
+        atomic_write_text(
+            Path(out_dir) / ERRORS_FILE,
+            "".join(f"{planner} on {name}: {failure}\n{trace}\n" for name, planner, failure, trace in errors),
+        )
     return [(name, planner, failure) for name, planner, failure, _ in errors]
 
 
@@ -372,8 +430,14 @@ class BenchmarkInterrupted(KeyboardInterrupt):
         self.done, self.total, self.out_dir = done, total, out_dir
 
 
-def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_record: dict[str, Any],
-                  baseline: str | None, speed: SpeedModel, maps: dict) -> BenchmarkRun:
+def _write_tables(
+    results: Sequence[EpisodeResult],
+    out_dir: Path,
+    protocol_record: dict[str, Any],
+    baseline: str | None,
+    speed: SpeedModel,
+    maps: dict,
+) -> BenchmarkRun:
     """metrics.csv, exploration.csv and summary.md from the episodes, each computed once."""
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
@@ -382,8 +446,10 @@ def _write_tables(results: Sequence[EpisodeResult], out_dir: Path, protocol_reco
     with atomic_file(out_dir / EXPLORATION_CSV) as tmp:
         exploration.to_csv(tmp, index=False, float_format="%.6g")
     summary = summarise(frame)
-    atomic_write_text(out_dir / "summary.md", summary_markdown(frame, protocol_record, baseline, summary)
-                      + "\n" + exploration_markdown(exploration))
+    atomic_write_text(
+        out_dir / "summary.md",
+        summary_markdown(frame, protocol_record, baseline, summary) + "\n" + exploration_markdown(exploration),
+    )
     return BenchmarkRun(frame, records, exploration, summary, maps)
 
 
@@ -396,8 +462,14 @@ def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[s
 
 
 def write_run_record(
-    path: Path, specs: Sequence[PlannerSpec], descriptions: Sequence[str], seed: int, start: tuple[float, float] | None,
-    protocol: dict[str, Any], maps: Sequence[str], speed: SpeedModel = SpeedModel(),
+    path: Path,
+    specs: Sequence[PlannerSpec],
+    descriptions: Sequence[str],
+    seed: int,
+    start: tuple[float, float] | None,
+    protocol: dict[str, Any],
+    maps: Sequence[str],
+    speed: SpeedModel = SpeedModel(),
     extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """What ran: per label the planner, its options and its description (which names the policy
@@ -423,8 +495,10 @@ def write_run_record(
 def record_fallbacks(path: Path, frame: pd.DataFrame) -> None:
     """Add to run.json, per label, the fallback decisions of each map's episode (the whole
     building's nearest-frontier fallback and the way back to the lattice), where there were any."""
-    counts = {str(label): {str(m): int(n) for m, n in zip(rows["map"], rows["fallbacks"]) if n}
-              for label, rows in frame.groupby("planner", sort=True)}
+    counts = {
+        str(label): {str(m): int(n) for m, n in zip(rows["map"], rows["fallbacks"]) if n}
+        for label, rows in frame.groupby("planner", sort=True)
+    }
     record = json.loads(path.read_text())
     record["fallbacks"] = {label: maps for label, maps in counts.items() if maps}
     atomic_write_text(path, json.dumps(record, indent=2) + "\n")
@@ -458,20 +532,31 @@ def whole_building_markdown(frame: pd.DataFrame, protocol: dict[str, Any]) -> li
     door_graph = Protocol.from_dict({k: v for k, v in protocol.items() if k != "cell_size"}).uses_door_graph
     if not door_graph and not frame["early_stop"].astype(bool).any():
         return []
-    lines = ["", "The whole building (share of the free area a robot of radius "
-             f"{protocol.get('robot_radius_m', 0.2):g} m reaches from the start that it saw; an early stop is a "
-             "planner that said done with an unseen region of it of 1 m^2 or more left; fallbacks are decisions its own "
-             "rule did not make):", "",
-             "| planner | reachable explored (mean) | (least) | early stops | fallback decisions |", "|---|---:|---:|---:|---:|"]
+    lines = [
+        "",
+        "The whole building (share of the free area a robot of radius "
+        f"{protocol.get('robot_radius_m', 0.2):g} m reaches from the start that it saw; an early stop is a "
+        "planner that said done with an unseen region of it of 1 m^2 or more left; fallbacks are decisions its own "
+        "rule did not make):",
+        "",
+        "| planner | reachable explored (mean) | (least) | early stops | fallback decisions |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for planner, rows in frame.groupby("planner", sort=True):
         share = rows["reachable_share"].astype(float)
-        lines.append(f"| {planner} | {share.mean() * 100:.1f} % | {share.min() * 100:.1f} % | "
-                     f"{int(rows['early_stop'].astype(bool).sum())} | {int(rows['fallbacks'].sum())} |")
+        lines.append(
+            f"| {planner} | {share.mean() * 100:.1f} % | {share.min() * 100:.1f} % | "
+            f"{int(rows['early_stop'].astype(bool).sum())} | {int(rows['fallbacks'].sum())} |"
+        )
     return lines
 
 
-def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], baseline: str | None = DEFAULT_BASELINE,
-                     summary: pd.DataFrame | None = None) -> str:
+def summary_markdown(
+    frame: pd.DataFrame,
+    protocol: Protocol | dict[str, Any],
+    baseline: str | None = DEFAULT_BASELINE,
+    summary: pd.DataFrame | None = None,
+) -> str:
     """A markdown table: mean +- std distance, completion rate, decision time per planner, and,
     when `baseline` ran too, each planner's paired difference to it (`paired_difference`).
     `protocol` is a Protocol or its record as the run wrote it (`recorded_protocol`)."""
@@ -505,9 +590,12 @@ def summary_markdown(frame: pd.DataFrame, protocol: Protocol | dict[str, Any], b
         "Distance is measured at completion (ground-truth free minus belief free cells "
         f"<= {fields['done_unknown_cells']}); failed episodes count with the distance they travelled.",
         *(
-            [f"Paired: the mean map-by-map difference to {baseline} as a share of its mean, +- the 95 % half-width; "
-             "an interval that spans 0 is a difference these maps cannot resolve."]
-            if has_paired else []
+            [
+                f"Paired: the mean map-by-map difference to {baseline} as a share of its mean, +- the 95 % half-width; "
+                "an interval that spans 0 is a difference these maps cannot resolve."
+            ]
+            if has_paired
+            else []
         ),
         "Protocol: " + ", ".join(f"{k}={v}" for k, v in fields.items()) + ".",
     ]

@@ -40,8 +40,12 @@ class SpeedModel:
     speed_mps: float = PAPER_SPEED_MPS
 
     def __post_init__(self) -> None:
-        if isinstance(self.speed_mps, bool) or not isinstance(self.speed_mps, (int, float)) \
-                or not math.isfinite(self.speed_mps) or self.speed_mps <= 0:
+        if (
+            isinstance(self.speed_mps, bool)
+            or not isinstance(self.speed_mps, (int, float))
+            or not math.isfinite(self.speed_mps)
+            or self.speed_mps <= 0
+        ):
             raise ValueError(f"speed_mps must be a positive number of metres per second, got {self.speed_mps!r}")
 
     def times(self, record: StepRecord) -> np.ndarray:
@@ -53,8 +57,10 @@ class SpeedModel:
 def step_record(rows: Iterable[Mapping[str, float | None]]) -> dict[str, np.ndarray]:
     """`EpisodeResult.step_rows()` as read_steps_csv's columns (None decision times become NaN)."""
     rows = list(rows)
-    record = {name: np.array([np.nan if row.get(name) is None else row[name] for row in rows], dtype=np.float64)
-              for name in STEP_COLUMNS}
+    record = {
+        name: np.array([np.nan if row.get(name) is None else row[name] for row in rows], dtype=np.float64)
+        for name in STEP_COLUMNS
+    }
     record["step"] = record["step"].astype(np.int64)
     return record
 
@@ -89,8 +95,11 @@ def level_name(level: float) -> str:
     return f"distance_to_{round(level * 100):d}_m"
 
 
-def episode_table(records: Mapping[tuple[str, str], StepRecord], speed: SpeedModel = SpeedModel(),
-                  levels: Sequence[float] = COVERAGE_LEVELS) -> pd.DataFrame:
+def episode_table(
+    records: Mapping[tuple[str, str], StepRecord],
+    speed: SpeedModel = SpeedModel(),
+    levels: Sequence[float] = COVERAGE_LEVELS,
+) -> pd.DataFrame:
     """One row per (planner, map): distance to each level, the normalised coverage AUC, and the
     Table V quantities (final explored area, distance, time, area per metre and per second).
 
@@ -104,27 +113,36 @@ def episode_table(records: Mapping[tuple[str, str], StepRecord], speed: SpeedMod
         distance = float(record["distance_m"][-1])
         area = float(record["explored_m2"][-1])
         seconds = float(speed.times(record)[-1])
-        rows.append({
-            "planner": planner,
-            "map": map_name,
-            **{level_name(level): distance_to_share(record, level) for level in levels},
-            "coverage_auc": coverage_auc(record, horizons[map_name]),
-            "explored_m2": area,
-            "distance_m": distance,
-            "time_s": seconds,
-            "efficiency_m2_per_m": area / distance if distance > 0 else float("nan"),
-            "efficiency_m2_per_s": area / seconds if seconds > 0 else float("nan"),
-        })
+        rows.append(
+            {
+                "planner": planner,
+                "map": map_name,
+                **{level_name(level): distance_to_share(record, level) for level in levels},
+                "coverage_auc": coverage_auc(record, horizons[map_name]),
+                "explored_m2": area,
+                "distance_m": distance,
+                "time_s": seconds,
+                "efficiency_m2_per_m": area / distance if distance > 0 else float("nan"),
+                "efficiency_m2_per_s": area / seconds if seconds > 0 else float("nan"),
+            }
+        )
     return pd.DataFrame(rows)
 
 
-def planner_table(episodes: pd.DataFrame, speed: SpeedModel = SpeedModel(),
-                  levels: Sequence[float] = COVERAGE_LEVELS) -> pd.DataFrame:
+def planner_table(
+    episodes: pd.DataFrame, speed: SpeedModel = SpeedModel(), levels: Sequence[float] = COVERAGE_LEVELS
+) -> pd.DataFrame:
     """Per planner (the exploration.csv rows): means over maps of `episode_table`'s columns, and per
     level how many maps reached it (`reached_90` ...); a level's mean distance is over the maps that
     reached it. Efficiencies are means of the per-map ratios, as the paper averages its runs."""
     columns = [level_name(level) for level in levels] + [
-        "coverage_auc", "explored_m2", "distance_m", "time_s", "efficiency_m2_per_m", "efficiency_m2_per_s"]
+        "coverage_auc",
+        "explored_m2",
+        "distance_m",
+        "time_s",
+        "efficiency_m2_per_m",
+        "efficiency_m2_per_s",
+    ]
     rows = []
     for planner, group in episodes.groupby("planner", sort=True):
         row: dict[str, object] = {"planner": planner, "maps": len(group)}
@@ -147,18 +165,23 @@ def read_step_records(out_dir: str | Path, frame: pd.DataFrame) -> dict[tuple[st
     """The per-step records of every (planner, map) row of a benchmark's metrics (ValueError naming a
     missing or malformed file: a benchmark folder written before per-step files existed must be rerun)."""
     out_dir = Path(out_dir)
-    return {(str(planner), str(map_name)): read_steps_csv(out_dir / str(planner) / f"{map_name}.steps.csv")
-            for planner, map_name in frame[["planner", "map"]].itertuples(index=False)}
+    return {
+        (str(planner), str(map_name)): read_steps_csv(out_dir / str(planner) / f"{map_name}.steps.csv")
+        for planner, map_name in frame[["planner", "map"]].itertuples(index=False)
+    }
 
 
-def mean_curve(records: Sequence[StepRecord], grid: np.ndarray, speed: SpeedModel | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+def mean_curve(
+    records: Sequence[StepRecord], grid: np.ndarray, speed: SpeedModel | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(mean, standard deviation) over episodes of the explored share at each `grid` value: metres
     of distance, or seconds of time when a speed model is given."""
-    shares = np.stack([
-        share_at(record, grid, speed.times(record) if speed is not None else record["distance_m"])
-        for record in records
-    ])
+    shares = np.stack(
+        [
+            share_at(record, grid, speed.times(record) if speed is not None else record["distance_m"])
+            for record in records
+        ]
+    )
     return shares.mean(axis=0), shares.std(axis=0)
 
 
@@ -184,12 +207,20 @@ def exploration_markdown(table: pd.DataFrame) -> str:
             reached = row[f"reached_{column.split('_')[2]}"]
             text = _cell(row[column], "{:.1f}")
             cells.append(text if reached == row["maps"] else f"{text} ({reached}/{row['maps']} maps)")
-        lines.append(f"| {row['planner']} | {' | '.join(cells)} | {_cell(row['coverage_auc'], '{:.3f}')} | "
-                     f"{_cell(row['efficiency_m2_per_m'], '{:.2f}')} | {_cell(row['efficiency_m2_per_s'], '{:.2f}')} |")
-    return "\n".join(lines + [
-        "",
-        "To N %: the distance at the first waypoint where the known free area reaches N % of the map's "
-        "(mean over the maps that reach it). Coverage AUC: the mean explored share over each map's longest "
-        "episode in this comparison. m^2 / m and m^2 / s: the paper's Table V efficiency, explored area per "
-        f"metre and per second of a robot at {speed:g} m/s that waits while its planner decides.",
-    ]) + "\n"
+        lines.append(
+            f"| {row['planner']} | {' | '.join(cells)} | {_cell(row['coverage_auc'], '{:.3f}')} | "
+            f"{_cell(row['efficiency_m2_per_m'], '{:.2f}')} | {_cell(row['efficiency_m2_per_s'], '{:.2f}')} |"
+        )
+    return (
+        "\n".join(
+            lines
+            + [
+                "",
+                "To N %: the distance at the first waypoint where the known free area reaches N % of the map's "
+                "(mean over the maps that reach it). Coverage AUC: the mean explored share over each map's longest "
+                "episode in this comparison. m^2 / m and m^2 / s: the paper's Table V efficiency, explored area per "
+                f"metre and per second of a robot at {speed:g} m/s that waits while its planner decides.",
+            ]
+        )
+        + "\n"
+    )

@@ -30,9 +30,11 @@ def unreachable_problem(ground_truth: GroundTruthMap, protocol: Protocol) -> str
     cut_off = unreachable_free_cells(ground_truth)
     if cut_off <= protocol.done_unknown_cells:
         return None
-    return (f"{ground_truth.name}: {cut_off} free cells are not connected to the start, more than "
-            f"done_unknown_cells={protocol.done_unknown_cells}: no planner can complete this map "
-            "(erase stray free pixels outside the walls, or raise --done-unknown-cells)")
+    return (
+        f"{ground_truth.name}: {cut_off} free cells are not connected to the start, more than "
+        f"done_unknown_cells={protocol.done_unknown_cells}: no planner can complete this map "
+        "(erase stray free pixels outside the walls, or raise --done-unknown-cells)"
+    )
 
 
 def fine_map_problem(ground_truth: GroundTruthMap, protocol: Protocol) -> str | None:
@@ -41,9 +43,11 @@ def fine_map_problem(ground_truth: GroundTruthMap, protocol: Protocol) -> str | 
     gap_cells = protocol.sensor_range * float(DEFAULT_ANGLES[1] - DEFAULT_ANGLES[0]) / ground_truth.cell_size
     if gap_cells <= 1.0:
         return None
-    return (f"{ground_truth.name} is drawn at {ground_truth.cell_size:g} m per cell: the lidar's rays pass "
-            f"{gap_cells:.1f} cells apart at {protocol.sensor_range:g} m and leave holes that read as frontier; "
-            "`guide resample-map --map MAP --out OUT.yaml` writes it on the benchmark's 0.4 m grid")
+    return (
+        f"{ground_truth.name} is drawn at {ground_truth.cell_size:g} m per cell: the lidar's rays pass "
+        f"{gap_cells:.1f} cells apart at {protocol.sensor_range:g} m and leave holes that read as frontier; "
+        "`guide resample-map --map MAP --out OUT.yaml` writes it on the benchmark's 0.4 m grid"
+    )
 
 
 def unobservable_problem(ground_truth: GroundTruthMap, protocol: Protocol) -> str | None:
@@ -52,9 +56,11 @@ def unobservable_problem(ground_truth: GroundTruthMap, protocol: Protocol) -> st
     hidden = unobservable_free_cells(ground_truth, protocol)
     if hidden <= protocol.done_unknown_cells:
         return None
-    return (f"{ground_truth.name}: {hidden} free cells are seen from no lattice node the robot can reach "
-            f"(behind clutter, in nooks of the walls), more than done_unknown_cells={protocol.done_unknown_cells}: "
-            f"no planner can complete this map (raise --done-unknown-cells above {hidden})")
+    return (
+        f"{ground_truth.name}: {hidden} free cells are seen from no lattice node the robot can reach "
+        f"(behind clutter, in nooks of the walls), more than done_unknown_cells={protocol.done_unknown_cells}: "
+        f"no planner can complete this map (raise --done-unknown-cells above {hidden})"
+    )
 
 
 def step_limit_hint(ground_truth: GroundTruthMap, protocol: Protocol) -> str:
@@ -62,12 +68,16 @@ def step_limit_hint(ground_truth: GroundTruthMap, protocol: Protocol) -> str:
     rows, cols = ground_truth.free.shape
     side = max(rows, cols) * protocol.cell_size
     scale = max(1.0, (side / 100.0) ** 2)
-    return (f"{ground_truth.name} is {cols * protocol.cell_size:.0f} m x {rows * protocol.cell_size:.0f} m; "
-            f"--max-steps {protocol.max_steps} suits the benchmark's 100 m mazes: raise it with the map's area "
-            f"(e.g. --max-steps {int(math.ceil(protocol.max_steps * scale / 100.0) * 100)})")
+    return (
+        f"{ground_truth.name} is {cols * protocol.cell_size:.0f} m x {rows * protocol.cell_size:.0f} m; "
+        f"--max-steps {protocol.max_steps} suits the benchmark's 100 m mazes: raise it with the map's area "
+        f"(e.g. --max-steps {int(math.ceil(protocol.max_steps * scale / 100.0) * 100)})"
+    )
 
 
-def before_episodes(ground_truth: GroundTruthMap, protocol: Protocol, scan_for_unobservable: bool) -> tuple[list[str], bool]:
+def before_episodes(
+    ground_truth: GroundTruthMap, protocol: Protocol, scan_for_unobservable: bool
+) -> tuple[list[str], bool]:
     """(the problems worth saying before any episode runs on a map, whether it can be completed as
     far as the cheap checks tell). The ground-truth scans for unobservable cells run only when
     `scan_for_unobservable` (one map: worth it; a folder: only for the maps that then fail)."""

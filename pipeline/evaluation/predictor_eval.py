@@ -31,12 +31,7 @@ from pipeline.prediction.global_graph import (
     RegionSelection,
     select_regions,
 )
-from pipeline.prediction.node_image import (
-    PIXEL_UNKNOWN,
-    ground_truth_states,
-    node_states_image,
-    observed_node_states,
-)
+from pipeline.prediction.node_image import PIXEL_UNKNOWN, ground_truth_states, node_states_image, observed_node_states
 from pipeline.prediction.node_predictor import (
     DEFAULT_THRESHOLD,
     InpaintFn,
@@ -48,7 +43,13 @@ from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import Episode, MotionError
 
-COLUMNS = ("step", "precision", "predicted_nodes", "maps", "prediction_ms_median")  # precision.csv, as the issue fixes it
+COLUMNS = (
+    "step",
+    "precision",
+    "predicted_nodes",
+    "maps",
+    "prediction_ms_median",
+)  # precision.csv, as the issue fixes it
 # precision_detail.csv: V_u split up, and the base rate: the free share of the nodes the network
 # was asked about (unknown in its input) in the regions whose predictions region evaluation kept,
 # what calling every such node free would score.
@@ -105,9 +106,7 @@ class Checkpoint:
     visited: np.ndarray
 
 
-def explore_checkpoints(
-    ground_truth: GroundTruthMap, steps: Sequence[int], protocol: Protocol
-) -> Iterator[Checkpoint]:
+def explore_checkpoints(ground_truth: GroundTruthMap, steps: Sequence[int], protocol: Protocol) -> Iterator[Checkpoint]:
     """Explore with EXPLORER (the paper's Table I explores by nearest frontier) and yield the state after each of `steps` waypoints it reaches.
 
     The lattice graph is our own (not the planner's), updated from the belief at each
@@ -172,9 +171,7 @@ class Prediction:
         return gg.lattice.spec.world_to_cell(gg.positions[gg.types == CENTROID]).reshape(-1, 2)
 
 
-def predict_at(
-    checkpoint: Checkpoint, predictor: NodePredictor, graph_config: GlobalGraphConfig
-) -> Prediction:
+def predict_at(checkpoint: Checkpoint, predictor: NodePredictor, graph_config: GlobalGraphConfig) -> Prediction:
     t0 = time.perf_counter()
     predicted = predictor.predict(checkpoint.lattice)
     ms = (time.perf_counter() - t0) * 1e3
@@ -183,15 +180,18 @@ def predict_at(
     return Prediction(predicted, global_graph, ms)
 
 
-def unknown_in_kept_regions(checkpoint: Checkpoint, selection: RegionSelection | None,
-                            graph_config: GlobalGraphConfig) -> np.ndarray:
+def unknown_in_kept_regions(
+    checkpoint: Checkpoint, selection: RegionSelection | None, graph_config: GlobalGraphConfig
+) -> np.ndarray:
     """Lattice ids of the nodes unknown in the network's input that lie in the regions whose
     predictions region evaluation keeps (`selection`, the global graph's; made here when the graph
     ran without region evaluation): the population V_u's predicted nodes are drawn from."""
     lattice = checkpoint.lattice
     asked = observed_node_states(lattice.belief, lattice) == NODE_UNKNOWN
     if selection is None:
-        selection = select_regions(lattice, np.asarray(checkpoint.episode.position, dtype=np.float64), graph_config.region)
+        selection = select_regions(
+            lattice, np.asarray(checkpoint.episode.position, dtype=np.float64), graph_config.region
+        )
     region = selection.node_region
     return np.nonzero(asked & selection.keep_region[region[:, 0], region[:, 1]])[0]
 
@@ -212,9 +212,7 @@ def cells_free_in_truth(ground_truth: GroundTruthMap, cells: np.ndarray) -> np.n
     return free
 
 
-def _resolve_inpaint(
-    inpaint_fn: InpaintFn | None, inpaint_for: InpaintFactory | None
-) -> InpaintFactory:
+def _resolve_inpaint(inpaint_fn: InpaintFn | None, inpaint_for: InpaintFactory | None) -> InpaintFactory:
     if (inpaint_fn is None) == (inpaint_for is None):
         raise ValueError("give exactly one of inpaint_fn and inpaint_for")
     if inpaint_for is not None:
@@ -272,8 +270,9 @@ def precision_by_threshold(
     """
     taus = _checked_thresholds(thresholds)
     configs = [NodePredictorConfig(threshold=tau, min_component=min_component) for tau in taus]
-    frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       progress, start)
+    frames = _evaluate(
+        map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol, progress, start
+    )
     return _sweep_frame(taus, frames)
 
 
@@ -291,10 +290,12 @@ def evaluate_with_sweep(
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """evaluate_predictor's frame and precision_by_threshold's, from one exploration per map."""
     taus = _checked_thresholds(thresholds)
-    configs = [predictor_config] + [NodePredictorConfig(threshold=tau, min_component=predictor_config.min_component)
-                                    for tau in taus]
-    frames = _evaluate(map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol,
-                       progress, start)
+    configs = [predictor_config] + [
+        NodePredictorConfig(threshold=tau, min_component=predictor_config.min_component) for tau in taus
+    ]
+    frames = _evaluate(
+        map_paths, lambda ground_truth, lattice: inpaint_fn, steps, configs, graph_config, protocol, progress, start
+    )
     return frames[0], _sweep_frame(taus, frames[1:])
 
 
@@ -313,10 +314,17 @@ def _sweep_frame(taus: Sequence[float], frames: Sequence[pd.DataFrame]) -> pd.Da
     rows = []
     for tau, frame in zip(taus, frames):
         for row in frame.itertuples(index=False):
-            rows.append({"threshold": tau, "step": row.step, "precision": row.precision,
-                         "predicted_nodes": row.predicted_nodes, "maps": row.maps,
-                         "nodes_per_map": row.predicted_nodes / row.maps if row.maps else float("nan"),
-                         "predictions_precision": row.predictions_precision})
+            rows.append(
+                {
+                    "threshold": tau,
+                    "step": row.step,
+                    "precision": row.precision,
+                    "predicted_nodes": row.predicted_nodes,
+                    "maps": row.maps,
+                    "nodes_per_map": row.predicted_nodes / row.maps if row.maps else float("nan"),
+                    "predictions_precision": row.predictions_precision,
+                }
+            )
     return pd.DataFrame(rows, columns=list(SWEEP_COLUMNS))
 
 
@@ -368,9 +376,12 @@ def _evaluate(
         for checkpoint in explore_checkpoints(ground_truth, steps, map_protocol):
             if not predictors:
                 shared = _LastCall(factory(ground_truth, checkpoint.lattice))
-                predictors = [NodePredictor(shared.record if i == 0 else shared.reuse, config)
-                              for i, config in enumerate(configs)]
-                for _ in range(2):  # untimed: a traced network profiles, then optimises, on its first two calls per size
+                predictors = [
+                    NodePredictor(shared.record if i == 0 else shared.reuse, config) for i, config in enumerate(configs)
+                ]
+                for _ in range(
+                    2
+                ):  # untimed: a traced network profiles, then optimises, on its first two calls per size
                     predictors[0].predict(checkpoint.lattice)
             s = checkpoint.step
             reached[s] += 1

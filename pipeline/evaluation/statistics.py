@@ -37,7 +37,9 @@ def paired_difference(frame: pd.DataFrame, planner: str, baseline: str) -> tuple
     if not len(maps) or not base > 0:
         return float("nan"), float("nan"), 0
     diff = (ours.loc[maps] - theirs.loc[maps]).astype(float).to_numpy()
-    half = student_t_975(len(diff) - 1) * diff.std(ddof=1) / math.sqrt(len(diff)) / base if len(diff) > 1 else float("nan")
+    half = (
+        student_t_975(len(diff) - 1) * diff.std(ddof=1) / math.sqrt(len(diff)) / base if len(diff) > 1 else float("nan")
+    )
     return float(diff.mean() / base), float(half), int(len(diff))
 
 

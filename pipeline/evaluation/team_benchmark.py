@@ -64,9 +64,22 @@ TEAM_KEPT_EPISODES = ".team_episodes"
 TEAM_OUTPUT_FILES = (TEAM_METRICS_CSV, TEAM_COVERAGE_CSV, TEAM_SUMMARY_JSON, TEAM_RUN_RECORD, TEAM_COVERAGE_FIGURE)
 ROBOT_COLUMNS = ["robot", "distance_m", "moves", "decision_ms_median"]
 COVERAGE_COLUMNS = ["label", "map", "robots", "time_m", "explored_share"]
-METRICS_COLUMNS = ["label", "map", "planner", "robots", "comm_range_m", "makespan_m", "total_distance_m",
-                   "max_robot_distance_m", "time_to_90_m", "complete", "explored_ratio", "decision_ms_median",
-                   "merges", "seed"]
+METRICS_COLUMNS = [
+    "label",
+    "map",
+    "planner",
+    "robots",
+    "comm_range_m",
+    "makespan_m",
+    "total_distance_m",
+    "max_robot_distance_m",
+    "time_to_90_m",
+    "complete",
+    "explored_ratio",
+    "decision_ms_median",
+    "merges",
+    "seed",
+]
 
 
 def team_run_label(label: str, robots: int) -> str:
@@ -89,8 +102,11 @@ def check_comm_range(comm_range_m: float | None) -> float | None:
     """The communication range in metres (None: full communication); ValueError unless positive and finite."""
     if comm_range_m is None:
         return None
-    if isinstance(comm_range_m, bool) or not isinstance(comm_range_m, (int, float)) \
-            or not (math.isfinite(comm_range_m) and comm_range_m > 0):
+    if (
+        isinstance(comm_range_m, bool)
+        or not isinstance(comm_range_m, (int, float))
+        or not (math.isfinite(comm_range_m) and comm_range_m > 0)
+    ):
         raise ValueError(f"the communication range must be a positive number of metres, got {comm_range_m!r}")
     return float(comm_range_m)
 
@@ -109,7 +125,9 @@ def resolve_team_specs(planners: Sequence[str | PlannerSpec]) -> list[tuple[Plan
             planner = make_team_planner(spec.name, **spec.options)
         except (TypeError, ValueError) as error:  # UnknownPlannerError is a ValueError too
             message = str(error)
-            raise ValueError(message if message.startswith("unknown") else f"planner {spec.label!r}: {message}") from None
+            raise ValueError(
+                message if message.startswith("unknown") else f"planner {spec.label!r}: {message}"
+            ) from None
         resolved.append((spec, planner))
     return resolved
 
@@ -154,9 +172,12 @@ def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpiso
     with warnings.catch_warnings():
         # run_team_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        planner = ErrorsEndTheEpisode(inputs.planners[task.planner_key])  # a planner that raises fails this episode only
-        result = run_team_episode(ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m,
-                                  seed=task.seed)
+        planner = ErrorsEndTheEpisode(
+            inputs.planners[task.planner_key]
+        )  # a planner that raises fails this episode only
+        result = run_team_episode(
+            ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m, seed=task.seed
+        )
     if planner.error:
         result.failure, result.complete = planner.error, False
     result.map_name = Path(task.map_path).stem
@@ -176,7 +197,9 @@ class TeamBenchmarkRun:
     episodes: list[tuple[TeamEpisodeTask, TeamEpisodeResult]]
     record: dict[str, Any]
     maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
-    errors: list[tuple[str, str, str]] = field(default_factory=list)  # (map, run label, failure) where the planner raised
+    errors: list[tuple[str, str, str]] = field(
+        default_factory=list
+    )  # (map, run label, failure) where the planner raised
 
 
 def run_team_benchmark(
@@ -215,30 +238,51 @@ def run_team_benchmark(
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     run_labels = {team_run_label(spec.label, count) for spec, _ in resolved for count in counts}
-    stale = sorted(d.name for d in out_dir.iterdir()
-                   if d.is_dir() and "@" in d.name and d.name not in run_labels and any(d.glob("*" + TEAM_SUFFIX)))
+    stale = sorted(
+        d.name
+        for d in out_dir.iterdir()
+        if d.is_dir() and "@" in d.name and d.name not in run_labels and any(d.glob("*" + TEAM_SUFFIX))
+    )
     if stale:
-        warnings.warn(f"{out_dir} holds team trajectories of runs this one does not write ({', '.join(stale)}); "
-                      f"its {TEAM_METRICS_CSV} lists only this run's", stacklevel=2)
+        warnings.warn(
+            f"{out_dir} holds team trajectories of runs this one does not write ({', '.join(stale)}); "
+            f"its {TEAM_METRICS_CSV} lists only this run's",
+            stacklevel=2,
+        )
     for _, planner in resolved:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)
     specs = [spec for spec, _ in resolved]
     descriptions = [planner.description for _, planner in resolved]
-    record = write_run_record(out_dir / TEAM_RUN_RECORD, specs, descriptions, seed, start,
-                              recorded_protocol(protocol, read.cell_sizes), [str(p) for p in map_paths], speed,
-                              extra={"robots": counts, "comm_range_m": comm_range_m})
+    record = write_run_record(
+        out_dir / TEAM_RUN_RECORD,
+        specs,
+        descriptions,
+        seed,
+        start,
+        recorded_protocol(protocol, read.cell_sizes),
+        [str(p) for p in map_paths],
+        speed,
+        extra={"robots": counts, "comm_range_m": comm_range_m},
+    )
     tasks = [
         TeamEpisodeTask(str(path), spec.name, spec.label, count, seed, dict(spec.options), comm_range_m)
         for spec in specs
         for count in counts
         for path in map_paths
     ]
-    inputs = TeamEpisodeInputs(maps, {(spec.name, options_key(dict(spec.options))): planner for spec, planner in resolved})
-    identity = {"tasks": [[t.map_path, t.planner, t.label, t.robots, options_key(t.options), t.seed, t.comm_range_m]
-                          for t in tasks],
-                "start": list(start) if start is not None else None,
-                "protocol": protocol.to_dict(), "maps": files_digest(map_paths),
-                "planners": descriptions, "source": source_digest()}
+    inputs = TeamEpisodeInputs(
+        maps, {(spec.name, options_key(dict(spec.options))): planner for spec, planner in resolved}
+    )
+    identity = {
+        "tasks": [
+            [t.map_path, t.planner, t.label, t.robots, options_key(t.options), t.seed, t.comm_range_m] for t in tasks
+        ],
+        "start": list(start) if start is not None else None,
+        "protocol": protocol.to_dict(),
+        "maps": files_digest(map_paths),
+        "planners": descriptions,
+        "source": source_digest(),
+    }
     keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / TEAM_KEPT_EPISODES, identity)
     finished: dict[int, TeamEpisodeResult] = {}
 
@@ -248,8 +292,19 @@ def run_team_benchmark(
 
     workers = default_workers() if workers is None else workers
     try:
-        run_tasks(run_team_task, tasks, min(workers, len(tasks)), "team episodes", "ep", keep=keep, backend=backend,
-                  progress=progress, on_result=on_result, collect=False, shared=inputs)
+        run_tasks(
+            run_team_task,
+            tasks,
+            min(workers, len(tasks)),
+            "team episodes",
+            "ep",
+            keep=keep,
+            backend=backend,
+            progress=progress,
+            on_result=on_result,
+            collect=False,
+            shared=inputs,
+        )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         if finished:
             write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
@@ -257,8 +312,9 @@ def run_team_benchmark(
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     episodes = [(tasks[i], finished[i]) for i in sorted(finished)]
     run = write_team_tables(episodes, out_dir, record, loaded)
-    run.errors = write_planner_errors([(result.map_name, task.run_label, result.failure, "") for task, result in episodes],
-                                      out_dir)
+    run.errors = write_planner_errors(
+        [(result.map_name, task.run_label, result.failure, "") for task, result in episodes], out_dir
+    )
     return run
 
 
@@ -283,12 +339,17 @@ def write_team_files(result: TeamEpisodeResult, folder: Path, merges: bool, spee
 def robot_table(result: TeamEpisodeResult) -> pd.DataFrame:
     """Per robot of an episode: its distance, its moves (rows after its start) and its median decision time."""
     moves = np.bincount([robot for _, robot, _, _ in result.rows], minlength=result.robots) - 1
-    return pd.DataFrame({
-        "robot": np.arange(result.robots),
-        "distance_m": np.round(result.robot_distance_m, 3),
-        "moves": moves,
-        "decision_ms_median": [round(float(np.median(ms)), 3) if len(ms) else float("nan") for ms in result.decision_ms],
-    }, columns=ROBOT_COLUMNS)
+    return pd.DataFrame(
+        {
+            "robot": np.arange(result.robots),
+            "distance_m": np.round(result.robot_distance_m, 3),
+            "moves": moves,
+            "decision_ms_median": [
+                round(float(np.median(ms)), 3) if len(ms) else float("nan") for ms in result.decision_ms
+            ],
+        },
+        columns=ROBOT_COLUMNS,
+    )
 
 
 def coverage_rows(task: TeamEpisodeTask, result: TeamEpisodeResult) -> list[dict[str, Any]]:
@@ -298,21 +359,34 @@ def coverage_rows(task: TeamEpisodeTask, result: TeamEpisodeResult) -> list[dict
     for time_m, share in result.coverage:
         point = (round(time_m, 6), round(share, 6))
         if point != last:
-            rows.append({"label": task.run_label, "map": result.map_name, "robots": task.robots,
-                         "time_m": point[0], "explored_share": point[1]})
+            rows.append(
+                {
+                    "label": task.run_label,
+                    "map": result.map_name,
+                    "robots": task.robots,
+                    "time_m": point[0],
+                    "explored_share": point[1],
+                }
+            )
             last = point
     return rows
 
 
-def write_team_tables(episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]], out_dir: Path,
-                      record: dict[str, Any], maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]) -> TeamBenchmarkRun:
+def write_team_tables(
+    episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]],
+    out_dir: Path,
+    record: dict[str, Any],
+    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]],
+) -> TeamBenchmarkRun:
     """team_metrics.csv, team_coverage.csv and team_summary.json from the episodes (in task order)."""
-    frame = pd.DataFrame([{**result.metrics_row(), "label": task.run_label} for task, result in episodes],
-                         columns=METRICS_COLUMNS)
+    frame = pd.DataFrame(
+        [{**result.metrics_row(), "label": task.run_label} for task, result in episodes], columns=METRICS_COLUMNS
+    )
     with atomic_file(out_dir / TEAM_METRICS_CSV) as tmp:
         frame.to_csv(tmp, index=False)
-    coverage = pd.DataFrame([row for task, result in episodes for row in coverage_rows(task, result)],
-                            columns=COVERAGE_COLUMNS)
+    coverage = pd.DataFrame(
+        [row for task, result in episodes for row in coverage_rows(task, result)], columns=COVERAGE_COLUMNS
+    )
     with atomic_file(out_dir / TEAM_COVERAGE_CSV) as tmp:
         coverage.to_csv(tmp, index=False)
     summary = team_summary(episodes, record)
@@ -325,8 +399,9 @@ def _finite(value: float, decimals: int = 3) -> float | None:
     return round(float(value), decimals) if np.isfinite(value) else None
 
 
-def team_summary(episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]],
-                 record: dict[str, Any]) -> dict[str, dict[str, Any]]:
+def team_summary(
+    episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]], record: dict[str, Any]
+) -> dict[str, dict[str, Any]]:
     """Per run (`label@robots`, in task order): makespan mean and std, total distance, time to 90 %
     of the free area (over the episodes that reached it), completion rate, median decision time
     and, when the same spec also ran with one robot, the mean over maps of the makespan over
@@ -335,18 +410,19 @@ def team_summary(episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]],
     by_run: dict[str, list[tuple[TeamEpisodeTask, TeamEpisodeResult]]] = {}
     for task, result in episodes:
         by_run.setdefault(task.run_label, []).append((task, result))
-    single = {(task.label, result.map_name): result.total_distance_m
-              for task, result in episodes if task.robots == 1}
+    single = {(task.label, result.map_name): result.total_distance_m for task, result in episodes if task.robots == 1}
     summary: dict[str, dict[str, Any]] = {}
     for run_label, group in by_run.items():
         task = group[0][0]
         results = [result for _, result in group]
         makespans = np.array([r.makespan_m for r in results])
         to_90 = np.array([r.time_to_share(0.9) for r in results])
-        medians = [float(np.median(ms)) for r in results
-                   if (ms := [m for robot in r.decision_ms for m in robot])]
-        ratios = [r.makespan_m / single[task.label, r.map_name] for r in results
-                  if single.get((task.label, r.map_name), 0) > 0]
+        medians = [float(np.median(ms)) for r in results if (ms := [m for robot in r.decision_ms for m in robot])]
+        ratios = [
+            r.makespan_m / single[task.label, r.map_name]
+            for r in results
+            if single.get((task.label, r.map_name), 0) > 0
+        ]
         summary[run_label] = {
             "label": task.label,
             "planner": results[0].planner,
@@ -371,13 +447,17 @@ def team_summary_markdown(summary: dict[str, dict[str, Any]]) -> str:
     def cell(value: Any, fmt: str = "{:.1f}") -> str:
         return "—" if value is None else fmt.format(value)
 
-    lines = ["| run | robots | episodes | makespan (m) | total distance (m) | to 90 % (m) | complete "
-             "| decision ms (median) | makespan / 1-robot distance |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = [
+        "| run | robots | episodes | makespan (m) | total distance (m) | to 90 % (m) | complete "
+        "| decision ms (median) | makespan / 1-robot distance |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for run_label, row in summary.items():
         spread = f" +- {row['makespan_std_m']:.1f}" if row["episodes"] > 1 and row["makespan_std_m"] is not None else ""
-        lines.append(f"| {run_label} | {row['robots']} | {row['episodes']} | {cell(row['makespan_mean_m'])}{spread} "
-                     f"| {cell(row['total_distance_mean_m'])} | {cell(row['time_to_90_mean_m'])} "
-                     f"| {row['completion_rate'] * 100:.0f} % | {cell(row['decision_ms_median'], '{:.2f}')} "
-                     f"| {cell(row['makespan_over_single_distance'], '{:.2f}')} |")
+        lines.append(
+            f"| {run_label} | {row['robots']} | {row['episodes']} | {cell(row['makespan_mean_m'])}{spread} "
+            f"| {cell(row['total_distance_mean_m'])} | {cell(row['time_to_90_mean_m'])} "
+            f"| {row['completion_rate'] * 100:.0f} % | {cell(row['decision_ms_median'], '{:.2f}')} "
+            f"| {cell(row['makespan_over_single_distance'], '{:.2f}')} |"
+        )
     return "\n".join(lines) + "\n"

@@ -25,20 +25,29 @@ Cell = tuple[int, int]  # (col, row)
 MAX_DETOUR = 2.0  # a door node's way round is at most this many times the straight edge
 
 
-def find_door_node(passable: np.ndarray, clearance: np.ndarray, a: Cell, b: Cell,
-                   max_detour: float = MAX_DETOUR) -> tuple[Cell, float] | None:
+def find_door_node(
+    passable: np.ndarray, clearance: np.ndarray, a: Cell, b: Cell, max_detour: float = MAX_DETOUR
+) -> tuple[Cell, float] | None:
     """(the door node between cells `a` and `b`, the length of the way through it in cells), or None
     when no passable cell sees both through passable cells within `max_detour` times |ab|."""
-    found, length = _door_node(np.ascontiguousarray(passable, dtype=np.bool_),
-                               np.ascontiguousarray(clearance, dtype=np.float32),
-                               a[0], a[1], b[0], b[1], max_detour)
+    found, length = _door_node(
+        np.ascontiguousarray(passable, dtype=np.bool_),
+        np.ascontiguousarray(clearance, dtype=np.float32),
+        a[0],
+        a[1],
+        b[0],
+        b[1],
+        max_detour,
+    )
     if found < 0:
         return None
     cols = passable.shape[1]
     return (int(found % cols), int(found // cols)), float(length)
 
 
-def via_waypoints(passable: np.ndarray, clearance: np.ndarray, start: Cell, cells: list[Cell]) -> list[tuple[Cell, bool]]:
+def via_waypoints(
+    passable: np.ndarray, clearance: np.ndarray, start: Cell, cells: list[Cell]
+) -> list[tuple[Cell, bool]]:
     """`cells` (a route from `start`) with a door node before each one that `passable` does not join
     straight to the one before it, where a door node does: (cell, whether it is a door node) each.
     A segment that neither joins is kept as it is (its walk may be free by the time the robot gets
@@ -108,8 +117,23 @@ def _door_node(passable, clearance, ax, ay, bx, by, max_detour):  # pragma: no c
 
 
 @numba.njit(cache=True, nogil=True)
-def door_edges_kernel(valid, via, via_length, edge_box, box, edge_nodes, node_cells, node_free, passable, clearance,
-                      wx0, wy0, cols, cell_size, max_detour):  # pragma: no cover - compiled
+def door_edges_kernel(
+    valid,
+    via,
+    via_length,
+    edge_box,
+    box,
+    edge_nodes,
+    node_cells,
+    node_free,
+    passable,
+    clearance,
+    wx0,
+    wy0,
+    cols,
+    cell_size,
+    max_detour,
+):  # pragma: no cover - compiled
     """For each edge meeting `box` between free nodes, not straight-valid: straight again when its
     walk is now clear (then `via` -1), else valid through its best door node in the window
     `passable` / `clearance` (offset `wx0`, `wy0` in a grid of `cols` columns). Whether any changed."""

@@ -27,10 +27,7 @@ def frontier_mask(belief: np.ndarray, min_unknown_neighbours: int = FRONTIER_MIN
 
 
 def update_frontier_window(
-    frontier: np.ndarray,
-    belief: np.ndarray,
-    box: tuple[int, int, int, int],
-    min_unknown_neighbours: int = 2,
+    frontier: np.ndarray, belief: np.ndarray, box: tuple[int, int, int, int], min_unknown_neighbours: int = 2
 ) -> tuple[int, int, int, int]:
     """Recompute `frontier` in place inside `box` = (x0, x1, y0, y1) grown by one cell.
 

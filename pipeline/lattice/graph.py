@@ -94,12 +94,39 @@ class LatticeGraph:
     #: What a copy shares with its original: the lattice's geometry, fixed at construction, and
     #: caches that are replaced, never changed in place. The lookahead copies the graph a dozen
     #: times a decision; the edge walks alone are megabytes.
-    SHARED_ON_COPY = frozenset((
-        "spec", "lattice_i", "lattice_j", "node_ij", "node_world", "node_cells", "node_flat", "node_count", "_id_grid",
-        "edge_nodes", "_edge_walks", "_walk_rows", "_edge_box", "edge_length", "_edge_keys", "_edge_order", "utility_range_cells", "_region_cells",
-        "_region_origin", "region_col_of_x", "region_row_of_y", "_region_offset", "region_shape", "node_region",
-        "nodes_per_region", "_search_entries", "_adjacency", "_search_matrix", "_neighbour_lists",
-    ))
+    SHARED_ON_COPY = frozenset(
+        (
+            "spec",
+            "lattice_i",
+            "lattice_j",
+            "node_ij",
+            "node_world",
+            "node_cells",
+            "node_flat",
+            "node_count",
+            "_id_grid",
+            "edge_nodes",
+            "_edge_walks",
+            "_walk_rows",
+            "_edge_box",
+            "edge_length",
+            "_edge_keys",
+            "_edge_order",
+            "utility_range_cells",
+            "_region_cells",
+            "_region_origin",
+            "region_col_of_x",
+            "region_row_of_y",
+            "_region_offset",
+            "region_shape",
+            "node_region",
+            "nodes_per_region",
+            "_search_entries",
+            "_adjacency",
+            "_search_matrix",
+            "_neighbour_lists",
+        )
+    )
 
     #: Derived from the edges and rebuilt when they change.
     EDGE_CACHES = ("_adjacency", "_search_matrix", "_neighbour_lists", "_edge_cost")
@@ -224,9 +251,7 @@ class LatticeGraph:
                 return
             ys, xs = np.divmod(np.asarray(changed_flat), cols)
             box = (int(xs.min()), int(xs.max()), int(ys.min()), int(ys.max()))
-            frontier_box = update_frontier_window(
-                self.frontier, belief, box, self.spec.frontier_min_unknown_neighbours
-            )
+            frontier_box = update_frontier_window(self.frontier, belief, box, self.spec.frontier_min_unknown_neighbours)
         self._update_nodes(belief, box)
         self._update_edges(belief, box)
         self._update_utilities(belief, frontier_box)
@@ -236,7 +261,9 @@ class LatticeGraph:
     def _nodes_in_box(self, box: tuple[int, int, int, int], margin: float = 0.0) -> np.ndarray:
         x0, x1, y0, y1 = box
         c = self.node_cells
-        inside = (c[:, 0] >= x0 - margin) & (c[:, 0] <= x1 + margin) & (c[:, 1] >= y0 - margin) & (c[:, 1] <= y1 + margin)
+        inside = (
+            (c[:, 0] >= x0 - margin) & (c[:, 0] <= x1 + margin) & (c[:, 1] >= y0 - margin) & (c[:, 1] <= y1 + margin)
+        )
         return np.nonzero(inside)[0]
 
     def _update_nodes(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
@@ -246,8 +273,14 @@ class LatticeGraph:
     def _update_edges(self, belief: np.ndarray, box: tuple[int, int, int, int]) -> None:
         """An invalid edge whose bounding box meets `box` becomes valid when either of its walks
         crosses only known-free cells (a compiled loop: it ran once per rollout step)."""
-        changed = _validate_edges(self.edge_valid, self._edge_box, np.array(box, dtype=np.int64),
-                                  self._walk_rows, np.ascontiguousarray(belief).reshape(-1), FREE)
+        changed = _validate_edges(
+            self.edge_valid,
+            self._edge_box,
+            np.array(box, dtype=np.int64),
+            self._walk_rows,
+            np.ascontiguousarray(belief).reshape(-1),
+            FREE,
+        )
         if self.spec.door_radius_cells is not None:
             changed |= self._update_door_edges(belief, box)
         if changed:
@@ -266,14 +299,31 @@ class LatticeGraph:
         radius = float(self.spec.door_radius_cells)
         margin = int(np.ceil(MAX_DETOUR * WINDOW_RADIUS * step * np.sqrt(2))) + int(np.ceil(radius)) + 2
         x0, x1, y0, y1 = box
-        wx0, wx1, wy0, wy1 = max(0, x0 - margin), min(cols, x1 + margin + 1), max(0, y0 - margin), min(rows, y1 + margin + 1)
+        wx0, wx1, wy0, wy1 = (
+            max(0, x0 - margin),
+            min(cols, x1 + margin + 1),
+            max(0, y0 - margin),
+            min(rows, y1 + margin + 1),
+        )
         window = belief[wy0:wy1, wx0:wx1]
         clearance = clearance_cells(window)
         passable = (window == FREE) & (clearance >= radius - 1e-6) if radius > 1.0 else window == FREE
         return door_edges_kernel(
-            self.edge_valid, self.edge_via, self.via_length, self._edge_box, np.array(box, dtype=np.int64),
-            self.edge_nodes, self.node_cells, self.node_state == NODE_FREE, np.ascontiguousarray(passable),
-            np.ascontiguousarray(clearance, dtype=np.float32), wx0, wy0, cols, self.spec.cell_size, MAX_DETOUR,
+            self.edge_valid,
+            self.edge_via,
+            self.via_length,
+            self._edge_box,
+            np.array(box, dtype=np.int64),
+            self.edge_nodes,
+            self.node_cells,
+            self.node_state == NODE_FREE,
+            np.ascontiguousarray(passable),
+            np.ascontiguousarray(clearance, dtype=np.float32),
+            wx0,
+            wy0,
+            cols,
+            self.spec.cell_size,
+            MAX_DETOUR,
         )
 
     def edge_between(self, a: int, b: int) -> int:
@@ -324,9 +374,7 @@ class LatticeGraph:
             self.utility[ids] = in_square
             self.stale[ids] = True
             return
-        self.utility[ids] = visible_counts(
-            belief == FREE, self.frontier, self.node_cells[ids], r
-        )
+        self.utility[ids] = visible_counts(belief == FREE, self.frontier, self.node_cells[ids], r)
 
     def exact_utilities(self, nodes: np.ndarray) -> None:
         """Count the visible frontier of those of `nodes` whose utility is still a bound. The count
@@ -336,8 +384,9 @@ class LatticeGraph:
         if todo.size:
             if self._known_free is None:
                 self._known_free = self.belief == FREE
-            self.utility[todo] = visible_counts(self._known_free, self.frontier, self.node_cells[todo],
-                                                self.utility_range_cells)
+            self.utility[todo] = visible_counts(
+                self._known_free, self.frontier, self.node_cells[todo], self.utility_range_cells
+            )
             self.stale[todo] = False
             self.utility_version += 1
 
@@ -492,5 +541,3 @@ def _validate_edges(valid, edge_box, box, walk_rows, belief_flat, free_value):  
                 changed = True
                 break
     return changed
-
-

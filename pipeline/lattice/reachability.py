@@ -22,8 +22,9 @@ Cell = tuple[int, int]  # (col, row)
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
 
 
-def open_frontier(belief: np.ndarray, min_unknown_cells: int,
-                  min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS) -> np.ndarray:
+def open_frontier(
+    belief: np.ndarray, min_unknown_cells: int, min_unknown_neighbours: int = FRONTIER_MIN_UNKNOWN_NEIGHBOURS
+) -> np.ndarray:
     """The frontier cells (`frontier_mask`) that a visit clears and that lead somewhere: those with
     an unknown cell among their 4 neighbours (every ray's first step reveals one; a cell that sees
     unknown space only across a wall's corner never does) that belongs to an unknown region of at
@@ -41,8 +42,11 @@ def path_to_nearest(passable: np.ndarray, targets: np.ndarray, start: Cell) -> l
     """The cells of a shortest 4-connected path through `passable` from `start` to the nearest
     `targets` cell (both ends included); [] when none is reachable."""
     rows, cols = passable.shape
-    flat = _bfs_to_target(np.ascontiguousarray(passable, dtype=np.bool_), np.ascontiguousarray(targets, dtype=np.bool_),
-                          start[1] * cols + start[0])
+    flat = _bfs_to_target(
+        np.ascontiguousarray(passable, dtype=np.bool_),
+        np.ascontiguousarray(targets, dtype=np.bool_),
+        start[1] * cols + start[0],
+    )
     return [(int(f % cols), int(f // cols)) for f in flat]
 
 

@@ -9,6 +9,7 @@ Two solvers, for two sizes of problem:
   viewpoints: python-tsp's exact dynamic programming when small, else its Lin-Kernighan,
   then 2-opt and Or-opt on the open path.
 """
+
 from __future__ import annotations
 
 from typing import Sequence

@@ -12,9 +12,7 @@ from pipeline.world.geometry import ray_table, sensor_angles
 UTILITY_ANGLES = sensor_angles(1.0)
 
 
-def visible_counts(
-    free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float
-) -> np.ndarray:
+def visible_counts(free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float) -> np.ndarray:
     """For each origin cell, how many `targets` cells a ray fan reaches through free cells.
 
     A ray walks from the origin and stops at the first cell that is not free; the cells
@@ -27,8 +25,12 @@ def visible_counts(
 
 
 def nested_visible_counts(
-    outer_free: np.ndarray, outer_targets: tuple[np.ndarray, np.ndarray], inner_free: np.ndarray,
-    inner_targets: np.ndarray, origins: np.ndarray, range_cells: float,
+    outer_free: np.ndarray,
+    outer_targets: tuple[np.ndarray, np.ndarray],
+    inner_free: np.ndarray,
+    inner_targets: np.ndarray,
+    origins: np.ndarray,
+    range_cells: float,
 ) -> np.ndarray:
     """(n, 3): `visible_counts` of both `outer_targets` through `outer_free` and of
     `inner_targets` through `inner_free`, in one walk per ray.
@@ -43,7 +45,9 @@ def nested_visible_counts(
         raise ValueError("nested_visible_counts: the masks differ in shape")
     if np.any(inner & ~outer):
         raise ValueError("nested_visible_counts: inner_free must lie inside outer_free")
-    return _nested_counts_kernel(*_fan_kernel_inputs((outer, *outer_targets, inner, inner_targets), origins, range_cells))
+    return _nested_counts_kernel(
+        *_fan_kernel_inputs((outer, *outer_targets, inner, inner_targets), origins, range_cells)
+    )
 
 
 @lru_cache(maxsize=16)
@@ -60,14 +64,19 @@ def _fan_kernel_inputs(masks, origins, range_cells: float) -> tuple:
     return (
         *(np.ascontiguousarray(mask, dtype=np.bool_) for mask in masks),
         np.ascontiguousarray(np.asarray(origins).reshape(-1, 2), dtype=np.int64),
-        table.offsets, table.valid, table.unique_index, len(table.unique_offsets),
+        table.offsets,
+        table.valid,
+        table.unique_index,
+        len(table.unique_offsets),
     )
 
 
 # The walk of `_nested_counts_kernel` with one count, written out again on purpose: 10.7 against
 # 13.0 us an origin, and a shared inline helper for the ray step made both kernels 17 times slower.
 @numba.njit(cache=True, nogil=True)
-def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
+def _visible_counts_kernel(
+    free, targets, origins, offsets, valid, unique_index, n_unique
+):  # pragma: no cover - compiled
     rows, cols = free.shape
     n_rays, n_steps = valid.shape
     counts = np.zeros(len(origins), np.int64)
@@ -91,7 +100,9 @@ def _visible_counts_kernel(free, targets, origins, offsets, valid, unique_index,
 
 
 @numba.njit(cache=True, nogil=True)
-def _nested_counts_kernel(outer, first, second, inner, third, origins, offsets, valid, unique_index, n_unique):  # pragma: no cover - compiled
+def _nested_counts_kernel(
+    outer, first, second, inner, third, origins, offsets, valid, unique_index, n_unique
+):  # pragma: no cover - compiled
     rows, cols = outer.shape
     n_rays, n_steps = valid.shape
     counts = np.zeros((len(origins), 3), np.int64)

@@ -64,13 +64,16 @@ class DiffusionPolicyConfig:
         if self.d_model % 2 != 0:
             raise ValueError(f"d_model ({self.d_model}) must be even (sinusoidal step embedding)")
         if self.horizon < self.action_steps:
-            raise ValueError(f"need horizon >= action_steps, got horizon={self.horizon}, "
-                             f"action_steps={self.action_steps}")
+            raise ValueError(
+                f"need horizon >= action_steps, got horizon={self.horizon}, action_steps={self.action_steps}"
+            )
         if len(set(self.step_values)) != len(self.step_values):
             raise ValueError(f"step_values must be distinct, got {list(self.step_values)!r}")
         if self.num_inference_steps > self.num_train_timesteps:
-            raise ValueError(f"num_inference_steps ({self.num_inference_steps}) must not exceed "
-                             f"num_train_timesteps ({self.num_train_timesteps})")
+            raise ValueError(
+                f"num_inference_steps ({self.num_inference_steps}) must not exceed "
+                f"num_train_timesteps ({self.num_train_timesteps})"
+            )
 
     @property
     def action_dim(self) -> int:

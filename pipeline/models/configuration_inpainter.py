@@ -130,8 +130,9 @@ class InpainterConfig:
         )
 
     @classmethod
-    def big_lama(cls, in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama",
-                 **overrides: Any) -> "InpainterConfig":
+    def big_lama(
+        cls, in_channels: int = 2, out_channels: int = 1, input_encoding: str = "lama", **overrides: Any
+    ) -> "InpainterConfig":
         """The official Big-LaMa generator layout (51 M parameters with 4 in / 3 out channels).
 
         The official model takes 4 channels (masked RGB + mask) and returns 3 (RGB); ours

@@ -21,8 +21,10 @@ class DDPMUpdate:
 
     def __init__(self, scheduler) -> None:
         if not self.supports(scheduler):
-            raise ValueError("DDPMUpdate covers DDPMScheduler with variance_type fixed_small, no thresholding and "
-                             f"prediction_type in {SUPPORTED_PREDICTIONS}")
+            raise ValueError(
+                "DDPMUpdate covers DDPMScheduler with variance_type fixed_small, no thresholding and "
+                f"prediction_type in {SUPPORTED_PREDICTIONS}"
+            )
         from diffusers.utils.torch_utils import randn_tensor  # diffusers' own noise draw: the same numbers
 
         config = scheduler.config
@@ -35,8 +37,12 @@ class DDPMUpdate:
     @staticmethod
     def supports(scheduler) -> bool:
         config = scheduler.config
-        return (type(scheduler).__name__ == "DDPMScheduler" and config.variance_type == "fixed_small"
-                and not config.thresholding and config.prediction_type in SUPPORTED_PREDICTIONS)
+        return (
+            type(scheduler).__name__ == "DDPMScheduler"
+            and config.variance_type == "fixed_small"
+            and not config.thresholding
+            and config.prediction_type in SUPPORTED_PREDICTIONS
+        )
 
     def _coefficients(self, scheduler, k: int) -> dict:
         """The step's tensors, as `DDPMScheduler.step` and `_get_variance` compute them."""
@@ -55,11 +61,12 @@ class DDPMUpdate:
             "sqrt_beta_prod_t": beta_prod_t ** (0.5),
             "x0": (alpha_prod_t_prev ** (0.5) * current_beta_t) / beta_prod_t,
             "xt": current_alpha_t ** (0.5) * beta_prod_t_prev / beta_prod_t,
-            "std": variance ** 0.5,
+            "std": variance**0.5,
         }
 
-    def __call__(self, k: int, model_output: torch.Tensor, sample: torch.Tensor,
-                 generator: torch.Generator | None = None) -> torch.Tensor:
+    def __call__(
+        self, k: int, model_output: torch.Tensor, sample: torch.Tensor, generator: torch.Generator | None = None
+    ) -> torch.Tensor:
         """The sample before step `k` (an index into the timesteps) given the net's output at it."""
         c = self.coefficients[k]
         if self.prediction_type == "sample":
@@ -71,7 +78,8 @@ class DDPMUpdate:
         previous = c["x0"] * original + c["xt"] * sample
         variance = 0
         if c["t"] > 0:
-            noise = self.randn(model_output.shape, generator=generator, device=model_output.device,
-                               dtype=model_output.dtype)
+            noise = self.randn(
+                model_output.shape, generator=generator, device=model_output.device, dtype=model_output.dtype
+            )
             variance = c["std"] * noise
         return previous + variance

@@ -172,14 +172,15 @@ def pipeline_or_shipped(checkpoint: str | Path | None, kind: str, what: str, sta
     if path is not None:
         return path
     pipeline, (shipped, *_) = MODEL_FILES[kind]
-    raise FileNotFoundError(f"no {what.removeprefix('a ')}: neither {pipeline} (`dvc repro {stage}`) nor the shipped "
-                            f"{shipped} exists; pass its option, e.g. policy_file=PATH")
+    raise FileNotFoundError(
+        f"no {what.removeprefix('a ')}: neither {pipeline} (`dvc repro {stage}`) nor the shipped "
+        f"{shipped} exists; pass its option, e.g. policy_file=PATH"
+    )
 
 
 def resolve_block_model(checkpoint: str | None) -> Path:
     """`checkpoint`, else the pipeline's model in models/, else the shipped one."""
-    return pipeline_or_shipped(checkpoint, "block_model", "a block model file",
-                               "train_block_model")
+    return pipeline_or_shipped(checkpoint, "block_model", "a block model file", "train_block_model")
 
 
 def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> tuple[BlockModel, str]:
@@ -190,7 +191,9 @@ def block_model_for(checkpoint: str | None, model: BlockModel | None = None) -> 
         path = resolve_block_model(checkpoint)
     except FileNotFoundError as error:  # an option error, reported in one line like the others
         raise ValueError(str(error)) from None
-    return load_once("block_model", path, load_block_model), f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
+    return load_once(
+        "block_model", path, load_block_model
+    ), f"block model {path if path != SHIPPED_BLOCK_MODEL else '(shipped)'}"
 
 
 # ----------------------------------------------------------------------------- drl policy

@@ -28,7 +28,9 @@ class BlockModel(nn.Module):
         width = config.width
         self.stem = nn.Conv2d(INPUT_CHANNELS, width, 3, padding=1)
         self.layers = nn.ModuleList(
-            nn.Sequential(nn.GELU(), nn.Conv2d(width, width, 3, padding=d, dilation=d), nn.GroupNorm(config.groups, width))
+            nn.Sequential(
+                nn.GELU(), nn.Conv2d(width, width, 3, padding=d, dilation=d), nn.GroupNorm(config.groups, width)
+            )
             for d in config.dilations
         )
         self.head = nn.Sequential(nn.GELU(), nn.Conv2d(width, 1, 1))
@@ -56,14 +58,20 @@ class BlockModel(nn.Module):
         return probability[0] if single else probability
 
 
-def belief_free_probability(model: BlockModel, belief: np.ndarray, blocks: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
+def belief_free_probability(
+    model: BlockModel, belief: np.ndarray, blocks: np.ndarray, grid: tuple[int, int]
+) -> np.ndarray:
     """P(free) of every block given a belief grid; known blocks get the model's guess too."""
     return model.free_probability(block_shares(belief, blocks, grid))
 
 
 def save_block_model(model: BlockModel, path: str | Path, trained_on: dict[str, Any] | None = None) -> Path:
-    payload = {"format": BLOCK_MODEL_FORMAT, "config": model.config.to_dict(),
-               "state_dict": model.state_dict(), "trained_on": trained_on or {}}
+    payload = {
+        "format": BLOCK_MODEL_FORMAT,
+        "config": model.config.to_dict(),
+        "state_dict": model.state_dict(),
+        "trained_on": trained_on or {},
+    }
     return write_weights_file(payload, path)
 
 
@@ -77,7 +85,9 @@ def load_block_model(path: str | Path) -> BlockModel:
     """The model in `path`, in eval mode; a one-line error if it is not a block model file."""
     payload = read_weights_file(path, "a block model file")
     if payload.get("format") != BLOCK_MODEL_FORMAT:
-        raise ValueError(f"{path}: not a block model file (format {payload.get('format')!r}, expected {BLOCK_MODEL_FORMAT!r})")
+        raise ValueError(
+            f"{path}: not a block model file (format {payload.get('format')!r}, expected {BLOCK_MODEL_FORMAT!r})"
+        )
     model = BlockModel(BlockModelConfig.from_dict(payload["config"]))
     model.load_state_dict(payload["state_dict"])
     return model.eval()

@@ -144,15 +144,23 @@ class GraphEncoder(nn.Module):
         self.absent = nn.Parameter(torch.zeros(self.slots, config.slot_width))
         self.project = nn.Linear(2 * d + self.slots * config.slot_width, d)  # [robot, context, slots] -> z
 
-    def window_slots(self, h: torch.Tensor, features: torch.Tensor, node_mask: torch.Tensor,
-                     neighbors: torch.Tensor, robot: torch.Tensor) -> torch.Tensor:
+    def window_slots(
+        self,
+        h: torch.Tensor,
+        features: torch.Tensor,
+        node_mask: torch.Tensor,
+        neighbors: torch.Tensor,
+        robot: torch.Tensor,
+    ) -> torch.Tensor:
         """(B, slots * slot_width): the robot's neighbours' encodings placed at their lattice offsets."""
         batch = h.shape[0]
         rows = torch.arange(batch, device=h.device)
         listed = neighbors[rows, robot.long()].long()  # (B, M)
         present = (listed >= 0) & node_mask.gather(1, listed.clamp(min=0))
         index = listed.clamp(min=0)
-        offsets = torch.round(features[rows[:, None], index, 0:2].float() * self.config.window_scale).long()  # (B, M, 2)
+        offsets = torch.round(
+            features[rows[:, None], index, 0:2].float() * self.config.window_scale
+        ).long()  # (B, M, 2)
         inside = present & (offsets.abs() <= self.radius).all(-1)
         width = 2 * self.radius + 1
         slot = (offsets[..., 1] + self.radius) * width + (offsets[..., 0] + self.radius)
@@ -172,7 +180,9 @@ class GraphEncoder(nn.Module):
     ) -> torch.Tensor:
         """features (B, N, F), node_mask (B, N), neighbors (B, N, M) with -1 padding, robot (B,) -> (B, d_model)."""
         if features.shape[-1] != self.config.feature_dim:
-            raise ValueError(f"features must have {self.config.feature_dim} channels, got shape {tuple(features.shape)}")
+            raise ValueError(
+                f"features must have {self.config.feature_dim} channels, got shape {tuple(features.shape)}"
+            )
         node_mask = node_mask.bool()
         allowed = build_attention_mask(neighbors, node_mask)
         h = self.embed(features.float())
@@ -191,7 +201,9 @@ class GraphEncoder(nn.Module):
 def sinusoidal_embedding(timesteps: torch.Tensor, dim: int, max_period: float = 10000.0) -> torch.Tensor:
     """Transformer sinusoidal embedding of diffusion steps (B,) -> (B, dim) ([sin, cos] halves)."""
     half = dim // 2
-    frequencies = torch.exp(-math.log(max_period) * torch.arange(half, device=timesteps.device, dtype=torch.float32) / half)
+    frequencies = torch.exp(
+        -math.log(max_period) * torch.arange(half, device=timesteps.device, dtype=torch.float32) / half
+    )
     angles = timesteps.float().unsqueeze(-1) * frequencies
     return torch.cat([angles.sin(), angles.cos()], dim=-1)
 
@@ -252,7 +264,9 @@ class NoisePredictionNet(nn.Module):
         # Diffusion Policy's U-Net): with cross-attention alone the net learned the actions'
         # prior and ignored the observation (shuffling z barely moved its output).
         self.condition_in = nn.Linear((1 + config.obs_steps) * d, d)
-        self.layers = nn.ModuleList(DenoiserLayer(d, config.heads, config.dropout) for _ in range(config.denoiser_layers))
+        self.layers = nn.ModuleList(
+            DenoiserLayer(d, config.heads, config.dropout) for _ in range(config.denoiser_layers)
+        )
         self.norm = nn.LayerNorm(d)
         self.action_out = nn.Linear(d, config.action_dim)
         nn.init.normal_(self.action_pos, std=0.02)
@@ -469,8 +483,9 @@ def read_policy_export(path: str | Path) -> dict[str, Any]:
     """The export's dict (config, EMA state_dict, metadata); loads tensors only, never pickled code."""
     data = read_weights_file(path, "a planner checkpoint")
     if export_kind(data) == "inpainter":
-        raise ValueError(f"{path}: an inpainter export, not a planner policy (pass it as the inpainter: "
-                         "inpainter=PATH)")
+        raise ValueError(
+            f"{path}: an inpainter export, not a planner policy (pass it as the inpainter: inpainter=PATH)"
+        )
     if "config" not in data or "state_dict" not in data:
         raise ValueError(f"{path}: not a planner export (expected keys config and state_dict)")
     return data

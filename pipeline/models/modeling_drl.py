@@ -49,7 +49,9 @@ class DRLPolicy(nn.Module):
         self.config = config
         d = config.d_model
         self.embed = nn.Linear(config.feature_dim, d)
-        self.layers = nn.ModuleList(MaskedSelfAttentionLayer(d, config.heads, 0.0) for _ in range(config.encoder_layers))
+        self.layers = nn.ModuleList(
+            MaskedSelfAttentionLayer(d, config.heads, 0.0) for _ in range(config.encoder_layers)
+        )
         self.norm = nn.LayerNorm(d)
         self.context = nn.MultiheadAttention(d, config.heads, batch_first=True)
         self.query = nn.Linear(2 * d, d)
@@ -57,8 +59,9 @@ class DRLPolicy(nn.Module):
         self.value_head = nn.Sequential(nn.Linear(2 * d, d), nn.GELU(), nn.Linear(d, 1))
         self.guidepost_weight = nn.Parameter(torch.tensor(float(config.guidepost_prior)))
 
-    def slot_rows(self, features: torch.Tensor, node_mask: torch.Tensor, neighbors: torch.Tensor,
-                  robot: torch.Tensor) -> torch.Tensor:
+    def slot_rows(
+        self, features: torch.Tensor, node_mask: torch.Tensor, neighbors: torch.Tensor, robot: torch.Tensor
+    ) -> torch.Tensor:
         """(B, 25) the row of the node at each window slot of the robot (the robot's own at the
         centre), -1 where the known graph has none. A neighbour's slot is its lattice offset
         from the robot's node, read from the dx, dy features."""
@@ -67,8 +70,9 @@ class DRLPolicy(nn.Module):
         listed = neighbors[rows, robot].long()  # (B, M) neighbour rows, -1 padded
         index = listed.clamp(min=0)
         present = (listed >= 0) & node_mask[rows[:, None], index]
-        offsets = torch.round((features[rows[:, None], index, 0:2] - features[rows, robot, 0:2][:, None])
-                              * self.config.window_scale).long()
+        offsets = torch.round(
+            (features[rows[:, None], index, 0:2] - features[rows, robot, 0:2][:, None]) * self.config.window_scale
+        ).long()
         inside = present & (offsets.abs() <= WINDOW_RADIUS).all(-1)
         slot = (offsets[..., 1] + WINDOW_RADIUS) * WINDOW + offsets[..., 0] + WINDOW_RADIUS
         slot = torch.where(inside, slot, torch.full_like(slot, SLOTS))  # a spare column swallows the rest
@@ -77,12 +81,15 @@ class DRLPolicy(nn.Module):
         table[:, SLOTS // 2] = robot
         return table[:, :SLOTS]
 
-    def forward(self, features: torch.Tensor, node_mask: torch.Tensor, neighbors: torch.Tensor,
-                robot: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(
+        self, features: torch.Tensor, node_mask: torch.Tensor, neighbors: torch.Tensor, robot: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """features (B, N, F), node_mask (B, N), neighbors (B, N, M) with -1 padding, robot (B,) rows
         -> (logits (B, 25), value (B,))."""
         if features.shape[-1] != self.config.feature_dim:
-            raise ValueError(f"features must have {self.config.feature_dim} channels, got shape {tuple(features.shape)}")
+            raise ValueError(
+                f"features must have {self.config.feature_dim} channels, got shape {tuple(features.shape)}"
+            )
         features, node_mask, robot = features.float(), node_mask.bool(), robot.long()
         allowed = build_attention_mask(neighbors, node_mask)
         h = self.embed(features)
@@ -106,14 +113,21 @@ class DRLPolicy(nn.Module):
         """The slot to move to: the highest logit among the slots `action_mask` (default:
         observation["action_mask"]) allows. `observation` holds one unbatched observation of
         `guide/Explore-v0` (features, node_mask, neighbors, robot)."""
+
         def batched(key: str, dtype: torch.dtype) -> torch.Tensor:
             return torch.as_tensor(np.asarray(observation[key]), dtype=dtype).unsqueeze(0)
 
-        logits, _ = self(batched("features", torch.float32), batched("node_mask", torch.bool),
-                         batched("neighbors", torch.long), batched("robot", torch.long))
+        logits, _ = self(
+            batched("features", torch.float32),
+            batched("node_mask", torch.bool),
+            batched("neighbors", torch.long),
+            batched("robot", torch.long),
+        )
         mask = np.asarray(observation["action_mask"] if action_mask is None else action_mask, dtype=bool)
         if mask.shape != (SLOTS,) or not mask.any():
-            raise ValueError(f"action_mask must be {SLOTS} flags with at least one set, got {mask.astype(int).tolist()}")
+            raise ValueError(
+                f"action_mask must be {SLOTS} flags with at least one set, got {mask.astype(int).tolist()}"
+            )
         scores = logits[0].numpy().copy()
         scores[~mask] = -np.inf
         return int(np.argmax(scores))
@@ -121,9 +135,12 @@ class DRLPolicy(nn.Module):
 
 def save_drl_policy(policy: DRLPolicy, path: str | Path, trained_on: dict[str, Any] | None = None) -> Path:
     """Write the export the `drl` planner loads: config, weights and what it was trained on."""
-    payload = {"format": DRL_FORMAT, "config": policy.config.to_dict(),
-               "state_dict": {k: v.detach().cpu() for k, v in policy.state_dict().items()},
-               "trained_on": trained_on or {}}
+    payload = {
+        "format": DRL_FORMAT,
+        "config": policy.config.to_dict(),
+        "state_dict": {k: v.detach().cpu() for k, v in policy.state_dict().items()},
+        "trained_on": trained_on or {},
+    }
     return write_weights_file(payload, path)
 
 

@@ -60,16 +60,21 @@ class FourierUnit(nn.Module):
 class SpectralTransform(nn.Module):
     """The global-to-global path: 1x1 conv (halving) -> FourierUnit (+ optional LFU) -> 1x1 conv."""
 
-    def __init__(self, in_channels: int, out_channels: int, stride: int = 1, groups: int = 1,
-                 enable_lfu: bool = False, fft_norm: str = "ortho") -> None:
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        stride: int = 1,
+        groups: int = 1,
+        enable_lfu: bool = False,
+        fft_norm: str = "ortho",
+    ) -> None:
         super().__init__()
         self.enable_lfu = enable_lfu
         self.downsample = nn.AvgPool2d(kernel_size=2, stride=2) if stride == 2 else nn.Identity()
         hidden = out_channels // 2
         self.conv1 = nn.Sequential(
-            nn.Conv2d(in_channels, hidden, kernel_size=1, groups=groups, bias=False),
-            nn.BatchNorm2d(hidden),
-            nn.ReLU(),
+            nn.Conv2d(in_channels, hidden, kernel_size=1, groups=groups, bias=False), nn.BatchNorm2d(hidden), nn.ReLU()
         )
         self.fu = FourierUnit(hidden, hidden, groups, fft_norm=fft_norm)
         self.lfu = FourierUnit(hidden, hidden, groups, fft_norm=fft_norm) if enable_lfu else None
@@ -94,9 +99,22 @@ class SpectralTransform(nn.Module):
 class FFC(nn.Module):
     """Fast Fourier convolution: local/global channel split with four cross paths."""
 
-    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, ratio_gin: float, ratio_gout: float,
-                 stride: int = 1, padding: int = 0, dilation: int = 1, groups: int = 1, bias: bool = False,
-                 enable_lfu: bool = False, padding_type: str = "reflect", fft_norm: str = "ortho") -> None:
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        kernel_size: int,
+        ratio_gin: float,
+        ratio_gout: float,
+        stride: int = 1,
+        padding: int = 0,
+        dilation: int = 1,
+        groups: int = 1,
+        bias: bool = False,
+        enable_lfu: bool = False,
+        padding_type: str = "reflect",
+        fft_norm: str = "ortho",
+    ) -> None:
         super().__init__()
         if stride not in (1, 2):
             raise ValueError("FFC stride must be 1 or 2")
@@ -117,7 +135,8 @@ class FFC(nn.Module):
         self.convg2l = conv(in_cg, out_cl)
         self.convg2g = (
             SpectralTransform(in_cg, out_cg, stride, 1 if groups == 1 else groups // 2, enable_lfu, fft_norm)
-            if in_cg and out_cg else None
+            if in_cg and out_cg
+            else None
         )
 
     def forward(self, x: torch.Tensor | Pair) -> Pair:
@@ -140,12 +159,35 @@ def _add(a: Optional[torch.Tensor], b: Optional[torch.Tensor]) -> Optional[torch
 class FFC_BN_ACT(nn.Module):  # noqa: N801 - the official class name
     """FFC followed by BatchNorm and an activation on each of the local and global parts."""
 
-    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, ratio_gin: float, ratio_gout: float,
-                 stride: int = 1, padding: int = 0, dilation: int = 1, enable_lfu: bool = False,
-                 padding_type: str = "reflect", fft_norm: str = "ortho", activation: bool = True) -> None:
+    def __init__(
+        self,
+        in_channels: int,
+        out_channels: int,
+        kernel_size: int,
+        ratio_gin: float,
+        ratio_gout: float,
+        stride: int = 1,
+        padding: int = 0,
+        dilation: int = 1,
+        enable_lfu: bool = False,
+        padding_type: str = "reflect",
+        fft_norm: str = "ortho",
+        activation: bool = True,
+    ) -> None:
         super().__init__()
-        self.ffc = FFC(in_channels, out_channels, kernel_size, ratio_gin, ratio_gout, stride, padding, dilation,
-                       enable_lfu=enable_lfu, padding_type=padding_type, fft_norm=fft_norm)
+        self.ffc = FFC(
+            in_channels,
+            out_channels,
+            kernel_size,
+            ratio_gin,
+            ratio_gout,
+            stride,
+            padding,
+            dilation,
+            enable_lfu=enable_lfu,
+            padding_type=padding_type,
+            fft_norm=fft_norm,
+        )
         out_cg = int(out_channels * ratio_gout)
         out_cl = out_channels - out_cg
         self.bn_l = nn.BatchNorm2d(out_cl) if out_cl else None
@@ -158,7 +200,9 @@ class FFC_BN_ACT(nn.Module):  # noqa: N801 - the official class name
         return self._norm_act(x_l, self.bn_l, self.act_l), self._norm_act(x_g, self.bn_g, self.act_g)
 
     @staticmethod
-    def _norm_act(x: Optional[torch.Tensor], norm: Optional[nn.Module], act: Optional[nn.Module]) -> Optional[torch.Tensor]:
+    def _norm_act(
+        x: Optional[torch.Tensor], norm: Optional[nn.Module], act: Optional[nn.Module]
+    ) -> Optional[torch.Tensor]:
         if x is None:
             return None
         x = norm(x) if norm is not None else x
@@ -168,12 +212,29 @@ class FFC_BN_ACT(nn.Module):  # noqa: N801 - the official class name
 class FFCResnetBlock(nn.Module):
     """Two FFC_BN_ACT (3x3) with a residual connection on both the local and global parts."""
 
-    def __init__(self, dim: int, ratio_gin: float, ratio_gout: float, kernel_size: int = 3, dilation: int = 1,
-                 enable_lfu: bool = False, padding_type: str = "reflect", fft_norm: str = "ortho") -> None:
+    def __init__(
+        self,
+        dim: int,
+        ratio_gin: float,
+        ratio_gout: float,
+        kernel_size: int = 3,
+        dilation: int = 1,
+        enable_lfu: bool = False,
+        padding_type: str = "reflect",
+        fft_norm: str = "ortho",
+    ) -> None:
         super().__init__()
         padding = dilation * (kernel_size // 2)
-        kwargs = dict(kernel_size=kernel_size, ratio_gin=ratio_gin, ratio_gout=ratio_gout, padding=padding,
-                      dilation=dilation, enable_lfu=enable_lfu, padding_type=padding_type, fft_norm=fft_norm)
+        kwargs = dict(
+            kernel_size=kernel_size,
+            ratio_gin=ratio_gin,
+            ratio_gout=ratio_gout,
+            padding=padding,
+            dilation=dilation,
+            enable_lfu=enable_lfu,
+            padding_type=padding_type,
+            fft_norm=fft_norm,
+        )
         self.conv1 = FFC_BN_ACT(dim, dim, **kwargs)
         self.conv2 = FFC_BN_ACT(dim, dim, **kwargs)
 
@@ -236,29 +297,60 @@ class InpainterModel(nn.Module):
         init_gout = c.init_ratio_g if c.n_downsampling > 0 else c.ratio_gin
         layers: list[nn.Module] = [
             nn.ReflectionPad2d(c.init_kernel_size // 2),
-            FFC_BN_ACT(c.in_channels, c.ngf, c.init_kernel_size, c.init_ratio_g, init_gout, padding=0,
-                       enable_lfu=c.enable_lfu, padding_type=c.padding_type, fft_norm=c.fft_norm),
+            FFC_BN_ACT(
+                c.in_channels,
+                c.ngf,
+                c.init_kernel_size,
+                c.init_ratio_g,
+                init_gout,
+                padding=0,
+                enable_lfu=c.enable_lfu,
+                padding_type=c.padding_type,
+                fft_norm=c.fft_norm,
+            ),
         ]
         ratio_in = init_gout
         for i in range(c.n_downsampling):
             ratio_out = c.ratio_gin if i == c.n_downsampling - 1 else c.downsample_ratio_g
             layers.append(
-                FFC_BN_ACT(width(2**i), width(2 ** (i + 1)), c.downsample_kernel_size, ratio_in, ratio_out, stride=2,
-                           padding=c.downsample_kernel_size // 2, enable_lfu=c.enable_lfu,
-                           padding_type=c.padding_type, fft_norm=c.fft_norm)
+                FFC_BN_ACT(
+                    width(2**i),
+                    width(2 ** (i + 1)),
+                    c.downsample_kernel_size,
+                    ratio_in,
+                    ratio_out,
+                    stride=2,
+                    padding=c.downsample_kernel_size // 2,
+                    enable_lfu=c.enable_lfu,
+                    padding_type=c.padding_type,
+                    fft_norm=c.fft_norm,
+                )
             )
             ratio_in = ratio_out
         for _ in range(c.n_blocks):
             layers.append(
-                FFCResnetBlock(c.bottleneck_channels, c.ratio_gin, c.ratio_gout, c.block_kernel_size,
-                               enable_lfu=c.enable_lfu, padding_type=c.padding_type, fft_norm=c.fft_norm)
+                FFCResnetBlock(
+                    c.bottleneck_channels,
+                    c.ratio_gin,
+                    c.ratio_gout,
+                    c.block_kernel_size,
+                    enable_lfu=c.enable_lfu,
+                    padding_type=c.padding_type,
+                    fft_norm=c.fft_norm,
+                )
             )
         layers.append(ConcatTupleLayer())
         for i in range(c.n_downsampling):
             mult = 2 ** (c.n_downsampling - i)
             layers += [
-                nn.ConvTranspose2d(width(mult), width(mult / 2), c.upsample_kernel_size, stride=2,
-                                   padding=c.upsample_kernel_size // 2, output_padding=1),
+                nn.ConvTranspose2d(
+                    width(mult),
+                    width(mult / 2),
+                    c.upsample_kernel_size,
+                    stride=2,
+                    padding=c.upsample_kernel_size // 2,
+                    output_padding=1,
+                ),
                 nn.BatchNorm2d(width(mult / 2)),
                 nn.ReLU(),
             ]
@@ -331,7 +423,7 @@ def generator_state_dict(state_dict: Mapping[str, torch.Tensor]) -> dict[str, to
     or the dict itself when it holds bare generator keys (`model.*`)."""
     if "state_dict" in state_dict and isinstance(state_dict["state_dict"], Mapping):
         state_dict = state_dict["state_dict"]
-    prefixed = {k[len("generator."):]: v for k, v in state_dict.items() if k.startswith("generator.")}
+    prefixed = {k[len("generator.") :]: v for k, v in state_dict.items() if k.startswith("generator.")}
     if prefixed:
         return prefixed
     bare = {k: v for k, v in state_dict.items() if k.startswith("model.")}
@@ -386,14 +478,23 @@ def load_big_lama_generator(model: InpainterModel, state_dict: Mapping[str, torc
         if b is not None:
             weights[f"{last}.bias"] = b
     own = model.state_dict()
-    mismatched = [f"{k}: checkpoint {tuple(v.shape)} vs model {tuple(own[k].shape)}"
-                  for k, v in weights.items() if k in own and tuple(v.shape) != tuple(own[k].shape)]
+    mismatched = [
+        f"{k}: checkpoint {tuple(v.shape)} vs model {tuple(own[k].shape)}"
+        for k, v in weights.items()
+        if k in own and tuple(v.shape) != tuple(own[k].shape)
+    ]
     if mismatched:
-        raise ValueError("generator weights do not fit this layout (use InpainterConfig.big_lama()):\n  "
-                         + "\n  ".join(mismatched[:10]))
+        raise ValueError(
+            "generator weights do not fit this layout (use InpainterConfig.big_lama()):\n  "
+            + "\n  ".join(mismatched[:10])
+        )
     result = model.load_state_dict(weights, strict=strict)
-    return {"loaded": len(weights), "adapted": adapted, "missing": list(result.missing_keys),
-            "unexpected": list(result.unexpected_keys)}
+    return {
+        "loaded": len(weights),
+        "adapted": adapted,
+        "missing": list(result.missing_keys),
+        "unexpected": list(result.unexpected_keys),
+    }
 
 
 def read_checkpoint(path) -> dict:
@@ -404,7 +505,9 @@ def read_checkpoint(path) -> dict:
     except Exception:  # noqa: BLE001 - e.g. OmegaConf objects in LaMa's hyper_parameters
         import warnings
 
-        warnings.warn(f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=2)
+        warnings.warn(
+            f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=2
+        )
         return torch.load(path, map_location="cpu", weights_only=False)
 
 
@@ -459,7 +562,9 @@ def export_inpainter(generator: InpainterModel, path: str | Path, **extra: Any) 
     return write_weights_file(payload, path)
 
 
-def load_inpainter(path: str | Path, map_location: str | torch.device = "cpu") -> tuple[InpainterModel, InpainterConfig]:
+def load_inpainter(
+    path: str | Path, map_location: str | torch.device = "cpu"
+) -> tuple[InpainterModel, InpainterConfig]:
     """An exported `inpainter.pt` (or a training checkpoint) -> (model in eval mode, config)."""
     return inpainter_from_payload(read_weights_file(path, "an inpainter export", map_location), path)
 
@@ -474,7 +579,7 @@ def inpainter_from_payload(payload: dict[str, Any], path: str | Path) -> tuple[I
             state = payload["state_dict"]
         elif "hyper_parameters" in payload:  # a Lightning checkpoint of InpainterLightning
             config = InpainterConfig.from_dict(payload["hyper_parameters"]["model_config"])
-            state = {k[len("generator."):]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
+            state = {k[len("generator.") :]: v for k, v in payload["state_dict"].items() if k.startswith("generator.")}
         else:
             raise ValueError("neither an exported inpainter nor an inpainter training checkpoint")
     except (KeyError, TypeError, ValueError) as error:  # e.g. a planner checkpoint: another model's config

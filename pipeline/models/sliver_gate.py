@@ -47,8 +47,9 @@ from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN, Lidar
 FEATURES = ("open_unknown", "unknown", "frontier")
 
 
-def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wall_margin: int,
-                  frontier: np.ndarray | None = None) -> np.ndarray:
+def gate_features(
+    belief: np.ndarray, cells: np.ndarray, range_cells: float, wall_margin: int, frontier: np.ndarray | None = None
+) -> np.ndarray:
     """(n, 3) counts of FEATURES for each candidate cell (col, row) of `cells` on `belief`;
     `frontier`: `frontier_mask(belief)` when the caller keeps it (the lattice graph does)."""
     cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
@@ -58,8 +59,9 @@ def gate_features(belief: np.ndarray, cells: np.ndarray, range_cells: float, wal
     near_wall = cv2.dilate(walls, np.ones((side, side), np.uint8)).astype(bool) if wall_margin else walls.astype(bool)
     passable = ~walls.astype(bool)
     frontier = frontier_mask(belief) if frontier is None else frontier
-    return nested_visible_counts(passable, (unknown & ~near_wall, unknown), belief == FREE, frontier,
-                                 cells, range_cells).astype(np.float64)
+    return nested_visible_counts(
+        passable, (unknown & ~near_wall, unknown), belief == FREE, frontier, cells, range_cells
+    ).astype(np.float64)
 
 
 def gate_inputs(counts: np.ndarray) -> np.ndarray:
@@ -105,8 +107,10 @@ class SliverGate:
     range_cells: float = 50.0  # the fan's reach in cells: the lidar range it was fitted at
 
     def __post_init__(self) -> None:
-        layers = tuple((tuple(tuple(float(w) for w in row) for row in weights), tuple(float(b) for b in biases))
-                       for weights, biases in self.layers)
+        layers = tuple(
+            (tuple(tuple(float(w) for w in row) for row in weights), tuple(float(b) for b in biases))
+            for weights, biases in self.layers
+        )
         object.__setattr__(self, "layers", layers)
         width = len(FEATURES)
         for index, (weights, biases) in enumerate(layers):
@@ -146,8 +150,9 @@ class SliverGate:
         fan's reach, the wall margin around what it reaches, and the frontier's neighbours."""
         return int(math.ceil(range_cells)) + int(round(self.wall_margin * range_cells / self.range_cells)) + 1
 
-    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float,
-               frontier: np.ndarray | None = None) -> np.ndarray:
+    def passes(
+        self, belief: np.ndarray, cells: np.ndarray, range_cells: float, frontier: np.ndarray | None = None
+    ) -> np.ndarray:
         """Boolean mask: which candidate cells the gate calls big, for a lidar reaching `range_cells`.
 
         On a map drawn at another scale (the sensor reaching k times as many cells) the fan,
@@ -163,9 +168,17 @@ class SliverGate:
         return self.probability(counts) >= self.threshold
 
 
-def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_margin: int, range_cells: float,
-                    threshold: float = 0.5, hidden: tuple[int, ...] = (), seed: int = 0,
-                    max_samples: int | None = None) -> SliverGate:
+def fit_sliver_gate(
+    counts: np.ndarray,
+    gains: np.ndarray,
+    min_gain: int,
+    wall_margin: int,
+    range_cells: float,
+    threshold: float = 0.5,
+    hidden: tuple[int, ...] = (),
+    seed: int = 0,
+    max_samples: int | None = None,
+) -> SliverGate:
     """Fit P(gain >= min_gain) on log(1 + counts) with scikit-learn.
 
     `max_samples`: fit on that many samples drawn at random (by `seed`) when there are more; the
@@ -182,11 +195,14 @@ def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_m
         counts, gains = counts[drawn], gains[drawn]
     labels = gains >= min_gain
     if labels.all() or not labels.any():
-        raise ValueError(f"cannot fit the sliver gate: every one of {labels.size} samples is "
-                         f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps")
+        raise ValueError(
+            f"cannot fit the sliver gate: every one of {labels.size} samples is "
+            f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps"
+        )
     inputs = gate_inputs(counts)
-    settings = dict(threshold=float(threshold), wall_margin=int(wall_margin), min_gain=int(min_gain),
-                    range_cells=float(range_cells))
+    settings = dict(
+        threshold=float(threshold), wall_margin=int(wall_margin), min_gain=int(min_gain), range_cells=float(range_cells)
+    )
     if not hidden:
         from sklearn.linear_model import LogisticRegression
 
@@ -196,9 +212,16 @@ def fit_sliver_gate(counts: np.ndarray, gains: np.ndarray, min_gain: int, wall_m
     return SliverGate(layers, **settings)
 
 
-def fit_perceptron(inputs: np.ndarray, labels: np.ndarray, hidden: tuple[int, ...], seed: int = 0,
-                   batch_size: int = 1024, passes: int = 10, min_steps: int = 2000,
-                   peak_lr: float = 0.005) -> tuple[Layer, ...]:
+def fit_perceptron(
+    inputs: np.ndarray,
+    labels: np.ndarray,
+    hidden: tuple[int, ...],
+    seed: int = 0,
+    batch_size: int = 1024,
+    passes: int = 10,
+    min_steps: int = 2000,
+    peak_lr: float = 0.005,
+) -> tuple[Layer, ...]:
     """A ReLU perceptron's layers fitted on (inputs, labels) by cross-entropy: Adam on batches of
     `batch_size` under a one-cycle learning rate peaking at `peak_lr`, for `passes` passes over the
     samples and at least `min_steps` steps.
@@ -229,13 +252,15 @@ def fit_perceptron(inputs: np.ndarray, labels: np.ndarray, hidden: tuple[int, ..
             start = (step % per_pass) * batch
             if start == 0:
                 order = torch.randperm(len(y))
-            rows = order[start: start + batch]
+            rows = order[start : start + batch]
             optimizer.zero_grad()
             loss(network(x[rows])[:, 0], y[rows]).backward()
             optimizer.step()
             schedule.step()
-    return tuple((linear.weight.detach().double().numpy().T.tolist(), linear.bias.detach().double().numpy().tolist())
-                 for linear in linears)
+    return tuple(
+        (linear.weight.detach().double().numpy().T.tolist(), linear.bias.detach().double().numpy().tolist())
+        for linear in linears
+    )
 
 
 def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:

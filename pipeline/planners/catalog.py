@@ -39,17 +39,29 @@ def tour_help(name: str) -> str:
 
 
 @config_dataclass
-class TourVoteOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandoverConfig, TourVoteConfig,
-                      LookaheadConfig, PredictionTrustOptions):
+class TourVoteOptions(
+    GuideConfig,
+    TourOptions,
+    SampledPlansConfig,
+    StallHandoverConfig,
+    TourVoteConfig,
+    LookaheadConfig,
+    PredictionTrustOptions,
+):
     """Every option of GUIDE's policy (`GuideConfig`) and of each addition around it, the tour's at
     guide_tsp's defaults (its clusters): the team guide's options (`pipeline.planners.team`)."""
 
-    composition = ("the tour vote (extensions/tour_vote.py) around GUIDE's policy (guide/guide.py); mode=policy: "
-                   "ranked plans and the stall hand-over (extensions/) around it")
+    composition = (
+        "the tour vote (extensions/tour_vote.py) around GUIDE's policy (guide/guide.py); mode=policy: "
+        "ranked plans and the stall hand-over (extensions/) around it"
+    )
     renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file", "block_model": "block_model_file"}
 
-    mode: text(MODES) = option("tour", "tour: the policy's samples vote on the global graph's frontier tour (ours); "
-                                       "policy: the sampled plans are driven (the paper's)")
+    mode: text(MODES) = option(
+        "tour",
+        "tour: the policy's samples vote on the global graph's frontier tour (ours); "
+        "policy: the sampled plans are driven (the paper's)",
+    )
 
     @classmethod
     def options(cls) -> list[OptionInfo]:
@@ -60,8 +72,9 @@ class TourVoteOptions(GuideConfig, TourOptions, SampledPlansConfig, StallHandove
 
     def check(self) -> None:
         if self.lookahead and self.mode != "tour":
-            raise ValueError(f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode "
-                             f"{self.mode}")
+            raise ValueError(
+                f"lookahead is an option of mode tour; got lookahead={self.lookahead!r} in mode {self.mode}"
+            )
         super().check()
 
 
@@ -74,8 +87,10 @@ class SingleNodeTargets(PlannerConfig):
     solved cheaply."""
 
     spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(
-        0.0, "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
-             f"null: {SPREAD_NODES:g} node spacings, guide_tsp's clusters)")
+        0.0,
+        "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
+        f"null: {SPREAD_NODES:g} node spacings, guide_tsp's clusters)",
+    )
     min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
     beta: real(0.0) = option(0.0, tour_help("beta"))
     exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
@@ -95,8 +110,9 @@ class GuideNoRegionOptions(GuideOptions, GuideNoRegionConfig):
 
 @config_dataclass
 class DareOptions(GuideOptions, DareConfig):
-    sliver_gate: flag() = option(False, "consider first only the targets the sliver gate calls big (off: DARE as "
-                                        "published)")
+    sliver_gate: flag() = option(
+        False, "consider first only the targets the sliver gate calls big (off: DARE as published)"
+    )
 
 
 def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=None) -> Planner:
@@ -106,9 +122,11 @@ def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=
     if options.mode == "tour":
         return with_trust(TourVote(paper, options, options, options, options.candidates, options.description), options)
     planner = StallHandover(RankedPlans(paper, options.candidates), options.stall_steps)
-    planner.description = (f"{options.description} [mode policy; {options.candidates} ranked samples, stall hand-over "
-                           f"after {options.stall_steps}; policy {paper.policy_source}; {paper.predictor_source}; "
-                           f"{paper.gate_source}; K={paper.num_inference_steps}]")
+    planner.description = (
+        f"{options.description} [mode policy; {options.candidates} ranked samples, stall hand-over "
+        f"after {options.stall_steps}; policy {paper.policy_source}; {paper.predictor_source}; "
+        f"{paper.gate_source}; K={paper.num_inference_steps}]"
+    )
     return with_trust(planner, options)
 
 

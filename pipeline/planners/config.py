@@ -71,8 +71,10 @@ class PlannerConfig:
         """Every option: name, default, the spec kinds it takes, help (those of the configs it
         extends first)."""
         hints = _field_annotations(cls)
-        return [OptionInfo(f.name, f.default, option_kinds(hints.get(f.name, f.type)), f.metadata.get("help", ""))
-                for f in dataclasses.fields(cls)]
+        return [
+            OptionInfo(f.name, f.default, option_kinds(hints.get(f.name, f.type)), f.metadata.get("help", ""))
+            for f in dataclasses.fields(cls)
+        ]
 
     @classmethod
     def split(cls, options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], list[str]]:
@@ -95,8 +97,11 @@ class PlannerConfig:
             new = cls.renamed[name]
             if new in options:
                 raise ValueError(f"{cls.name or cls.__name__}: give {new} only ({name} is its old name)")
-            warnings.warn(f"{cls.name or cls.__name__}: option {name} is now {new}; {name} goes in the next release",
-                          FutureWarning, stacklevel=4)
+            warnings.warn(
+                f"{cls.name or cls.__name__}: option {name} is now {new}; {name} goes in the next release",
+                FutureWarning,
+                stacklevel=4,
+            )
             options[new] = options.pop(name)
         return options
 

@@ -23,18 +23,25 @@ from pipeline.world.protocol import Protocol
 class LatticePlannerConfig(PlannerConfig):
     """The options every lattice-graph planner has."""
 
-    min_utility: whole(1) = option(2, "a node is a target when it sees at least this many frontier cells (below 1, "
-                                      "nodes that see nothing would be targets too and the robot would tour every node)")
+    min_utility: whole(1) = option(
+        2,
+        "a node is a target when it sees at least this many frontier cells (below 1, "
+        "nodes that see nothing would be targets too and the robot would tour every node)",
+    )
 
 
 @config_dataclass
 class GatedPlannerConfig(LatticePlannerConfig):
     """A lattice-graph planner that can leave slivers for later (`pipeline.models.sliver_gate`)."""
 
-    sliver_gate: flag() = option(False, "consider first only the targets the sliver gate calls big (their scan would "
-                                        "reveal much); the rest only when none is")
-    gate_file: maybe(text()) = option(None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, "
-                                            "else the shipped one]")
+    sliver_gate: flag() = option(
+        False,
+        "consider first only the targets the sliver gate calls big (their scan would "
+        "reveal much); the rest only when none is",
+    )
+    gate_file: maybe(text()) = option(
+        None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, else the shipped one]"
+    )
 
     def check(self) -> None:
         super().check()
@@ -151,8 +158,9 @@ class GraphPlanner(Planner):
         """Whether the gate calls each of `nodes` big, judged now for those without a kept verdict."""
         unjudged = nodes[~self._gate_known[nodes]]
         if unjudged.size:
-            self._gate_big[unjudged] = self.gate.passes(self.belief, self.graph.node_cells[unjudged],
-                                                        self.protocol.sensor_range_cells, self._gate_frontier())
+            self._gate_big[unjudged] = self.gate.passes(
+                self.belief, self.graph.node_cells[unjudged], self.protocol.sensor_range_cells, self._gate_frontier()
+            )
             self._gate_known[unjudged] = True
         return self._gate_big[nodes]
 

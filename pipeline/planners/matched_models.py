@@ -39,11 +39,18 @@ class ProtocolMatchedModels(Planner):
     bound swaps its base planner's gate after each reset, for one).
     """
 
-    OWN = frozenset({"config", "build", "name", "slots", "explicit", "objects", "inner", "picked", "_picks",
-                     "protocol_defaults"})
+    OWN = frozenset(
+        {"config", "build", "name", "slots", "explicit", "objects", "inner", "picked", "_picks", "protocol_defaults"}
+    )
 
-    def __init__(self, config: PlannerConfig, build: Callable[..., Planner], name: str,
-                 explicit: frozenset[str] = frozenset(), objects: dict[str, Any] | None = None):
+    def __init__(
+        self,
+        config: PlannerConfig,
+        build: Callable[..., Planner],
+        name: str,
+        explicit: frozenset[str] = frozenset(),
+        objects: dict[str, Any] | None = None,
+    ):
         self.config, self.build, self.name = config, build, name
         self.explicit, self.objects = frozenset(explicit), dict(objects or {})
         self.slots = {} if self.objects else default_slots(config)

@@ -38,11 +38,13 @@ class PredictorOptions(LatticePlannerConfig):
     objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
     renamed = {"checkpoint": "inpainter_file"}
 
-    inpainter_file: maybe(text()) = option(None, "the inpainter export [default: models/inpainter/inpainter.pt, "
-                                                 "else the shipped one]")
+    inpainter_file: maybe(text()) = option(
+        None, "the inpainter export [default: models/inpainter/inpainter.pt, else the shipped one]"
+    )
     threshold: fraction() = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
     min_component: whole(0, note="0 or 1 = keep every prediction") = option(
-        3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)")
+        3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)"
+    )
 
     def model_slots(self) -> dict[str, str]:
         predicts = getattr(self, "predicts", True)  # dare's observed graph loads no inpainter
@@ -53,10 +55,12 @@ class PredictorOptions(LatticePlannerConfig):
 class GlobalGraphOptions(PredictorOptions):
     """The options of a planner that builds the global graph of Sec. IV-B from its predictions."""
 
-    count_threshold: maybe(fraction(), "threshold") = option(DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the "
-                                                                                      "utility boost counts [None: threshold]")
-    global_graph: InstanceOf[GlobalGraphConfig] = option(GlobalGraphConfig(), "the global graph's settings: region size "
-                                                                              "and score (r(g)), node window (a Python object)")
+    count_threshold: maybe(fraction(), "threshold") = option(
+        DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost counts [None: threshold]"
+    )
+    global_graph: InstanceOf[GlobalGraphConfig] = option(
+        GlobalGraphConfig(), "the global graph's settings: region size and score (r(g)), node window (a Python object)"
+    )
 
 
 class PredictingPlanner(GraphPlanner):
@@ -76,7 +80,9 @@ class PredictingPlanner(GraphPlanner):
         self.predictor = None if fn is None else NodePredictor(fn, predictor_config)
         self.predictor_source = source
         # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
-        self.trained_models: list[tuple[str, dict | None]] = [] if path is None else [(str(path), inpainter_protocol(path))]
+        self.trained_models: list[tuple[str, dict | None]] = (
+            [] if path is None else [(str(path), inpainter_protocol(path))]
+        )
         self.description = f"{self.base_description} [{source}; {self.gate_source}]"
         self.last_decision: dict = {}
 

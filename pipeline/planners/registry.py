@@ -50,7 +50,9 @@ def register_planner(name: str, config: type[PlannerConfig]) -> Callable[[Build]
         if name in _REGISTRY and _REGISTRY[name] != entry:
             raise ValueError(f"planner name {name!r} is already registered")
         if config.__dict__.get("name", name) != name:
-            raise ValueError(f"{config.__name__} is registered as {config.name!r} already; give {name!r} its own config")
+            raise ValueError(
+                f"{config.__name__} is registered as {config.name!r} already; give {name!r} its own config"
+            )
         config.name = name  # the name its planner is known by (error messages say it)
         _REGISTRY[name] = entry
         return build
@@ -79,8 +81,13 @@ def accepted_options(name: str, options: dict[str, Any] | None = None) -> dict[s
     config = planner_config(name)
     accepted = {info.name: info for info in config.options()}
     accepted.update({old: accepted[new] for old, new in config.renamed.items() if new in accepted})  # for one release
-    accepted.update({obj: OptionInfo(obj, None, None, "a Python object, set from Python")
-                     for obj in config.objects if obj != "base_options"})
+    accepted.update(
+        {
+            obj: OptionInfo(obj, None, None, "a Python object, set from Python")
+            for obj in config.objects
+            if obj != "base_options"
+        }
+    )
     base = getattr(config, "base_planner", None)
     if base is not None:
         base_name = base(options or {})
@@ -102,9 +109,14 @@ def _config_and_fields(name: str, options: dict[str, Any]) -> tuple[PlannerConfi
     config = planner_config(name)
     fields, objects, unknown = config.split(options)
     if unknown:
-        settable = [n for n, info in accepted_options(name, options).items()
-                    if info.kinds is not None and n not in config.renamed]
-        raise ValueError(f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}")
+        settable = [
+            n
+            for n, info in accepted_options(name, options).items()
+            if info.kinds is not None and n not in config.renamed
+        ]
+        raise ValueError(
+            f"{name} has no option {', '.join(unknown)}; it accepts: {', '.join(settable) or 'no options'}"
+        )
     return validate(config, fields), objects, frozenset(fields)
 
 

@@ -66,9 +66,7 @@ def parse_planner_spec(text: str, reserved: Sequence[str] = ()) -> PlannerSpec:
     if "=" in head:
         label, _, name = (part.strip() for part in head.partition("="))
     elif colon:
-        raise ValueError(
-            f"planner spec {raw!r}: a planner with options needs a label, e.g. '{head.strip()}_v1={raw}'"
-        )
+        raise ValueError(f"planner spec {raw!r}: a planner with options needs a label, e.g. '{head.strip()}_v1={raw}'")
     else:
         label = name = head.strip()
     if not label or not _LABEL.match(label):

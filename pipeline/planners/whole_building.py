@@ -53,8 +53,23 @@ REACHED_CELLS = 2  # a robot this many cells (Chebyshev) from a waypoint has rea
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
 
-    own = frozenset({"plan", "active", "spec", "node_mask", "radius_cells", "decision_kind", "fallbacks", "tries",
-                     "leftover_cells", "pending", "pending_kind", "goal", "_unseen"})
+    own = frozenset(
+        {
+            "plan",
+            "active",
+            "spec",
+            "node_mask",
+            "radius_cells",
+            "decision_kind",
+            "fallbacks",
+            "tries",
+            "leftover_cells",
+            "pending",
+            "pending_kind",
+            "goal",
+            "_unseen",
+        }
+    )
 
     def __init__(self, inner: Planner):
         super().__init__(inner)
@@ -106,7 +121,9 @@ class WholeBuilding(PlannerWrapper):
             return waypoints
         frontier = self._frontier(observation.belief)
         col, row = observation.cell
-        if frontier[row, col]:  # the robot stands on it (a session's robot stands near its cell): a visit did not clear it
+        if frontier[
+            row, col
+        ]:  # the robot stands on it (a session's robot stands near its cell): a visit did not clear it
             self.tries[row, col] = MAX_TRIES
             frontier[row, col] = False
         route = path_to_nearest(passable, frontier, observation.cell)
@@ -141,7 +158,7 @@ class WholeBuilding(PlannerWrapper):
         here = observation.cell
         gaps = [max(abs(col - here[0]), abs(row - here[1])) for col, row in pending]
         nearest = int(np.argmin(gaps))
-        rest = pending[nearest + 1:] if gaps[nearest] <= REACHED_CELLS else pending[nearest:]
+        rest = pending[nearest + 1 :] if gaps[nearest] <= REACHED_CELLS else pending[nearest:]
         if not rest:
             if goal is None:
                 return []
@@ -157,8 +174,14 @@ class WholeBuilding(PlannerWrapper):
         self._keep_changes(observation)  # the inner planner sees this decision's changes at its next
         return self._towards(passable, route, rest[1:], kind, goal)
 
-    def _towards(self, passable: np.ndarray, route: list[tuple[int, int]], then: list[tuple[int, int]], kind: str,
-                 goal: tuple[int, int] | None) -> list[Waypoint]:
+    def _towards(
+        self,
+        passable: np.ndarray,
+        route: list[tuple[int, int]],
+        then: list[tuple[int, int]],
+        kind: str,
+        goal: tuple[int, int] | None,
+    ) -> list[Waypoint]:
         """Waypoints along `route` (two cells or more), then the cells `then`; remembered to go on
         with. A fallback (`goal` its target) sent straight to its target counts a try."""
         corners = waypoints_along(passable, route) + then
@@ -178,7 +201,9 @@ class WholeBuilding(PlannerWrapper):
         d = self.spec.node_resolution
         return all(abs(round(v / d) * d - v) <= LATTICE_TOLERANCE_M for v in position)
 
-    def _through_doors(self, observation: Observation, passable: np.ndarray, waypoints: list[Waypoint]) -> list[Waypoint]:
+    def _through_doors(
+        self, observation: Observation, passable: np.ndarray, waypoints: list[Waypoint]
+    ) -> list[Waypoint]:
         cells = [tuple(map(int, c)) for c in self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64))]
         if all(segment_is_known_free(passable, a, b) for a, b in zip([observation.cell, *cells[:-1]], cells)):
             return waypoints  # every segment straight: no door node to look for
@@ -205,5 +230,9 @@ class WholeBuilding(PlannerWrapper):
         unseen, self._unseen = self._unseen, []
         if unseen is not None and not unseen:
             return observation
-        changed = None if unseen is None or observation.changed is None else np.unique(np.concatenate([*unseen, observation.changed]))
+        changed = (
+            None
+            if unseen is None or observation.changed is None
+            else np.unique(np.concatenate([*unseen, observation.changed]))
+        )
         return Observation(observation.belief, observation.position, observation.cell, changed, observation.step)

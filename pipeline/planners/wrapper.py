@@ -38,10 +38,14 @@ class PlannerWrapper(Planner):
         self.inner.check_protocol(protocol)
 
     # The Planner attributes with class defaults are the inner planner's unless a wrapper sets its own.
-    name = property(lambda self: self.__dict__.get("name", self.inner.name),
-                    lambda self, value: self.__dict__.__setitem__("name", value))
-    description = property(lambda self: self.__dict__.get("description", self.inner.description),
-                           lambda self, value: self.__dict__.__setitem__("description", value))
+    name = property(
+        lambda self: self.__dict__.get("name", self.inner.name),
+        lambda self, value: self.__dict__.__setitem__("name", value),
+    )
+    description = property(
+        lambda self: self.__dict__.get("description", self.inner.description),
+        lambda self, value: self.__dict__.__setitem__("description", value),
+    )
     needs_policy = property(lambda self: self.inner.needs_policy)
     uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
     ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)
@@ -60,7 +64,6 @@ class PlannerWrapper(Planner):
             setattr(self.inner, attribute, value)
         else:
             object.__setattr__(self, attribute, value)
-
 
     @classmethod
     def owns(cls, attribute: str) -> bool:

@@ -44,7 +44,9 @@ def block_shares(belief: np.ndarray, blocks: np.ndarray, grid: tuple[int, int]) 
 def true_blocks(free: np.ndarray, blocks: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
     """(rows, cols) bool: blocks whose cells are mostly free in the ground truth."""
     count = grid[0] * grid[1]
-    share = np.bincount(blocks.ravel(), weights=free.ravel(), minlength=count) / np.bincount(blocks.ravel(), minlength=count)
+    share = np.bincount(blocks.ravel(), weights=free.ravel(), minlength=count) / np.bincount(
+        blocks.ravel(), minlength=count
+    )
     return (share > 0.5).reshape(grid)
 
 

@@ -37,7 +37,11 @@ class RegionEvaluationConfig:
 
 
 def region_scores(
-    labels: np.ndarray, centroids: np.ndarray, frontier_xy: np.ndarray, robot_xy: np.ndarray, config: RegionEvaluationConfig
+    labels: np.ndarray,
+    centroids: np.ndarray,
+    frontier_xy: np.ndarray,
+    robot_xy: np.ndarray,
+    config: RegionEvaluationConfig,
 ) -> np.ndarray:
     """r(g) for boundary and unobserved regions (NaN for explored ones)."""
     scored = (labels == REGION_BOUNDARY) | (labels == REGION_UNOBSERVED)
@@ -158,8 +162,14 @@ class GlobalGraph:
     def node_count(self) -> int:
         return len(self.positions)
 
-    def update(self, belief: np.ndarray, robot_xy, predicted: np.ndarray | None, visited_lattice: np.ndarray | None = None,
-               counted: np.ndarray | None = None) -> None:
+    def update(
+        self,
+        belief: np.ndarray,
+        robot_xy,
+        predicted: np.ndarray | None,
+        visited_lattice: np.ndarray | None = None,
+        counted: np.ndarray | None = None,
+    ) -> None:
         """Rebuild the step's global graph; the lattice part must already be up to date.
 
         `counted` (default: `predicted`) are the predicted nodes the utility boost counts.
@@ -180,7 +190,9 @@ class GlobalGraph:
         self.types = np.concatenate(
             [np.full(len(known), KNOWN), np.full(len(kept), PREDICTED), np.full(len(centroid_xy), CENTROID)]
         ).astype(np.int8)
-        self.positions = np.concatenate([lattice.node_world[known], lattice.node_world[kept], centroid_xy]).astype(np.float64)
+        self.positions = np.concatenate([lattice.node_world[known], lattice.node_world[kept], centroid_xy]).astype(
+            np.float64
+        )
         self.visited = np.zeros(self.node_count, dtype=bool)
         if visited_lattice is not None and len(known):
             self.visited[: len(known)] = visited_lattice[known]
@@ -314,7 +326,9 @@ class GlobalGraph:
         feats = np.zeros((n_max, len(FEATURE_NAMES)), dtype=np.float32)
         mask = np.zeros(n_max, dtype=bool)
         k = len(order)
-        rel = (self.positions[order] - robot_xy) / (self.config.position_scale_nodes * self.lattice.spec.node_resolution)
+        rel = (self.positions[order] - robot_xy) / (
+            self.config.position_scale_nodes * self.lattice.spec.node_resolution
+        )
         feats[:k, 0:2] = rel
         feats[:k, 2] = np.minimum(self.utility[order] / self.config.utility_scale, 1.0)
         feats[:k, 3] = guidepost[order]

@@ -65,7 +65,9 @@ def expert_action_deltas(position, future_waypoints: np.ndarray, node_resolution
             points[k] = points[k - 1]
     steps = np.rint(np.diff(points, axis=0) / node_resolution).astype(np.int64)
     if np.abs(steps).max(initial=0) > limit:
-        raise ValueError(f"an expert step {steps[np.abs(steps).max(axis=1) > limit][0].tolist()} leaves the {2 * limit + 1}x{2 * limit + 1} window")
+        raise ValueError(
+            f"an expert step {steps[np.abs(steps).max(axis=1) > limit][0].tolist()} leaves the {2 * limit + 1}x{2 * limit + 1} window"
+        )
     return steps
 
 

@@ -86,7 +86,9 @@ this rule marks is a wall in the ground truth.
 """
 
 
-def observed_node_states(belief: np.ndarray, graph: LatticeGraph, wall_radius_nodes: float = WALL_RADIUS_NODES) -> np.ndarray:
+def observed_node_states(
+    belief: np.ndarray, graph: LatticeGraph, wall_radius_nodes: float = WALL_RADIUS_NODES
+) -> np.ndarray:
     """Node states for the observed node image: the belief at each node, plus inferred walls."""
     states = node_states_in(belief, graph.node_flat)
     radius = int(round(wall_radius_nodes * graph.spec.node_step_cells))

@@ -37,7 +37,9 @@ class NodePredictorConfig:
     threshold: float = DEFAULT_THRESHOLD  # tau: probability at or above which an unknown node is predicted free
     min_component: int = 3  # predicted nodes in smaller 8-connected components are dropped
     stride: int = 8  # the network's total downsampling: images are padded to a multiple of it
-    count_threshold: float | None = DEFAULT_COUNT_THRESHOLD  # tau of the nodes the utility boost counts (None: threshold)
+    count_threshold: float | None = (
+        DEFAULT_COUNT_THRESHOLD  # tau of the nodes the utility boost counts (None: threshold)
+    )
 
 
 def pad_to_multiple(image: np.ndarray, multiple: int, fill: int) -> tuple[np.ndarray, tuple[int, int]]:

@@ -25,8 +25,10 @@ from pipeline.prediction.global_graph import FEATURE_NAMES, GlobalGraphConfig
 WINDOW = 2 * WINDOW_RADIUS + 1
 SLOTS = WINDOW * WINDOW  # neighbour-action slots: the lattice offsets of the 5 x 5 window, row-major
 STAY_SLOT = SLOTS // 2  # the centre: no move
-SLOT_OFFSETS = np.array([(dx, dy) for dy in range(-WINDOW_RADIUS, WINDOW_RADIUS + 1)
-                         for dx in range(-WINDOW_RADIUS, WINDOW_RADIUS + 1)], dtype=np.int64)  # (dx, dy) per slot
+SLOT_OFFSETS = np.array(
+    [(dx, dy) for dy in range(-WINDOW_RADIUS, WINDOW_RADIUS + 1) for dx in range(-WINDOW_RADIUS, WINDOW_RADIUS + 1)],
+    dtype=np.int64,
+)  # (dx, dy) per slot
 
 
 def slot_of_offset(dx: int, dy: int) -> int:
@@ -80,8 +82,14 @@ class ObservedStep:
     predecessors: np.ndarray  # their shortest-path predecessors (LatticeGraph.shortest_paths)
 
 
-def observe_lattice(graph: LatticeGraph, table: WindowTable, robot_xy, visited: np.ndarray,
-                    config: GlobalGraphConfig, max_neighbors: int) -> ObservedStep:
+def observe_lattice(
+    graph: LatticeGraph,
+    table: WindowTable,
+    robot_xy,
+    visited: np.ndarray,
+    config: GlobalGraphConfig,
+    max_neighbors: int,
+) -> ObservedStep:
     """`observe(GlobalGraph(graph, config) updated with no predictions, robot_xy, max_neighbors)`
     computed from the lattice graph; `visited` marks the lattice nodes the robot has stood on."""
     robot_xy = np.asarray(robot_xy, dtype=np.float64)
@@ -123,15 +131,17 @@ def observe_lattice(graph: LatticeGraph, table: WindowTable, robot_xy, visited: 
     return ObservedStep(features, node_mask, neighbors, robot_row, row_nodes, robot, distance, predecessors)
 
 
-def _neighbour_rows(graph: LatticeGraph, table: WindowTable, row_nodes: np.ndarray, n_max: int,
-                    max_neighbors: int) -> np.ndarray:
+def _neighbour_rows(
+    graph: LatticeGraph, table: WindowTable, row_nodes: np.ndarray, n_max: int, max_neighbors: int
+) -> np.ndarray:
     """Per row, the rows of its known-graph neighbours in ascending node id; a row with more than
     `max_neighbors` keeps the nearest (by edge length, ties by id), as `observe` does."""
     row_of = np.full(graph.node_count, -1, dtype=np.int64)
     row_of[row_nodes] = np.arange(len(row_nodes))
     neighbors = np.full((n_max, max_neighbors), -1, dtype=np.int16)
-    counts = _fill_neighbour_rows(neighbors, row_nodes, row_of, table.edge_by_id, table.neighbour_by_id,
-                                  graph.edge_valid)
+    counts = _fill_neighbour_rows(
+        neighbors, row_nodes, row_of, table.edge_by_id, table.neighbour_by_id, graph.edge_valid
+    )
     for r in np.flatnonzero(counts > max_neighbors):  # only when max_neighbors is below the window's 24
         edges, nodes = table.edge_by_id[row_nodes[r]], table.neighbour_by_id[row_nodes[r]]
         kept = np.flatnonzero((edges >= 0) & graph.edge_valid[edges] & (row_of[nodes] >= 0))

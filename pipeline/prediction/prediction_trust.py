@@ -48,11 +48,15 @@ class PredictionTrustConfig:
 
     def __post_init__(self) -> None:
         if not self.prior_nodes > 0 or not 0 < self.prior_precision < 1 or not 0 < self.prior_base < 1:
-            raise ValueError(f"PredictionTrustConfig: need prior_nodes > 0 and priors strictly between 0 and 1, got "
-                             f"{self.prior_nodes}, {self.prior_precision}, {self.prior_base}")
+            raise ValueError(
+                f"PredictionTrustConfig: need prior_nodes > 0 and priors strictly between 0 and 1, got "
+                f"{self.prior_nodes}, {self.prior_precision}, {self.prior_base}"
+            )
         if not -1 <= self.none_at < self.full_at <= 1:
-            raise ValueError(f"PredictionTrustConfig: need -1 <= none_at < full_at <= 1, got none_at={self.none_at}, "
-                             f"full_at={self.full_at}")
+            raise ValueError(
+                f"PredictionTrustConfig: need -1 <= none_at < full_at <= 1, got none_at={self.none_at}, "
+                f"full_at={self.full_at}"
+            )
 
 
 @dataclass(frozen=True)
@@ -69,9 +73,16 @@ class TrustState:
     trust: float
 
     def as_dict(self) -> dict[str, float | int]:
-        return {"right": self.right, "wrong": self.wrong, "seen_free": self.seen_free,
-                "seen_occupied": self.seen_occupied, "precision": round(self.precision, 4),
-                "base": round(self.base, 4), "lift": round(self.lift, 4), "trust": round(self.trust, 4)}
+        return {
+            "right": self.right,
+            "wrong": self.wrong,
+            "seen_free": self.seen_free,
+            "seen_occupied": self.seen_occupied,
+            "precision": round(self.precision, 4),
+            "base": round(self.base, 4),
+            "lift": round(self.lift, 4),
+            "trust": round(self.trust, 4),
+        }
 
 
 class PredictionRecord:
@@ -135,8 +146,9 @@ class PredictionRecord:
         return float(np.clip((self.lift - c.none_at) / (c.full_at - c.none_at), 0.0, 1.0))
 
     def state(self) -> TrustState:
-        return TrustState(self.right, self.wrong, self.seen_free, self.seen_occupied, self.precision, self.base,
-                          self.lift, self.trust)
+        return TrustState(
+            self.right, self.wrong, self.seen_free, self.seen_occupied, self.precision, self.base, self.lift, self.trust
+        )
 
     def restore(self, state: TrustState) -> None:
         """Take the counts of an earlier record (a session's planner rebuilt on a new frame)."""
@@ -168,11 +180,14 @@ class TrustedPredictor:
         self.record.check(node_states_in(graph.belief, graph.node_flat))
         states = observed_node_states(graph.belief, graph)
         probability = self.inner.probabilities(graph, states)
-        self.record.remember(states == NODE_UNKNOWN, self.inner.above(graph, states, probability, self.config.threshold))
+        self.record.remember(
+            states == NODE_UNKNOWN, self.inner.above(graph, states, probability, self.config.threshold)
+        )
         return states, probability, self.record.trust
 
-    def _at_trust(self, graph: LatticeGraph, states: np.ndarray, probability: np.ndarray, tau: float,
-                  trust: float) -> np.ndarray:
+    def _at_trust(
+        self, graph: LatticeGraph, states: np.ndarray, probability: np.ndarray, tau: float, trust: float
+    ) -> np.ndarray:
         if trust <= 0.0:
             return np.zeros(0, dtype=np.int64)
         return self.inner.above(graph, states, probability, trusted_threshold(tau, trust))

@@ -22,7 +22,13 @@ def distance_bar_chart(summary, path: Path) -> None:
     names = list(summary.index)
     ax.barh(names, summary["distance_mean_m"], xerr=summary["distance_std_m"], color="#4c72b0", capsize=3)
     for y, (_, row) in enumerate(summary.iterrows()):
-        ax.text(row.distance_mean_m + row.distance_std_m + 5, y, f"{row.distance_mean_m:.0f} m, {row.completion_rate * 100:.0f} % done", va="center", fontsize=8)
+        ax.text(
+            row.distance_mean_m + row.distance_std_m + 5,
+            y,
+            f"{row.distance_mean_m:.0f} m, {row.completion_rate * 100:.0f} % done",
+            va="center",
+            fontsize=8,
+        )
     ax.invert_yaxis()
     ax.set_xlabel("distance to complete exploration (m), mean +- std over test mazes")
     ax.set_xlim(0, float((summary["distance_mean_m"] + summary["distance_std_m"]).max()) * 1.35)

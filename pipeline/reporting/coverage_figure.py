@@ -14,8 +14,9 @@ from pipeline.evaluation.exploration_curves import SpeedModel, StepRecord, mean_
 GRID_POINTS = 400  # samples along each axis
 
 
-def coverage_figure(records: Mapping[tuple[str, str], StepRecord], path: str | Path, speed: SpeedModel = SpeedModel(),
-                    title: str = "") -> Path:
+def coverage_figure(
+    records: Mapping[tuple[str, str], StepRecord], path: str | Path, speed: SpeedModel = SpeedModel(), title: str = ""
+) -> Path:
     """Two panels (explored share against distance, and against time at `speed`), one line per
     planner, legend ordered by the share at the middle of the distance axis; a PNG at `path`."""
     import matplotlib
@@ -32,8 +33,10 @@ def coverage_figure(records: Mapping[tuple[str, str], StepRecord], path: str | P
     max_time = max(float(speed.times(r)[-1]) for r in records.values())
     distance_grid = np.linspace(0.0, max(max_distance, 1e-9), GRID_POINTS)
     time_grid = np.linspace(0.0, max(max_time, 1e-9), GRID_POINTS)
-    curves = {planner: (mean_curve(group, distance_grid), mean_curve(group, time_grid, speed))
-              for planner, group in by_planner.items()}
+    curves = {
+        planner: (mean_curve(group, distance_grid), mean_curve(group, time_grid, speed))
+        for planner, group in by_planner.items()
+    }
     middle = GRID_POINTS // 2
     order = sorted(curves, key=lambda planner: -curves[planner][0][0][middle])
     colors = plt.get_cmap("tab10")
@@ -44,11 +47,21 @@ def coverage_figure(records: Mapping[tuple[str, str], StepRecord], path: str | P
     for k, planner in enumerate(order):
         color, style = colors(k % colors.N), styles[(k // colors.N) % len(styles)]
         maps = len(by_planner[planner])
-        for ax, grid, (mean, std) in ((axes[0], distance_grid, curves[planner][0]), (axes[1], time_grid, curves[planner][1])):
-            ax.plot(grid, 100 * mean, color=color, ls=style, lw=1.4,
-                    label=f"{planner} ({maps})" if ax is axes[0] else None)
-            ax.fill_between(grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color,
-                            alpha=band_alpha, lw=0)
+        for ax, grid, (mean, std) in (
+            (axes[0], distance_grid, curves[planner][0]),
+            (axes[1], time_grid, curves[planner][1]),
+        ):
+            ax.plot(
+                grid, 100 * mean, color=color, ls=style, lw=1.4, label=f"{planner} ({maps})" if ax is axes[0] else None
+            )
+            ax.fill_between(
+                grid,
+                100 * np.clip(mean - std, 0, 1),
+                100 * np.clip(mean + std, 0, 1),
+                color=color,
+                alpha=band_alpha,
+                lw=0,
+            )
     axes[0].set_xlabel("distance travelled (m)")
     axes[1].set_xlabel(f"time (s) at {speed.speed_mps:g} m/s, waiting while deciding")
     axes[0].set_ylabel("explored share of the free area (%)")

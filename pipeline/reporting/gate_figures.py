@@ -19,8 +19,11 @@ def gate_roc_curves(curves: dict[str, tuple[np.ndarray, np.ndarray, float]], pat
     for name, (fpr, tpr, auc) in curves.items():
         ax.plot(fpr, tpr, label=f"{name} (AUC {auc:.3f})", lw=2 if name.startswith("gate") else 1)
     ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, ls="--")
-    ax.set(xlabel="slivers passed (false positive rate)", ylabel="big targets passed (true positive rate)",
-           title="Sliver gate on held-out training maps")
+    ax.set(
+        xlabel="slivers passed (false positive rate)",
+        ylabel="big targets passed (true positive rate)",
+        title="Sliver gate on held-out training maps",
+    )
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

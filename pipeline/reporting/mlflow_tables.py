@@ -42,7 +42,8 @@ def metrics_json(tables: Mapping[str, pd.DataFrame | None]) -> dict[str, dict[st
             values = {
                 column: number
                 for column, value in record.items()
-                if column not in _ID_COLUMNS and not column.startswith("paper_")
+                if column not in _ID_COLUMNS
+                and not column.startswith("paper_")
                 and not isinstance(value, (str, bool, np.bool_))
                 and (number := finite_number(value)) is not None
             }
@@ -84,7 +85,9 @@ def log_tables_to_mlflow(
             with mlflow.start_run(run_name=name) as run:
                 if maps is not None:
                     log_maze_set(maps, "evaluation")
-                run_params = {column: record[column] for column in _ID_COLUMNS if column in record and column != "label"}
+                run_params = {
+                    column: record[column] for column in _ID_COLUMNS if column in record and column != "label"
+                }
                 mlflow.log_params({**(dict(params) if params else {}), **run_params})
                 metrics = {}
                 tags = {"table": key}

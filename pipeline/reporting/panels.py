@@ -40,16 +40,27 @@ def render_final(
     `scale=None` picks one that makes the figure about 800 px wide; `y_up` as in `render_frame`.
     """
     scale = auto_scale(ground_truth.shape) if scale is None else scale
-    title = episode_title(result.map_name, result.planner, result.distance_m, result.steps,
-                          result.explored_ratio, result.complete)
+    title = episode_title(
+        result.map_name, result.planner, result.distance_m, result.steps, result.explored_ratio, result.complete
+    )
     min_unknown = graph.spec.frontier_min_unknown_neighbours if graph is not None else 2
     doors, fallbacks = whole_building_marks(result, graph.spec.node_resolution if graph is not None else None)
-    image = render_frame(ground_truth, belief, result.trajectory, graph, scale, title,
-                         frontier=frontier_mask(np.asarray(belief), min_unknown), legend=legend, y_up=y_up,
-                         doors=doors, fallbacks=fallbacks)
+    image = render_frame(
+        ground_truth,
+        belief,
+        result.trajectory,
+        graph,
+        scale,
+        title,
+        frontier=frontier_mask(np.asarray(belief), min_unknown),
+        legend=legend,
+        y_up=y_up,
+        doors=doors,
+        fallbacks=fallbacks,
+    )
     trust = [t for t in result.waypoint_trust if t is not None]
     if trust:  # a predicting planner's trust in its predictions, along the episode
-        image = np.vstack([image, trust_strip(result.distances[-len(trust):], trust, image.shape[1])])
+        image = np.vstack([image, trust_strip(result.distances[-len(trust) :], trust, image.shape[1])])
     if path is not None:
         save_png(image, path)
     return image
@@ -63,8 +74,11 @@ def whole_building_marks(result: EpisodeResult, node_resolution: float | None) -
     if node_resolution is None:
         return [], fallbacks
     d = node_resolution
-    off = [p for k, p in enumerate(result.trajectory)
-           if not (marked and marked[k]) and any(abs(round(v / d) * d - v) > 1e-3 for v in p)]
+    off = [
+        p
+        for k, p in enumerate(result.trajectory)
+        if not (marked and marked[k]) and any(abs(round(v / d) * d - v) > 1e-3 for v in p)
+    ]
     return off, fallbacks
 
 
@@ -89,8 +103,7 @@ def trust_strip(distances: Sequence[float], trust: Sequence[float], width: int) 
         cv2.line(strip, (left, y), (right, y), (210, 210, 210), 1)
     points = np.stack([xs, ys], axis=1).round().astype(np.int32).reshape(-1, 1, 2)
     cv2.polylines(strip, [points], False, TRUST_LINE_RGB, 2, cv2.LINE_AA)
-    text = (f"prediction trust (0-1) against distance: {t[-1]:.2f} at the end, {t.min():.2f} lowest, "
-            f"{t.mean():.2f} mean")
+    text = f"prediction trust (0-1) against distance: {t[-1]:.2f} at the end, {t.min():.2f} lowest, {t.mean():.2f} mean"
     cv2.putText(strip, text, (left, 16), FONT, 0.45, (60, 60, 60), 1, cv2.LINE_AA)
     return strip
 
@@ -100,11 +113,7 @@ def _ground_truth_belief(ground_truth: GroundTruthMap) -> np.ndarray:
 
 
 def render_comparison(
-    ground_truth: GroundTruthMap,
-    results: Sequence[tuple],
-    scale: int | None = None,
-    title: str = "",
-    gap: int = 6,
+    ground_truth: GroundTruthMap, results: Sequence[tuple], scale: int | None = None, title: str = "", gap: int = 6
 ) -> np.ndarray:
     """Several planners' paths on the same map, one panel each, in a row.
 

@@ -33,10 +33,18 @@ PAPER_TABLE4: dict[str, dict[int, tuple[float, float]]] = {
 }
 # Table V: two Gazebo scenes (3-D, 5 runs each): scene -> method -> (distance m, time s, m^3/m, m^3/s).
 PAPER_TABLE5: dict[str, dict[str, tuple[float, float, float, float]]] = {
-    "Scene 1 (64 x 85 m)": {"TARE": (1064.72, 585.53, 5.11, 9.29), "DRL": (741.15, 536.77, 7.34, 10.13),
-                            "DARE": (681.41, 482.82, 7.98, 11.27), "GUIDE": (537.18, 432.11, 10.13, 12.59)},
-    "Scene 2 (92 x 74 m)": {"TARE": (1033.72, 615.37, 6.58, 11.06), "DRL": (759.88, 635.36, 8.96, 10.72),
-                            "DARE": (797.38, 623.27, 8.54, 10.93), "GUIDE": (531.37, 513.09, 12.81, 13.27)},
+    "Scene 1 (64 x 85 m)": {
+        "TARE": (1064.72, 585.53, 5.11, 9.29),
+        "DRL": (741.15, 536.77, 7.34, 10.13),
+        "DARE": (681.41, 482.82, 7.98, 11.27),
+        "GUIDE": (537.18, 432.11, 10.13, 12.59),
+    },
+    "Scene 2 (92 x 74 m)": {
+        "TARE": (1033.72, 615.37, 6.58, 11.06),
+        "DRL": (759.88, 635.36, 8.96, 10.72),
+        "DARE": (797.38, 623.27, 8.54, 10.93),
+        "GUIDE": (531.37, 513.09, 12.81, 13.27),
+    },
 }
 # Our registered planner names -> the paper's row names (planners without a row show DASH).
 PAPER_ROWS: dict[str, str] = {
@@ -70,4 +78,3 @@ def paper_table2_or_3(planner: str, prefer: str = "Table III") -> tuple[float, f
             distance, gap = table[row]
             return distance, (np.nan if gap is None else gap), source
     return np.nan, np.nan, ""
-

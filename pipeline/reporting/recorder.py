@@ -80,12 +80,23 @@ class EpisodeRecorder:
         trajectory = list(episode.trajectory)
         min_unknown = graph.spec.frontier_min_unknown_neighbours if graph is not None else 2
         title = episode_title(
-            episode.map.name, self.label, episode.distance, episode.steps, episode.explored_ratio,
+            episode.map.name,
+            self.label,
+            episode.distance,
+            episode.steps,
+            episode.explored_ratio,
             True if episode.complete else None,
         )
         return render_frame(
-            episode.map, belief, trajectory, graph, self.scale, title,
-            frontier=frontier_mask(belief, min_unknown), legend=self.legend, y_up=self.y_up,
+            episode.map,
+            belief,
+            trajectory,
+            graph,
+            self.scale,
+            title,
+            frontier=frontier_mask(belief, min_unknown),
+            legend=self.legend,
+            y_up=self.y_up,
         )
 
     @property

@@ -91,7 +91,9 @@ def _fit_text(text: str, width: int, font_scale: float, min_scale: float = 0.32)
 MARK_ITEMS = {"door": ("diamond", "door node", DOOR_RGB), "fallback": ("ring", "fallback", FALLBACK_RGB)}
 
 
-def _legend_items(graph_shown: bool, belief_shown: bool = True, marks: Sequence[str] = ()) -> list[tuple[str, str, Colour]]:
+def _legend_items(
+    graph_shown: bool, belief_shown: bool = True, marks: Sequence[str] = ()
+) -> list[tuple[str, str, Colour]]:
     items = [("box", "free", FREE_RGB), ("box", "wall", OCCUPIED_RGB)]
     if belief_shown:
         items += [
@@ -165,12 +167,23 @@ def _draw_marks(img: np.ndarray, doors: np.ndarray, fallbacks: np.ndarray, scale
     for c in _cell_centres_fixed(doors, scale) if len(doors) else ():
         _draw_diamond(img, (int(c[0]), int(c[1])), size, DOOR_RGB)
     for c in _cell_centres_fixed(fallbacks, scale) if len(fallbacks) else ():
-        cv2.circle(img, (int(c[0]), int(c[1])), int(round(size * _ONE)), FALLBACK_RGB, max(1, scale // 2 + 1),
-                   cv2.LINE_AA, _SHIFT)
+        cv2.circle(
+            img,
+            (int(c[0]), int(c[1])),
+            int(round(size * _ONE)),
+            FALLBACK_RGB,
+            max(1, scale // 2 + 1),
+            cv2.LINE_AA,
+            _SHIFT,
+        )
 
 
 def render_header(
-    width: int, title: str = "", legend: bool = True, graph_shown: bool = True, belief_shown: bool = True,
+    width: int,
+    title: str = "",
+    legend: bool = True,
+    graph_shown: bool = True,
+    belief_shown: bool = True,
     marks: Sequence[str] = (),
 ) -> np.ndarray | None:
     """The title bar: one line of `title` and, below it, the colour key. None when both are off.
@@ -241,7 +254,15 @@ def _draw_path(img: np.ndarray, cells: np.ndarray, scale: int, thickness: int) -
     cv2.polylines(img, [pts[:, None, :]], False, (255, 255, 255), thickness + 2, cv2.LINE_AA, _SHIFT)
     for i in range(len(pts) - 1):
         colour = tuple(int(c) for c in colours[i])
-        cv2.line(img, tuple(int(v) for v in pts[i]), tuple(int(v) for v in pts[i + 1]), colour, thickness, cv2.LINE_AA, _SHIFT)
+        cv2.line(
+            img,
+            tuple(int(v) for v in pts[i]),
+            tuple(int(v) for v in pts[i + 1]),
+            colour,
+            thickness,
+            cv2.LINE_AA,
+            _SHIFT,
+        )
 
 
 def _draw_markers(img: np.ndarray, start_cell: np.ndarray, robot_cell: np.ndarray | None, scale: int) -> None:
@@ -310,9 +331,12 @@ def render_frame(
     _draw_path(img, path_cells, scale, thickness)
     marks = [name for name, points in (("door", doors), ("fallback", fallbacks)) if len(points)]
     if marks:
-        _draw_marks(img, world_to_cells(list(doors), ground_truth) if len(doors) else np.zeros((0, 2), np.int64),
-                    world_to_cells(list(fallbacks), ground_truth) if len(fallbacks) else np.zeros((0, 2), np.int64),
-                    scale)
+        _draw_marks(
+            img,
+            world_to_cells(list(doors), ground_truth) if len(doors) else np.zeros((0, 2), np.int64),
+            world_to_cells(list(fallbacks), ground_truth) if len(fallbacks) else np.zeros((0, 2), np.int64),
+            scale,
+        )
     if robot is not None:
         robot_cell = world_to_cells([robot], ground_truth)[0]
     else:
@@ -353,9 +377,7 @@ def save_png(image: np.ndarray, path: str | Path) -> Path:
     return path
 
 
-def save_gif(
-    frames: Sequence[np.ndarray], path: str | Path, fps: float = 8, hold_last_s: float = 2.0
-) -> Path:
+def save_gif(frames: Sequence[np.ndarray], path: str | Path, fps: float = 8, hold_last_s: float = 2.0) -> Path:
     """An animated GIF of RGB frames (one shared palette, loops forever, last frame held)."""
     from PIL import Image
 
@@ -388,5 +410,3 @@ def save_gif(
 
 
 # ----------------------------------------------------------------------------- reports
-
-

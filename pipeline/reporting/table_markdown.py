@@ -14,7 +14,9 @@ from pipeline.reporting.paper_numbers import DASH, PAPER_TABLE5, paper_row
 from pipeline.reporting.tables import NOT_RUN, PAIRED_BASELINE, REFERENCE_PLANNER, finite_number, table2
 from pipeline.world.protocol import Protocol
 
-COMPARE_LABEL = "Another inpainter on the same explorations (eval_predictor.compare_checkpoint; by default the shipped one)"
+COMPARE_LABEL = (
+    "Another inpainter on the same explorations (eval_predictor.compare_checkpoint; by default the shipped one)"
+)
 TABLE1_TITLE = "Table I: structural inference precision"
 
 
@@ -27,7 +29,7 @@ def _num(value: Any, fmt: str = "{:.1f}", missing: str = DASH) -> str:
 
 
 def _mean_std(mean: Any, std: Any, episodes: Any) -> str:
-    """"mean +- std", or the mean alone for a single episode (its std of 0 says nothing)."""
+    """ "mean +- std", or the mean alone for a single episode (its std of 0 says nothing)."""
     one = finite_number(episodes) is not None and float(episodes) < 2
     return _num(mean) if one else f"{_num(mean)} +- {_num(std)}"
 
@@ -41,8 +43,14 @@ def _paper_gap(value: Any) -> str:
 
 
 # --------------------------------------------------------------------------- Table I
-def table1_markdown(precision: pd.DataFrame | None, compare: pd.DataFrame | None = None, *,
-                    title: str = TABLE1_TITLE, threshold: float | None = None, level: int = 2) -> str:
+def table1_markdown(
+    precision: pd.DataFrame | None,
+    compare: pd.DataFrame | None = None,
+    *,
+    title: str = TABLE1_TITLE,
+    threshold: float | None = None,
+    level: int = 2,
+) -> str:
     """Table I: our precision of V_u per step beside the paper's (precision.csv's rows), under a
     heading of `level`; `threshold` (tau), when given, is named in the text. With `compare`
     (precision_compare.csv, when not empty) the other inpainter's rows follow one level down.
@@ -105,13 +113,18 @@ def comparison_markdown(frame: pd.DataFrame, label: str, level: int = 2) -> str:
     ]
     for row in frame.itertuples(index=False):
         paper = PAPER_PRECISION.get(row.step)
-        ok = "-" if paper is None or not np.isfinite(row.precision) else ("yes" if 100.0 * row.precision >= paper else "no")
+        ok = (
+            "-"
+            if paper is None or not np.isfinite(row.precision)
+            else ("yes" if 100.0 * row.precision >= paper else "no")
+        )
         per_map = row.predicted_nodes / row.maps if row.maps else float("nan")
         lines.append(
             f"| {row.step} | {'n/a' if not np.isfinite(row.precision) else f'{100.0 * row.precision:.2f} %'} "
             f"| {'-' if paper is None else f'{paper:.2f} %'} | {ok} | {per_map:.1f} | {row.prediction_ms_median:.2f} |"
         )
     return "\n".join(lines) + "\n"
+
 
 def sweep_markdown(sweep: pd.DataFrame) -> str:
     """Precision and |V_u| per map at each tau and step, as a markdown table."""
@@ -130,7 +143,9 @@ def sweep_markdown(sweep: pd.DataFrame) -> str:
         cells = []
         for s in steps:
             row = by_step.loc[s]
-            cells.append("n/a" if not np.isfinite(row.precision) else f"{100 * row.precision:.1f} % ({row.nodes_per_map:.1f})")
+            cells.append(
+                "n/a" if not np.isfinite(row.precision) else f"{100 * row.precision:.1f} % ({row.nodes_per_map:.1f})"
+            )
         lines.append(f"| {tau:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -156,7 +171,9 @@ def table2_markdown(table: pd.DataFrame, title: str = "Table II: exploration dis
     for row in table.itertuples(index=False):
         paired = DASH
         if row.planner != PAIRED_BASELINE and finite_number(row.vs_baseline) is not None:
-            paired = _pct(row.vs_baseline) + (f" +- {_num(row.vs_baseline_ci95 * 100)}" if finite_number(row.vs_baseline_ci95) is not None else "")
+            paired = _pct(row.vs_baseline) + (
+                f" +- {_num(row.vs_baseline_ci95 * 100)}" if finite_number(row.vs_baseline_ci95) is not None else ""
+            )
         lines.append(
             f"| {row.planner} | {row.paper_row} | {int(row.episodes)} "
             f"| {_mean_std(row.distance_mean_m, row.distance_std_m, row.episodes)} | {_pct(row.gap_to_optimal)} | {paired} "
@@ -233,8 +250,9 @@ def _reached(distance: float, reached: int, maps: int) -> str:
     return _num(distance) + ("" if int(reached) == int(maps) else f" ({int(reached)}/{int(maps)} maps)")
 
 
-def table5_markdown(table: pd.DataFrame | None, speed_mps: float | None = None,
-                    title: str = "Table V: exploration efficiency") -> str:
+def table5_markdown(
+    table: pd.DataFrame | None, speed_mps: float | None = None, title: str = "Table V: exploration efficiency"
+) -> str:
     """Ours (2-D mazes, m^2) beside the paper's (3-D Gazebo scenes, m^3): compare orderings, not values."""
     lines = [f"## {title}", ""]
     if table is None or table.empty:
@@ -257,9 +275,13 @@ def table5_markdown(table: pd.DataFrame | None, speed_mps: float | None = None,
             f"{_reached(row.distance_to_99_m, row.reached_99, row.maps)} | {_num(row.coverage_auc, '{:.3f}')} | "
             f"{paper_row(str(row.planner))} |"
         )
-    lines += ["", "The paper's, in two 3-D Gazebo scenes (volume, m^3; 5 runs each): not comparable in value, "
-              "only in ordering.", "",
-              "| scene | method | distance (m) | time (s) | m^3 / m | m^3 / s |", "|---|---|---:|---:|---:|---:|"]
+    lines += [
+        "",
+        "The paper's, in two 3-D Gazebo scenes (volume, m^3; 5 runs each): not comparable in value, only in ordering.",
+        "",
+        "| scene | method | distance (m) | time (s) | m^3 / m | m^3 / s |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
     for scene, methods in PAPER_TABLE5.items():
         for method, (distance, seconds, per_m, per_s) in methods.items():
             lines.append(f"| {scene} | {method} | {distance:.1f} | {seconds:.1f} | {per_m:.2f} | {per_s:.2f} |")
@@ -279,21 +301,28 @@ def team_table_markdown(summary: Mapping[str, Mapping[str, Any]] | None, coverag
     title = "## Teams: makespan by team size"
     if not summary:
         return f"{title}\n\n{NOT_RUN}: no team sizes or team planners were configured (benchmark.robots).\n"
-    lines = [title, "",
-             "| team planner | robots | maps | makespan (m) | total distance (m) | to 90 % (m) | vs one robot | complete |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    lines = [
+        title,
+        "",
+        "| team planner | robots | maps | makespan (m) | total distance (m) | to 90 % (m) | vs one robot | complete |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for row in summary.values():
-        lines.append(f"| {row['label']} | {row['robots']} | {row['episodes']} "
-                     f"| {_mean_std(row['makespan_mean_m'], row['makespan_std_m'], row['episodes'])} "
-                     f"| {_num(row['total_distance_mean_m'])} | {_num(row['time_to_90_mean_m'])} "
-                     f"| {_num(row['makespan_over_single_distance'], '{:.2f}')} | {_pct(row['completion_rate'], False)} |")
-    lines += ["",
-              "Distances and times in metres of travel (every robot at the same speed). Makespan: the team's time "
-              "when the union of its beliefs is explored, which is MARVEL's trajectory length of the longest robot "
-              "and IR2's maximum distance among the robots (a robot waiting still counts the time); to 90 %: "
-              "MARVEL's distance to 90 % explored, in team time; vs one robot: makespan over the same planner's "
-              "one-robot distance on each map (1/N is the ideal split). A planner's name is its coordinated team "
-              "version; `uncoordinated_<name>` runs one planner per robot, blind to the others (docs/teams.md)."]
+        lines.append(
+            f"| {row['label']} | {row['robots']} | {row['episodes']} "
+            f"| {_mean_std(row['makespan_mean_m'], row['makespan_std_m'], row['episodes'])} "
+            f"| {_num(row['total_distance_mean_m'])} | {_num(row['time_to_90_mean_m'])} "
+            f"| {_num(row['makespan_over_single_distance'], '{:.2f}')} | {_pct(row['completion_rate'], False)} |"
+        )
+    lines += [
+        "",
+        "Distances and times in metres of travel (every robot at the same speed). Makespan: the team's time "
+        "when the union of its beliefs is explored, which is MARVEL's trajectory length of the longest robot "
+        "and IR2's maximum distance among the robots (a robot waiting still counts the time); to 90 %: "
+        "MARVEL's distance to 90 % explored, in team time; vs one robot: makespan over the same planner's "
+        "one-robot distance on each map (1/N is the ideal split). A planner's name is its coordinated team "
+        "version; `uncoordinated_<name>` runs one planner per robot, blind to the others (docs/teams.md).",
+    ]
     if coverage_figure:
         lines += ["", f"![team coverage]({coverage_figure})"]
     return "\n".join(lines) + "\n"
@@ -336,7 +365,8 @@ def report_markdown(
         table1_markdown(precision, precision_compare),
         table2_markdown(table2_frame),
         table3_markdown(table3_frame),
-        table4_markdown(table4_frame) if table4_frame is not None
+        table4_markdown(table4_frame)
+        if table4_frame is not None
         else f"## Table IV: denoising steps K\n\n{NOT_RUN}: no sweep was configured.\n",
         table5_markdown(table5_frame, speed_mps),
         team_table_markdown(teams, team_coverage_figure),

@@ -25,8 +25,20 @@ NOT_RUN = "not run"
 REFERENCE_PLANNER = "optimal"
 ABLATION_PLANNERS = ("guide", "guide_noregion", "guide_tsp", "dare")
 K_PLANNERS = ("guide", "dare")
-TABLE5_COLUMNS = ("planner", "maps", "explored_m2", "distance_m", "time_s", "efficiency_m2_per_m",
-                  "efficiency_m2_per_s", "distance_to_90_m", "distance_to_99_m", "coverage_auc", "reached_90", "reached_99")
+TABLE5_COLUMNS = (
+    "planner",
+    "maps",
+    "explored_m2",
+    "distance_m",
+    "time_s",
+    "efficiency_m2_per_m",
+    "efficiency_m2_per_s",
+    "distance_to_90_m",
+    "distance_to_99_m",
+    "coverage_auc",
+    "reached_90",
+    "reached_99",
+)
 REQUIRED_COLUMNS = ("map", "planner", "distance_m", "complete", "decision_ms_median", "decision_ms_p95")
 
 
@@ -44,7 +56,9 @@ def check_metrics(frame: pd.DataFrame, what: str = "metrics") -> pd.DataFrame:
     """The frame with `complete` as bool; ValueError naming the missing columns."""
     missing = [c for c in REQUIRED_COLUMNS if c not in frame.columns]
     if missing:
-        raise ValueError(f"{what}: missing column(s) {missing}; expected metrics.csv rows ({', '.join(REQUIRED_COLUMNS)}, ...)")
+        raise ValueError(
+            f"{what}: missing column(s) {missing}; expected metrics.csv rows ({', '.join(REQUIRED_COLUMNS)}, ...)"
+        )
     frame = frame.copy()
     complete = frame["complete"]
     if complete.dtype == object:
@@ -85,12 +99,22 @@ def _gap(mean: float, optimal: float) -> float:
     return mean / optimal - 1.0 if np.isfinite(optimal) and optimal > 0 and np.isfinite(mean) else float("nan")
 
 
-
 # --------------------------------------------------------------------------- Table II
 TABLE2_COLUMNS = [
-    "planner", "paper_row", "episodes", "distance_mean_m", "distance_std_m", "completion_rate",
-    "gap_to_optimal", "vs_baseline", "vs_baseline_ci95", "decision_ms_median", "decision_ms_p95",
-    "paper_distance_m", "paper_gap_pct", "paper_source",
+    "planner",
+    "paper_row",
+    "episodes",
+    "distance_mean_m",
+    "distance_std_m",
+    "completion_rate",
+    "gap_to_optimal",
+    "vs_baseline",
+    "vs_baseline_ci95",
+    "decision_ms_median",
+    "decision_ms_p95",
+    "paper_distance_m",
+    "paper_gap_pct",
+    "paper_source",
 ]
 
 
@@ -125,8 +149,18 @@ def table2(frame: pd.DataFrame) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- Table III
 TABLE3_COLUMNS = [
-    "planner", "paper_row", "status", "episodes", "distance_mean_m", "distance_std_m", "completion_rate",
-    "gap_to_optimal", "decision_ms_median", "paper_distance_m", "paper_gap_pct", "paper_source",
+    "planner",
+    "paper_row",
+    "status",
+    "episodes",
+    "distance_mean_m",
+    "distance_std_m",
+    "completion_rate",
+    "gap_to_optimal",
+    "decision_ms_median",
+    "paper_distance_m",
+    "paper_gap_pct",
+    "paper_source",
 ]
 
 
@@ -159,8 +193,17 @@ def table3(frame: pd.DataFrame, planners: Sequence[str] = ABLATION_PLANNERS) -> 
 
 # --------------------------------------------------------------------------- Table IV
 TABLE4_COLUMNS = [
-    "planner", "K", "label", "status", "episodes", "decision_ms_median", "decision_ms_p95",
-    "distance_mean_m", "completion_rate", "paper_decision_s", "paper_distance_m",
+    "planner",
+    "K",
+    "label",
+    "status",
+    "episodes",
+    "decision_ms_median",
+    "decision_ms_p95",
+    "distance_mean_m",
+    "completion_rate",
+    "paper_decision_s",
+    "paper_distance_m",
 ]
 
 
@@ -181,12 +224,22 @@ def table4(sweep: pd.DataFrame, k_values: Sequence[int], planners: Sequence[str]
             group = sweep[sweep["planner"] == label]
             paper_s, paper_m = PAPER_TABLE4.get(paper_row(planner), {}).get(int(k), (np.nan, np.nan))
             row: dict[str, Any] = {
-                "planner": planner, "K": int(k), "label": label, "status": "ok" if len(group) else NOT_RUN,
-                "episodes": int(len(group)), "paper_decision_s": paper_s, "paper_distance_m": paper_m,
+                "planner": planner,
+                "K": int(k),
+                "label": label,
+                "status": "ok" if len(group) else NOT_RUN,
+                "episodes": int(len(group)),
+                "paper_decision_s": paper_s,
+                "paper_distance_m": paper_m,
             }
             if len(group):
                 stats = _planner_stats(group)
-                row.update({key: stats[key] for key in ("decision_ms_median", "decision_ms_p95", "distance_mean_m", "completion_rate")})
+                row.update(
+                    {
+                        key: stats[key]
+                        for key in ("decision_ms_median", "decision_ms_p95", "distance_mean_m", "completion_rate")
+                    }
+                )
             rows.append(row)
     return pd.DataFrame(rows, columns=TABLE4_COLUMNS)
 

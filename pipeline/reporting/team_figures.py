@@ -36,15 +36,22 @@ from pipeline.world.team import lattice_cell
 # One colour per robot (RGB), one for each of the MAX_ROBOTS a team may have, distinct from the
 # map's palette: blue, orange, green, red, violet, brown, pink, olive.
 ROBOT_RGB: tuple[tuple[int, int, int], ...] = (
-    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40),
-    (148, 103, 189), (140, 86, 75), (227, 119, 194), (188, 189, 34),
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (188, 189, 34),
 )
 GRID_POINTS = 400  # samples along the time axis of the coverage figure
 KEY_HEIGHT = 24  # the strip under the title that names each robot's colour
 
 
-def team_belief(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
-                protocol: Protocol) -> np.ndarray:
+def team_belief(
+    ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]], protocol: Protocol
+) -> np.ndarray:
     """The union belief a team's rows build: a scan at every row's position (the starts included)."""
     belief = Belief(ground_truth.shape)
     lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
@@ -62,9 +69,15 @@ def robot_paths(rows: Sequence[tuple[float, int, float, float]]) -> list[list[tu
     return paths
 
 
-def team_paths_figure(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
-                      protocol: Protocol, path: str | Path | None = None, title: str = "",
-                      scale: int | None = None, belief: np.ndarray | None = None) -> np.ndarray:
+def team_paths_figure(
+    ground_truth: GroundTruthMap,
+    rows: Sequence[tuple[float, int, float, float]],
+    protocol: Protocol,
+    path: str | Path | None = None,
+    title: str = "",
+    scale: int | None = None,
+    belief: np.ndarray | None = None,
+) -> np.ndarray:
     """One team episode on its map: the belief its rows build, each robot's path in its colour,
     starts as squares, last positions as dots, a colour key naming each robot's distance; an RGB
     image, written as PNG to `path` when given. `rows` are a team file's (time, robot, x, y);
@@ -101,9 +114,16 @@ def team_paths_figure(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, 
     return figure
 
 
-def team_animation(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
-                   protocol: Protocol, path: str | Path, frames: int = 40, title: str = "",
-                   fps: float = 8, hold_last_s: float = 2.0) -> Path:
+def team_animation(
+    ground_truth: GroundTruthMap,
+    rows: Sequence[tuple[float, int, float, float]],
+    protocol: Protocol,
+    path: str | Path,
+    frames: int = 40,
+    title: str = "",
+    fps: float = 8,
+    hold_last_s: float = 2.0,
+) -> Path:
     """An animated GIF of one team episode: `team_paths_figure` at `frames` evenly spaced team
     times from the start to the last row, each drawn from the rows up to that time (the belief
     they build, each robot's path so far in its colour). `title` heads every frame, followed by
@@ -124,8 +144,9 @@ def team_animation(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int
             belief.apply(lidar.scan(lattice_cell(ground_truth, protocol, (x, y))))
             used += 1
         text = f"{title}  |  t {t:.1f} m" if title else f"map {ground_truth.name}  |  t {t:.1f} m"
-        images.append(team_paths_figure(ground_truth, rows[:used], protocol, None, text, scale,
-                                        belief=belief.grid.copy()))
+        images.append(
+            team_paths_figure(ground_truth, rows[:used], protocol, None, text, scale, belief=belief.grid.copy())
+        )
     return save_gif(images, path, fps=fps, hold_last_s=hold_last_s)
 
 
@@ -165,15 +186,19 @@ def team_coverage_figure(coverage: pd.DataFrame, path: str | Path, title: str = 
     fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=120)
     for run in runs:
         rows = coverage[coverage["label"] == run]
-        shares = np.stack([share_at({"explored_share": episode["explored_share"].to_numpy()}, grid,
-                                    episode["time_m"].to_numpy())
-                           for _, episode in rows.groupby("map", sort=True)])
+        shares = np.stack(
+            [
+                share_at({"explored_share": episode["explored_share"].to_numpy()}, grid, episode["time_m"].to_numpy())
+                for _, episode in rows.groupby("map", sort=True)
+            ]
+        )
         mean, std = shares.mean(axis=0), shares.std(axis=0)
         color = colors(specs.index(run.rsplit("@", 1)[0]) % colors.N)
         style = styles[counts.index(int(rows["robots"].iloc[0])) % len(styles)]
         ax.plot(grid, 100 * mean, color=color, ls=style, lw=1.4, label=f"{run} ({len(shares)})")
-        ax.fill_between(grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color,
-                        alpha=0.1, lw=0)
+        ax.fill_between(
+            grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color, alpha=0.1, lw=0
+        )
     ax.set_xlabel("team time (metres each robot can travel)")
     ax.set_ylabel("explored share of the free area (%)")
     ax.set_ylim(0, 101)

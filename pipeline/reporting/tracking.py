@@ -48,16 +48,25 @@ def log_benchmark(
     for planner, row in summary.iterrows():
         with mlflow.start_run(run_name=str(planner)) as run:
             ran = record.get("planners", {}).get(str(planner), {})
-            variant = {
-                "planner_name": ran.get("name", planner),
-                "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
-                "planner_description": str(ran.get("description", ""))[:500],
-                "seed": record.get("seed"),
-            } if ran else {}
+            variant = (
+                {
+                    "planner_name": ran.get("name", planner),
+                    "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+                    "planner_description": str(ran.get("description", ""))[:500],
+                    "seed": record.get("seed"),
+                }
+                if ran
+                else {}
+            )
             log_maze_set(maps, "evaluation")
             mlflow.log_params(
-                {**record.get("protocol", protocol.to_dict()), "planner": planner, "maps": maps, "episodes": int(row.episodes),
-                 **variant}
+                {
+                    **record.get("protocol", protocol.to_dict()),
+                    "planner": planner,
+                    "maps": maps,
+                    "episodes": int(row.episodes),
+                    **variant,
+                }
             )
             mlflow.log_metrics(
                 {
@@ -76,8 +85,15 @@ def log_benchmark(
     return run_ids
 
 
-EXPLORATION_METRICS = ("distance_to_50_m", "distance_to_90_m", "distance_to_99_m", "coverage_auc",
-                       "efficiency_m2_per_m", "efficiency_m2_per_s", "time_s")
+EXPLORATION_METRICS = (
+    "distance_to_50_m",
+    "distance_to_90_m",
+    "distance_to_99_m",
+    "coverage_auc",
+    "efficiency_m2_per_m",
+    "efficiency_m2_per_s",
+    "time_s",
+)
 
 
 def exploration_metrics(exploration: pd.DataFrame, planner: str) -> dict[str, float]:
@@ -88,8 +104,15 @@ def exploration_metrics(exploration: pd.DataFrame, planner: str) -> dict[str, fl
     return {name: float(row[name]) for name in EXPLORATION_METRICS if name in row and pd.notna(row[name])}
 
 
-TEAM_METRICS = ("makespan_mean_m", "makespan_std_m", "total_distance_mean_m", "time_to_90_mean_m", "completion_rate",
-                "decision_ms_median", "makespan_over_single_distance")
+TEAM_METRICS = (
+    "makespan_mean_m",
+    "makespan_std_m",
+    "total_distance_mean_m",
+    "time_to_90_mean_m",
+    "completion_rate",
+    "decision_ms_median",
+    "makespan_over_single_distance",
+)
 
 
 def log_team_benchmark(
@@ -118,15 +141,20 @@ def log_team_benchmark(
         with mlflow.start_run(run_name=run_label) as active:
             ran = record.get("planners", {}).get(row["label"], {})
             log_maze_set(maps, "evaluation")
-            mlflow.log_params({
-                **record.get("protocol", protocol.to_dict()), "planner": row["label"], "maps": maps,
-                "episodes": int(row["episodes"]), "robots": int(row["robots"]),
-                "comm_range_m": "none" if row["comm_range_m"] is None else row["comm_range_m"],
-                "planner_name": ran.get("name", row["label"]),
-                "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
-                "planner_description": str(ran.get("description", ""))[:500],
-                "seed": record.get("seed"),
-            })
+            mlflow.log_params(
+                {
+                    **record.get("protocol", protocol.to_dict()),
+                    "planner": row["label"],
+                    "maps": maps,
+                    "episodes": int(row["episodes"]),
+                    "robots": int(row["robots"]),
+                    "comm_range_m": "none" if row["comm_range_m"] is None else row["comm_range_m"],
+                    "planner_name": ran.get("name", row["label"]),
+                    "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+                    "planner_description": str(ran.get("description", ""))[:500],
+                    "seed": record.get("seed"),
+                }
+            )
             mlflow.log_metrics({name: float(row[name]) for name in TEAM_METRICS if row.get(name) is not None})
             for name in (TEAM_SUMMARY_JSON, TEAM_METRICS_CSV, TEAM_COVERAGE_FIGURE):
                 if (out_dir / name).is_file():

@@ -76,7 +76,12 @@ def inpainter_sample_predictions(model, val_pairs: dict, threshold: float, path:
         hits[~pred & free & hole] = (1.0, 0.65, 0.0)  # missed
         truth = _node_rgb(np.where(free, 255, 0).astype(np.uint8), valid)
         tp, fp = int((pred & free).sum()), int((pred & ~free).sum())
-        titles = ("observed", "predicted P(free) in unknown", f"at tau={threshold}: {tp} hit / {fp} false", "ground truth")
+        titles = (
+            "observed",
+            "predicted P(free) in unknown",
+            f"at tau={threshold}: {tp} hit / {fp} false",
+            "ground truth",
+        )
         for col, (image, title) in enumerate(zip((_node_rgb(observed, valid), predicted, hits, truth), titles)):
             ax = axes[row, col]
             ax.imshow(image, interpolation="nearest")
@@ -84,8 +89,10 @@ def inpainter_sample_predictions(model, val_pairs: dict, threshold: float, path:
             ax.set_yticks([])
             if row == 0 or col == 2:
                 ax.set_title(title, fontsize=8)
-    fig.suptitle("validation pairs: white free, black obstacle, blue unknown, grey padding; "
-                 "green hit, red false, orange missed", fontsize=8)
+    fig.suptitle(
+        "validation pairs: white free, black obstacle, blue unknown, grey padding; green hit, red false, orange missed",
+        fontsize=8,
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:
@@ -121,7 +128,9 @@ def planner_training_curves(history: list[dict], path: Path, title: str) -> None
     plt.close(fig)
 
 
-def block_model_training_figure(history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarray, np.ndarray] | None, path: Path) -> None:
+def block_model_training_figure(
+    history: list[dict[str, float]], example: tuple[np.ndarray, np.ndarray, np.ndarray] | None, path: Path
+) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -136,7 +145,9 @@ def block_model_training_figure(history: list[dict[str, float]], example: tuple[
     if example is not None:
         shares, probability, truth = example
         seen = np.where(shares[2] > 0.5, 0.5, shares[0] > 0.5)
-        for ax, image, title in zip(axes[1:], (seen, probability, truth), ("seen (grey: unknown)", "P(free)", "true blocks")):
+        for ax, image, title in zip(
+            axes[1:], (seen, probability, truth), ("seen (grey: unknown)", "P(free)", "true blocks")
+        ):
             ax.imshow(image, cmap="gray", vmin=0, vmax=1)
             ax.set(title=title, xticks=[], yticks=[])
     else:
@@ -158,13 +169,20 @@ def drl_training_curves(rows: list[dict[str, float]], evaluation: dict[str, Any]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.4))
     rows = [r for r in rows if "episode_return" in r]
     steps = [r["timesteps"] for r in rows]
-    for ax, key, title in zip(axes, ("episode_return", "episode_distance_m", "explored_share"),
-                              ("episode return", "episode distance (m)", "explored share at episode end")):
+    for ax, key, title in zip(
+        axes,
+        ("episode_return", "episode_distance_m", "explored_share"),
+        ("episode return", "episode distance (m)", "explored share at episode end"),
+    ):
         ax.plot(steps, [r[key] for r in rows], ".-", lw=1)
         ax.set(xlabel="environment steps", title=title)
     if evaluation:
-        axes[1].axhline(evaluation["nearest_frontier_distance_m"], color="grey", ls="--",
-                        label=f"nearest_frontier on {evaluation['mazes']} fresh {evaluation['side_m']:g} m mazes")
+        axes[1].axhline(
+            evaluation["nearest_frontier_distance_m"],
+            color="grey",
+            ls="--",
+            label=f"nearest_frontier on {evaluation['mazes']} fresh {evaluation['side_m']:g} m mazes",
+        )
         axes[1].axhline(evaluation["distance_m"], color="tab:red", ls=":", label="drl (greedy) on the same mazes")
         axes[1].legend(fontsize=7)
     fig.suptitle("drl: MaskablePPO in guide/Explore-v0 (means over each rollout's finished episodes)", fontsize=9)
@@ -185,8 +203,15 @@ def dagger_rounds_figure(rows: list[dict], path: Path) -> None:
     labels = [str(r["round"]) for r in rows]
     fig, (ax_agree, ax_dist) = plt.subplots(1, 2, figsize=(10, 3.6))
     rounds = [r for r in rows if r["round"] != "start"]
-    ax_agree.plot([str(r["round"]) for r in rounds], [r["heldout_agreement"] for r in rounds], "o-", label="held-out states")
-    ax_agree.plot([str(r["round"]) for r in rounds], [r["driver_agreement"] for r in rounds], "s--", label="the driver's moves (round r: round r - 1's policy; 0: the teacher)")
+    ax_agree.plot(
+        [str(r["round"]) for r in rounds], [r["heldout_agreement"] for r in rounds], "o-", label="held-out states"
+    )
+    ax_agree.plot(
+        [str(r["round"]) for r in rounds],
+        [r["driver_agreement"] for r in rounds],
+        "s--",
+        label="the driver's moves (round r: round r - 1's policy; 0: the teacher)",
+    )
     ax_agree.set(xlabel="round", ylabel="first step = teacher's", ylim=(0, 1))
     ax_agree.legend(fontsize=8)
     ax_agree.grid(alpha=0.3)
@@ -196,8 +221,10 @@ def dagger_rounds_figure(rows: list[dict], path: Path) -> None:
     ax_dist.axhline(0.0, color="grey", ls="--", lw=1)
     ax_dist.set(xlabel="round (start: the expert-trained policy)", ylabel="guide:mode=policy vs greedy_utility (%)")
     ax_dist.grid(alpha=0.3)
-    fig.suptitle(f"DAgger: the policy driving, labelled by the teacher ({rows[-1].get('mazes')} fresh mazes, paired, 95 %)",
-                 fontsize=9)
+    fig.suptitle(
+        f"DAgger: the policy driving, labelled by the teacher ({rows[-1].get('mazes')} fresh mazes, paired, 95 %)",
+        fontsize=9,
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:

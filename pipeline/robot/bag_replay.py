@@ -65,8 +65,10 @@ def check_map_topic(bag: Path, map_topic: str) -> int:
     none, or when the topic holds something other than maps."""
     topics = bag_topics(bag)
     if map_topic not in topics:
-        raise ValueError(f"{bag}: no {map_topic} topic; it has: {', '.join(sorted(topics)) or 'none'} "
-                         "(choose the map with --map-topic)")
+        raise ValueError(
+            f"{bag}: no {map_topic} topic; it has: {', '.join(sorted(topics)) or 'none'} "
+            "(choose the map with --map-topic)"
+        )
     kind, count = topics[map_topic]
     if kind != "nav_msgs/msg/OccupancyGrid":
         raise ValueError(f"{bag}: {map_topic} holds {kind}, not nav_msgs/msg/OccupancyGrid")
@@ -84,15 +86,23 @@ def bag_messages(bag: Path, map_topic: str) -> Iterator[tuple[str, float, Any]]:
             yield kind, timestamp * 1e-9, reader.deserialize(raw, connection.msgtype)
 
 
-def replay_bag(bag: Path, out: Path, session: ExplorationSession, map_topic: str = "/map",
-               base_frame: str = ros.BASE_FRAME, progress: bool = False) -> BagReplay:
+def replay_bag(
+    bag: Path,
+    out: Path,
+    session: ExplorationSession,
+    map_topic: str = "/map",
+    base_frame: str = ros.BASE_FRAME,
+    progress: bool = False,
+) -> BagReplay:
     """Run `session` along the bag (a fresh decision at every map) and record it all in `out`."""
     result = BagReplay(Path(out))
     tree = ros.TfTree()
     total = check_map_topic(bag, map_topic)
     messages = bag_messages(bag, map_topic)
-    with McapRecording(out) as recording, tqdm(total=total, desc=f"{Path(bag).name}: maps", disable=not progress,
-                                               leave=False) as bar:
+    with (
+        McapRecording(out) as recording,
+        tqdm(total=total, desc=f"{Path(bag).name}: maps", disable=not progress, leave=False) as bar,
+    ):
         for kind, seconds, msg in messages:
             if kind == "tf":
                 tree.update(msg)
@@ -116,10 +126,18 @@ def replay_bag(bag: Path, out: Path, session: ExplorationSession, map_topic: str
             result.decision_ms.append(plan.decision_ms)
             canvas = session.canvas
             view = graph_view(session.planner, canvas.to_map) if canvas is not None else ros.GraphView()
-            record = {"map": result.maps, "stamp_s": seconds, "pose": list(pose), "reason": plan.reason,
-                      "done": plan.done, "target": plan.target, "decision_ms": round(plan.decision_ms, 3),
-                      "waypoints": plan.waypoints, "maps_skipped": session.state.maps_skipped,
-                      "resets": session.state.resets}
+            record = {
+                "map": result.maps,
+                "stamp_s": seconds,
+                "pose": list(pose),
+                "reason": plan.reason,
+                "done": plan.done,
+                "target": plan.target,
+                "decision_ms": round(plan.decision_ms, 3),
+                "waypoints": plan.waypoints,
+                "maps_skipped": session.state.maps_skipped,
+                "resets": session.state.resets,
+            }
             if session.state.prediction_trust is not None:
                 record["prediction_trust"] = session.state.prediction_trust
             record_decision(recording, seconds, plan.waypoints, view, session.protocol.node_resolution, record)

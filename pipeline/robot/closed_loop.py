@@ -75,14 +75,22 @@ class SimulatedRobot:
     @property
     def cell(self) -> tuple[int, int]:
         c = self.protocol.cell_size
-        return (self.map.start_cell[0] + int(round(self.xy[0] / c)), self.map.start_cell[1] + int(round(self.xy[1] / c)))
+        return (
+            self.map.start_cell[0] + int(round(self.xy[0] / c)),
+            self.map.start_cell[1] + int(round(self.xy[1] / c)),
+        )
 
     def sense(self) -> None:
         self.belief.apply(self.lidar.scan(self.cell))
-        if self.completion_distance is None and self.map.free_cell_count - self.belief.free_count <= self.protocol.done_unknown_cells:
+        if (
+            self.completion_distance is None
+            and self.map.free_cell_count - self.belief.free_count <= self.protocol.done_unknown_cells
+        ):
             self.completion_distance = self.distance
 
-    def drive(self, goal: tuple[float, float], stop_within_m: float, scan_every_m: float, rng: np.random.Generator) -> bool:
+    def drive(
+        self, goal: tuple[float, float], stop_within_m: float, scan_every_m: float, rng: np.random.Generator
+    ) -> bool:
         """Drive along known-free cells to within `stop_within_m` of `goal`; False when no known-free
         path leads there (the robot stays)."""
         c = self.protocol.cell_size
@@ -152,12 +160,21 @@ def slam_map(robot: SimulatedRobot | Episode, resolution: float, rng: np.random.
     rows, cols = np.nonzero(grid != UNKNOWN)
     r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
     known = grid[r0:r1, c0:c1]
-    values = np.where(known == FREE, rng.integers(0, 15, known.shape),
-                      np.where(known == OCCUPIED, rng.integers(70, 101, known.shape), -1)).astype(np.int8)
+    values = np.where(
+        known == FREE,
+        rng.integers(0, 15, known.shape),
+        np.where(known == OCCUPIED, rng.integers(70, 101, known.shape), -1),
+    ).astype(np.int8)
     values = np.repeat(np.repeat(values, fine, axis=0), fine, axis=1)
     start_col, start_row = robot.map.start_cell[0] + 1, robot.map.start_cell[1] + 1  # in the grid with its edge
-    return {"data": values.reshape(-1), "width": values.shape[1], "height": values.shape[0], "resolution": c / fine,
-            "x": (c0 - start_col - 0.5) * c, "y": (r0 - start_row - 0.5) * c}
+    return {
+        "data": values.reshape(-1),
+        "width": values.shape[1],
+        "height": values.shape[0],
+        "resolution": c / fine,
+        "x": (c0 - start_col - 0.5) * c,
+        "y": (r0 - start_row - 0.5) * c,
+    }
 
 
 def edge_walls(grid: np.ndarray) -> np.ndarray:
@@ -172,7 +189,9 @@ def edge_walls(grid: np.ndarray) -> np.ndarray:
 
 def grid_message(fields: dict[str, Any]) -> GridMessage:
     """`slam_map`'s fields as a message with OccupancyGrid's fields, without ROS types."""
-    return GridMessage(fields["data"], fields["width"], fields["height"], fields["resolution"], fields["x"], fields["y"])
+    return GridMessage(
+        fields["data"], fields["width"], fields["height"], fields["resolution"], fields["x"], fields["y"]
+    )
 
 
 @functools.cache
@@ -189,18 +208,32 @@ def as_ros_message(fields: dict[str, Any], stamp_s: float, cdr: bool = True) -> 
     t = store.types
     sec = int(stamp_s)
     time_ = t["builtin_interfaces/msg/Time"](sec=sec, nanosec=int((stamp_s - sec) * 1e9))
-    pose = t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=float(fields["x"]), y=float(fields["y"]), z=0.0),
-                                       orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
-    info = t["nav_msgs/msg/MapMetaData"](map_load_time=time_, resolution=float(fields["resolution"]),
-                                         width=int(fields["width"]), height=int(fields["height"]), origin=pose)
+    pose = t["geometry_msgs/msg/Pose"](
+        position=t["geometry_msgs/msg/Point"](x=float(fields["x"]), y=float(fields["y"]), z=0.0),
+        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+    )
+    info = t["nav_msgs/msg/MapMetaData"](
+        map_load_time=time_,
+        resolution=float(fields["resolution"]),
+        width=int(fields["width"]),
+        height=int(fields["height"]),
+        origin=pose,
+    )
     kind = "nav_msgs/msg/OccupancyGrid"
-    msg = t[kind](header=t["std_msgs/msg/Header"](stamp=time_, frame_id="map"), info=info,
-                  data=np.asarray(fields["data"], dtype=np.int8))
+    msg = t[kind](
+        header=t["std_msgs/msg/Header"](stamp=time_, frame_id="map"),
+        info=info,
+        data=np.asarray(fields["data"], dtype=np.int8),
+    )
     return store.deserialize_cdr(store.serialize_cdr(msg, kind), kind) if cdr else msg
 
 
-def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, config: ClosedLoopConfig = ClosedLoopConfig(),
-                    seed: int = 0) -> ClosedLoopResult:
+def run_closed_loop(
+    ground_truth: GroundTruthMap,
+    session: ExplorationSession,
+    config: ClosedLoopConfig = ClosedLoopConfig(),
+    seed: int = 0,
+) -> ClosedLoopResult:
     """Explore `ground_truth` with `session` driving a simulated robot (see the module's docstring)."""
     rng = np.random.default_rng(seed)
     robot = SimulatedRobot(ground_truth, session.protocol)
@@ -221,8 +254,11 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
         if not plan.waypoints:
             continue
         goal = plan.waypoints[0]
-        if config.fail_every and rng.integers(config.fail_every) == 0 or not robot.drive(
-                goal, config.stop_within_m, config.scan_every_m, rng):
+        if (
+            config.fail_every
+            and rng.integers(config.fail_every) == 0
+            or not robot.drive(goal, config.stop_within_m, config.scan_every_m, rng)
+        ):
             failed += 1
             session.goal_failed(*goal)
     complete = robot.completion_distance is not None
@@ -230,8 +266,17 @@ def run_closed_loop(ground_truth: GroundTruthMap, session: ExplorationSession, c
     seen = int((reachable & (robot.belief.grid == FREE)).sum())
     unseen = int(reachable.sum()) - seen
     c2 = ground_truth.cell_size**2
-    return ClosedLoopResult(complete, robot.completion_distance if complete else robot.distance, decision + 1, failed,
-                            session.state.maps_skipped, decision_ms, reachable_share=seen / max(1, seen + unseen),
-                            early_stop=done and largest_unseen_region(
-                                reachable, robot.belief.grid, session.protocol.robot_radius_cells) * c2 >= LEFTOVER_M2,
-                            fallbacks=session.state.fallbacks, done=done)
+    return ClosedLoopResult(
+        complete,
+        robot.completion_distance if complete else robot.distance,
+        decision + 1,
+        failed,
+        session.state.maps_skipped,
+        decision_ms,
+        reachable_share=seen / max(1, seen + unseen),
+        early_stop=done
+        and largest_unseen_region(reachable, robot.belief.grid, session.protocol.robot_radius_cells) * c2
+        >= LEFTOVER_M2,
+        fallbacks=session.state.fallbacks,
+        done=done,
+    )

@@ -100,8 +100,10 @@ class Canvas:
     @property
     def origin(self) -> tuple[float, float]:
         """Map-frame metres of cell (0, 0)'s corner."""
-        return (self.anchor[0] - (self.start_cell[0] + 0.5) * self.cell_size,
-                self.anchor[1] - (self.start_cell[1] + 0.5) * self.cell_size)
+        return (
+            self.anchor[0] - (self.start_cell[0] + 0.5) * self.cell_size,
+            self.anchor[1] - (self.start_cell[1] + 0.5) * self.cell_size,
+        )
 
     def to_cell(self, x: float, y: float) -> tuple[int, int]:
         """(col, row) of the canvas cell that holds map-frame point (x, y) (it may lie outside)."""
@@ -189,7 +191,7 @@ class Canvas:
             standing = count(fits[window])
             judged[(standing > 0) & (occupied + free == total)] = FREE
         r0, c0 = int(row[0]), int(col[0])
-        self.belief[r0:r0 + total.shape[0], c0:c0 + total.shape[1]] = judged
+        self.belief[r0 : r0 + total.shape[0], c0 : c0 + total.shape[1]] = judged
 
     def _fits_robot(self, values: np.ndarray, resolution: float) -> np.ndarray | None:
         """Per message cell, whether the robot's centre may stand there (known free, no occupied cell
@@ -202,8 +204,9 @@ class Canvas:
         return passable_mask(trinary, self.robot_radius_m / resolution)
 
 
-def write_belief_map(belief: np.ndarray, cell_size: float, origin: tuple[float, float], start: tuple[float, float],
-                     yaml_path: Path) -> Path:
+def write_belief_map(
+    belief: np.ndarray, cell_size: float, origin: tuple[float, float], start: tuple[float, float], yaml_path: Path
+) -> Path:
     """A belief grid (rows grow with y) as map_saver writes a map (`write_map_server`: free 254,
     occupied 0, unknown 205) with `origin` (the grid's corner) and a `start` key, map frame; the
     YAML's path."""
@@ -232,8 +235,9 @@ class GridMessage:
     @property
     def info(self) -> Any:
         position = _Namespace(x=self.origin_x, y=self.origin_y, z=0.0)
-        return _Namespace(resolution=self.resolution, width=self.width, height=self.height,
-                          origin=_Namespace(position=position))
+        return _Namespace(
+            resolution=self.resolution, width=self.width, height=self.height, origin=_Namespace(position=position)
+        )
 
 
 class _Namespace:

@@ -30,7 +30,12 @@ from pipeline.robot import ros_messages as ros
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 MAP_TOPIC, TF_TOPIC = "/map", "/tf"
-PLAN_TOPIC, WAYPOINT_TOPIC, GRAPH_TOPIC, DECISION_TOPIC = "/guide/plan", "/guide/waypoint", "/guide/graph", "/guide/decision"
+PLAN_TOPIC, WAYPOINT_TOPIC, GRAPH_TOPIC, DECISION_TOPIC = (
+    "/guide/plan",
+    "/guide/waypoint",
+    "/guide/graph",
+    "/guide/decision",
+)
 TYPES = {
     MAP_TOPIC: "nav_msgs/msg/OccupancyGrid",
     TF_TOPIC: "tf2_msgs/msg/TFMessage",
@@ -68,8 +73,13 @@ class McapRecording:
         nanoseconds = int(round(seconds * 1e9))
         data = bytes(store.serialize_cdr(msg, typename))
         self.counts[topic] = self.counts.get(topic, 0) + 1
-        self._writer.add_message(self._channels[topic], log_time=nanoseconds, data=data, publish_time=nanoseconds,
-                                 sequence=self.counts[topic])
+        self._writer.add_message(
+            self._channels[topic],
+            log_time=nanoseconds,
+            data=data,
+            publish_time=nanoseconds,
+            sequence=self.counts[topic],
+        )
 
     def close(self) -> None:
         if not self._file.closed:
@@ -100,9 +110,12 @@ def graph_view(planner: Any, to_map: Callable[[tuple[float, float]], tuple[float
     predicted = np.zeros((0, 2))
     if global_graph is not None and len(getattr(global_graph, "types", ())):
         predicted = global_graph.positions[np.isin(global_graph.types, (PREDICTED, CENTROID))]
-    return ros.GraphView(known=points(graph.node_world[known]), predicted=points(predicted),
-                         frontier=points(graph.node_world[frontier]),
-                         edges=points(graph.node_world[edges.reshape(-1)]).reshape(-1, 2, 2))
+    return ros.GraphView(
+        known=points(graph.node_world[known]),
+        predicted=points(predicted),
+        frontier=points(graph.node_world[frontier]),
+        edges=points(graph.node_world[edges.reshape(-1)]).reshape(-1, 2, 2),
+    )
 
 
 def belief_grid_message(belief: np.ndarray, cell_size: float, start_cell: tuple[int, int], seconds: float) -> Any:
@@ -115,8 +128,14 @@ def belief_grid_message(belief: np.ndarray, cell_size: float, start_cell: tuple[
     return ros.occupancy_grid(values, cols, rows, cell_size, origin, seconds)
 
 
-def record_decision(recording: McapRecording, seconds: float, waypoints: list[tuple[float, float]],
-                    view: ros.GraphView, node_resolution: float, record: dict[str, Any]) -> None:
+def record_decision(
+    recording: McapRecording,
+    seconds: float,
+    waypoints: list[tuple[float, float]],
+    view: ros.GraphView,
+    node_resolution: float,
+    record: dict[str, Any],
+) -> None:
     """One decision: its plan, next waypoint, graph markers and JSON record."""
     recording.write(PLAN_TOPIC, ros.path_message(waypoints, seconds), seconds)
     if waypoints:
@@ -164,15 +183,28 @@ class EpisodeRecording:
             self._heading = math.atan2(y1 - y0, x1 - x0)
         x, y = episode.position
         self.recording.write(TF_TOPIC, ros.tf_message(x, y, self._heading, seconds), seconds)  # the pose before its map
-        self.recording.write(MAP_TOPIC, belief_grid_message(episode.belief.grid, protocol.cell_size,
-                                                            episode.map.start_cell, seconds), seconds)
+        self.recording.write(
+            MAP_TOPIC,
+            belief_grid_message(episode.belief.grid, protocol.cell_size, episode.map.start_cell, seconds),
+            seconds,
+        )
         if self.planner.decisions > self._recorded_decisions:
             self._recorded_decisions = self.planner.decisions
-            record = {"decision": self.planner.decisions, "distance_m": round(episode.distance, 3),
-                      "explored_share": round(episode.explored_ratio, 5), "waypoints": self.planner.last_waypoints,
-                      **_decision_fields(self.planner)}
-            record_decision(self.recording, seconds, self.planner.last_waypoints,
-                            graph_view(self.planner, lambda xy: xy), protocol.node_resolution, record)
+            record = {
+                "decision": self.planner.decisions,
+                "distance_m": round(episode.distance, 3),
+                "explored_share": round(episode.explored_ratio, 5),
+                "waypoints": self.planner.last_waypoints,
+                **_decision_fields(self.planner),
+            }
+            record_decision(
+                self.recording,
+                seconds,
+                self.planner.last_waypoints,
+                graph_view(self.planner, lambda xy: xy),
+                protocol.node_resolution,
+                record,
+            )
 
     def close(self) -> Path:
         self.recording.close()

@@ -66,23 +66,38 @@ def _pose(x: float, y: float, yaw: float = 0.0) -> Any:
     return _types()["geometry_msgs/msg/Pose"](position=_point(x, y), orientation=_quaternion(yaw))
 
 
-def occupancy_grid(data: np.ndarray, width: int, height: int, resolution: float, origin: tuple[float, float],
-                   seconds: float, frame_id: str = MAP_FRAME) -> Any:
+def occupancy_grid(
+    data: np.ndarray,
+    width: int,
+    height: int,
+    resolution: float,
+    origin: tuple[float, float],
+    seconds: float,
+    frame_id: str = MAP_FRAME,
+) -> Any:
     """A nav_msgs/OccupancyGrid: `data` row-major from the origin cell's corner, -1 unknown, 0-100."""
     t = _types()
-    info = t["nav_msgs/msg/MapMetaData"](map_load_time=stamp(seconds), resolution=float(resolution), width=int(width),
-                                         height=int(height), origin=_pose(*origin))
-    return t["nav_msgs/msg/OccupancyGrid"](header=header(seconds, frame_id), info=info,
-                                           data=np.asarray(data, dtype=np.int8).reshape(-1))
+    info = t["nav_msgs/msg/MapMetaData"](
+        map_load_time=stamp(seconds),
+        resolution=float(resolution),
+        width=int(width),
+        height=int(height),
+        origin=_pose(*origin),
+    )
+    return t["nav_msgs/msg/OccupancyGrid"](
+        header=header(seconds, frame_id), info=info, data=np.asarray(data, dtype=np.int8).reshape(-1)
+    )
 
 
 def tf_message(x: float, y: float, yaw: float, seconds: float, parent: str = MAP_FRAME, child: str = BASE_FRAME) -> Any:
     """A tf2_msgs/TFMessage holding one transform: `child` at (x, y, yaw) in `parent`."""
     t = _types()
-    transform = t["geometry_msgs/msg/Transform"](translation=t["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=0.0),
-                                                 rotation=_quaternion(yaw))
-    stamped = t["geometry_msgs/msg/TransformStamped"](header=header(seconds, parent), child_frame_id=child,
-                                                      transform=transform)
+    transform = t["geometry_msgs/msg/Transform"](
+        translation=t["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=0.0), rotation=_quaternion(yaw)
+    )
+    stamped = t["geometry_msgs/msg/TransformStamped"](
+        header=header(seconds, parent), child_frame_id=child, transform=transform
+    )
     return t["tf2_msgs/msg/TFMessage"](transforms=[stamped])
 
 
@@ -126,27 +141,46 @@ def marker_array(view: GraphView, seconds: float, node_size_m: float, frame_id: 
     frontier nodes orange (sphere lists), edges as thin grey lines. Each namespace replaces its
     previous marker (id 0), so a viewer shows the latest graph only."""
     t = _types()
-    colours = {"lattice": (0.55, 0.55, 0.55, 0.8), "predicted": (0.15, 0.45, 0.95, 0.9),
-               "frontier": (1.0, 0.55, 0.0, 1.0), "edges": (0.4, 0.4, 0.4, 0.5)}
+    colours = {
+        "lattice": (0.55, 0.55, 0.55, 0.8),
+        "predicted": (0.15, 0.45, 0.95, 0.9),
+        "frontier": (1.0, 0.55, 0.0, 1.0),
+        "edges": (0.4, 0.4, 0.4, 0.5),
+    }
     marker_type = t["visualization_msgs/msg/Marker"]
     markers = []
     for namespace, points, kind, size in (
-            ("lattice", view.known, marker_type.SPHERE_LIST, node_size_m * 0.25),
-            ("predicted", view.predicted, marker_type.SPHERE_LIST, node_size_m * 0.35),
-            ("frontier", view.frontier, marker_type.SPHERE_LIST, node_size_m * 0.45),
-            ("edges", view.edges.reshape(-1, 2), marker_type.LINE_LIST, node_size_m * 0.05)):
+        ("lattice", view.known, marker_type.SPHERE_LIST, node_size_m * 0.25),
+        ("predicted", view.predicted, marker_type.SPHERE_LIST, node_size_m * 0.35),
+        ("frontier", view.frontier, marker_type.SPHERE_LIST, node_size_m * 0.45),
+        ("edges", view.edges.reshape(-1, 2), marker_type.LINE_LIST, node_size_m * 0.05),
+    ):
         r, g, b, a = colours[namespace]
-        markers.append(marker_type(
-            header=header(seconds, frame_id), ns=namespace, id=0, type=kind, action=marker_type.ADD, pose=_pose(0.0, 0.0),
-            scale=t["geometry_msgs/msg/Vector3"](x=size, y=size, z=size),
-            color=t["std_msgs/msg/ColorRGBA"](r=r, g=g, b=b, a=a),
-            lifetime=t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0), frame_locked=False,
-            points=[_point(x, y) for x, y in np.asarray(points, dtype=np.float64).reshape(-1, 2)], colors=[],
-            texture_resource="", texture=t["sensor_msgs/msg/CompressedImage"](header=header(seconds, frame_id), format="",
-                                                                              data=np.zeros(0, dtype=np.uint8)),
-            uv_coordinates=[], text="", mesh_resource="",
-            mesh_file=t["visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, dtype=np.uint8)),
-            mesh_use_embedded_materials=False))
+        markers.append(
+            marker_type(
+                header=header(seconds, frame_id),
+                ns=namespace,
+                id=0,
+                type=kind,
+                action=marker_type.ADD,
+                pose=_pose(0.0, 0.0),
+                scale=t["geometry_msgs/msg/Vector3"](x=size, y=size, z=size),
+                color=t["std_msgs/msg/ColorRGBA"](r=r, g=g, b=b, a=a),
+                lifetime=t["builtin_interfaces/msg/Duration"](sec=0, nanosec=0),
+                frame_locked=False,
+                points=[_point(x, y) for x, y in np.asarray(points, dtype=np.float64).reshape(-1, 2)],
+                colors=[],
+                texture_resource="",
+                texture=t["sensor_msgs/msg/CompressedImage"](
+                    header=header(seconds, frame_id), format="", data=np.zeros(0, dtype=np.uint8)
+                ),
+                uv_coordinates=[],
+                text="",
+                mesh_resource="",
+                mesh_file=t["visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, dtype=np.uint8)),
+                mesh_use_embedded_materials=False,
+            )
+        )
     return t["visualization_msgs/msg/MarkerArray"](markers=markers)
 
 

@@ -90,9 +90,18 @@ class SessionState:
 class ExplorationSession:
     """A planner (by its registered name, with options) exploring from live maps and poses."""
 
-    def __init__(self, planner: str | Planner = "guide", protocol: Protocol | str = "real_robot", *,
-                 planner_options: dict[str, Any] | None = None, seed: int = 0, goal_tolerance_m: float = 0.5,
-                 replan_changed_cells: int = 50, replan_after_s: float = 5.0, clock=time.monotonic) -> None:
+    def __init__(
+        self,
+        planner: str | Planner = "guide",
+        protocol: Protocol | str = "real_robot",
+        *,
+        planner_options: dict[str, Any] | None = None,
+        seed: int = 0,
+        goal_tolerance_m: float = 0.5,
+        replan_changed_cells: int = 50,
+        replan_after_s: float = 5.0,
+        clock=time.monotonic,
+    ) -> None:
         self.protocol = resolve_protocol(protocol)
         self.planner = planner if isinstance(planner, Planner) else make_planner(planner, **(planner_options or {}))
         self.seed = int(seed)
@@ -127,8 +136,9 @@ class ExplorationSession:
                 self._anchor(self.pose)
             return True
         if not self._fits(grid):
-            return self._skip_map(f"its extent {_extent_text(grid.extent)} would grow the belief past "
-                                  f"{MAX_CANVAS_CELLS:,} cells")
+            return self._skip_map(
+                f"its extent {_extent_text(grid.extent)} would grow the belief past {MAX_CANVAS_CELLS:,} cells"
+            )
         if not self.canvas.contains(grid.extent):  # grown with room to spare: each growth rebuilds the planner
             self.canvas.cover(grid.extent, margin_m=GROWTH_MARGIN_RANGES * self.protocol.sensor_range)
         before = self.canvas.belief.copy() if self._planned_belief is not None else None
@@ -150,7 +160,9 @@ class ExplorationSession:
             return self._skip_pose(f"pose must be finite, got ({x}, {y}, {yaw})")
         if self.canvas is None:
             if self.pending is not None and not _inside(self.pending.extent, x, y):
-                return self._skip_pose(f"pose ({x:.2f}, {y:.2f}) lies outside the map {_extent_text(self.pending.extent)}")
+                return self._skip_pose(
+                    f"pose ({x:.2f}, {y:.2f}) lies outside the map {_extent_text(self.pending.extent)}"
+                )
             self.pose = (x, y, yaw)
             if self.pending is not None:
                 self._anchor(self.pose)
@@ -177,8 +189,9 @@ class ExplorationSession:
         self.canvas = canvas
         if not self._fits(grid):
             self.canvas, self.pending = None, None
-            self._skip_map(f"its extent {_extent_text(grid.extent)} would make the belief larger than "
-                           f"{MAX_CANVAS_CELLS:,} cells")
+            self._skip_map(
+                f"its extent {_extent_text(grid.extent)} would make the belief larger than {MAX_CANVAS_CELLS:,} cells"
+            )
             return
         self.pending = None
         canvas.cover(grid.extent)
@@ -274,15 +287,24 @@ class ExplorationSession:
         self.state.fallbacks += int(fallback)
         decision = getattr(self.planner, "last_decision", {}) or {}
         target = self._target(decision.get("target"), waypoints)
-        plan = Plan([self.canvas.to_map(w) for w in waypoints], done=not waypoints, target=target,
-                    decision_ms=_ms(started), reason=reason, replanned=True, fallback=fallback)
+        plan = Plan(
+            [self.canvas.to_map(w) for w in waypoints],
+            done=not waypoints,
+            target=target,
+            decision_ms=_ms(started),
+            reason=reason,
+            replanned=True,
+            fallback=fallback,
+        )
         return self._keep(plan)
 
     def _reset_planner(self, frame: MapFrame) -> None:
         """Reset the planner on `frame`, keeping the nodes it had visited (in the map frame): a
         planner does not go back to see again what it saw from there."""
         visited = self._visited_points()
-        trust = getattr(self.planner, "trust_state", None)  # the same building: what was learnt of the predictions holds
+        trust = getattr(
+            self.planner, "trust_state", None
+        )  # the same building: what was learnt of the predictions holds
         self.planner.reset(frame, self.protocol, self.seed)
         if trust is not None:
             self.planner.restore_trust(trust)
@@ -353,8 +375,10 @@ class ExplorationSession:
         """The canvas cell of the lattice node nearest a planner position."""
         d = self.protocol.node_resolution
         i, j = round(world[0] / d), round(world[1] / d)
-        return (self.canvas.start_cell[0] + int(round(i * self.step_cells)),
-                self.canvas.start_cell[1] + int(round(j * self.step_cells)))
+        return (
+            self.canvas.start_cell[0] + int(round(i * self.step_cells)),
+            self.canvas.start_cell[1] + int(round(j * self.step_cells)),
+        )
 
     def _snap(self, belief: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
         """(planner position, cell) of the nearest known-free lattice node the robot reaches in a
@@ -378,8 +402,10 @@ class ExplorationSession:
                     candidates.append((math.dist(node, world), node, (col, row)))
         candidates.sort()
         inside = 0 <= here[0] < cols and 0 <= here[1] < rows
-        straight = next(((gap, node, cell) for gap, node, cell in candidates
-                         if inside and segment_is_known_free(free, here, cell)), None)
+        straight = next(
+            ((gap, node, cell) for gap, node, cell in candidates if inside and segment_is_known_free(free, here, cell)),
+            None,
+        )
         if self.protocol.uses_door_graph and (straight is None or straight[0] > self.goal_tolerance_m):
             own = self._own_cell(free, here)
             if own is not None:
@@ -396,7 +422,12 @@ class ExplorationSession:
         for dr in range(-OWN_CELL_REACH, OWN_CELL_REACH + 1):
             for dc in range(-OWN_CELL_REACH, OWN_CELL_REACH + 1):
                 col, row = here[0] + dc, here[1] + dr
-                if 0 <= col < cols and 0 <= row < rows and free[row, col] and (best is None or dc * dc + dr * dr < best[0]):
+                if (
+                    0 <= col < cols
+                    and 0 <= row < rows
+                    and free[row, col]
+                    and (best is None or dc * dc + dr * dr < best[0])
+                ):
                     best = (dc * dc + dr * dr, (col, row))
         if best is None:
             return None
@@ -448,8 +479,10 @@ def lattice_step_cells(protocol: Protocol) -> int:
     (the lattice could not keep its place as the map grows)."""
     step = protocol.node_resolution / protocol.cell_size
     if abs(step - round(step)) > 1e-6 or round(step) < 1:
-        raise ValueError(f"node_resolution ({protocol.node_resolution:g} m) must be a whole number of cells "
-                         f"({protocol.cell_size:g} m) for a robot session")
+        raise ValueError(
+            f"node_resolution ({protocol.node_resolution:g} m) must be a whole number of cells "
+            f"({protocol.cell_size:g} m) for a robot session"
+        )
     return int(round(step))
 
 

@@ -46,8 +46,9 @@ class BlockSamples:
         return sum(len(shares) for shares in self.shares)
 
 
-def block_snapshots(ground_truth: GroundTruthMap, protocol: Protocol, block_m: float, every: int,
-                    seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def block_snapshots(
+    ground_truth: GroundTruthMap, protocol: Protocol, block_m: float, every: int, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
     """(shares (n, 3, r, c), truth (r, c)) of a gated `greedy_utility` episode, every `every` steps."""
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")
@@ -65,7 +66,9 @@ def block_snapshots(ground_truth: GroundTruthMap, protocol: Protocol, block_m: f
     return np.stack(shares), truth
 
 
-def _reveal(shares: np.ndarray, truth: np.ndarray, reveal_share: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _reveal(
+    shares: np.ndarray, truth: np.ndarray, reveal_share: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """(inputs, loss mask): for a `reveal_share` of samples, a random part (up to 90 %) of their
     unknown blocks set to their truth and dropped from the loss."""
     unknown = shares[:, 2] > UNKNOWN_BLOCK
@@ -108,13 +111,22 @@ def _batches(samples: BlockSamples, batch_size: int, rng: np.random.Generator) -
     for items in by_shape.values():
         order = rng.permutation(len(items))
         for start in range(0, len(order), batch_size):
-            batches.append([items[i] for i in order[start:start + batch_size]])
+            batches.append([items[i] for i in order[start : start + batch_size]])
     return [batches[i] for i in rng.permutation(len(batches))]
 
 
-def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config: BlockModelConfig, epochs: int,
-                      batch_size: int = 128, lr: float = 3e-3, reveal_share: float = 0.7, seed: int = 0,
-                      log=None, checkpoint: TrainingCheckpoint | None = None) -> tuple[BlockModel, list[dict[str, float]]]:
+def train_block_model(
+    train: BlockSamples,
+    held_out: BlockSamples | None,
+    config: BlockModelConfig,
+    epochs: int,
+    batch_size: int = 128,
+    lr: float = 3e-3,
+    reveal_share: float = 0.7,
+    seed: int = 0,
+    log=None,
+    checkpoint: TrainingCheckpoint | None = None,
+) -> tuple[BlockModel, list[dict[str, float]]]:
     """A model fitted with AdamW and a one-cycle schedule; per epoch {epoch, loss, held_out_error
     (`block_error` within 20 m of the known free space), seconds}.
 
@@ -142,7 +154,9 @@ def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config
     for epoch in range(first_epoch, epochs):
         started, losses = time.perf_counter(), []
         model.train()
-        for batch in tqdm(_batches(train, batch_size, rng), desc=f"block model epoch {epoch + 1}/{epochs}", unit="batch", leave=False):
+        for batch in tqdm(
+            _batches(train, batch_size, rng), desc=f"block model epoch {epoch + 1}/{epochs}", unit="batch", leave=False
+        ):
             shares = np.stack([train.shares[m][i] for m, i in batch])
             truth = np.stack([train.truth[m] for m, _ in batch])
             inputs, mask = _reveal(shares, truth, reveal_share, rng)
@@ -150,22 +164,39 @@ def train_block_model(train: BlockSamples, held_out: BlockSamples | None, config
                 continue
             logits = model(torch.from_numpy(inputs))
             weight = torch.from_numpy(mask.astype(np.float32))
-            loss = (nn.functional.binary_cross_entropy_with_logits(logits, torch.from_numpy(truth.astype(np.float32)),
-                                                                   reduction="none") * weight).sum() / weight.sum()
+            loss = (
+                nn.functional.binary_cross_entropy_with_logits(
+                    logits, torch.from_numpy(truth.astype(np.float32)), reduction="none"
+                )
+                * weight
+            ).sum() / weight.sum()
             optimizer.zero_grad()
             loss.backward()
             optimizer.step()
             schedule.step()
             losses.append(float(loss.detach()))
         model.eval()
-        row = {"epoch": epoch + 1, "loss": float(np.mean(losses)) if losses else float("nan"),
-               "held_out_error": block_error(model, held_out)[0] if held_out is not None and len(held_out) else float("nan"),
-               "seconds": time.perf_counter() - started}
+        row = {
+            "epoch": epoch + 1,
+            "loss": float(np.mean(losses)) if losses else float("nan"),
+            "held_out_error": block_error(model, held_out)[0]
+            if held_out is not None and len(held_out)
+            else float("nan"),
+            "seconds": time.perf_counter() - started,
+        }
         history.append(row)
         if log is not None:
             log(row)
         if checkpoint is not None:
-            checkpoint.save({"epoch": epoch + 1, "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                             "schedule": schedule.state_dict(), "torch_rng": torch.get_rng_state(),
-                             "numpy_rng": rng.bit_generator.state, "history": history})
+            checkpoint.save(
+                {
+                    "epoch": epoch + 1,
+                    "model": model.state_dict(),
+                    "optimizer": optimizer.state_dict(),
+                    "schedule": schedule.state_dict(),
+                    "torch_rng": torch.get_rng_state(),
+                    "numpy_rng": rng.bit_generator.state,
+                    "history": history,
+                }
+            )
     return model.eval(), history

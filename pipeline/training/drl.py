@@ -46,8 +46,9 @@ class DRLFeatures(BaseFeaturesExtractor):
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
         one_hot = observations["robot"]  # SB3 one-hot encodes a Discrete observation
         robot = one_hot.reshape(one_hot.shape[0], -1).argmax(-1)
-        logits, value = self.policy(observations["features"], observations["node_mask"],
-                                    observations["neighbors"].long(), robot)
+        logits, value = self.policy(
+            observations["features"], observations["node_mask"], observations["neighbors"].long(), robot
+        )
         return torch.cat([logits, value.unsqueeze(-1)], dim=-1)
 
 
@@ -71,8 +72,13 @@ class DRLActorCritic(MaskableActorCriticPolicy):
     """MaskablePPO's actor-critic whose actor and critic are one `DRLPolicy` (no SB3 layers)."""
 
     def __init__(self, *args: Any, drl_config: dict[str, Any] | None = None, **kwargs: Any):
-        kwargs.update(features_extractor_class=DRLFeatures, features_extractor_kwargs={"config": drl_config or {}},
-                      ortho_init=False, net_arch=[], share_features_extractor=True)
+        kwargs.update(
+            features_extractor_class=DRLFeatures,
+            features_extractor_kwargs={"config": drl_config or {}},
+            ortho_init=False,
+            net_arch=[],
+            share_features_extractor=True,
+        )
         super().__init__(*args, **kwargs)
 
     def _build(self, lr_schedule: Callable[[float], float]) -> None:
@@ -126,8 +132,9 @@ class TrainingEnvironment:
     Whether the protocol can make a maze of a side is the environment's (`ExploreEnv`) question."""
 
     # One per environment, round robin; one side alone may be given as a number. A tuple once made.
-    maze_sides_m: any_of(list_of(positive("metres")), positive("metres"),
-                          description="a non-empty list of maze sides (m), each > 0") = (60.0, 80.0, 100.0)
+    maze_sides_m: any_of(
+        list_of(positive("metres")), positive("metres"), description="a non-empty list of maze sides (m), each > 0"
+    ) = (60.0, 80.0, 100.0)
     max_steps: whole(1) = 200  # actions before an episode is truncated
     area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area
     distance_weight: real(0.0) = 0.1  # penalty per metre travelled
@@ -149,14 +156,23 @@ class TrainingEnvironment:
     def make(self, index: int, protocol: Protocol, policy: DRLPolicyConfig) -> ExploreEnv:
         """Environment `index`: mazes of its side, the policy's observation size, neighbour actions.
         A bad reward weight or maze side fails here with the environment's one-line ValueError."""
-        return ExploreEnv(protocol=protocol, map="maze", maze_side_m=self.maze_sides_m[index % len(self.maze_sides_m)],
-                          action="neighbour", max_nodes=policy.max_nodes, max_neighbors=policy.max_neighbors,
-                          max_steps=self.max_steps, area_weight=self.area_weight,
-                          distance_weight=self.distance_weight, completion_bonus=self.completion_bonus)
+        return ExploreEnv(
+            protocol=protocol,
+            map="maze",
+            maze_side_m=self.maze_sides_m[index % len(self.maze_sides_m)],
+            action="neighbour",
+            max_nodes=policy.max_nodes,
+            max_neighbors=policy.max_neighbors,
+            max_steps=self.max_steps,
+            area_weight=self.area_weight,
+            distance_weight=self.distance_weight,
+            completion_bonus=self.completion_bonus,
+        )
 
 
-def vector_env(environment: TrainingEnvironment, protocol: Protocol, policy: DRLPolicyConfig, settings: PPOSettings,
-               seed: int) -> VecEnv:
+def vector_env(
+    environment: TrainingEnvironment, protocol: Protocol, policy: DRLPolicyConfig, settings: PPOSettings, seed: int
+) -> VecEnv:
     makers = [(lambda i=i: environment.make(i, protocol, policy)) for i in range(settings.n_envs)]
     envs = SubprocVecEnv(makers) if settings.subprocess else DummyVecEnv(makers)
     envs.seed(seed)
@@ -183,22 +199,39 @@ class EpisodeLog(BaseCallback):
         self._returns += rewards
         for i in np.flatnonzero(dones):
             info = infos[i]
-            self._episodes.append((float(self._returns[i]), float(info["distance"]), float(info["explored_share"]),
-                                   float(info["complete"])))
+            self._episodes.append(
+                (
+                    float(self._returns[i]),
+                    float(info["distance"]),
+                    float(info["explored_share"]),
+                    float(info["complete"]),
+                )
+            )
             self._returns[i] = 0.0
         return True
 
     def _on_rollout_end(self) -> None:
         values = self.model.logger.name_to_value
-        row: dict[str, float] = {"timesteps": float(self.num_timesteps),
-                                 "seconds": time.perf_counter() - self._started,
-                                 "episodes": float(len(self._episodes))}
+        row: dict[str, float] = {
+            "timesteps": float(self.num_timesteps),
+            "seconds": time.perf_counter() - self._started,
+            "episodes": float(len(self._episodes)),
+        }
         if self._episodes:
             returns, distances, shares, complete = np.asarray(self._episodes).T
-            row.update(episode_return=float(returns.mean()), episode_distance_m=float(distances.mean()),
-                       explored_share=float(shares.mean()), completed_share=float(complete.mean()))
-        for key in ("train/policy_gradient_loss", "train/value_loss", "train/entropy_loss", "train/approx_kl",
-                    "train/explained_variance"):
+            row.update(
+                episode_return=float(returns.mean()),
+                episode_distance_m=float(distances.mean()),
+                explored_share=float(shares.mean()),
+                completed_share=float(complete.mean()),
+            )
+        for key in (
+            "train/policy_gradient_loss",
+            "train/value_loss",
+            "train/entropy_loss",
+            "train/approx_kl",
+            "train/explained_variance",
+        ):
             if key in values:
                 row[key.split("/")[1]] = float(values[key])
         self._episodes.clear()
@@ -207,10 +240,18 @@ class EpisodeLog(BaseCallback):
             self.on_rollout(row)
 
 
-def new_agent(envs: VecEnv, policy: DRLPolicyConfig, settings: PPOSettings, seed: int,
-              device: str = "cpu") -> MaskablePPO:
-    agent = MaskablePPO(DRLActorCritic, envs, policy_kwargs={"drl_config": policy.to_dict()}, seed=seed,
-                        device=device, verbose=0, **settings.algorithm_kwargs())
+def new_agent(
+    envs: VecEnv, policy: DRLPolicyConfig, settings: PPOSettings, seed: int, device: str = "cpu"
+) -> MaskablePPO:
+    agent = MaskablePPO(
+        DRLActorCritic,
+        envs,
+        policy_kwargs={"drl_config": policy.to_dict()},
+        seed=seed,
+        device=device,
+        verbose=0,
+        **settings.algorithm_kwargs(),
+    )
     return with_silent_logger(agent)
 
 
@@ -236,8 +277,15 @@ def evaluate(policy: DRLPolicy, envs: list[ExploreEnv], seeds: list[int]) -> lis
         while not done:
             observation, _, terminated, truncated, info = env.step(policy.predict_action(observation))
             done = terminated or truncated
-        results.append({"map": info["map_name"], "distance": info["distance"], "explored_share": info["explored_share"],
-                        "complete": info["complete"], "steps": info["steps"]})
+        results.append(
+            {
+                "map": info["map_name"],
+                "distance": info["distance"],
+                "explored_share": info["explored_share"],
+                "complete": info["complete"],
+                "steps": info["steps"],
+            }
+        )
     return results
 
 

@@ -53,8 +53,14 @@ class ImitationSettings:
         return asdict(self)
 
 
-def teacher_decisions(make_env: Callable[[int], Any], teacher_name: str, episodes: int, gamma: float, seed: int,
-                      student: DRLPolicy | None = None) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+def teacher_decisions(
+    make_env: Callable[[int], Any],
+    teacher_name: str,
+    episodes: int,
+    gamma: float,
+    seed: int,
+    student: DRLPolicy | None = None,
+) -> tuple[dict[str, np.ndarray], dict[str, float]]:
     """The teacher's choices in `episodes` episodes (episode i in environment `make_env(i % 4)`,
     reset with seed + i): stacked observations, the slot the teacher chose and the discounted
     return from there; with the mean distance and completed share of the episodes. The teacher
@@ -82,8 +88,10 @@ def teacher_decisions(make_env: Callable[[int], Any], teacher_name: str, episode
             except ValueError:
                 action = -1
             if action < 0 or not observation["action_mask"][action]:
-                raise ValueError(f"imitation.planner {teacher_name!r} moved outside the robot's known window edges; "
-                                 "the teacher must step to a window neighbour per decision (as greedy_utility does)")
+                raise ValueError(
+                    f"imitation.planner {teacher_name!r} moved outside the robot's known window edges; "
+                    "the teacher must step to a window neighbour per decision (as greedy_utility does)"
+                )
             for key in OBSERVATION_KEYS:
                 columns[key].append(np.asarray(observation[key]))
             columns["action"].append(action)
@@ -103,12 +111,16 @@ def teacher_decisions(make_env: Callable[[int], Any], teacher_name: str, episode
     for env in envs.values():
         env.close()
     samples = {key: np.stack(values) for key, values in columns.items()} if columns["action"] else {}
-    return samples, {"distance_m": float(np.mean(distances)), "completed": float(np.mean(completed)),
-                     "decisions": float(len(columns["action"]))}
+    return samples, {
+        "distance_m": float(np.mean(distances)),
+        "completed": float(np.mean(completed)),
+        "decisions": float(len(columns["action"])),
+    }
 
 
-def imitate(policy: DRLPolicy, samples: dict[str, np.ndarray], settings: ImitationSettings, seed: int,
-            epochs: int | None = None) -> list[dict[str, float]]:
+def imitate(
+    policy: DRLPolicy, samples: dict[str, np.ndarray], settings: ImitationSettings, seed: int, epochs: int | None = None
+) -> list[dict[str, float]]:
     """Train `policy` in place on the teacher's decisions; per epoch: loss, slot agreement, value error."""
     generator = torch.Generator().manual_seed(seed)
     tensors = {key: torch.as_tensor(value) for key, value in samples.items()}
@@ -119,11 +131,20 @@ def imitate(policy: DRLPolicy, samples: dict[str, np.ndarray], settings: Imitati
     for epoch in range(1, (epochs or settings.epochs) + 1):
         order = torch.randperm(count, generator=generator)
         totals = np.zeros(3)
-        for start in tqdm(range(0, count, settings.batch_size), desc=f"imitation: epoch {epoch}", unit="batch",
-                          mininterval=2.0, leave=False):
+        for start in tqdm(
+            range(0, count, settings.batch_size),
+            desc=f"imitation: epoch {epoch}",
+            unit="batch",
+            mininterval=2.0,
+            leave=False,
+        ):
             index = order[start : start + settings.batch_size]
-            logits, value = policy(tensors["features"][index], tensors["node_mask"][index],
-                                   tensors["neighbors"][index].long(), tensors["robot"][index].long())
+            logits, value = policy(
+                tensors["features"][index],
+                tensors["node_mask"][index],
+                tensors["neighbors"][index].long(),
+                tensors["robot"][index].long(),
+            )
             logits = torch.where(tensors["action_mask"][index].bool(), logits, torch.full_like(logits, MASKED_LOGIT))
             target, returns = tensors["action"][index].long(), tensors["return"][index].float()
             action_loss = F.cross_entropy(logits, target)
@@ -133,26 +154,39 @@ def imitate(policy: DRLPolicy, samples: dict[str, np.ndarray], settings: Imitati
             loss.backward()
             torch.nn.utils.clip_grad_norm_(policy.parameters(), 1.0)
             optimizer.step()
-            totals += np.array([loss.item(), (logits.argmax(-1) == target).float().sum().item(),
-                                (value - returns).abs().sum().item()]) * np.array([len(index), 1, 1])
-        history.append({"epoch": float(epoch), "loss": totals[0] / count, "agreement": totals[1] / count,
-                        "value_error": totals[2] / count})
+            totals += np.array(
+                [loss.item(), (logits.argmax(-1) == target).float().sum().item(), (value - returns).abs().sum().item()]
+            ) * np.array([len(index), 1, 1])
+        history.append(
+            {
+                "epoch": float(epoch),
+                "loss": totals[0] / count,
+                "agreement": totals[1] / count,
+                "value_error": totals[2] / count,
+            }
+        )
     policy.eval()
     return history
 
 
-
-def warm_start(policy: DRLPolicy, make_env: Callable[[int], Any], settings: ImitationSettings, gamma: float,
-               seed: int) -> dict[str, Any]:
+def warm_start(
+    policy: DRLPolicy, make_env: Callable[[int], Any], settings: ImitationSettings, gamma: float, seed: int
+) -> dict[str, Any]:
     """Imitation, then `dagger_rounds` DAgger rounds, on `policy` in place; what each phase measured
     (the drivers' distance and completion, the agreement with the teacher per epoch)."""
     samples, driven = teacher_decisions(make_env, settings.planner, settings.episodes, gamma, seed)
     phases = [{"phase": "teacher", **driven, "epochs": imitate(policy, samples, settings, seed)}]
     for round_index in range(1, settings.dagger_rounds + 1):
         round_seed = seed + round_index * 100_003  # other mazes each round
-        more, driven = teacher_decisions(make_env, settings.planner, settings.dagger_episodes, gamma, round_seed,
-                                         student=policy)
+        more, driven = teacher_decisions(
+            make_env, settings.planner, settings.dagger_episodes, gamma, round_seed, student=policy
+        )
         samples = {key: np.concatenate([samples[key], more[key]]) for key in samples}
-        phases.append({"phase": f"dagger {round_index}", **driven,
-                       "epochs": imitate(policy, samples, settings, round_seed, settings.dagger_epochs)})
+        phases.append(
+            {
+                "phase": f"dagger {round_index}",
+                **driven,
+                "epochs": imitate(policy, samples, settings, round_seed, settings.dagger_epochs),
+            }
+        )
     return {"decisions": int(len(samples["action"])), "phases": phases}

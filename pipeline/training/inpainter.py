@@ -50,12 +50,7 @@ from pipeline.models.modeling_inpainter import (
     is_inpainter_export,
     load_big_lama_generator,
 )
-from pipeline.training.inpainter_data import (
-    SPLITS,
-    InpainterDataModule,
-    maze_count,
-    pair_count,
-)
+from pipeline.training.inpainter_data import SPLITS, InpainterDataModule, maze_count, pair_count
 from pipeline.training.inpainter_losses import (
     PatchDiscriminator,
     hole_and_known,
@@ -64,12 +59,7 @@ from pipeline.training.inpainter_losses import (
     precision_recall_f1,
 )
 from pipeline.training.lightning_run import RunOptions, export, fit, start
-from pipeline.training.run_setup import (
-    one_line,
-    random_states,
-    restore_random_states,
-    torch_threads,
-)
+from pipeline.training.run_setup import one_line, random_states, restore_random_states, torch_threads
 
 EXPORT_NAME = "inpainter.pt"
 
@@ -118,7 +108,9 @@ class InpainterLightning(L.LightningModule):
         self.generator = InpainterModel(self.model_config)
         tc = self.train_config
         self.discriminator = (
-            PatchDiscriminator(self.model_config.in_channels + 1, tc.discriminator_width) if tc.adversarial_weight > 0 else None
+            PatchDiscriminator(self.model_config.in_channels + 1, tc.discriminator_width)
+            if tc.adversarial_weight > 0
+            else None
         )
         self.automatic_optimization = False
         self.history: list[dict[str, float]] = []
@@ -146,8 +138,9 @@ class InpainterLightning(L.LightningModule):
         opts = self.optimizers()
         return list(opts) if isinstance(opts, (list, tuple)) else [opts]
 
-    def _disc_input(self, encoded: torch.Tensor, free_prob: torch.Tensor, observed: torch.Tensor,
-                    valid: torch.Tensor) -> torch.Tensor:
+    def _disc_input(
+        self, encoded: torch.Tensor, free_prob: torch.Tensor, observed: torch.Tensor, valid: torch.Tensor
+    ) -> torch.Tensor:
         """The discriminator's view: input channels + image with known pixels as observed, padding 0."""
         hole, known = hole_and_known(observed, valid)
         known_value = (observed >= PIXEL_FREE_MIN).to(free_prob.dtype)
@@ -181,8 +174,12 @@ class InpainterLightning(L.LightningModule):
             # Generator's adversarial term (the discriminator's grads from it are cleared next step).
             adv = F.softplus(-self.discriminator(fake)).mean()
             total = loss + tc.adversarial_weight * adv
-            self.log_dict({"train_adv": adv.detach(), "train_disc": d_loss.detach()}, on_step=False, on_epoch=True,
-                          batch_size=observed.shape[0])
+            self.log_dict(
+                {"train_adv": adv.detach(), "train_disc": d_loss.detach()},
+                on_step=False,
+                on_epoch=True,
+                batch_size=observed.shape[0],
+            )
         else:
             gen_opt = opts[0]
         gen_opt.zero_grad()
@@ -190,8 +187,13 @@ class InpainterLightning(L.LightningModule):
         gen_opt.step()
         n = observed.shape[0]
         self._train_sums += torch.tensor([float(loss.detach()) * n, n], dtype=torch.float64)
-        self.log_dict({"train_loss": loss.detach(), "train_hole_bce": parts["hole"], "train_known_bce": parts["known"]},
-                      on_step=False, on_epoch=True, prog_bar=True, batch_size=n)
+        self.log_dict(
+            {"train_loss": loss.detach(), "train_hole_bce": parts["hole"], "train_known_bce": parts["known"]},
+            on_step=False,
+            on_epoch=True,
+            prog_bar=True,
+            batch_size=n,
+        )
         return total.detach()
 
     def on_train_epoch_start(self) -> None:
@@ -224,8 +226,16 @@ class InpainterLightning(L.LightningModule):
         sums = sums.cpu()
         metrics = precision_recall_f1(sums[:3].tolist())
         val_loss = float(sums[3] / max(1.0, float(sums[4])))
-        self.log_dict({"val_loss": val_loss, "val_precision": metrics["precision"], "val_recall": metrics["recall"],
-                       "val_f1": metrics["f1"]}, prog_bar=True, sync_dist=False)
+        self.log_dict(
+            {
+                "val_loss": val_loss,
+                "val_precision": metrics["precision"],
+                "val_recall": metrics["recall"],
+                "val_f1": metrics["f1"],
+            },
+            prog_bar=True,
+            sync_dist=False,
+        )
         if self.trainer.sanity_checking:
             return
         train = self._train_sums.to(self.device)
@@ -277,7 +287,9 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError:  # refused by weights_only: e.g. OmegaConf objects in LaMa's hyper_parameters
-        warnings.warn(f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=3)
+        warnings.warn(
+            f"{path}: not loadable with weights_only=True; unpickling it fully (trust the file)", stacklevel=3
+        )
         try:
             payload = torch.load(path, map_location="cpu", weights_only=False)
         except Exception as error:  # noqa: BLE001 - damaged, or its classes are not importable here
@@ -293,8 +305,9 @@ def read_init_checkpoint(path: str | Path) -> dict[str, Any]:
 
 # ----------------------------------------------------------------------------- entry point
 def is_big_lama_layout(config: InpainterConfig) -> bool:
-    reference = InpainterConfig.big_lama(in_channels=config.in_channels, out_channels=config.out_channels,
-                                         input_encoding=config.input_encoding)
+    reference = InpainterConfig.big_lama(
+        in_channels=config.in_channels, out_channels=config.out_channels, input_encoding=config.input_encoding
+    )
     return config == reference
 
 
@@ -340,10 +353,22 @@ def train_inpainter(
     `artifact_location` is where a newly created MLflow experiment keeps its artifacts
     (MLflow's default: ./mlruns).
     """
-    run = RunOptions.from_dict(dict(
-        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, num_nodes=num_nodes, resume=resume,
-        mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
-        artifact_location=artifact_location, progress=progress))
+    run = RunOptions.from_dict(
+        dict(
+            out_dir=out_dir,
+            checkpoint_dir=checkpoint_dir,
+            accelerator=accelerator,
+            devices=devices,
+            num_nodes=num_nodes,
+            resume=resume,
+            mlflow=mlflow,
+            tracking_uri=tracking_uri,
+            experiment=experiment_name,
+            run_name=run_name,
+            artifact_location=artifact_location,
+            progress=progress,
+        )
+    )
     tc = train_config if isinstance(train_config, TrainConfig) else TrainConfig.from_dict(train_config or {})
     overrides = {k: v for k, v in (("max_epochs", max_epochs), ("batch_size", batch_size), ("lr", lr)) if v is not None}
     tc = TrainConfig.from_dict({**asdict(tc), **overrides})
@@ -353,8 +378,14 @@ def train_inpainter(
         return _train(model_config or InpainterConfig(), tc, Path(data_dir), run, init_checkpoint, protocol)
 
 
-def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: RunOptions,
-           init_checkpoint: Optional[str | Path], protocol: Optional[dict[str, Any]]) -> Path | None:
+def _train(
+    model_config: InpainterConfig,
+    tc: TrainConfig,
+    data_dir: Path,
+    run: RunOptions,
+    init_checkpoint: Optional[str | Path],
+    protocol: Optional[dict[str, Any]],
+) -> Path | None:
     # Everything that can fail is checked before a file is touched or an MLflow run is made: the
     # settings, the init checkpoint and the data; old checkpoints go only just before fit().
     init_weights = None
@@ -364,12 +395,17 @@ def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: 
         if is_inpainter_export(init_weights):  # our own export (the shipped default, an earlier run): fine-tune it
             exported = InpainterConfig.from_dict(init_weights["config"])
             if exported != model_config:
-                warnings.warn(f"init_checkpoint is an inpainter export: using its layout (ngf {exported.ngf}, "
-                              f"{exported.n_blocks} blocks), not the configured one", stacklevel=3)
+                warnings.warn(
+                    f"init_checkpoint is an inpainter export: using its layout (ngf {exported.ngf}, "
+                    f"{exported.n_blocks} blocks), not the configured one",
+                    stacklevel=3,
+                )
                 model_config = exported
         elif not is_big_lama_layout(model_config):
-            warnings.warn("init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
-                          stacklevel=3)
+            warnings.warn(
+                "init_checkpoint holds Big-LaMa weights: using the Big-LaMa layout (InpainterConfig.big_lama())",
+                stacklevel=3,
+            )
             model_config = InpainterConfig.big_lama()
         if run.resume_from() is not None:  # a resumed run continues from last.ckpt, not from these weights
             init_weights = None
@@ -379,8 +415,10 @@ def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: 
     module = InpainterLightning(model_config.to_dict(), asdict(tc))
     if init_weights is not None and is_inpainter_export(init_weights):
         module.generator.load_state_dict(init_weights["state_dict"])
-        print(f"initialised the generator from {init_checkpoint} (an inpainter export): "
-              f"{len(init_weights['state_dict'])} tensors")
+        print(
+            f"initialised the generator from {init_checkpoint} (an inpainter export): "
+            f"{len(init_weights['state_dict'])} tensors"
+        )
         del init_weights
     elif init_weights is not None:
         try:
@@ -388,11 +426,22 @@ def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: 
         except (KeyError, RuntimeError, ValueError) as error:
             raise ValueError(f"{init_checkpoint}: {error}") from None
         del init_weights
-        print(f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}")
+        print(
+            f"initialised the generator from {init_checkpoint}: {summary['loaded']} tensors, adapted {summary['adapted']}"
+        )
 
-    result = fit(run, module, monitor="val_f1", mode="max", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
-                 fit_args={"datamodule": data}, unused_parameters=tc.adversarial_weight > 0,
-                 trainer_options={"use_distributed_sampler": False, "log_every_n_steps": 1}, data=data_dir)
+    result = fit(
+        run,
+        module,
+        monitor="val_f1",
+        mode="max",
+        max_epochs=tc.max_epochs,
+        max_minutes=tc.max_minutes,
+        fit_args={"datamodule": data},
+        unused_parameters=tc.adversarial_weight > 0,
+        trainer_options={"use_distributed_sampler": False, "log_every_n_steps": 1},
+        data=data_dir,
+    )
     export_path = run.out_dir / EXPORT_NAME
 
     def write(host: dict[str, Any]) -> None:
@@ -401,11 +450,14 @@ def _train(model_config: InpainterConfig, tc: TrainConfig, data_dir: Path, run: 
         if best_path and Path(best_path).is_file():
             state = torch.load(best_path, map_location="cpu", weights_only=True)["state_dict"]
             generator = InpainterModel(module.model_config)
-            generator.load_state_dict({k[len("generator."):]: v for k, v in state.items() if k.startswith("generator.")})
+            generator.load_state_dict(
+                {k[len("generator.") :]: v for k, v in state.items() if k.startswith("generator.")}
+            )
         history = list(module.history)
         best = max(history, key=lambda h: h["val_f1"]) if history else {}
         export_inpainter(
-            generator.cpu().eval(), export_path,
+            generator.cpu().eval(),
+            export_path,
             threshold=tc.threshold,
             train_config=asdict(tc),
             history=history,

@@ -40,8 +40,9 @@ def maze_ids(group: dict[str, np.ndarray]) -> list[str]:
     return [hashlib.sha1(t.tobytes() + v.tobytes()).hexdigest()[:16] for t, v in zip(group["target"], group["valid"])]
 
 
-def split_pairs(data_dir: str | Path, val_fraction: float = 0.2, split: str = "maze",
-                seed: int = 0) -> tuple[PairSet, PairSet]:
+def split_pairs(
+    data_dir: str | Path, val_fraction: float = 0.2, split: str = "maze", seed: int = 0
+) -> tuple[PairSet, PairSet]:
     """(train, val) pair sets.
 
     split="maze": whole mazes are held out (about `val_fraction` of the pairs), so the
@@ -62,8 +63,9 @@ def split_pairs(data_dir: str | Path, val_fraction: float = 0.2, split: str = "m
             for maze in group_ids:
                 counts[maze] = counts.get(maze, 0) + 1
         if len(counts) < 2:
-            warnings.warn(f"{data_dir}: pairs from a single maze; holding out the last pairs of each rollout group",
-                          stacklevel=2)
+            warnings.warn(
+                f"{data_dir}: pairs from a single maze; holding out the last pairs of each rollout group", stacklevel=2
+            )
             return split_pairs(data_dir, val_fraction, "rollout", seed)
         goal = val_fraction * sum(counts.values())
         held: set[str] = set()
@@ -153,8 +155,9 @@ class NodeImagePairDataset(torch.utils.data.Dataset):
 class SizeGroupedBatchSampler(torch.utils.data.Sampler):
     """Batches of one image size each; shuffled per epoch (`set_epoch`), split across ranks."""
 
-    def __init__(self, sizes: np.ndarray, batch_size: int, shuffle: bool, seed: int = 0,
-                 rank: int = 0, world_size: int = 1) -> None:
+    def __init__(
+        self, sizes: np.ndarray, batch_size: int, shuffle: bool, seed: int = 0, rank: int = 0, world_size: int = 1
+    ) -> None:
         self.sizes, self.batch_size, self.shuffle, self.seed = sizes, batch_size, shuffle, seed
         self.rank, self.world_size = rank, world_size
         self.epoch = 0
@@ -190,8 +193,16 @@ class SizeGroupedBatchSampler(torch.utils.data.Sampler):
 class InpainterDataModule(L.LightningDataModule):
     """Stage I shards -> size-grouped, augmented training batches and validation batches."""
 
-    def __init__(self, data_dir: str | Path, batch_size: int = 16, val_fraction: float = 0.2,
-                 augment: bool = True, seed: int = 0, hide_prob: float = 0.0, split: str = "maze") -> None:
+    def __init__(
+        self,
+        data_dir: str | Path,
+        batch_size: int = 16,
+        val_fraction: float = 0.2,
+        augment: bool = True,
+        seed: int = 0,
+        hide_prob: float = 0.0,
+        split: str = "maze",
+    ) -> None:
         super().__init__()
         self.data_dir, self.batch_size, self.val_fraction = Path(data_dir), batch_size, val_fraction
         self.augment, self.seed, self.hide_prob, self.split = augment, seed, hide_prob, split
@@ -203,13 +214,21 @@ class InpainterDataModule(L.LightningDataModule):
             self.train_pairs, self.val_pairs = split_pairs(self.data_dir, self.val_fraction, self.split, self.seed)
 
     def _loader(self, pairs: PairSet, train: bool) -> torch.utils.data.DataLoader:
-        dataset = NodeImagePairDataset(pairs, augment=self.augment and train, hide_prob=self.hide_prob if train else 0.0)
+        dataset = NodeImagePairDataset(
+            pairs, augment=self.augment and train, hide_prob=self.hide_prob if train else 0.0
+        )
         rank, world = 0, 1
         trainer = getattr(self, "trainer", None)
         if trainer is not None:
             rank, world = trainer.global_rank, trainer.world_size
-        sampler = SizeGroupedBatchSampler(dataset.sizes, self.batch_size, shuffle=train, seed=self.seed,
-                                          rank=rank if train else 0, world_size=world if train else 1)
+        sampler = SizeGroupedBatchSampler(
+            dataset.sizes,
+            self.batch_size,
+            shuffle=train,
+            seed=self.seed,
+            rank=rank if train else 0,
+            world_size=world if train else 1,
+        )
         return torch.utils.data.DataLoader(dataset, batch_sampler=sampler, num_workers=0)
 
     def train_dataloader(self):

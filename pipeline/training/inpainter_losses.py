@@ -10,11 +10,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-from pipeline.models.modeling_inpainter import (
-    PIXEL_FREE_MIN,
-    PIXEL_OBSTACLE_MAX,
-    InpainterModel,
-)
+from pipeline.models.modeling_inpainter import PIXEL_FREE_MIN, PIXEL_OBSTACLE_MAX, InpainterModel
 from pipeline.training.inpainter_data import PairSet
 
 
@@ -35,8 +31,12 @@ def as_image_batch(x: torch.Tensor) -> torch.Tensor:
 
 
 def inpainting_loss(
-    logits: torch.Tensor, observed: torch.Tensor, target: torch.Tensor, valid: torch.Tensor,
-    known_weight: float = 0.1, hole_pos_weight: float = 1.0,
+    logits: torch.Tensor,
+    observed: torch.Tensor,
+    target: torch.Tensor,
+    valid: torch.Tensor,
+    known_weight: float = 0.1,
+    hole_pos_weight: float = 1.0,
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """BCE over hole pixels + known_weight * BCE over known pixels; invalid (padding) pixels ignored.
 
@@ -54,8 +54,9 @@ def inpainting_loss(
     return hole_loss + known_weight * known_loss, {"hole": hole_loss.detach(), "known": known_loss.detach()}
 
 
-def hole_counts(probs: torch.Tensor, observed: torch.Tensor, target: torch.Tensor, valid: torch.Tensor,
-                threshold: float) -> torch.Tensor:
+def hole_counts(
+    probs: torch.Tensor, observed: torch.Tensor, target: torch.Tensor, valid: torch.Tensor, threshold: float
+) -> torch.Tensor:
     """[true positives, false positives, false negatives] of predicted free nodes in the hole."""
     probs, observed, target, valid = (as_image_batch(t) for t in (probs, observed, target, valid))
     hole, _ = hole_and_known(observed, valid)
@@ -73,8 +74,9 @@ def precision_recall_f1(counts: Sequence[float]) -> dict[str, float]:
 
 
 @torch.inference_mode()
-def evaluate_inpainter(model: InpainterModel, pairs: PairSet, thresholds: Sequence[float] = (0.5,),
-                       batch_size: int = 64) -> dict[float, dict[str, float]]:
+def evaluate_inpainter(
+    model: InpainterModel, pairs: PairSet, thresholds: Sequence[float] = (0.5,), batch_size: int = 64
+) -> dict[float, dict[str, float]]:
     """Hole precision / recall / F1 of a model (in eval mode) on a pair set, per threshold."""
     counts = {t: torch.zeros(3, dtype=torch.float64) for t in thresholds}
     for group in pairs.values():

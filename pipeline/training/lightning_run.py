@@ -107,22 +107,42 @@ def start(run: RunOptions, seed: int) -> None:
     L.seed_everything(seed, workers=True, verbose=False)
 
 
-def fit(run: RunOptions, module: L.LightningModule, *, monitor: str, mode: str, max_epochs: int,
-        max_minutes: Optional[float], fit_args: dict[str, Any], trainer_options: dict[str, Any],
-        hyperparams: Optional[dict[str, Any]] = None, unused_parameters: bool = False,
-        data: Optional[Path] = None) -> FitResult:
+def fit(
+    run: RunOptions,
+    module: L.LightningModule,
+    *,
+    monitor: str,
+    mode: str,
+    max_epochs: int,
+    max_minutes: Optional[float],
+    fit_args: dict[str, Any],
+    trainer_options: dict[str, Any],
+    hyperparams: Optional[dict[str, Any]] = None,
+    unused_parameters: bool = False,
+    data: Optional[Path] = None,
+) -> FitResult:
     """Train `module` (`fit_args`: its datamodule or loaders), keeping the best checkpoint by
     `monitor` (`mode` min or max) and the last. `unused_parameters`: a multi-device run lets a step
     leave some parameters without gradients (the GAN's two steps). `data` (the data set's folder
     or file) is recorded as the MLflow run's dataset input, with its DVC hash."""
-    checkpoint = ModelCheckpoint(dirpath=run.checkpoint_dir, filename=BEST_NAME, monitor=monitor, mode=mode,
-                                 save_top_k=1, save_last=True, auto_insert_metric_name=False,
-                                 enable_version_counter=False)
+    checkpoint = ModelCheckpoint(
+        dirpath=run.checkpoint_dir,
+        filename=BEST_NAME,
+        monitor=monitor,
+        mode=mode,
+        save_top_k=1,
+        save_last=True,
+        auto_insert_metric_name=False,
+        enable_version_counter=False,
+    )
     ckpt_path = run.resume_from()
     run_file = run.checkpoint_dir / MLFLOW_RUN_FILE
     run_id = run_file.read_text().strip() if ckpt_path is not None and run_file.is_file() else None
-    logger: Any = (mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location, run_id)
-                   if run.mlflow else False)
+    logger: Any = (
+        mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location, run_id)
+        if run.mlflow
+        else False
+    )
     options = dict(
         max_epochs=max_epochs,
         max_time=max_time(max_minutes),
@@ -154,7 +174,9 @@ def fit(run: RunOptions, module: L.LightningModule, *, monitor: str, mode: str, 
     return FitResult(trainer, checkpoint, logger, time.perf_counter() - started)
 
 
-def export(result: FitResult, path: Path, write: Callable[[dict[str, Any]], Any], num_parameters: int) -> Optional[Path]:
+def export(
+    result: FitResult, path: Path, write: Callable[[dict[str, Any]], Any], num_parameters: int
+) -> Optional[Path]:
     """`write(host)` writes the export at `path` on rank zero (the other ranks return None), then
     the MLflow run logs it with the training time and the host it was made on."""
     if not result.trainer.is_global_zero:

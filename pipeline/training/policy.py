@@ -80,8 +80,12 @@ class PlannerLightning(L.LightningModule):
         self.model_config = DiffusionPolicyConfig.from_dict(model_config)
         self.train_config = PlannerTrainConfig.from_dict(train_config)
         self.policy = DiffusionPolicy(self.model_config)
-        self.ema = AveragedModel(self.policy, multi_avg_fn=get_ema_multi_avg_fn(self.train_config.ema_decay), use_buffers=True)
-        self.ema.requires_grad_(False)  # updated by averaging, never by gradients (DDP refuses trainable unused weights)
+        self.ema = AveragedModel(
+            self.policy, multi_avg_fn=get_ema_multi_avg_fn(self.train_config.ema_decay), use_buffers=True
+        )
+        self.ema.requires_grad_(
+            False
+        )  # updated by averaging, never by gradients (DDP refuses trainable unused weights)
         self.history: list[dict[str, float]] = []
         self.generators: list[torch.Generator | np.random.Generator] = []  # saved in checkpoints (`random_states`)
         self._epoch_losses: list[float] = []
@@ -125,8 +129,16 @@ class PlannerLightning(L.LightningModule):
             return
         # Sums over this process's batches, added up across processes: every rank of a
         # multi-device run logs (and ModelCheckpoint ranks by) the loss over all held-out steps.
-        sums = torch.tensor([sum(self._val["loss"]), len(self._val["loss"]), sum(self._val["first_step_hits"]),
-                             sum(self._val["first_step_count"])], dtype=torch.float64, device=self.device)
+        sums = torch.tensor(
+            [
+                sum(self._val["loss"]),
+                len(self._val["loss"]),
+                sum(self._val["first_step_hits"]),
+                sum(self._val["first_step_count"]),
+            ],
+            dtype=torch.float64,
+            device=self.device,
+        )
         if self.trainer.world_size > 1:
             sums = self.trainer.strategy.reduce(sums, reduce_op="sum")
         loss_sum, batches, hits, count = (float(v) for v in sums.cpu())
@@ -150,7 +162,9 @@ class PlannerLightning(L.LightningModule):
         tc = self.train_config
         optimizer = torch.optim.AdamW(self.policy.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
         total = max(int(self.trainer.estimated_stepping_batches), tc.warmup_steps + 1)
-        schedule = get_cosine_schedule_with_warmup(optimizer, num_warmup_steps=min(tc.warmup_steps, total // 4), num_training_steps=total)
+        schedule = get_cosine_schedule_with_warmup(
+            optimizer, num_warmup_steps=min(tc.warmup_steps, total // 4), num_training_steps=total
+        )
         return {"optimizer": optimizer, "lr_scheduler": {"scheduler": schedule, "interval": "step"}}
 
     def on_save_checkpoint(self, checkpoint: dict[str, Any]) -> None:
@@ -166,8 +180,10 @@ def start_from(module: PlannerLightning, export: str | Path) -> None:
     """Load a policy export's weights into the module's policy and its EMA copy (same model config)."""
     policy, _ = load_policy(export)
     if policy.config.to_dict() != module.model_config.to_dict():
-        raise ValueError(f"{export}: its model config differs from the one being trained; start from an export of "
-                         "the same config or from scratch")
+        raise ValueError(
+            f"{export}: its model config differs from the one being trained; start from an export of "
+            "the same config or from scratch"
+        )
     module.policy.load_state_dict(policy.state_dict())
     module.ema.module.load_state_dict(policy.state_dict())
 
@@ -202,12 +218,31 @@ def train_planner(
     same model config, gives a fresh run its starting weights (its EMA copy too) instead of a
     random draw; a resumed run continues from its checkpoint.
     """
-    tc = train_config if isinstance(train_config, PlannerTrainConfig) else PlannerTrainConfig.from_dict(train_config or {})
-    mc = model_config if isinstance(model_config, DiffusionPolicyConfig) else DiffusionPolicyConfig.from_dict(model_config or {})
-    run = RunOptions.from_dict(dict(
-        out_dir=out_dir, checkpoint_dir=checkpoint_dir, accelerator=accelerator, devices=devices, num_nodes=num_nodes, resume=resume,
-        mlflow=mlflow, tracking_uri=tracking_uri, experiment=experiment_name, run_name=run_name,
-        progress=progress))
+    tc = (
+        train_config
+        if isinstance(train_config, PlannerTrainConfig)
+        else PlannerTrainConfig.from_dict(train_config or {})
+    )
+    mc = (
+        model_config
+        if isinstance(model_config, DiffusionPolicyConfig)
+        else DiffusionPolicyConfig.from_dict(model_config or {})
+    )
+    run = RunOptions.from_dict(
+        dict(
+            out_dir=out_dir,
+            checkpoint_dir=checkpoint_dir,
+            accelerator=accelerator,
+            devices=devices,
+            num_nodes=num_nodes,
+            resume=resume,
+            mlflow=mlflow,
+            tracking_uri=tracking_uri,
+            experiment=experiment_name,
+            run_name=run_name,
+            progress=progress,
+        )
+    )
     arrays, meta = load_observations(observations)
     n_max = arrays["features"].shape[1]
     if n_max < mc.max_nodes or arrays["neighbors"].shape[2] != mc.max_neighbors:
@@ -217,7 +252,9 @@ def train_planner(
         )
     arrays = crop_observations(arrays, mc.max_nodes)  # larger stored graphs train a smaller model
     if arrays["actions"].shape[1] < mc.horizon:
-        raise ValueError(f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}")
+        raise ValueError(
+            f"{observations}: actions hold {arrays['actions'].shape[1]} steps, the model's horizon is {mc.horizon}"
+        )
     arrays["actions"] = arrays["actions"][:, : mc.horizon]
     with torch_threads(num_threads):
         start(run, tc.seed)
@@ -228,25 +265,48 @@ def train_planner(
         val_rows = np.random.default_rng(tc.seed).permutation(val_rows) if len(val_rows) else train_rows[:1]
         val_set = PlannerDataset(arrays, mc.obs_steps, val_rows)
         generator = torch.Generator().manual_seed(tc.seed)
-        train_loader = torch.utils.data.DataLoader(train_set, batch_size=tc.batch_size, shuffle=True, collate_fn=collate,
-                                                   generator=generator, drop_last=len(train_set) > tc.batch_size)
+        train_loader = torch.utils.data.DataLoader(
+            train_set,
+            batch_size=tc.batch_size,
+            shuffle=True,
+            collate_fn=collate,
+            generator=generator,
+            drop_last=len(train_set) > tc.batch_size,
+        )
         val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
         module = PlannerLightning(mc.to_dict(), asdict(tc))
         if init_policy is not None and run.resume_from() is None:
             start_from(module, init_policy)
         module.generators = [generator, train_set.rng]  # the shuffle and the augmentation resume where they were
-        hyperparams = {**{f"model.{k}": v for k, v in mc.to_dict().items()}, **{f"train.{k}": v for k, v in asdict(tc).items()},
-                       "observations": str(observations), "samples": len(arrays["episode"])}
-        result = fit(run, module, monitor="val_loss", mode="min", max_epochs=tc.max_epochs, max_minutes=tc.max_minutes,
-                     fit_args={"train_dataloaders": train_loader, "val_dataloaders": val_loader}, hyperparams=hyperparams,
-                     trainer_options={"log_every_n_steps": 5, "gradient_clip_val": 1.0}, data=Path(observations))
+        hyperparams = {
+            **{f"model.{k}": v for k, v in mc.to_dict().items()},
+            **{f"train.{k}": v for k, v in asdict(tc).items()},
+            "observations": str(observations),
+            "samples": len(arrays["episode"]),
+        }
+        result = fit(
+            run,
+            module,
+            monitor="val_loss",
+            mode="min",
+            max_epochs=tc.max_epochs,
+            max_minutes=tc.max_minutes,
+            fit_args={"train_dataloaders": train_loader, "val_dataloaders": val_loader},
+            hyperparams=hyperparams,
+            trainer_options={"log_every_n_steps": 5, "gradient_clip_val": 1.0},
+            data=Path(observations),
+        )
         export_path = run.out_dir / EXPORT_NAME
 
         def write(host: dict[str, Any]) -> None:
             export_policy(
-                module.ema.module.cpu().eval(), export_path,
-                train_config=asdict(tc), history=list(module.history), train_seconds=round(result.seconds, 2),
-                epochs=int(result.trainer.current_epoch), samples={"train": len(train_rows), "val": len(val_rows)},
+                module.ema.module.cpu().eval(),
+                export_path,
+                train_config=asdict(tc),
+                history=list(module.history),
+                train_seconds=round(result.seconds, 2),
+                epochs=int(result.trainer.current_epoch),
+                samples={"train": len(train_rows), "val": len(val_rows)},
                 trained_on=host,
                 observations=meta,
             )

@@ -33,8 +33,9 @@ def train_in_subprocess(**arguments: Any) -> Path:
     the export's path, which rank zero writes. RuntimeError, with the end of the child's output,
     when the training fails."""
     settings = json.dumps({key: _plain(value) for key, value in arguments.items()})
-    done = subprocess.run([sys.executable, "-m", MODULE, settings], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                          text=True)
+    done = subprocess.run(
+        [sys.executable, "-m", MODULE, settings], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
     if done.returncode != 0:
         raise RuntimeError(f"the policy training failed (exit {done.returncode}):\n{done.stdout[-3000:]}")
     export = Path(arguments["out_dir"]) / "policy.pt"

@@ -73,9 +73,12 @@ def _devices_text(value: str) -> None:
 # same as the text a command line gives ("2", "0,1"). Lightning's -1 ("all") is refused here, where
 # it would be refused by Lightning on a CPU only after the stage started: "auto" takes every device.
 # Whether this machine has them is `check_accelerator`'s question.
-DEVICES = any_of(*_DEVICE_SHAPES, satisfies(_devices_text, "devices as text", kind=str),
-                 description="a number of devices >= 1, a list of device indices, 'auto' (all), "
-                             "or one of those as text such as '0,1'")
+DEVICES = any_of(
+    *_DEVICE_SHAPES,
+    satisfies(_devices_text, "devices as text", kind=str),
+    description="a number of devices >= 1, a list of device indices, 'auto' (all), "
+    "or one of those as text such as '0,1'",
+)
 
 
 def _parse_devices(devices: Any) -> int | list[int] | str:
@@ -97,22 +100,33 @@ def check_accelerator(accelerator: Any, devices: Any) -> None:
     if isinstance(accelerator, Accelerator):
         kind = None
     elif not isinstance(accelerator, str) or accelerator not in names:
-        usable = ["auto", "cpu"] + [n for n in names if n not in ("auto", "cpu", "gpu")
-                                    and AcceleratorRegistry[n]["accelerator"].is_available()]
-        raise ValueError(f"accelerator {accelerator!r}: unknown; use one of {', '.join(names)} "
-                         f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})")
+        usable = ["auto", "cpu"] + [
+            n for n in names if n not in ("auto", "cpu", "gpu") and AcceleratorRegistry[n]["accelerator"].is_available()
+        ]
+        raise ValueError(
+            f"accelerator {accelerator!r}: unknown; use one of {', '.join(names)} "
+            f"(available here: {', '.join(usable + (['gpu'] if gpu else []))})"
+        )
     elif accelerator == "gpu":
         if not gpu:
-            raise ValueError("accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); "
-                             "use cpu or auto")
+            raise ValueError(
+                "accelerator 'gpu': no GPU is visible to torch (torch.cuda.is_available() is False); use cpu or auto"
+            )
         kind = "cuda" if torch.cuda.is_available() else "mps"
     elif accelerator == "cuda" and not torch.cuda.is_available():
-        raise ValueError("accelerator 'cuda': no CUDA GPU is visible to torch (torch.cuda.is_available() is False); "
-                         "use cpu or auto")
-    elif accelerator not in ("auto", "cpu", "cuda") and not AcceleratorRegistry[accelerator]["accelerator"].is_available():
-        hint = {"mps": "torch.backends.mps.is_available() is False", "tpu": "torch_xla is missing or finds no TPU"}.get(accelerator, "")
-        raise ValueError(f"accelerator {accelerator!r}: not available on this machine{f' ({hint})' if hint else ''}; "
-                         "use cpu or auto")
+        raise ValueError(
+            "accelerator 'cuda': no CUDA GPU is visible to torch (torch.cuda.is_available() is False); use cpu or auto"
+        )
+    elif (
+        accelerator not in ("auto", "cpu", "cuda")
+        and not AcceleratorRegistry[accelerator]["accelerator"].is_available()
+    ):
+        hint = {"mps": "torch.backends.mps.is_available() is False", "tpu": "torch_xla is missing or finds no TPU"}.get(
+            accelerator, ""
+        )
+        raise ValueError(
+            f"accelerator {accelerator!r}: not available on this machine{f' ({hint})' if hint else ''}; use cpu or auto"
+        )
     if accelerator == "auto" and not gpu and not AcceleratorRegistry["tpu"]["accelerator"].is_available():
         kind = "cpu"  # what Lightning picks here
     wanted = _parse_devices(devices)
@@ -132,8 +146,10 @@ def make_trainer(**options: Any) -> "L.Trainer":
     try:
         return L.Trainer(**options)
     except MisconfigurationException as error:
-        raise ValueError(f"training settings accelerator={options.get('accelerator')!r}, "
-                         f"devices={options.get('devices')!r}: {one_line(error)}") from None
+        raise ValueError(
+            f"training settings accelerator={options.get('accelerator')!r}, "
+            f"devices={options.get('devices')!r}: {one_line(error)}"
+        ) from None
 
 
 def atomic_checkpoint_io() -> Any:
@@ -158,9 +174,12 @@ def random_states(generators: Generators = ()) -> dict[str, Any]:
     a data set's augmentation), so that a resumed run draws what an uninterrupted one would and
     trains the same weights."""
     kind, keys, position, has_gauss, gauss = np.random.get_state()  # plain values: a weights-only load reads them
-    return {"torch": torch.get_rng_state(), "numpy": [kind, torch.from_numpy(keys.astype(np.int64)), position, has_gauss, gauss],
-            "python": random.getstate(),
-            "generators": [g.get_state() if isinstance(g, torch.Generator) else g.bit_generator.state for g in generators]}
+    return {
+        "torch": torch.get_rng_state(),
+        "numpy": [kind, torch.from_numpy(keys.astype(np.int64)), position, has_gauss, gauss],
+        "python": random.getstate(),
+        "generators": [g.get_state() if isinstance(g, torch.Generator) else g.bit_generator.state for g in generators],
+    }
 
 
 def restore_random_states(states: dict[str, Any] | None, generators: Generators = ()) -> None:
@@ -255,8 +274,11 @@ def fresh_checkpoints(out_dir: Path, fresh: bool = True) -> Iterator[None]:
                 path.replace(out_dir / path.name)
             shutil.rmtree(aside, ignore_errors=True)
         elif stale:
-            warnings.warn(f"training stopped after writing new checkpoints in {out_dir} (continue with --resume); "
-                          f"the previous run's are in {aside}", stacklevel=3)
+            warnings.warn(
+                f"training stopped after writing new checkpoints in {out_dir} (continue with --resume); "
+                f"the previous run's are in {aside}",
+                stacklevel=3,
+            )
         raise
     shutil.rmtree(aside, ignore_errors=True)
 
@@ -316,8 +338,13 @@ def training_host(device: torch.device | str = "cpu") -> dict[str, Any]:
     return host
 
 
-def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: Optional[str],
-                  artifact_location: Optional[str] = None, run_id: Optional[str] = None) -> Any:
+def mlflow_logger(
+    experiment_name: str,
+    run_name: Optional[str],
+    tracking_uri: Optional[str],
+    artifact_location: Optional[str] = None,
+    run_id: Optional[str] = None,
+) -> Any:
     """Lightning's MLFlowLogger on `tracking_uri` (default $MLFLOW_TRACKING_URI or sqlite:///mlflow.db):
     Lightning's own default is the ./mlruns file store, which MLflow 3 refuses. With `run_id`, it
     logs on into that run (a resumed training)."""
@@ -344,8 +371,13 @@ def mlflow_logger(experiment_name: str, run_name: Optional[str], tracking_uri: O
                 super().log_hyperparams(fresh)
 
     kind = MLFlowLogger if run_id is None else ResumedMLFlowLogger
-    return kind(experiment_name=experiment_name, run_name=run_name,
-                tracking_uri=resolve_tracking_uri(tracking_uri), artifact_location=artifact_location, run_id=run_id)
+    return kind(
+        experiment_name=experiment_name,
+        run_name=run_name,
+        tracking_uri=resolve_tracking_uri(tracking_uri),
+        artifact_location=artifact_location,
+        run_id=run_id,
+    )
 
 
 def log_export(logger: Any, export_path: Path, seconds: float, num_parameters: int, host: dict[str, Any]) -> None:

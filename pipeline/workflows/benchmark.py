@@ -69,8 +69,19 @@ def benchmark_folder(
         baseline = DEFAULT_BASELINE if DEFAULT_BASELINE in labels else ""
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
-    run = run_benchmark(map_paths, specs, protocol, out, workers=workers, seed=seed, baseline=baseline or None,
-                        start=start, warn=warn, speed=speed, backend=backend)
+    run = run_benchmark(
+        map_paths,
+        specs,
+        protocol,
+        out,
+        workers=workers,
+        seed=seed,
+        baseline=baseline or None,
+        start=start,
+        warn=warn,
+        speed=speed,
+        backend=backend,
+    )
     draw_coverage(run, out, speed)
     if mlflow:
         log_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
@@ -79,8 +90,12 @@ def benchmark_folder(
 
 def draw_coverage(run: BenchmarkRun, out: Path, speed: SpeedModel) -> Path:
     """OUT/coverage.png from the benchmark's per-step records."""
-    return coverage_figure(run.records, Path(out) / COVERAGE_FIGURE, speed,
-                           title=f"Coverage curves on {maps_text(run.frame['map'].nunique())}: mean, band one standard deviation")
+    return coverage_figure(
+        run.records,
+        Path(out) / COVERAGE_FIGURE,
+        speed,
+        title=f"Coverage curves on {maps_text(run.frame['map'].nunique())}: mean, band one standard deviation",
+    )
 
 
 TEST_MAZES = DATA.mazes_test
@@ -105,7 +120,13 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
     speed = SpeedModel(section["speed_mps"])
     with atomic_folder(OUT_DIR) as out_dir:
         run = run_benchmark(
-            maps, section["planners"], protocol, out_dir, workers=section["workers"], seed=int(section["seed"]), speed=speed,
+            maps,
+            section["planners"],
+            protocol,
+            out_dir,
+            workers=section["workers"],
+            seed=int(section["seed"]),
+            speed=speed,
             keep_dir=KEPT_EPISODES,
         )
         draw_coverage(run, out_dir, speed)
@@ -150,10 +171,19 @@ def benchmark_teams(section: dict, protocol: Protocol) -> list[tuple[str, str, s
     errors: list[tuple[str, str, str]] = []
     with atomic_folder(TEAMS_DIR) as out_dir:
         if robots and planners:
-            run = team_benchmark_folder(TEST_MAZES, planners, protocol, out_dir, robots,
-                                        comm_range_m=section.get("comm_range_m"), workers=section["workers"],
-                                        seed=int(section["seed"]), speed=SpeedModel(section["speed_mps"]),
-                                        experiment="benchmark_teams", keep_dir=KEPT_TEAM_EPISODES)
+            run = team_benchmark_folder(
+                TEST_MAZES,
+                planners,
+                protocol,
+                out_dir,
+                robots,
+                comm_range_m=section.get("comm_range_m"),
+                workers=section["workers"],
+                seed=int(section["seed"]),
+                speed=SpeedModel(section["speed_mps"]),
+                experiment="benchmark_teams",
+                keep_dir=KEPT_TEAM_EPISODES,
+            )
             summary, errors = run.summary, run.errors
     atomic_write_text(TEAMS_METRICS_PATH, json.dumps(summary, indent=2) + "\n")
     return errors

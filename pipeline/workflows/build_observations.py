@@ -27,9 +27,24 @@ SUMMARY = REPORTS.observations
 
 def _shard_observations(task: tuple) -> dict:
     """Observations for every episode of one expert shard (runs in a worker process)."""
-    shard, first_episode_id, protocol_dict, inpainter, threshold, count_threshold, min_component, max_nodes, max_neighbors = task
-    settings = {"threshold": threshold, "count_threshold": count_threshold, "min_component": min_component,
-                "max_nodes": max_nodes, "max_neighbors": max_neighbors}
+    (
+        shard,
+        first_episode_id,
+        protocol_dict,
+        inpainter,
+        threshold,
+        count_threshold,
+        min_component,
+        max_nodes,
+        max_neighbors,
+    ) = task
+    settings = {
+        "threshold": threshold,
+        "count_threshold": count_threshold,
+        "min_component": min_component,
+        "max_nodes": max_nodes,
+        "max_neighbors": max_neighbors,
+    }
     return shard_observations(shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings)
 
 
@@ -41,8 +56,9 @@ def build_observations(section: dict, protocol: Protocol):
     # The manifest, not a folder listing: it is written last, so a collection that never
     # finished (shards but no manifest) is refused instead of silently used in part.
     if not (EXPERT_DIR / MANIFEST).is_file():
-        raise SystemExit(f"error: {EXPERT_DIR}: no finished expert data set (no {MANIFEST}); "
-                         "run the collect_expert stage first")
+        raise SystemExit(
+            f"error: {EXPERT_DIR}: no finished expert data set (no {MANIFEST}); run the collect_expert stage first"
+        )
     entries = read_manifest(EXPERT_DIR)["shards"]
     shards = [EXPERT_DIR / entry["file"] for entry in entries]
     if not shards:
@@ -51,30 +67,57 @@ def build_observations(section: dict, protocol: Protocol):
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
     count_threshold = float(section["count_threshold"])
     tasks = [
-        (str(s), int(f), protocol.to_dict(), str(inpainter), float(section["threshold"]), count_threshold,
-         int(section["min_component"]), int(section["max_nodes"]), int(section["max_neighbors"]))
+        (
+            str(s),
+            int(f),
+            protocol.to_dict(),
+            str(inpainter),
+            float(section["threshold"]),
+            count_threshold,
+            int(section["min_component"]),
+            int(section["max_nodes"]),
+            int(section["max_neighbors"]),
+        )
         for s, f in zip(shards, firsts)
     ]
     started = time.perf_counter()
     workers = max(1, int(section["workers"]))
-    identity = {"tasks": tasks, "expert": files_digest([EXPERT_DIR]), "inpainter": files_digest([inpainter]),
-                "source": source_digest()}
-    results = run_tasks(_shard_observations, tasks, workers, "expert shards", "shard",
-                                keep=KeptResults(CHECKPOINTS.observations, identity))
+    identity = {
+        "tasks": tasks,
+        "expert": files_digest([EXPERT_DIR]),
+        "inpainter": files_digest([inpainter]),
+        "source": source_digest(),
+    }
+    results = run_tasks(
+        _shard_observations,
+        tasks,
+        workers,
+        "expert shards",
+        "shard",
+        keep=KeptResults(CHECKPOINTS.observations, identity),
+    )
     seconds = time.perf_counter() - started
     summary: dict = {"episodes": int(sum(counts)), "seconds": round(seconds, 1), "inpainter": str(inpainter)}
     for variant in ("guide", "dare"):
         arrays = concatenate(r[variant] for r in results)
-        meta = {"variant": variant, **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
-                "count_threshold": count_threshold, "protocol": protocol.to_dict()}
+        meta = {
+            "variant": variant,
+            **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
+            "count_threshold": count_threshold,
+            "protocol": protocol.to_dict(),
+        }
         save_observations(POLICIES[variant].observations, arrays, meta)
         mask = arrays["node_mask"]
         summary[variant] = {
             "samples": int(len(arrays["episode"])),
             "nodes_median": float(np.median(mask.sum(axis=1))),
-            "predicted_nodes_median": float(np.median(arrays["features"][..., FEATURE_NAMES.index("is_predicted")].astype(np.float32).sum(axis=1))),
+            "predicted_nodes_median": float(
+                np.median(arrays["features"][..., FEATURE_NAMES.index("is_predicted")].astype(np.float32).sum(axis=1))
+            ),
             "truncated_share": float(mask.all(axis=1).mean()),  # steps whose graph filled every padded row
         }
     atomic_write_json(SUMMARY, summary)
-    print(f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {DATA.observations}/")
+    print(
+        f"observations: {summary['guide']['samples']} steps of {summary['episodes']} expert episodes in {seconds:.0f} s -> {DATA.observations}/"
+    )
     return summary

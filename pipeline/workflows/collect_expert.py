@@ -11,12 +11,7 @@ from pipeline.common.atomic import atomic_write_json
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
-from pipeline.data.shards import (
-    rate_per_minute,
-    run_shards,
-    shard_count_for,
-    shard_path,
-)
+from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
 from pipeline.reporting.render import render_frame, save_png
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.maps import GroundTruthMap
@@ -34,9 +29,16 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     belief = None
     for belief in episode.beliefs():
         pass
-    ground_truth = GroundTruthMap(free=episode.ground_truth, start_cell=episode.start_cell, cell_size=cell_size, name=episode.map_name)
+    ground_truth = GroundTruthMap(
+        free=episode.ground_truth, start_cell=episode.start_cell, cell_size=cell_size, name=episode.map_name
+    )
     trajectory = [tuple(map(float, p)) for p in episode.positions]
-    image = render_frame(ground_truth, belief.copy(), trajectory, title=f"expert episode on {episode.map_name}: {len(trajectory) - 1} steps")
+    image = render_frame(
+        ground_truth,
+        belief.copy(),
+        trajectory,
+        title=f"expert episode on {episode.map_name}: {len(trajectory) - 1} steps",
+    )
     save_png(image, path)
 
 
@@ -57,8 +59,15 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
     )
     started = time.perf_counter()
     manifest = run_shards(
-        collect_expert_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend, description="expert shards", sources=EXPERT_SOURCES, work_dir=CHECKPOINTS.expert,
+        collect_expert_shard,
+        shard_count,
+        OUT_DIR,
+        {"config": config},
+        workers=int(section["workers"]),
+        backend=backend,
+        description="expert shards",
+        sources=EXPERT_SOURCES,
+        work_dir=CHECKPOINTS.expert,
     )
     seconds = time.perf_counter() - started
     episode_preview(OUT_DIR, PREVIEW, protocol.cell_size)

@@ -14,12 +14,7 @@ from pipeline.common.atomic import atomic_file, atomic_write_json
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
-from pipeline.data.shards import (
-    rate_per_minute,
-    run_shards,
-    shard_count_for,
-    shard_path,
-)
+from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.protocol import Protocol
 
@@ -48,7 +43,9 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
         pair = cv2.resize(pair, None, fx=scale, fy=scale, interpolation=cv2.INTER_NEAREST)
         tiles.append(cv2.copyMakeBorder(pair, 4, 4, 4, 4, cv2.BORDER_CONSTANT, value=(255, 255, 255)))
     width = max(t.shape[1] for t in tiles)
-    rows = [cv2.copyMakeBorder(t, 0, 0, 0, width - t.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255)) for t in tiles]
+    rows = [
+        cv2.copyMakeBorder(t, 0, 0, 0, width - t.shape[1], cv2.BORDER_CONSTANT, value=(255, 255, 255)) for t in tiles
+    ]
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:
         cv2.imwrite(str(tmp), np.concatenate(rows, axis=0))
@@ -70,8 +67,15 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
     )
     started = time.perf_counter()
     manifest = run_shards(
-        collect_pairs_shard, shard_count, OUT_DIR, {"config": config}, workers=int(section["workers"]),
-        backend=backend, description="pair shards", sources=PAIRS_SOURCES, work_dir=CHECKPOINTS.pairs,
+        collect_pairs_shard,
+        shard_count,
+        OUT_DIR,
+        {"config": config},
+        workers=int(section["workers"]),
+        backend=backend,
+        description="pair shards",
+        sources=PAIRS_SOURCES,
+        work_dir=CHECKPOINTS.pairs,
     )
     seconds = time.perf_counter() - started
     pairs_preview(OUT_DIR, shard_count, PREVIEW)
@@ -88,5 +92,7 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
         "code_version": manifest["code_version"],  # provenance here, not in the data folder
     }
     atomic_write_json(SUMMARY, summary)
-    print(f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}")
+    print(
+        f"{manifest['totals']['pairs']} pairs from {manifest['totals']['episodes']} rollouts in {shard_count} shards -> {OUT_DIR}"
+    )
     return manifest

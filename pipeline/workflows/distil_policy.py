@@ -73,11 +73,17 @@ def observation_settings(start_meta: dict) -> dict:
     is built the same way, so that the fine-tuned policy sees the graphs the planner builds."""
     seen = dict(start_meta.get("observations") or {})
     if seen.get("variant", "guide") != "guide":
-        raise SystemExit(f"error: the start policy was trained on {seen['variant']} observations; distil_policy "
-                         "fine-tunes a guide policy")
-    return {"threshold": float(seen.get("threshold", 0.8)), "count_threshold": float(seen.get("count_threshold", 0.5)),
-            "min_component": int(seen.get("min_component", 3)), "max_nodes": int(seen.get("max_nodes", 128)),
-            "max_neighbors": int(seen.get("max_neighbors", 25))}
+        raise SystemExit(
+            f"error: the start policy was trained on {seen['variant']} observations; distil_policy "
+            "fine-tunes a guide policy"
+        )
+    return {
+        "threshold": float(seen.get("threshold", 0.8)),
+        "count_threshold": float(seen.get("count_threshold", 0.5)),
+        "min_component": int(seen.get("min_component", 3)),
+        "max_nodes": int(seen.get("max_nodes", 128)),
+        "max_neighbors": int(seen.get("max_neighbors", 25)),
+    }
 
 
 # ----------------------------------------------------------------------------- one round's data
@@ -87,39 +93,69 @@ def collect_round(section: dict, protocol: Protocol, r: int, student: Path | Non
     per_shard = int(section["episodes_per_shard"])
     config = DaggerConfig(
         maps=tuple(str(p) for p in generated_maps(DATA.mazes_train, "training mazes")),
-        episodes_per_shard=per_shard, teacher=str(section["teacher"]["planner"]),
+        episodes_per_shard=per_shard,
+        teacher=str(section["teacher"]["planner"]),
         teacher_options=dict(section["teacher"].get("options") or {}),
-        student=None if student is None else str(student), horizon=horizon, seed=int(section["seed"]), round=r,
-        protocol=protocol, random_starts=bool(section["random_starts"]),
+        student=None if student is None else str(student),
+        horizon=horizon,
+        seed=int(section["seed"]),
+        round=r,
+        protocol=protocol,
+        random_starts=bool(section["random_starts"]),
     )
     # The labels depend on the teacher's models and the driver's weights, not only on their paths.
-    models = {"teacher": files_digest([p for p in TEACHER_MODELS if p.exists()]),
-              "student": None if student is None else files_digest([student])}
+    models = {
+        "teacher": files_digest([p for p in TEACHER_MODELS if p.exists()]),
+        "student": None if student is None else files_digest([student]),
+    }
     who = "the teacher drives" if student is None else "the policy drives"
-    return run_shards(collect_dagger_shard, shard_count_for(episodes, per_shard, "episodes"), DATA.dagger / f"round_{r}",
-                      {"config": config}, workers=int(section["workers"]), description=f"round {r} ({who})",
-                      sources=COLLECTION_SOURCES, work_dir=round_folder(r) / "shards", inputs=models)
+    return run_shards(
+        collect_dagger_shard,
+        shard_count_for(episodes, per_shard, "episodes"),
+        DATA.dagger / f"round_{r}",
+        {"config": config},
+        workers=int(section["workers"]),
+        description=f"round {r} ({who})",
+        sources=COLLECTION_SOURCES,
+        work_dir=round_folder(r) / "shards",
+        inputs=models,
+    )
 
 
 def _shard_observations(task: tuple) -> dict:
     """Guide observations of every episode of one round shard (runs in a worker process)."""
     shard, first_episode_id, protocol_dict, inpainter, settings = task
-    return shard_observations(shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings,
-                              variants=("guide",))["guide"]
+    return shard_observations(
+        shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings, variants=("guide",)
+    )["guide"]
 
 
-def round_observations(protocol: Protocol, r: int, first_episode: int, settings: dict, inpainter: Path,
-                       workers: int) -> dict[str, np.ndarray]:
+def round_observations(
+    protocol: Protocol, r: int, first_episode: int, settings: dict, inpainter: Path, workers: int
+) -> dict[str, np.ndarray]:
     """Round r's episodes replayed into guide observations (episode ids from `first_episode`)."""
     folder = DATA.dagger / f"round_{r}"
     entries = read_manifest(folder)["shards"]
     counts = [int(entry["episodes"]) for entry in entries]
     firsts = first_episode + np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-    tasks = [(str(folder / entry["file"]), int(f), protocol.to_dict(), str(inpainter), settings)
-             for entry, f in zip(entries, firsts)]
-    identity = {"tasks": tasks, "data": files_digest([folder]), "inpainter": files_digest([inpainter]), "source": source_digest()}
-    results = run_tasks(_shard_observations, tasks, workers, f"round {r} observations", "shard",
-                                keep=KeptResults(round_folder(r) / "observations", identity))
+    tasks = [
+        (str(folder / entry["file"]), int(f), protocol.to_dict(), str(inpainter), settings)
+        for entry, f in zip(entries, firsts)
+    ]
+    identity = {
+        "tasks": tasks,
+        "data": files_digest([folder]),
+        "inpainter": files_digest([inpainter]),
+        "source": source_digest(),
+    }
+    results = run_tasks(
+        _shard_observations,
+        tasks,
+        workers,
+        f"round {r} observations",
+        "shard",
+        keep=KeptResults(round_folder(r) / "observations", identity),
+    )
     return concatenate(results)
 
 
@@ -135,16 +171,27 @@ def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict)
     folder = round_folder(r)
     devices = section.get("devices", 1)
     layout = {"accelerator": section["accelerator"], **({"devices": devices} if devices != 1 else {})}
-    fingerprint = settings_digest({"model": model, "train": train, **layout, "data": files_digest([aggregate]),
-                                   "init": files_digest([init])})
+    fingerprint = settings_digest(
+        {"model": model, "train": train, **layout, "data": files_digest([aggregate]), "init": files_digest([init])}
+    )
     checkpoints = folder / "training"
     resume_from = resume_point(checkpoints, fingerprint, f"distil_policy round {r}")
     if resume_from is None:
         start_afresh(checkpoints, fingerprint)
-    arguments = dict(observations=aggregate, out_dir=folder / "policy", model_config=model, train_config=train,
-                     accelerator=str(section["accelerator"]), devices=devices, resume=resume_from is not None,
-                     checkpoint_dir=checkpoints, experiment_name=str(section["experiment"]), run_name=f"distil round {r}",
-                     num_threads=section["threads"], init_policy=init)
+    arguments = dict(
+        observations=aggregate,
+        out_dir=folder / "policy",
+        model_config=model,
+        train_config=train,
+        accelerator=str(section["accelerator"]),
+        devices=devices,
+        resume=resume_from is not None,
+        checkpoint_dir=checkpoints,
+        experiment_name=str(section["experiment"]),
+        run_name=f"distil round {r}",
+        num_threads=section["threads"],
+        init_policy=init,
+    )
     export = train_planner(**arguments) if devices == 1 else train_in_subprocess(**arguments)
     assert export is not None  # one device: this process exports; several: the child's rank zero did
     _, meta = load_policy(export)
@@ -169,8 +216,14 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
     """`guide:mode=policy` with `policy` and `greedy_utility` on the evaluation mazes, paired; kept
     in checkpoints/distil/ under `name` (a rerun with the same policy and mazes reads it back)."""
     folder = CHECKPOINTS.distil / f"eval_{name}"
-    identity = settings_digest({"policy": files_digest([policy]), "mazes": files_digest(mazes), "protocol": protocol.to_dict(),
-                                "source": source_digest()})
+    identity = settings_digest(
+        {
+            "policy": files_digest([policy]),
+            "mazes": files_digest(mazes),
+            "protocol": protocol.to_dict(),
+            "source": source_digest(),
+        }
+    )
     record = folder / "closed_loop.json"
     if record.is_file():
         kept = json.loads(record.read_text())
@@ -188,7 +241,9 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
         "vs_greedy_pct": round(100 * mean, 2),
         "vs_greedy_ci95_pct": None if math.isnan(half) else round(100 * half, 2),
         "completed": int(ours.complete.sum()),
-        "decision_ms_median": round(float(ours.decision_ms_median.median()), 1) if "decision_ms_median" in ours else None,
+        "decision_ms_median": round(float(ours.decision_ms_median.median()), 1)
+        if "decision_ms_median" in ours
+        else None,
     }
     atomic_write_json(record, {"identity": identity, "result": result})
     return result
@@ -208,7 +263,9 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
         raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
     workers = max(1, int(section["workers"]))
     mazes = eval_mazes(section, protocol)
-    rows: list[dict[str, Any]] = [{"round": "start", "policy": str(start), **closed_loop(section, protocol, start, "start", mazes)}]
+    rows: list[dict[str, Any]] = [
+        {"round": "start", "policy": str(start), **closed_loop(section, protocol, start, "start", mazes)}
+    ]
     parts: list[dict[str, np.ndarray]] = []
     policy, episodes_so_far = start, 0
     meta_for_file = {"variant": "guide", **settings, "protocol": protocol.to_dict(), "teacher": section["teacher"]}
@@ -238,16 +295,22 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
             **closed_loop(section, protocol, policy, f"round_{r}", mazes),
         }
         rows.append(row)
-        print(f"round {r}: {row['labelled_steps']} labelled steps ({row['driver']}), driver agreement "
-              f"{row['driver_agreement']:.0%}, held-out agreement {row['heldout_agreement']:.0%}; guide:mode=policy "
-              f"{row['distance_m']} m against greedy_utility {row['greedy_utility_distance_m']} m "
-              f"({row['vs_greedy_pct']:+.1f} %) on {row['mazes']} fresh mazes")
+        print(
+            f"round {r}: {row['labelled_steps']} labelled steps ({row['driver']}), driver agreement "
+            f"{row['driver_agreement']:.0%}, held-out agreement {row['heldout_agreement']:.0%}; guide:mode=policy "
+            f"{row['distance_m']} m against greedy_utility {row['greedy_utility_distance_m']} m "
+            f"({row['vs_greedy_pct']:+.1f} %) on {row['mazes']} fresh mazes"
+        )
     MODELS.planner_distilled.mkdir(parents=True, exist_ok=True)
     with atomic_file(MODELS.planner_distilled / "policy.pt") as tmp:
         shutil.copyfile(policy, tmp)
-    summary = {"teacher": section["teacher"], "start_policy": str(start),
-               "eval": {"mazes": len(mazes), "side_m": float(section["eval_side_m"]), "seed": int(section["eval_seed"])},
-               "rounds": rows, "seconds": round(time.perf_counter() - started, 1)}
+    summary = {
+        "teacher": section["teacher"],
+        "start_policy": str(start),
+        "eval": {"mazes": len(mazes), "side_m": float(section["eval_side_m"]), "seed": int(section["eval_seed"])},
+        "rounds": rows,
+        "seconds": round(time.perf_counter() - started, 1),
+    }
     atomic_write_json(REPORTS.distil, summary)
     dagger_rounds_figure(rows, REPORTS.distil_figure)
     log_rounds(section, rows)
@@ -266,14 +329,31 @@ def log_rounds(section: dict, rows: list[dict]) -> None:
     mlflow.set_experiment(str(section["experiment"]))
     with mlflow.start_run(run_name="distil rounds"):
         log_maze_set(DATA.mazes_train, "training")
-        log_generated_maze_set(f"evaluation mazes ({section['eval_mazes']} of {float(section['eval_side_m']):g} m)",
-                               {"generator": "guide mazes", "count": section["eval_mazes"],
-                                "side_m": section["eval_side_m"], "seed": section["eval_seed"]}, "evaluation")
+        log_generated_maze_set(
+            f"evaluation mazes ({section['eval_mazes']} of {float(section['eval_side_m']):g} m)",
+            {
+                "generator": "guide mazes",
+                "count": section["eval_mazes"],
+                "side_m": section["eval_side_m"],
+                "seed": section["eval_seed"],
+            },
+            "evaluation",
+        )
         teacher = section["teacher"]
-        mlflow.log_params({"teacher": teacher["planner"], **{f"teacher.{k}": v for k, v in (teacher.get("options") or {}).items()},
-                           "rounds": section["rounds"], "episodes": section["episodes"],
-                           "teacher_episodes": section["teacher_episodes"], "eval_mazes": section["eval_mazes"]})
+        mlflow.log_params(
+            {
+                "teacher": teacher["planner"],
+                **{f"teacher.{k}": v for k, v in (teacher.get("options") or {}).items()},
+                "rounds": section["rounds"],
+                "episodes": section["episodes"],
+                "teacher_episodes": section["teacher_episodes"],
+                "eval_mazes": section["eval_mazes"],
+            }
+        )
         for step, row in enumerate(rows):
-            metrics = {k: row[k] for k in ("distance_m", "vs_greedy_pct", "heldout_agreement", "driver_agreement",
-                                           "aggregate_steps") if isinstance(row.get(k), (int, float))}
+            metrics = {
+                k: row[k]
+                for k in ("distance_m", "vs_greedy_pct", "heldout_agreement", "driver_agreement", "aggregate_steps")
+                if isinstance(row.get(k), (int, float))
+            }
             mlflow.log_metrics(metrics, step=step)

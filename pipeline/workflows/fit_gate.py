@@ -39,8 +39,9 @@ def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
     return gate_samples(load_map(path), Protocol.from_dict(protocol), wall_margin)
 
 
-def collect(maps: list[Path], protocol: Protocol, wall_margin: int, workers: int,
-            keep_in: Path | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+def collect(
+    maps: list[Path], protocol: Protocol, wall_margin: int, workers: int, keep_in: Path | None = None
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """(counts, gains) per map, in map order; with `keep_in`, each map's kept there as it is done,
     so that a killed run takes them up again."""
     tasks = [(str(m), protocol.to_dict(), wall_margin) for m in maps]
@@ -65,26 +66,44 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
 
     office_holdout = section["office_holdout"] if section["offices"] else 0
     families = {  # family -> (maps, how many of the last are held out)
-        "mazes": (_family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"), section["holdout_maps"]),
+        "mazes": (
+            _family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"),
+            section["holdout_maps"],
+        ),
         "offices": (_family_maps(TRAIN_OFFICES, section["offices"], office_holdout, "office_holdout"), office_holdout),
     }
     started = time.perf_counter()
-    samples = collect([m for maps, _ in families.values() for m in maps], protocol, section["wall_margin"], section["workers"],
-                      keep_in=KEPT_SAMPLES)
+    samples = collect(
+        [m for maps, _ in families.values() for m in maps],
+        protocol,
+        section["wall_margin"],
+        section["workers"],
+        keep_in=KEPT_SAMPLES,
+    )
     fit, held = [], {}  # (counts, gains) per fitted map; per family, those of its held-out maps
     for family, (maps, holdout) in families.items():
-        ours, samples = samples[: len(maps)], samples[len(maps):]
+        ours, samples = samples[: len(maps)], samples[len(maps) :]
         fit += ours[: len(maps) - holdout]
         if holdout:
-            held[family] = ours[len(maps) - holdout:]
+            held[family] = ours[len(maps) - holdout :]
     fit_gains = np.concatenate([g for _, g in fit])
-    gate = fit_sliver_gate(np.concatenate([c for c, _ in fit]), fit_gains, section["min_gain"], section["wall_margin"],
-                           protocol.sensor_range_cells, section["threshold"], tuple(section["hidden"]),
-                           max_samples=section.get("fit_samples"))
+    gate = fit_sliver_gate(
+        np.concatenate([c for c, _ in fit]),
+        fit_gains,
+        section["min_gain"],
+        section["wall_margin"],
+        protocol.sensor_range_cells,
+        section["threshold"],
+        tuple(section["hidden"]),
+        max_samples=section.get("fit_samples"),
+    )
     metrics: dict[str, Any] = {
-        "maps_fit": len(families["mazes"][0]) - section["holdout_maps"], "maps_holdout": section["holdout_maps"],
-        "offices_fit": len(families["offices"][0]) - office_holdout, "offices_holdout": office_holdout,
-        "hidden": list(section["hidden"]), "samples_fit": int(len(fit_gains)),
+        "maps_fit": len(families["mazes"][0]) - section["holdout_maps"],
+        "maps_holdout": section["holdout_maps"],
+        "offices_fit": len(families["offices"][0]) - office_holdout,
+        "offices_holdout": office_holdout,
+        "hidden": list(section["hidden"]),
+        "samples_fit": int(len(fit_gains)),
         "samples_drawn": int(min(len(fit_gains), section.get("fit_samples") or len(fit_gains))),
         "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
     }
@@ -94,11 +113,16 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
         labels = np.concatenate([g for _, g in maps_held]) >= gate.min_gain
         probability = gate.probability(counts)
         suffix = "holdout" if family == "mazes" else f"holdout_{family}"
-        metrics.update({f"samples_{suffix}": int(len(labels)), f"big_share_{suffix}": round(float(labels.mean()), 4),
-                        f"auc_{suffix}": round(roc_auc(probability, labels), 4),
-                        f"accuracy_{suffix}": round(float(((probability >= gate.threshold) == labels).mean()), 4),
-                        f"slivers_passed_{suffix}": round(float((probability[~labels] >= gate.threshold).mean()), 4),
-                        f"big_passed_{suffix}": round(float((probability[labels] >= gate.threshold).mean()), 4)})
+        metrics.update(
+            {
+                f"samples_{suffix}": int(len(labels)),
+                f"big_share_{suffix}": round(float(labels.mean()), 4),
+                f"auc_{suffix}": round(roc_auc(probability, labels), 4),
+                f"accuracy_{suffix}": round(float(((probability >= gate.threshold) == labels).mean()), 4),
+                f"slivers_passed_{suffix}": round(float((probability[~labels] >= gate.threshold).mean()), 4),
+                f"big_passed_{suffix}": round(float((probability[labels] >= gate.threshold).mean()), 4),
+            }
+        )
         curves[f"gate, {family}"] = (*roc_curve(labels, probability)[:2], metrics[f"auc_{suffix}"])
         if family == "mazes":
             for k, name in enumerate(FEATURES):
@@ -107,7 +131,9 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
                 curves[f"{name} alone, mazes"] = (*roc_curve(labels, counts[:, k])[:2], auc)
     fitted_maps = [m.name for maps, holdout in families.values() for m in maps[: len(maps) - holdout]]
     save_gate(gate, GATE_PATH, protocol.to_dict(), fitted_on={"maps": fitted_maps, **metrics})
-    metrics["seconds"] = round(time.perf_counter() - started, 1)  # in the report only: the gate file is a pure function of its inputs
+    metrics["seconds"] = round(
+        time.perf_counter() - started, 1
+    )  # in the report only: the gate file is a pure function of its inputs
     atomic_write_json(METRICS_PATH, metrics)
     if curves:
         gate_roc_curves(curves, FIGURE_PATH)

@@ -48,6 +48,7 @@ COVERAGE_PATH = REPORTS.coverage_figure
 TEAMS_JSON = REPORTS.teams_metrics  # the benchmark stage's team runs (empty when none were configured)
 TEAM_COVERAGE = REPORTS.teams / "team_coverage.png"
 
+
 def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
     """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
     return [PlannerSpec(sweep_label(name, k), name, {option: int(k)}) for name in planners for k in k_values]
@@ -62,7 +63,12 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
     try:
         with atomic_folder(SWEEP_DIR) as folder:
             return run_benchmark(
-                maps, specs, protocol, folder, workers=section["workers"], seed=int(section["seed"]),
+                maps,
+                specs,
+                protocol,
+                folder,
+                workers=section["workers"],
+                seed=int(section["seed"]),
                 keep_dir=CHECKPOINTS.denoising_steps,
             ).frame
     except KeyError as error:  # an unregistered planner name
@@ -105,11 +111,16 @@ def write_report(section: dict, protocol: Protocol):
         atomic_write_text(tables_dir / "table2.md", table2_markdown(tables["table2"]))
         atomic_write_text(tables_dir / "table3.md", table3_markdown(tables["table3"]))
         atomic_write_text(tables_dir / "table5.md", table5_markdown(tables["table5"], speed.speed_mps))
-        coverage_figure(read_step_records(BENCHMARK_DIR, frame), COVERAGE_PATH, speed,
-                        title=f"Coverage curves on the {frame['map'].nunique()} test mazes: mean, band one standard deviation")
+        coverage_figure(
+            read_step_records(BENCHMARK_DIR, frame),
+            COVERAGE_PATH,
+            speed,
+            title=f"Coverage curves on the {frame['map'].nunique()} test mazes: mean, band one standard deviation",
+        )
         atomic_write_text(
             tables_dir / "table4.md",
-            table4_markdown(tables["table4"]) if tables["table4"] is not None
+            table4_markdown(tables["table4"])
+            if tables["table4"] is not None
             else "## Table IV: denoising steps K\n\nnot run: report.k_values or report.k_planners is empty.\n",
         )
 
@@ -125,20 +136,32 @@ def write_report(section: dict, protocol: Protocol):
     atomic_write_text(
         REPORT_MD,
         report_markdown(
-            tables["table2"], tables["table3"], tables["table4"], precision,
-            maps=benchmark_maps, sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
-            protocol=protocol, params=section, figure=figure, precision_compare=precision_compare,
-            table5_frame=tables["table5"], speed_mps=speed.speed_mps, coverage_figure=COVERAGE_PATH.name,
+            tables["table2"],
+            tables["table3"],
+            tables["table4"],
+            precision,
+            maps=benchmark_maps,
+            sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
+            protocol=protocol,
+            params=section,
+            figure=figure,
+            precision_compare=precision_compare,
+            table5_frame=tables["table5"],
+            speed_mps=speed.speed_mps,
+            coverage_figure=COVERAGE_PATH.name,
             teams=json.loads(TEAMS_JSON.read_text()) if TEAMS_JSON.is_file() else None,
-            team_coverage_figure=(TEAM_COVERAGE.relative_to(REPORT_MD.parent).as_posix()
-                                  if TEAM_COVERAGE.is_file() else None),
+            team_coverage_figure=(
+                TEAM_COVERAGE.relative_to(REPORT_MD.parent).as_posix() if TEAM_COVERAGE.is_file() else None
+            ),
         ),
     )
     metrics = metrics_json(tables)
     atomic_write_text(REPORT_JSON, json.dumps(metrics, indent=2, sort_keys=True) + "\n")
     log_tables_to_mlflow(
-        tables, params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)},
-        artifacts={"table5": [COVERAGE_PATH]}, maps=TEST_MAZES,
+        tables,
+        params={**protocol.to_dict(), "maps": str(TEST_MAZES), "benchmark_maps": len(benchmark_maps)},
+        artifacts={"table5": [COVERAGE_PATH]},
+        maps=TEST_MAZES,
     )
     print(REPORT_MD.read_text())
     return metrics
@@ -147,8 +170,10 @@ def write_report(section: dict, protocol: Protocol):
 def read_exploration(path: Path) -> pd.DataFrame:
     """The benchmark stage's exploration.csv (SystemExit naming the stage to rerun when it is missing)."""
     if not path.is_file():
-        raise SystemExit(f"error: {path} not found; rerun the benchmark stage (`dvc repro benchmark`), "
-                         "which writes it beside metrics.csv")
+        raise SystemExit(
+            f"error: {path} not found; rerun the benchmark stage (`dvc repro benchmark`), "
+            "which writes it beside metrics.csv"
+        )
     exploration = pd.read_csv(path)
     if exploration.empty or "speed_mps" not in exploration.columns:
         raise SystemExit(f"error: {path}: no planner rows or no speed_mps column; rerun the benchmark stage")

@@ -71,6 +71,8 @@ def write_headline(out: Path = HEADLINE_JSON) -> dict[str, dict[str, Any]]:
     metrics = headline(table2, precision_rows, summaries)
     atomic_write_json(out, metrics)
     planners = [key for key in metrics if key not in GROUPS]
-    print(f"{out}: {len(planners)} planners, {len(metrics['precision'])} Table I steps, "
-          f"{len(metrics['seconds'])} stage times")
+    print(
+        f"{out}: {len(planners)} planners, {len(metrics['precision'])} Table I steps, "
+        f"{len(metrics['seconds'])} stage times"
+    )
     return metrics

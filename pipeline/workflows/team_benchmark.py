@@ -25,7 +25,7 @@ from pipeline.world.protocol import Protocol
 
 
 def maps_text(count: int) -> str:
-    """"1 map", "12 maps": for figure titles."""
+    """ "1 map", "12 maps": for figure titles."""
     return f"{count} map{'s' if count != 1 else ''}"
 
 
@@ -68,8 +68,21 @@ def team_benchmark_folder(
     if not map_paths:
         raise MapError(maps, "no maps in this folder (maze .png, .npy or ROS .yaml)")
     specs = with_policy_checkpoint(list(planners), checkpoint, config_of=team_config)
-    run = run_team_benchmark(map_paths, specs, protocol, out, robots, comm_range_m, workers=workers, seed=seed,
-                             start=start, warn=warn, speed=speed, backend=backend, keep_dir=keep_dir)
+    run = run_team_benchmark(
+        map_paths,
+        specs,
+        protocol,
+        out,
+        robots,
+        comm_range_m,
+        workers=workers,
+        seed=seed,
+        start=start,
+        warn=warn,
+        speed=speed,
+        backend=backend,
+        keep_dir=keep_dir,
+    )
     draw_team_figures(run, Path(out))
     if mlflow:
         log_team_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
@@ -82,19 +95,24 @@ def draw_team_figures(run: TeamBenchmarkRun, out: Path) -> list[Path]:
     written = []
     if not run.coverage.empty:
         range_text = "" if run.record.get("comm_range_m") is None else f", {run.record['comm_range_m']:g} m range"
-        written.append(team_coverage_figure(
-            run.coverage, out / TEAM_COVERAGE_FIGURE,
-            title=f"Team coverage on {maps_text(run.frame['map'].nunique())}{range_text}: mean, band one standard deviation"))
+        written.append(
+            team_coverage_figure(
+                run.coverage,
+                out / TEAM_COVERAGE_FIGURE,
+                title=f"Team coverage on {maps_text(run.frame['map'].nunique())}{range_text}: mean, band one standard deviation",
+            )
+        )
     first = min(result.map_name for _, result in run.episodes) if run.episodes else None
     for task, result in run.episodes:
         if result.map_name != first:
             continue
         ground_truth, protocol, _ = run.maps[result.map_name]
         status = "complete" if result.complete else "incomplete"
-        title = (f"map {result.map_name}  |  {task.run_label}  |  makespan {result.makespan_m:.1f} m  |  "
-                 f"total {result.total_distance_m:.1f} m  |  {status}")
+        title = (
+            f"map {result.map_name}  |  {task.run_label}  |  makespan {result.makespan_m:.1f} m  |  "
+            f"total {result.total_distance_m:.1f} m  |  {status}"
+        )
         path = out / task.run_label / f"{result.map_name}{PATHS_SUFFIX}"
         team_paths_figure(ground_truth, result.rows, protocol, path, title)
         written.append(path)
     return written
-

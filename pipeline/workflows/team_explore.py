@@ -55,9 +55,16 @@ class TeamExploration:
     problems: list[str] = field(default_factory=list)  # why the map may not complete, said before the episode
 
 
-def prepare_team(map_path: Path, planner: str, protocol: Protocol, robots: int, comm_range_m: float | None = None,
-                 out: Path | None = None, start: tuple[float, float] | None = None,
-                 checkpoint: Path | None = None) -> TeamExploration:
+def prepare_team(
+    map_path: Path,
+    planner: str,
+    protocol: Protocol,
+    robots: int,
+    comm_range_m: float | None = None,
+    out: Path | None = None,
+    start: tuple[float, float] | None = None,
+    checkpoint: Path | None = None,
+) -> TeamExploration:
     """Check the robot count and range, load the map, build the spec's team planner and check the
     map, before any work (ValueError, MapError, FileNotFoundError in one line)."""
     (robots,) = check_robot_counts([robots])
@@ -67,45 +74,95 @@ def prepare_team(map_path: Path, planner: str, protocol: Protocol, robots: int, 
     ((spec, agent),) = resolve_team_specs(with_policy_checkpoint([planner], checkpoint, config_of=team_config))
     problems, _ = before_episodes(ground_truth, protocol, scan_for_unobservable=True)
     label = team_run_label(spec.label, robots)
-    return TeamExploration(Path(map_path), ground_truth, protocol, label, spec.label, spec.name, dict(spec.options),
-                           agent, robots, comm_range_m, out if out is not None else DEFAULT_OUT / label, problems)
+    return TeamExploration(
+        Path(map_path),
+        ground_truth,
+        protocol,
+        label,
+        spec.label,
+        spec.name,
+        dict(spec.options),
+        agent,
+        robots,
+        comm_range_m,
+        out if out is not None else DEFAULT_OUT / label,
+        problems,
+    )
 
 
-def run_team(exploration: TeamExploration, seed: int = 0, gif: bool = False, progress: bool = True,
-             start: tuple[float, float] | None = None,
-             speed: SpeedModel = SpeedModel()) -> tuple[TeamEpisodeResult, list[Path]]:
+def run_team(
+    exploration: TeamExploration,
+    seed: int = 0,
+    gif: bool = False,
+    progress: bool = True,
+    start: tuple[float, float] | None = None,
+    speed: SpeedModel = SpeedModel(),
+) -> tuple[TeamEpisodeResult, list[Path]]:
     """Run the team episode with a progress bar (explored share, team time) and write its files;
     (the result, the files written). Every robot starts at the map's start, as in the team benchmark."""
     ground_truth, protocol, out = exploration.ground_truth, exploration.protocol, exploration.out
-    with tqdm(total=100.0, desc=f"{ground_truth.name}: explored", disable=not progress, leave=False,
-              bar_format="{desc} {percentage:3.0f}%|{bar}|") as bar:
+    with tqdm(
+        total=100.0,
+        desc=f"{ground_truth.name}: explored",
+        disable=not progress,
+        leave=False,
+        bar_format="{desc} {percentage:3.0f}%|{bar}|",
+    ) as bar:
 
         def on_event(episode: TeamEpisode) -> None:
             share = episode.union.free_count / max(1, ground_truth.free_cell_count)
             bar.n = round(100.0 * share, 1)
-            bar.set_description_str(f"{ground_truth.name}: {exploration.robots} robots, team time {episode.time:.0f} m, "
-                                    "explored", refresh=True)
+            bar.set_description_str(
+                f"{ground_truth.name}: {exploration.robots} robots, team time {episode.time:.0f} m, explored",
+                refresh=True,
+            )
 
-        result = run_team_episode(ground_truth, exploration.planner, protocol, exploration.robots,
-                                  comm_range_m=exploration.comm_range_m, seed=seed, on_event=on_event)
+        result = run_team_episode(
+            ground_truth,
+            exploration.planner,
+            protocol,
+            exploration.robots,
+            comm_range_m=exploration.comm_range_m,
+            seed=seed,
+            on_event=on_event,
+        )
     result.map_name = ground_truth.name
     name = ground_truth.name
     written = write_team_files(result, out, exploration.comm_range_m is not None, speed)
     with atomic_file(out / TEAM_METRICS_CSV) as tmp:
         pd.DataFrame([{**result.metrics_row(), "label": exploration.label}], columns=METRICS_COLUMNS).to_csv(
-            tmp, index=False)
+            tmp, index=False
+        )
     written.append(out / TEAM_METRICS_CSV)
     title = team_title(exploration, result)
     team_paths_figure(ground_truth, result.rows, protocol, out / f"{name}.png", title)
     written.append(out / f"{name}.png")
     if gif:
-        written.append(team_animation(ground_truth, result.rows, protocol, out / f"{name}.gif", frames=GIF_FRAMES,
-                                      title=f"map {name}  |  {exploration.label}"))
-    record = {"map": str(exploration.map_path), "start": list(start) if start is not None else None, "seed": seed,
-              "planner": {"label": exploration.spec_label, "name": exploration.name, "options": exploration.options,
-                          "description": exploration.planner.description},
-              "robots": exploration.robots, "comm_range_m": exploration.comm_range_m, "speed_mps": speed.speed_mps,
-              "protocol": protocol.to_dict()}
+        written.append(
+            team_animation(
+                ground_truth,
+                result.rows,
+                protocol,
+                out / f"{name}.gif",
+                frames=GIF_FRAMES,
+                title=f"map {name}  |  {exploration.label}",
+            )
+        )
+    record = {
+        "map": str(exploration.map_path),
+        "start": list(start) if start is not None else None,
+        "seed": seed,
+        "planner": {
+            "label": exploration.spec_label,
+            "name": exploration.name,
+            "options": exploration.options,
+            "description": exploration.planner.description,
+        },
+        "robots": exploration.robots,
+        "comm_range_m": exploration.comm_range_m,
+        "speed_mps": speed.speed_mps,
+        "protocol": protocol.to_dict(),
+    }
     atomic_write_text(out / "run.json", json.dumps(record, indent=2) + "\n")
     written.append(out / "run.json")
     return result, written
@@ -115,8 +172,10 @@ def team_title(exploration: TeamExploration, result: TeamEpisodeResult) -> str:
     """The final picture's title: map, run, makespan, total distance, complete or not."""
     status = "complete" if result.complete else "incomplete"
     range_text = "" if exploration.comm_range_m is None else f"  |  range {exploration.comm_range_m:g} m"
-    return (f"map {result.map_name}  |  {exploration.label}{range_text}  |  makespan {result.makespan_m:.1f} m  |  "
-            f"total {result.total_distance_m:.1f} m  |  {status}")
+    return (
+        f"map {result.map_name}  |  {exploration.label}{range_text}  |  makespan {result.makespan_m:.1f} m  |  "
+        f"total {result.total_distance_m:.1f} m  |  {status}"
+    )
 
 
 def team_summary_line(exploration: TeamExploration, result: TeamEpisodeResult) -> str:
@@ -125,10 +184,14 @@ def team_summary_line(exploration: TeamExploration, result: TeamEpisodeResult) -
     status = "complete" if result.complete else f"INCOMPLETE ({result.failure})"
     per_robot = ", ".join(f"{distance:.1f}" for distance in result.robot_distance_m)
     median = result.metrics_row()["decision_ms_median"]
-    timing = f"decision {median} ms median" if any(result.decision_ms) else "no decision needed (complete at the first scan)"
-    return (f"{exploration.ground_truth.name} {exploration.label}: {status}, makespan {result.makespan_m:.1f} m, "
-            f"total {result.total_distance_m:.1f} m (robots {per_robot} m), explored "
-            f"{result.explored_ratio * 100:.1f} %, {timing}")
+    timing = (
+        f"decision {median} ms median" if any(result.decision_ms) else "no decision needed (complete at the first scan)"
+    )
+    return (
+        f"{exploration.ground_truth.name} {exploration.label}: {status}, makespan {result.makespan_m:.1f} m, "
+        f"total {result.total_distance_m:.1f} m (robots {per_robot} m), explored "
+        f"{result.explored_ratio * 100:.1f} %, {timing}"
+    )
 
 
 def after_team_failure(exploration: TeamExploration, result: TeamEpisodeResult) -> str | None:

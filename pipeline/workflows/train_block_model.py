@@ -45,6 +45,7 @@ EXPERIMENT = "block_model"
 KEPT_SNAPSHOTS = CHECKPOINTS.block_snapshots
 CHECKPOINT_DIR = CHECKPOINTS.block_model
 
+
 def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
     """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
     side = section["side_m"]
@@ -63,34 +64,63 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
     the metrics written."""
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
-        maps = generate_maze_set(maze_config(section, config, protocol), section["mazes"], folder, seed=section["maze_seed"])
+        maps = generate_maze_set(
+            maze_config(section, config, protocol), section["mazes"], folder, seed=section["maze_seed"]
+        )
         tasks = [(str(m), protocol.to_dict(), config.block_m, section["snapshot_every"]) for m in maps]
         # The mazes are drawn from these settings alone (their folder is a fresh temporary one each run).
-        identity = {"mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed", "snapshot_every")},
-                    "block_m": config.block_m, "protocol": protocol.to_dict(), "source": source_digest()}
-        collected = run_tasks(_snapshots, tasks, section["workers"], "block snapshots", "maze",
-                                      keep=KeptResults(KEPT_SNAPSHOTS, identity))
+        identity = {
+            "mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed", "snapshot_every")},
+            "block_m": config.block_m,
+            "protocol": protocol.to_dict(),
+            "source": source_digest(),
+        }
+        collected = run_tasks(
+            _snapshots, tasks, section["workers"], "block snapshots", "maze", keep=KeptResults(KEPT_SNAPSHOTS, identity)
+        )
     fit_count = len(maps) - section["holdout_mazes"]
     train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])
     held_out = BlockSamples([s for s, _ in collected[fit_count:]], [t for _, t in collected[fit_count:]])
     collect_seconds = time.perf_counter() - started
-    fit_identity = {**identity, "fit": {k: section[k] for k in ("holdout_mazes", "epochs", "batch_size", "lr", "reveal_share", "seed")},
-                    "model": config.to_dict()}
-    model, history = train_block_model(train, held_out, config, section["epochs"], section["batch_size"], section["lr"],
-                                       section["reveal_share"], section["seed"],
-                                       checkpoint=TrainingCheckpoint(CHECKPOINT_DIR, settings_digest(fit_identity)),
-                                       log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True))
+    fit_identity = {
+        **identity,
+        "fit": {k: section[k] for k in ("holdout_mazes", "epochs", "batch_size", "lr", "reveal_share", "seed")},
+        "model": config.to_dict(),
+    }
+    model, history = train_block_model(
+        train,
+        held_out,
+        config,
+        section["epochs"],
+        section["batch_size"],
+        section["lr"],
+        section["reveal_share"],
+        section["seed"],
+        checkpoint=TrainingCheckpoint(CHECKPOINT_DIR, settings_digest(fit_identity)),
+        log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True),
+    )
     error, all_wall_error = block_error(model, held_out) if len(held_out) else (float("nan"), float("nan"))
     metrics: dict[str, Any] = {
-        "mazes_fit": fit_count, "mazes_holdout": section["holdout_mazes"],
-        "snapshots_fit": len(train), "snapshots_holdout": len(held_out),
-        "held_out_error": round(error, 4) if len(held_out) else None,  # unknown blocks within 20 m of the known free space
+        "mazes_fit": fit_count,
+        "mazes_holdout": section["holdout_mazes"],
+        "snapshots_fit": len(train),
+        "snapshots_holdout": len(held_out),
+        "held_out_error": round(error, 4)
+        if len(held_out)
+        else None,  # unknown blocks within 20 m of the known free space
         "held_out_error_all_wall": round(all_wall_error, 4) if len(held_out) else None,  # guessing "wall" there
         "history": [{k: round(v, 4) for k, v in row.items()} for row in history],
         "parameters": sum(p.numel() for p in model.parameters()),
     }
-    save_block_model(model, MODEL_PATH, {"mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed")}, "protocol": protocol.to_dict(),
-                                         **{k: v for k, v in metrics.items() if k != "history"}})
+    save_block_model(
+        model,
+        MODEL_PATH,
+        {
+            "mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed")},
+            "protocol": protocol.to_dict(),
+            **{k: v for k, v in metrics.items() if k != "history"},
+        },
+    )
     metrics["collect_seconds"] = round(collect_seconds, 1)
     metrics["train_seconds"] = round(sum(row["seconds"] for row in history), 1)
     atomic_write_json(METRICS_PATH, metrics)
@@ -103,20 +133,41 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
     return metrics
 
 
-def log_run(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol, metrics: dict[str, Any],
-            history: list[dict[str, float]]) -> None:
+def log_run(
+    section: dict[str, Any],
+    config: BlockModelConfig,
+    protocol: Protocol,
+    metrics: dict[str, Any],
+    history: list[dict[str, float]],
+) -> None:
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="train_block_model"):
-        log_generated_maze_set(f"block model mazes ({section['mazes']} of {section['side_m']:g} m, seed {section['maze_seed']})",
-                               {"generator": "guide mazes", "count": section["mazes"], "side_m": section["side_m"],
-                                "seed": section["maze_seed"], "block_m": config.block_m})
-        mlflow.log_params({**protocol.to_dict(), **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
-                           **{f"model.{k}": v for k, v in config.to_dict().items()}})
-        mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
+        log_generated_maze_set(
+            f"block model mazes ({section['mazes']} of {section['side_m']:g} m, seed {section['maze_seed']})",
+            {
+                "generator": "guide mazes",
+                "count": section["mazes"],
+                "side_m": section["side_m"],
+                "seed": section["maze_seed"],
+                "block_m": config.block_m,
+            },
+        )
+        mlflow.log_params(
+            {
+                **protocol.to_dict(),
+                **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
+                **{f"model.{k}": v for k, v in config.to_dict().items()},
+            }
+        )
+        mlflow.log_metrics(
+            {k: float(v) for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        )
         for row in history:
-            mlflow.log_metrics({"epoch_loss": row["loss"], "epoch_held_out_error": row["held_out_error"]}, step=int(row["epoch"]))
+            mlflow.log_metrics(
+                {"epoch_loss": row["loss"], "epoch_held_out_error": row["held_out_error"]}, step=int(row["epoch"])
+            )
         for path in (MODEL_PATH, METRICS_PATH, FIGURE_PATH):
             if path.is_file():
                 mlflow.log_artifact(str(path))

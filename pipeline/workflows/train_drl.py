@@ -59,8 +59,11 @@ TRAINING_KEYS = ("model", "env", "ppo", "imitation", "init_checkpoint", "seed")
 
 def settings_fingerprint(section: dict[str, Any], protocol: Protocol) -> str:
     """A hash of everything the trained weights depend on (the training keys and the protocol)."""
-    payload = json.dumps({"train_drl": {k: section[k] for k in TRAINING_KEYS}, "protocol": protocol.to_dict()},
-                         sort_keys=True, default=str)
+    payload = json.dumps(
+        {"train_drl": {k: section[k] for k in TRAINING_KEYS}, "protocol": protocol.to_dict()},
+        sort_keys=True,
+        default=str,
+    )
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
@@ -68,8 +71,14 @@ class Checkpointer(BaseCallback):
     """Saves the agent and its curve every `every` steps (and at the end), atomically: at the start
     of a rollout, so that a checkpoint holds the weights PPO trained on every step it counts."""
 
-    def __init__(self, every: int, fingerprint: str, log: EpisodeLog, folder: Path = CHECKPOINT_DIR,
-                 extra: dict[str, Any] | None = None):
+    def __init__(
+        self,
+        every: int,
+        fingerprint: str,
+        log: EpisodeLog,
+        folder: Path = CHECKPOINT_DIR,
+        extra: dict[str, Any] | None = None,
+    ):
         super().__init__()
         self.every, self.fingerprint, self.log, self.folder = every, fingerprint, log, folder
         self.extra = extra or {}
@@ -89,8 +98,17 @@ class Checkpointer(BaseCallback):
         self.model.save(zip_tmp)
         os.replace(zip_tmp, self.folder / "last.zip")
         json_tmp = self.folder / f".last.{os.getpid()}.json"
-        json_tmp.write_text(json.dumps({"fingerprint": self.fingerprint, "timesteps": self.num_timesteps,
-                                        "history": self.log.rows, **self.extra}) + "\n")
+        json_tmp.write_text(
+            json.dumps(
+                {
+                    "fingerprint": self.fingerprint,
+                    "timesteps": self.num_timesteps,
+                    "history": self.log.rows,
+                    **self.extra,
+                }
+            )
+            + "\n"
+        )
         os.replace(json_tmp, self.folder / "last.json")
 
 
@@ -124,8 +142,11 @@ def previous_checkpoint(fingerprint: str, total: int, folder: Path = CHECKPOINT_
         print(f"train_drl: the checkpoint in {folder} was made with other settings; training afresh", flush=True)
         return None
     if int(record.get("timesteps", 0)) > total:
-        print(f"train_drl: the checkpoint in {folder} is {record['timesteps']} steps in, past the {total} asked for; "
-              "training afresh", flush=True)
+        print(
+            f"train_drl: the checkpoint in {folder} is {record['timesteps']} steps in, past the {total} asked for; "
+            "training afresh",
+            flush=True,
+        )
         return None
     return record
 
@@ -153,18 +174,34 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
         log.rows = list(record["history"]) if record else []
         checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log, extra={"warm_start": warm})
         if total > done:
-            agent.learn(total - done, callback=CallbackList([log, checkpointer, ProgressBar(total, done)]),
-                        reset_num_timesteps=not record)
+            agent.learn(
+                total - done,
+                callback=CallbackList([log, checkpointer, ProgressBar(total, done)]),
+                reset_num_timesteps=not record,
+            )
             checkpointer.save()
         envs.close()
         train_seconds = time.perf_counter() - started
         policy = policy_of(agent).cpu().eval()
         host = training_host(section["device"])
-        trained_on = {"protocol": protocol.to_dict(), "env": environment.to_dict(), "ppo": settings.to_dict(),
-                      "timesteps": int(agent.num_timesteps), "seed": seed, "host": host}
+        trained_on = {
+            "protocol": protocol.to_dict(),
+            "env": environment.to_dict(),
+            "ppo": settings.to_dict(),
+            "timesteps": int(agent.num_timesteps),
+            "seed": seed,
+            "host": host,
+        }
         save_drl_policy(policy, MODEL_PATH, trained_on)
-        evaluation = evaluate_on_fresh_mazes(policy, environment, policy_config, protocol, section["eval_mazes"],
-                                             section["eval_side_m"], section["eval_seed"])
+        evaluation = evaluate_on_fresh_mazes(
+            policy,
+            environment,
+            policy_config,
+            protocol,
+            section["eval_mazes"],
+            section["eval_side_m"],
+            section["eval_seed"],
+        )
     metrics = {
         "timesteps": int(agent.num_timesteps),
         "resumed_from": done,
@@ -181,15 +218,24 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
     return metrics
 
 
-def start_policy(policy, section: dict[str, Any], environment: TrainingEnvironment, policy_config: DRLPolicyConfig,
-                 protocol: Protocol, gamma: float, seed: int) -> dict[str, Any] | None:
+def start_policy(
+    policy,
+    section: dict[str, Any],
+    environment: TrainingEnvironment,
+    policy_config: DRLPolicyConfig,
+    protocol: Protocol,
+    gamma: float,
+    seed: int,
+) -> dict[str, Any] | None:
     """Set the fresh agent's policy before PPO: the weights of `init_checkpoint`, else the imitation
     warm start when it has episodes, else nothing (PPO from the initial weights). What it did."""
     if section["init_checkpoint"]:
         initial, trained_on = load_drl_policy(section["init_checkpoint"])
         if initial.config != policy_config:
-            raise ValueError(f"train_drl.init_checkpoint {section['init_checkpoint']}: its model {initial.config.to_dict()} "
-                             f"differs from train_drl.model {policy_config.to_dict()}")
+            raise ValueError(
+                f"train_drl.init_checkpoint {section['init_checkpoint']}: its model {initial.config.to_dict()} "
+                f"differs from train_drl.model {policy_config.to_dict()}"
+            )
         policy.load_state_dict(initial.state_dict())
         return {"init_checkpoint": str(section["init_checkpoint"]), "its_training": trained_on.get("warm_start")}
     imitation = ImitationSettings.from_dict(section["imitation"], "train_drl.imitation")
@@ -199,8 +245,10 @@ def start_policy(policy, section: dict[str, Any], environment: TrainingEnvironme
     policy.train()
     for phase in result["phases"]:
         last = phase["epochs"][-1]
-        tqdm.write(f"train_drl: {phase['phase']}: {phase['distance_m']:.0f} m, completed {phase['completed']:.0%}, "
-                   f"agreement with {imitation.planner} {last['agreement']:.1%}")
+        tqdm.write(
+            f"train_drl: {phase['phase']}: {phase['distance_m']:.0f} m, completed {phase['completed']:.0%}, "
+            f"agreement with {imitation.planner} {last['agreement']:.1%}"
+        )
     return result
 
 
@@ -209,8 +257,15 @@ def _print_row(row: dict[str, float]) -> None:
     tqdm.write(json.dumps({k: round(row[k], 3) for k in keys if k in row}))
 
 
-def evaluate_on_fresh_mazes(policy, environment: TrainingEnvironment, policy_config: DRLPolicyConfig,
-                            protocol: Protocol, count: int, side_m: float, seed: int) -> dict[str, Any]:
+def evaluate_on_fresh_mazes(
+    policy,
+    environment: TrainingEnvironment,
+    policy_config: DRLPolicyConfig,
+    protocol: Protocol,
+    count: int,
+    side_m: float,
+    seed: int,
+) -> dict[str, Any]:
     """The `drl` planner with this policy (its default stall hand-over included) on `count` fresh
     mazes of `side_m` metres, drawn by the environment from seeds seed, seed + 1, ..., beside
     `nearest_frontier` on the same mazes; the paired difference is drl's distance over the
@@ -225,17 +280,29 @@ def evaluate_on_fresh_mazes(policy, environment: TrainingEnvironment, policy_con
         planner = make_planner("drl", policy=policy)
         result = run_episode(env.ground_truth, planner, protocol)
         baseline = run_episode(env.ground_truth, make_planner("nearest_frontier"), protocol)
-        rows.append({"map": env.ground_truth.name, "distance": result.distance_m, "complete": result.complete,
-                     "steps": result.steps, "handovers": planner.handovers,
-                     "nearest_frontier_distance": baseline.distance_m, "nearest_frontier_complete": baseline.complete})
+        rows.append(
+            {
+                "map": env.ground_truth.name,
+                "distance": result.distance_m,
+                "complete": result.complete,
+                "steps": result.steps,
+                "handovers": planner.handovers,
+                "nearest_frontier_distance": baseline.distance_m,
+                "nearest_frontier_complete": baseline.complete,
+            }
+        )
     env.close()
     drl, nf = np.array([r["distance"] for r in rows]), np.array([r["nearest_frontier_distance"] for r in rows])
-    return {"mazes": count, "side_m": side_m, "seed": seed,
-            "completed": int(sum(r["complete"] for r in rows)),
-            "distance_m": round(float(drl.mean()), 1),
-            "nearest_frontier_distance_m": round(float(nf.mean()), 1),
-            "paired_vs_nearest_frontier": round(float(np.mean(drl / nf - 1.0)), 4),
-            "episodes": [{k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()} for r in rows]}
+    return {
+        "mazes": count,
+        "side_m": side_m,
+        "seed": seed,
+        "completed": int(sum(r["complete"] for r in rows)),
+        "distance_m": round(float(drl.mean()), 1),
+        "nearest_frontier_distance_m": round(float(nf.mean()), 1),
+        "paired_vs_nearest_frontier": round(float(np.mean(drl / nf - 1.0)), 4),
+        "episodes": [{k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()} for r in rows],
+    }
 
 
 def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
@@ -244,22 +311,34 @@ def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]
     mlflow.set_experiment(section["experiment"])
     flat = {f"{group}.{k}": v for group in ("model", "env", "ppo") for k, v in section[group].items()}
     with mlflow.start_run(run_name="train_drl"):
-        log_generated_maze_set("training environments' mazes (a fresh one at every reset)",
-                               {"generator": "guide/Explore-v0", "maze_sides_m": section["env"]["maze_sides_m"],
-                                "seed": section["seed"]})
-        log_generated_maze_set(f"evaluation mazes ({section['eval_mazes']} of {section['eval_side_m']:g} m)",
-                               {"generator": "guide/Explore-v0", "count": section["eval_mazes"],
-                                "side_m": section["eval_side_m"], "seed": section["eval_seed"]}, "evaluation")
-        mlflow.log_params({**protocol.to_dict(), **flat,
-                           **{k: v for k, v in section.items() if k not in ("model", "env", "ppo")}})
+        log_generated_maze_set(
+            "training environments' mazes (a fresh one at every reset)",
+            {"generator": "guide/Explore-v0", "maze_sides_m": section["env"]["maze_sides_m"], "seed": section["seed"]},
+        )
+        log_generated_maze_set(
+            f"evaluation mazes ({section['eval_mazes']} of {section['eval_side_m']:g} m)",
+            {
+                "generator": "guide/Explore-v0",
+                "count": section["eval_mazes"],
+                "side_m": section["eval_side_m"],
+                "seed": section["eval_seed"],
+            },
+            "evaluation",
+        )
+        mlflow.log_params(
+            {**protocol.to_dict(), **flat, **{k: v for k, v in section.items() if k not in ("model", "env", "ppo")}}
+        )
         for row in metrics["history"]:
             mlflow.log_metrics({k: v for k, v in row.items() if k != "timesteps"}, step=int(row["timesteps"]))
         evaluation = metrics["evaluation"]
         summary = {"train_seconds": metrics["train_seconds"], "timesteps": metrics["timesteps"]}
         if evaluation:
-            summary.update(eval_distance_m=evaluation["distance_m"], eval_completed=evaluation["completed"],
-                           eval_nearest_frontier_distance_m=evaluation["nearest_frontier_distance_m"],
-                           eval_paired_vs_nearest_frontier=evaluation["paired_vs_nearest_frontier"])
+            summary.update(
+                eval_distance_m=evaluation["distance_m"],
+                eval_completed=evaluation["completed"],
+                eval_nearest_frontier_distance_m=evaluation["nearest_frontier_distance_m"],
+                eval_paired_vs_nearest_frontier=evaluation["paired_vs_nearest_frontier"],
+            )
         mlflow.log_metrics({k: float(v) for k, v in summary.items()})
         for key, value in metrics["host"].items():
             mlflow.set_tag(f"trained_on.{key}", value)

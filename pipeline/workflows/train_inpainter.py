@@ -51,20 +51,39 @@ def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
     return float(np.median(times) * 1e3)
 
 
-def training_fingerprint(section: dict[str, Any], protocol: Protocol, accelerator: Any, devices: Any,
-                         init_checkpoint: Optional[str]) -> str:
+def training_fingerprint(
+    section: dict[str, Any], protocol: Protocol, accelerator: Any, devices: Any, init_checkpoint: Optional[str]
+) -> str:
     """What the inpainter's weights depend on: its settings (not the MLflow experiment or the
     thread count), the device layout, the protocol, the pairs and the init checkpoint's bytes."""
-    settings = {k: v for k, v in section.items() if k not in ("experiment", "threads", "init_checkpoint", "accelerator", "devices")}
-    return settings_digest({"settings": settings, "accelerator": accelerator, "devices": devices,
-                            "protocol": protocol.to_dict(), "pairs": files_digest([DATA_DIR]),
-                            "init_checkpoint": files_digest([init_checkpoint]) if init_checkpoint else None})
+    settings = {
+        k: v
+        for k, v in section.items()
+        if k not in ("experiment", "threads", "init_checkpoint", "accelerator", "devices")
+    }
+    return settings_digest(
+        {
+            "settings": settings,
+            "accelerator": accelerator,
+            "devices": devices,
+            "protocol": protocol.to_dict(),
+            "pairs": files_digest([DATA_DIR]),
+            "init_checkpoint": files_digest([init_checkpoint]) if init_checkpoint else None,
+        }
+    )
 
 
-def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: Optional[str] = None,
-                     devices: Optional[int | str] = None, afresh: bool = False, init_checkpoint: Optional[str] = None,
-                     tracking_uri: Optional[str] = None, progress: bool = False,
-                     artifact_location: Optional[str] = None) -> dict[str, Any]:
+def train_and_report(
+    section: dict[str, Any],
+    protocol: Protocol,
+    accelerator: Optional[str] = None,
+    devices: Optional[int | str] = None,
+    afresh: bool = False,
+    init_checkpoint: Optional[str] = None,
+    tracking_uri: Optional[str] = None,
+    progress: bool = False,
+    artifact_location: Optional[str] = None,
+) -> dict[str, Any]:
     """Train the inpainter from the `train_inpainter` settings, then measure the export on the
     held-out pairs and write its metrics, curves and sample predictions; the metrics ({} in a
     process of a multi-device run other than the first).
@@ -122,8 +141,9 @@ def train_and_report(section: dict[str, Any], protocol: Protocol, accelerator: O
         "threshold": tau,
         "val_predicted_free": at_tau["predicted"],
         "val_actual_free": at_tau["actual"],
-        "by_threshold": {f"{t:g}": {k: round(v, 4) if isinstance(v, float) else v for k, v in r.items()}
-                         for t, r in results.items()},
+        "by_threshold": {
+            f"{t:g}": {k: round(v, 4) if isinstance(v, float) else v for k, v in r.items()} for t, r in results.items()
+        },
         "num_parameters": int(export["num_parameters"]),
         "train_seconds": export["train_seconds"],
         "epochs": export["epochs"],

@@ -17,8 +17,9 @@ from pipeline.training.run_setup import resume_point, start_afresh
 CHECKPOINTS_OF = {variant: getattr(CHECKPOINTS, f"planner_{variant}") for variant in POLICIES}
 
 
-def training_fingerprint(model: dict, train: dict, accelerator: str, devices: str, observations: Path,
-                         num_nodes: int = 1) -> str:
+def training_fingerprint(
+    model: dict, train: dict, accelerator: str, devices: str, observations: Path, num_nodes: int = 1
+) -> str:
     """What a policy's weights depend on: its model and training settings, the device layout
     (devices x nodes: the global batch) and the observations' bytes (not the MLflow experiment or
     the thread count)."""
@@ -26,8 +27,14 @@ def training_fingerprint(model: dict, train: dict, accelerator: str, devices: st
     return settings_digest({"model": model, "train": train, **layout, "observations": files_digest([observations])})
 
 
-def train_and_report(section: dict, variant: str, accelerator: str | None = None, devices: str | None = None,
-                     afresh: bool = False, max_epochs: int | None = None) -> dict:
+def train_and_report(
+    section: dict,
+    variant: str,
+    accelerator: str | None = None,
+    devices: str | None = None,
+    afresh: bool = False,
+    max_epochs: int | None = None,
+) -> dict:
     """Train the `variant` policy from the `train_planner` settings and write its metrics and curves;
     the metrics ({} in a process of a multi-device run other than the first).
 
@@ -46,7 +53,9 @@ def train_and_report(section: dict, variant: str, accelerator: str | None = None
     DiffusionPolicyConfig.from_dict(model, "train_planner.model")
     if not Path(paths.observations).is_file():  # before any checkpoint is decided on
         raise FileNotFoundError(f"{paths.observations}: no observations; run the build_observations stage first")
-    fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations, int(section["num_nodes"]))
+    fingerprint = training_fingerprint(
+        model, train, accelerator, devices, paths.observations, int(section["num_nodes"])
+    )
     resume_from = None if afresh else resume_point(checkpoint_dir, fingerprint, f"train_planner {variant}")
     if resume_from is None:
         start_afresh(checkpoint_dir, fingerprint)

@@ -67,32 +67,58 @@ class BuildingConfig:
 
     def __post_init__(self) -> None:
         if not self.cell_size > 0 or not 20 <= self.side_m:
-            raise ValueError(f"BuildingConfig needs cell_size > 0 and side_m >= 20 m, "
-                             f"got {self.cell_size}, {self.side_m}")
-        for name in ("wall_m", "outer_wall_m", "door_m", "corridor_m", "room_depth_m", "core_m", "room_width_m",
-                     "large_room_m", "hall_m", "aspect", "min_fill", "bays", "bay_m", "recesses", "recess_m",
-                     "furniture", "table_m", "shelf_m", "column_m"):
+            raise ValueError(
+                f"BuildingConfig needs cell_size > 0 and side_m >= 20 m, got {self.cell_size}, {self.side_m}"
+            )
+        for name in (
+            "wall_m",
+            "outer_wall_m",
+            "door_m",
+            "corridor_m",
+            "room_depth_m",
+            "core_m",
+            "room_width_m",
+            "large_room_m",
+            "hall_m",
+            "aspect",
+            "min_fill",
+            "bays",
+            "bay_m",
+            "recesses",
+            "recess_m",
+            "furniture",
+            "table_m",
+            "shelf_m",
+            "column_m",
+        ):
             low, high = getattr(self, name)
             if not 0 <= low <= high:
-                raise ValueError(f"BuildingConfig.{name} must be a range low <= high of non-negative values, "
-                             f"got {(low, high)}")
+                raise ValueError(
+                    f"BuildingConfig.{name} must be a range low <= high of non-negative values, got {(low, high)}"
+                )
         step = self.lattice_m / self.cell_size
         if not (step >= 2 and abs(step - round(step)) < 1e-9):
-            raise ValueError(f"BuildingConfig.lattice_m ({self.lattice_m:g} m) must be a whole number (2 or more) of "
-                             f"cells ({self.cell_size:g} m): the start is placed on its nodes")
+            raise ValueError(
+                f"BuildingConfig.lattice_m ({self.lattice_m:g} m) must be a whole number (2 or more) of "
+                f"cells ({self.cell_size:g} m): the start is placed on its nodes"
+            )
         if self.cells(self.door_m[0]) < 2:
             raise ValueError(f"BuildingConfig.door_m must start at two cells or more, got {self.door_m}")
         if self.door_m[1] + 0.4 > self.room_width_m[0] or self.room_depth_m[0] < 2 * self.door_m[1]:
-            raise ValueError("BuildingConfig.room_width_m must start 0.4 m above the widest door and room_depth_m "
-                             "at twice it, so that every room has a wall a door fits in")
+            raise ValueError(
+                "BuildingConfig.room_width_m must start 0.4 m above the widest door and room_depth_m "
+                "at twice it, so that every room has a wall a door fits in"
+            )
         if len(self.shape_weights) != len(SHAPES) or min(self.shape_weights) < 0 or sum(self.shape_weights) <= 0:
             raise ValueError(f"BuildingConfig.shape_weights needs one non-negative weight per shape {SHAPES}")
         if self.aspect[0] < 1:
             raise ValueError(f"BuildingConfig.aspect is long side over short side, 1 or more, got {self.aspect}")
         if (2 * self.cells(self.side_m)) ** 2 > MAX_IMAGE_PIXELS:
             largest = math.isqrt(MAX_IMAGE_PIXELS) // 2 * self.cell_size
-            raise ValueError(f"building floors of {self.side_m:g} m make an image of more than the map loader reads; "
-                             f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m")
+            raise ValueError(
+                f"building floors of {self.side_m:g} m make an image of more than the map loader reads; "
+                f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m"
+            )
 
     def cells(self, metres: float) -> int:
         """A length in whole cells (at least one)."""

@@ -8,14 +8,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from pipeline.world.building_config import (
-    FREE_LABEL,
-    OUTSIDE_LABEL,
-    SHAPES,
-    WALL_LABEL,
-    BuildingConfig,
-    Rect,
-)
+from pipeline.world.building_config import FREE_LABEL, OUTSIDE_LABEL, SHAPES, WALL_LABEL, BuildingConfig, Rect
 
 
 @dataclass
@@ -92,8 +85,10 @@ def room_boxes(region: np.ndarray) -> dict[int, Rect]:
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
     tops, bottoms = np.minimum.reduceat(rows, starts), np.maximum.reduceat(rows, starts) + 1
     lefts, rights = np.minimum.reduceat(cols, starts), np.maximum.reduceat(cols, starts) + 1
-    return {int(ids[s]): (int(top), int(left), int(bottom), int(right))
-            for s, top, left, bottom, right in zip(starts, tops, lefts, bottoms, rights)}
+    return {
+        int(ids[s]): (int(top), int(left), int(bottom), int(right))
+        for s, top, left, bottom, right in zip(starts, tops, lefts, bottoms, rights)
+    }
 
 
 def rect_slices(box: Rect) -> tuple[slice, slice]:
@@ -149,8 +144,9 @@ def layout_wings(drawing: Drawing, outer: int) -> list[Wing]:
         return _placed(drawing, [Wing((0, 0, depth, length), True, across)], outer)
     height = min(max(int(length / rng.uniform(*config.aspect)), needed), span)
     min_fill = rng.uniform(*config.min_fill)
-    reach_share = [rng.uniform(0.5, 1.0) if shape in ("L", "U", "E", "T") and drawing.chance(0.4) else 1.0
-                   for _ in range(3)]  # arms of unequal length
+    reach_share = [
+        rng.uniform(0.5, 1.0) if shape in ("L", "U", "E", "T") and drawing.chance(0.4) else 1.0 for _ in range(3)
+    ]  # arms of unequal length
     if shape == "L":
         positions = [0 if drawing.chance(0.5) else length - widths[0]]
     elif shape in ("T", "cross"):
@@ -249,8 +245,9 @@ def _corridors(drawing: Drawing, wings: list[Wing], outer: int) -> None:
     for c in crossing:
         c_top, c_left, c_bottom, c_right = c.rect
         offset, width = c.spans[0]
-        met = [w for w in horizontal
-               if c_top <= w.rect[0] and c_bottom >= w.rect[2] and w.rect[1] <= c_left < w.rect[3]]
+        met = [
+            w for w in horizontal if c_top <= w.rect[0] and c_bottom >= w.rect[2] and w.rect[1] <= c_left < w.rect[3]
+        ]
         rows = [row for w in met for corridor in w.corridors for row in (corridor[0], corridor[2])]
         if not rows:
             continue
@@ -258,8 +255,9 @@ def _corridors(drawing: Drawing, wings: list[Wing], outer: int) -> None:
         start = c_top + end_room(c_right - c_left) if above else min(rows)
         stop = c_bottom - end_room(c_right - c_left) if below else max(rows)
         c.corridors = [(start, c_left + offset, stop, c_left + offset + width)]
-        c.caps = (([start - wall] if above and start > c_top + outer else [])
-                  + ([stop] if below and stop < c_bottom - outer else []))
+        c.caps = ([start - wall] if above and start > c_top + outer else []) + (
+            [stop] if below and stop < c_bottom - outer else []
+        )
 
 
 def draw_outline(drawing: Drawing, wings: list[Wing], outer: int) -> None:

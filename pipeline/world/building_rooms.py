@@ -7,13 +7,7 @@ import math
 import cv2
 import numpy as np
 
-from pipeline.world.building_config import (
-    CORRIDOR,
-    FREE_LABEL,
-    FURNITURE_LABEL,
-    WALL_LABEL,
-    Rect,
-)
+from pipeline.world.building_config import CORRIDOR, FREE_LABEL, FURNITURE_LABEL, WALL_LABEL, Rect
 from pipeline.world.building_footprint import Drawing, Wing, rect_slices, room_boxes
 
 
@@ -31,9 +25,12 @@ def cut_rooms(drawing: Drawing, wings: list[Wing]) -> None:
     walls = cv2.dilate(corridor.astype(np.uint8), np.ones((2 * wall + 1,) * 2, np.uint8)).astype(bool) & ~corridor
     for w in wings:  # the corridor walls as runs, for the record
         for top, left, bottom, right in w.corridors:
-            for rect in ((top - wall, left - wall, top, right + wall),
-                         (bottom, left - wall, bottom + wall, right + wall),
-                         (top, left - wall, bottom, left), (top, right, bottom, right + wall)):
+            for rect in (
+                (top - wall, left - wall, top, right + wall),
+                (bottom, left - wall, bottom + wall, right + wall),
+                (top, left - wall, bottom, left),
+                (top, right, bottom, right + wall),
+            ):
                 drawing.wall(rect, walls)
     claimed = np.zeros((n, n), dtype=bool)
     next_id = 1
@@ -67,8 +64,9 @@ def cut_rooms(drawing: Drawing, wings: list[Wing]) -> None:
     _drop_slivers(drawing)
 
 
-def _cut_strip(drawing: Drawing, piece: np.ndarray, horizontal: bool, caps: list[int], next_id: int,
-               turned: bool = False) -> int:
+def _cut_strip(
+    drawing: Drawing, piece: np.ndarray, horizontal: bool, caps: list[int], next_id: int, turned: bool = False
+) -> int:
     """Cut one strip into rooms by cross walls across it (at its forced `caps`, and at room
     widths drawn one after another along it: a strip of a `horizontal` wing runs along the rows).
     A room that comes out much deeper than wide (the room across a wing's end, beyond its
@@ -244,7 +242,9 @@ def open_doors(drawing: Drawing) -> None:
         if area[room] <= config.large_room_m2 and drawing.chance(config.open_room_chance) and _open_room(drawing, room):
             continue
         reached[room + 1] = _open_door(drawing, room, corridor)
-    waiting = [room for room in order if not reached[room + 1] and (region[rect_slices(drawing.boxes[room])] == room).any()]
+    waiting = [
+        room for room in order if not reached[room + 1] and (region[rect_slices(drawing.boxes[room])] == room).any()
+    ]
     while waiting:
         opened = [room for room in waiting if _open_door(drawing, room, reached)]
         reached[[room + 1 for room in opened]] = True
@@ -299,8 +299,9 @@ def furnish(drawing: Drawing) -> None:
     keep_clear = np.zeros((n, n), dtype=bool)
     clearance = config.cells(config.door_clearance_m)
     for top, left, bottom, right in drawing.doors:
-        keep_clear[max(0, top - clearance) : min(n, bottom + clearance),
-                   max(0, left - clearance) : min(n, right + clearance)] = True
+        keep_clear[
+            max(0, top - clearance) : min(n, bottom + clearance), max(0, left - clearance) : min(n, right + clearance)
+        ] = True
     for room, (top, left, bottom, right) in room_boxes(region).items():
         crop = (slice(top, bottom), slice(left, right))
         mask = np.zeros((n, n), dtype=bool)

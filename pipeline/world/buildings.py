@@ -45,13 +45,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.world.building_config import (
-    FREE_LABEL,
-    FURNITURE_LABEL,
-    OUTSIDE_LABEL,
-    BuildingConfig,
-    Rect,
-)
+from pipeline.world.building_config import FREE_LABEL, FURNITURE_LABEL, OUTSIDE_LABEL, BuildingConfig, Rect
 from pipeline.world.building_footprint import Drawing, draw_outline, layout_wings
 from pipeline.world.building_rooms import cut_rooms, furnish, open_doors
 from pipeline.world.floor_shape import plan_statistics
@@ -155,8 +149,9 @@ def draw_building(config: BuildingConfig, rng: np.random.Generator) -> BuildingF
             break
     room_labels, rooms = _room_record(drawing)
     phase = (start[0] % drawing.step, start[1] % drawing.step)
-    return BuildingFloor(drawing.labels, start, drawing.step, phase, rooms, tuple(drawing.doors),
-                         tuple(drawing.walls), room_labels)
+    return BuildingFloor(
+        drawing.labels, start, drawing.step, phase, rooms, tuple(drawing.doors), tuple(drawing.walls), room_labels
+    )
 
 
 def generate_building(config: BuildingConfig, rng: np.random.Generator) -> np.ndarray:
@@ -165,9 +160,15 @@ def generate_building(config: BuildingConfig, rng: np.random.Generator) -> np.nd
     return render_free_map(floor.free, floor.start)
 
 
-def generate_building_set(config: BuildingConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
-                          prefix: str = "building", progress: bool = True,
-                          side_m: tuple[float, float] | None = None) -> list[Path]:
+def generate_building_set(
+    config: BuildingConfig,
+    count: int,
+    out_dir: str | Path,
+    seed: int | Sequence[int],
+    prefix: str = "building",
+    progress: bool = True,
+    side_m: tuple[float, float] | None = None,
+) -> list[Path]:
     """Write `count` building floors as `{prefix}_{i:04d}.png`, floor i drawn from default_rng([*seed, i]);
     with `side_m` = (low, high), each floor's side in whole metres is drawn from that range first."""
     draw = draw_with_sides(generate_building, config, side_m, "building floor")

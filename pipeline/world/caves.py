@@ -50,15 +50,21 @@ class CaveConfig:
         if not self.block_cells >= 4:
             raise ValueError(f"CaveConfig.block_m {self.block_m:g} m is under 4 cells of {self.cell_size:g} m")
         if not 0 < self.open_chance < 1 or not 0 < self.min_open_share < 1:
-            raise ValueError("CaveConfig.open_chance and min_open_share must be in (0, 1), "
-                             f"got {self.open_chance}, {self.min_open_share}")
+            raise ValueError(
+                "CaveConfig.open_chance and min_open_share must be in (0, 1), "
+                f"got {self.open_chance}, {self.min_open_share}"
+            )
         if not self.passes >= 0 or not self.wall_blur_m >= 0 or not 0 <= self.roughness < 0.5:
-            raise ValueError("CaveConfig needs passes >= 0, wall_blur_m >= 0 and roughness in [0, 0.5), "
-                             f"got {self.passes}, {self.wall_blur_m}, {self.roughness}")
+            raise ValueError(
+                "CaveConfig needs passes >= 0, wall_blur_m >= 0 and roughness in [0, 0.5), "
+                f"got {self.passes}, {self.wall_blur_m}, {self.roughness}"
+            )
         if (2 * self.blocks * self.block_cells) ** 2 > MAX_IMAGE_PIXELS:
             largest = math.isqrt(MAX_IMAGE_PIXELS) // 2 * self.cell_size
-            raise ValueError(f"caves of {self.side_m:g} m make an image of more than the map loader reads; "
-                             f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m")
+            raise ValueError(
+                f"caves of {self.side_m:g} m make an image of more than the map loader reads; "
+                f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m"
+            )
 
     @property
     def block_cells(self) -> int:
@@ -75,7 +81,9 @@ def grow_chambers(config: CaveConfig, rng: np.random.Generator) -> np.ndarray:
     n = config.blocks
     blocks = rng.random((n, n)) < config.open_chance
     for _ in range(config.passes):
-        neighbours = cv2.filter2D(blocks.astype(np.float32), -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT)
+        neighbours = cv2.filter2D(
+            blocks.astype(np.float32), -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT
+        )
         blocks = neighbours >= 5  # open where most of the 3 x 3 around (the block included) is open
     blocks[[0, -1], :] = False
     blocks[:, [0, -1]] = False
@@ -94,8 +102,10 @@ def draw_cave(config: CaveConfig, rng: np.random.Generator) -> tuple[np.ndarray,
         if blocks.mean() >= config.min_open_share:
             break
     else:
-        raise ValueError(f"no cave with {config.min_open_share:.0%} open blocks in {MAX_ATTEMPTS} tries: "
-                         f"raise CaveConfig.open_chance ({config.open_chance})")
+        raise ValueError(
+            f"no cave with {config.min_open_share:.0%} open blocks in {MAX_ATTEMPTS} tries: "
+            f"raise CaveConfig.open_chance ({config.open_chance})"
+        )
     solid = np.kron(blocks, np.ones((k, k), dtype=bool))
     sigma = config.wall_blur_m / config.cell_size
     blurred = cv2.GaussianBlur(solid.astype(np.float32), (0, 0), sigma) if sigma > 0 else solid.astype(np.float32)
@@ -113,7 +123,13 @@ def generate_cave(config: CaveConfig, rng: np.random.Generator) -> np.ndarray:
     return render_free_map(*draw_cave(config, rng))
 
 
-def generate_cave_set(config: CaveConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
-                      prefix: str = "cave", progress: bool = True) -> list[Path]:
+def generate_cave_set(
+    config: CaveConfig,
+    count: int,
+    out_dir: str | Path,
+    seed: int | Sequence[int],
+    prefix: str = "cave",
+    progress: bool = True,
+) -> list[Path]:
     """Write `count` caves as `{prefix}_{i:04d}.png`, cave i drawn from default_rng([*seed, i])."""
     return generate_map_set(lambda rng: generate_cave(config, rng), count, out_dir, seed, prefix, progress)

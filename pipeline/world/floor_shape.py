@@ -76,8 +76,13 @@ def plan_statistics(free: np.ndarray, rooms: np.ndarray | None, cell_size: float
         return out
     labels = np.where(free, np.asarray(rooms), 0)
     ids, counts = np.unique(labels[labels > 0], return_counts=True)
-    is_room = np.array([count * cell_size**2 >= MIN_ROOM_M2 and not is_corridor(labels == room, cell_size)
-                        for room, count in zip(ids, counts)], dtype=bool)
+    is_room = np.array(
+        [
+            count * cell_size**2 >= MIN_ROOM_M2 and not is_corridor(labels == room, cell_size)
+            for room, count in zip(ids, counts)
+        ],
+        dtype=bool,
+    )
     kept, areas = ids[is_room], counts[is_room] * cell_size**2
     out["corridor_share"] = 1.0 - float(np.isin(labels, kept).sum()) / float(free.sum())
     if not len(kept):
@@ -165,8 +170,9 @@ class PlanGrid:
     rooms: np.ndarray | None
 
 
-def real_plan_grids(folder: str | Path, resolution: float = 0.05, robot_radius_m: float = 0.2,
-                    cell_size: float = STAT_CELL_M) -> list[PlanGrid]:
+def real_plan_grids(
+    folder: str | Path, resolution: float = 0.05, robot_radius_m: float = 0.2, cell_size: float = STAT_CELL_M
+) -> list[PlanGrid]:
     """Every plan in `folder` at `cell_size` cells, free space by the plan import's rule
     (`convert_plan`) and room labels by block mode over the fine free cells."""
     grids = []

@@ -185,8 +185,9 @@ def read_npy_array(path: Path) -> np.ndarray:
         raise MapError(path, f"grid of shape {shape} exceeds the limit of {MAX_GRID_CELLS} cells")
     if file_size - data_offset < cells * dtype.itemsize:
         raise MapError(
-            path, f"truncated .npy file: shape {shape} of {dtype} needs {cells * dtype.itemsize} bytes of data, "
-            f"found {file_size - data_offset}"
+            path,
+            f"truncated .npy file: shape {shape} of {dtype} needs {cells * dtype.itemsize} bytes of data, "
+            f"found {file_size - data_offset}",
         )
     try:
         array = np.load(str(path), allow_pickle=False)

@@ -15,12 +15,7 @@ import numpy as np
 import yaml
 
 from pipeline.common.params import yaml_problem
-from pipeline.world.map_files import (
-    MapError,
-    is_file_named,
-    read_gray_image,
-    read_npy_array,
-)
+from pipeline.world.map_files import MapError, is_file_named, read_gray_image, read_npy_array
 
 MAZE_FREE_MIN = 150  # maze PNG: value > 150 is free ...
 MAZE_FREE_BAND = (50, 80)  # ... and so is a value in [50, 80]
@@ -96,7 +91,6 @@ def validate_grid(free: np.ndarray, start_cell: tuple[int, int], path: str | Pat
         raise MapError(path, f"start cell (col {col}, row {row}) lies outside the {free.shape[1]}x{free.shape[0]} grid")
     if not free[row, col]:
         raise MapError(path, f"start cell (col {col}, row {row}) is on an occupied cell")
-
 
 
 def _check_cell_size(cell_size: float, path: Path) -> float:
@@ -218,7 +212,8 @@ def read_ros_grid(path: str | Path) -> RosGrid:
         yaw = _as_float(meta["origin"][2], "YAML key 'origin' yaw", path)
         if abs(yaw) >= MAX_ORIGIN_YAW:
             raise MapError(
-                path, f"origin yaw {yaw:g} rad is not supported; rotate the image to be axis-aligned and set the yaw to 0"
+                path,
+                f"origin yaw {yaw:g} rad is not supported; rotate the image to be axis-aligned and set the yaw to 0",
             )
     occupied_thresh = _yaml_number(meta, "occupied_thresh", path)
     free_thresh = _yaml_number(meta, "free_thresh", path)
@@ -341,9 +336,7 @@ def _start_cell(start: object, path: Path) -> tuple[int, int]:
     return cell[0], cell[1]
 
 
-def load_npy_grid(
-    path: str | Path, start_cell: tuple[int, int] | None, cell_size: float = 0.4
-) -> GroundTruthMap:
+def load_npy_grid(path: str | Path, start_cell: tuple[int, int] | None, cell_size: float = 0.4) -> GroundTruthMap:
     """Load a NumPy boolean/uint8 grid (1 = free); the start cell (col, row) is required."""
     path = Path(path)
     cell_size = _check_cell_size(cell_size, path)
@@ -367,11 +360,7 @@ def _values_found(array: np.ndarray, shown: int = 5) -> str:
     return f"the grid holds the {noun} {listed}{more}"
 
 
-def load_map(
-    path: str | Path,
-    start: tuple[float, float] | None = None,
-    cell_size: float = 0.4,
-) -> GroundTruthMap:
+def load_map(path: str | Path, start: tuple[float, float] | None = None, cell_size: float = 0.4) -> GroundTruthMap:
     """Load any supported map by its suffix.
 
     `start` is (col, row) for a .npy grid or a maze PNG (where it overrides the PNG's own

@@ -123,9 +123,7 @@ class MazeConfig:
             raise ValueError(f"MazeConfig.side_m must be a range 0 < low <= high, got {self.side_m}")
         low_blocks, high_blocks = self.side_blocks
         if low_blocks > high_blocks:
-            raise ValueError(
-                f"MazeConfig.side_m {self.side_m} holds no whole number of {self.block_m} m blocks"
-            )
+            raise ValueError(f"MazeConfig.side_m {self.side_m} holds no whole number of {self.block_m} m blocks")
         if low_blocks < MIN_SIDE_BLOCKS:
             raise ValueError(
                 f"MazeConfig.side_m {self.side_m} allows a side of {low_blocks} block{'s' if low_blocks != 1 else ''}; a maze needs at "

@@ -56,9 +56,20 @@ class OfficeConfig:
     @classmethod
     def real_robot(cls, side_m: float = 60.0, cell_size: float = 0.2) -> "OfficeConfig":
         """Office floors at building sizes for the real-robot scale (Sec. V-C: 0.2 m cells, 1 m lattice)."""
-        return cls(side_m=side_m, cell_size=cell_size, wall_m=(0.1, 0.3), door_m=(0.8, 1.6), min_room_m=3.0,
-                   split_above_m=8.0, max_depth=10, stop_chance=0.15, clutter=(0, 3), clutter_m=(0.4, 1.2),
-                   clutter_margin_m=1.2, lattice_m=1.0)
+        return cls(
+            side_m=side_m,
+            cell_size=cell_size,
+            wall_m=(0.1, 0.3),
+            door_m=(0.8, 1.6),
+            min_room_m=3.0,
+            split_above_m=8.0,
+            max_depth=10,
+            stop_chance=0.15,
+            clutter=(0, 3),
+            clutter_m=(0.4, 1.2),
+            clutter_margin_m=1.2,
+            lattice_m=1.0,
+        )
 
     @classmethod
     def for_scale(cls, scale: str, side_m: float = 100.0, cell_size: float = 0.4) -> "OfficeConfig":
@@ -74,27 +85,39 @@ class OfficeConfig:
 
     def __post_init__(self) -> None:
         if not self.cell_size > 0 or not self.side_m >= 20:
-            raise ValueError(f"OfficeConfig needs cell_size > 0 and side_m >= 20 m, got {self.cell_size}, {self.side_m}")
+            raise ValueError(
+                f"OfficeConfig needs cell_size > 0 and side_m >= 20 m, got {self.cell_size}, {self.side_m}"
+            )
         for name in ("wall_m", "door_m", "clutter", "clutter_m"):
             low, high = getattr(self, name)
             if not 0 <= low <= high:
-                raise ValueError(f"OfficeConfig.{name} must be a range low <= high of non-negative values, got {(low, high)}")
+                raise ValueError(
+                    f"OfficeConfig.{name} must be a range low <= high of non-negative values, got {(low, high)}"
+                )
         if self.aligns_doors:
             step = self.lattice_m / self.cell_size
             if not (step >= 2 and abs(step - round(step)) < 1e-9):
-                raise ValueError(f"OfficeConfig.lattice_m ({self.lattice_m:g} m) must be a whole number (2 or more) of "
-                                 f"cells ({self.cell_size:g} m) for doors narrower than it to be placed over its lines")
+                raise ValueError(
+                    f"OfficeConfig.lattice_m ({self.lattice_m:g} m) must be a whole number (2 or more) of "
+                    f"cells ({self.cell_size:g} m) for doors narrower than it to be placed over its lines"
+                )
             if self.cells(self.wall_m[1]) >= round(step):
-                raise ValueError(f"OfficeConfig.wall_m must stay thinner than lattice_m ({self.lattice_m:g} m): walls "
-                                 f"sit between lattice lines, got {self.wall_m}")
+                raise ValueError(
+                    f"OfficeConfig.wall_m must stay thinner than lattice_m ({self.lattice_m:g} m): walls "
+                    f"sit between lattice lines, got {self.wall_m}"
+                )
             if self.door_m[0] < 2 * self.cell_size:
                 raise ValueError(f"OfficeConfig.door_m must start at two cells or more, got {self.door_m}")
         if (2 * self.cells(self.side_m)) ** 2 > MAX_IMAGE_PIXELS:
             largest = math.isqrt(MAX_IMAGE_PIXELS) // 2 * self.cell_size
-            raise ValueError(f"office floors of {self.side_m:g} m make an image of more than the map loader reads; "
-                             f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m")
+            raise ValueError(
+                f"office floors of {self.side_m:g} m make an image of more than the map loader reads; "
+                f"the largest side at {self.cell_size:g} m cells is {largest:.0f} m"
+            )
         if not 2 * self.min_room_m <= self.split_above_m:
-            raise ValueError("OfficeConfig.split_above_m must be at least twice min_room_m (both halves of a split fit)")
+            raise ValueError(
+                "OfficeConfig.split_above_m must be at least twice min_room_m (both halves of a split fit)"
+            )
 
     def cells(self, metres: float) -> int:
         """A length in whole cells (at least one)."""
@@ -138,14 +161,20 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
     def split(top: int, left: int, bottom: int, right: int, depth: int) -> None:
         height, width = bottom - top, right - left
         door = cells_in(config.door_m)
-        if (depth >= config.max_depth or max(height, width) <= split_above or min(height, width) < door + 4
-                or (depth > 2 and rng.random() < config.stop_chance)):
+        if (
+            depth >= config.max_depth
+            or max(height, width) <= split_above
+            or min(height, width) < door + 4
+            or (depth > 2 and rng.random() < config.stop_chance)
+        ):
             rooms.append((top, left, bottom, right))
             return
         wall = cells_in(config.wall_m)
         across_rows = height >= width  # cut the longer side
         low, high = (top, bottom) if across_rows else (left, right)
-        cut = wall_start(low + min_room, high - min_room - wall + 1, wall, phase[0 if across_rows else 1] if phase else 0)
+        cut = wall_start(
+            low + min_room, high - min_room - wall + 1, wall, phase[0 if across_rows else 1] if phase else 0
+        )
         span = (left, right) if across_rows else (top, bottom)
         doors = 1 + int(span[1] - span[0] > 3 * door + 10 and rng.random() < config.second_door_chance)
         if across_rows:
@@ -184,8 +213,12 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
     return free, _start_cell(free, rooms, rng, None if phase is None else (step, phase))
 
 
-def _start_cell(free: np.ndarray, rooms: list[tuple[int, int, int, int]], rng: np.random.Generator,
-                lattice: tuple[int, tuple[int, int]] | None = None) -> tuple[int, int]:
+def _start_cell(
+    free: np.ndarray,
+    rooms: list[tuple[int, int, int, int]],
+    rng: np.random.Generator,
+    lattice: tuple[int, tuple[int, int]] | None = None,
+) -> tuple[int, int]:
     """A start in a random room, with free cells all around the START_CELLS square that marks it
     (and, given `lattice` = (step, (row, col) phase), on a lattice node of that phase)."""
     clear = cv2.erode(free.astype(np.uint8), np.ones((2 * START_CELLS + 1,) * 2, np.uint8)).astype(bool)
@@ -220,8 +253,12 @@ def generate_office(config: OfficeConfig, rng: np.random.Generator) -> np.ndarra
     return render_free_map(*draw_office(config, rng))
 
 
-def draw_with_sides(draw_floor: Callable[[Any, np.random.Generator], np.ndarray], config: Any,
-                    side_m: tuple[float, float] | None, what: str) -> Callable[[np.random.Generator], np.ndarray]:
+def draw_with_sides(
+    draw_floor: Callable[[Any, np.random.Generator], np.ndarray],
+    config: Any,
+    side_m: tuple[float, float] | None,
+    what: str,
+) -> Callable[[np.random.Generator], np.ndarray]:
     """`generate_map_set`'s draw for a floor family: `draw_floor(config, rng)`, with (given `side_m` =
     (low, high)) each floor's side drawn first in whole metres from that range, inclusive; a side
     the config refuses fails here, before any floor is drawn."""
@@ -235,9 +272,15 @@ def draw_with_sides(draw_floor: Callable[[Any, np.random.Generator], np.ndarray]
     return lambda rng: draw_floor(replace(config, side_m=float(rng.integers(low, high + 1))), rng)
 
 
-def generate_office_set(config: OfficeConfig, count: int, out_dir: str | Path, seed: int | Sequence[int],
-                        prefix: str = "office", progress: bool = True,
-                        side_m: tuple[float, float] | None = None) -> list[Path]:
+def generate_office_set(
+    config: OfficeConfig,
+    count: int,
+    out_dir: str | Path,
+    seed: int | Sequence[int],
+    prefix: str = "office",
+    progress: bool = True,
+    side_m: tuple[float, float] | None = None,
+) -> list[Path]:
     """Write `count` office floors as `{prefix}_{i:04d}.png`, floor i drawn from default_rng([*seed, i]).
 
     With `side_m` = (low, high), each floor's side is drawn in whole metres from that range

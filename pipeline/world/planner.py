@@ -24,7 +24,6 @@ class Observation:
     step: int
 
 
-
 class Planner(ABC):
     """Proposes the next waypoint(s); the simulator moves there in order, sensing after each.
 

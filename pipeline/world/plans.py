@@ -99,8 +99,9 @@ class ImportedPlan:
 
     def record(self) -> dict:
         out = {k: v for k, v in asdict(self).items() if k not in ("free", "key")}
-        out["starts_m"] = [[round((c + 0.5) * self.cell_size_m, 3), round((r + 0.5) * self.cell_size_m, 3)]
-                           for c, r in self.starts]
+        out["starts_m"] = [
+            [round((c + 0.5) * self.cell_size_m, 3), round((r + 0.5) * self.cell_size_m, 3)] for c, r in self.starts
+        ]
         out["shape"] = list(self.shape)
         out["starts"] = [list(s) for s in self.starts]
         return out
@@ -120,10 +121,17 @@ def find_plan_sources(src: str | Path, resolution: float | None = None, licence:
             paths = [src]
         else:
             named = {_image_of(p) for p in src.iterdir() if p.suffix.lower() in ROS_YAML_SUFFIXES}
-            paths = sorted(p for p in src.iterdir()
-                           if (p.is_dir() and (p / MAPEX_GRID).is_file())
-                           or (p.is_file() and p.suffix.lower() in ROS_YAML_SUFFIXES + NPY_SUFFIXES + IMAGE_SUFFIXES
-                               and p.resolve() not in named and not p.stem.endswith(ROOMS_SUFFIX)))
+            paths = sorted(
+                p
+                for p in src.iterdir()
+                if (p.is_dir() and (p / MAPEX_GRID).is_file())
+                or (
+                    p.is_file()
+                    and p.suffix.lower() in ROS_YAML_SUFFIXES + NPY_SUFFIXES + IMAGE_SUFFIXES
+                    and p.resolve() not in named
+                    and not p.stem.endswith(ROOMS_SUFFIX)
+                )
+            )
         if not paths:
             raise MapError(src, "holds no floor plan (ROS map .yaml, .png/.pgm, .npy, or a folder with occ_map.npy)")
     else:
@@ -163,11 +171,15 @@ def read_plan(path: Path, resolution: float | None) -> PlanSource:
         rooms = _read_labels(rooms_path)[::-1] if rooms_path.is_file() else None
         name = path.stem
     else:
-        raise MapError(path, f"unknown floor plan format '{suffix}' (a ROS map .yaml, .png/.pgm, .npy or a MapEx folder)")
+        raise MapError(
+            path, f"unknown floor plan format '{suffix}' (a ROS map .yaml, .png/.pgm, .npy or a MapEx folder)"
+        )
     if resolution is None:
         raise MapError(path, "no resolution: give its metres per pixel with --resolution (a ROS map YAML says its own)")
     if rooms is not None and rooms.shape != free.shape:
-        raise MapError(path, f"its room labels are {rooms.shape[1]}x{rooms.shape[0]}, the plan {free.shape[1]}x{free.shape[0]}")
+        raise MapError(
+            path, f"its room labels are {rooms.shape[1]}x{rooms.shape[0]}, the plan {free.shape[1]}x{free.shape[0]}"
+        )
     if not free.any():
         raise MapError(path, f"no free cell (free: values of at least {IMAGE_FREE_MIN}, or 1 in a 0/1 grid)")
     return PlanSource(name, path, np.ascontiguousarray(free), float(resolution), rooms)
@@ -205,14 +217,16 @@ def licence_line(path: Path) -> str | None:
 
 
 # ---------------------------------------------------------------------------- converting
-def convert_plan(source: PlanSource, cell_size: float, robot_radius_m: float, starts: int,
-                 rng: np.random.Generator) -> ImportedPlan:
+def convert_plan(
+    source: PlanSource, cell_size: float, robot_radius_m: float, starts: int, rng: np.random.Generator
+) -> ImportedPlan:
     """`source` at `cell_size`: conservative but door-keeping, its largest free component, its starts."""
     if source.resolution > cell_size * (1 + 1e-6):
         raise MapError(source.path, f"its {source.resolution:g} m cells are coarser than the {cell_size:g} m asked for")
     first = np.argwhere(source.free)[0]
-    fine = GroundTruthMap(free=source.free, start_cell=(int(first[1]), int(first[0])), cell_size=source.resolution,
-                          name=source.name)
+    fine = GroundTruthMap(
+        free=source.free, start_cell=(int(first[1]), int(first[0])), cell_size=source.resolution, name=source.name
+    )
     try:
         coarse, _ = resample_map(fine, cell_size, robot_radius_m=robot_radius_m)
     except ValueError as error:
@@ -220,10 +234,19 @@ def convert_plan(source: PlanSource, cell_size: float, robot_radius_m: float, st
     free = largest_component(coarse.free)
     rooms, room_area = count_rooms(source, free, round(cell_size / source.resolution))
     return ImportedPlan(
-        name=source.name, source=str(source.path), source_resolution_m=source.resolution, cell_size_m=cell_size,
-        licence=source.licence, free_m2=round(float(free.sum()) * cell_size**2, 2), shape=free.shape,
-        starts=draw_starts(free, cell_size, starts, rng), rooms=rooms, room_area_m2=room_area,
-        key=symmetry_key(source.free, source.resolution), free=free)
+        name=source.name,
+        source=str(source.path),
+        source_resolution_m=source.resolution,
+        cell_size_m=cell_size,
+        licence=source.licence,
+        free_m2=round(float(free.sum()) * cell_size**2, 2),
+        shape=free.shape,
+        starts=draw_starts(free, cell_size, starts, rng),
+        rooms=rooms,
+        room_area_m2=room_area,
+        key=symmetry_key(source.free, source.resolution),
+        free=free,
+    )
 
 
 def largest_component(free: np.ndarray) -> np.ndarray:
@@ -270,9 +293,11 @@ def symmetry_key(free: np.ndarray, resolution: float) -> str:
     up to the 8 rotations and flips (asked of the source's own cells: at coarser cells a turned copy
     falls on other block boundaries)."""
     rows, cols = np.nonzero(free)
-    crop = free[rows.min():rows.max() + 1, cols.min():cols.max() + 1]
-    return min(hashlib.sha256(f"{resolution:.9g} {v.shape}".encode() + np.packbits(v).tobytes()).hexdigest()
-               for v in (symmetric(crop, k) for k in range(8)))
+    crop = free[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]
+    return min(
+        hashlib.sha256(f"{resolution:.9g} {v.shape}".encode() + np.packbits(v).tobytes()).hexdigest()
+        for v in (symmetric(crop, k) for k in range(8))
+    )
 
 
 # ---------------------------------------------------------------------------- writing
@@ -283,8 +308,15 @@ class ImportReport:
     licences: list[str]  # licence files copied beside the plans
 
 
-def import_plans(sources: list[PlanSource], out: str | Path, cell_size: float = 0.2, robot_radius_m: float = 0.2,
-                 starts: int = 3, seed: int = 0, progress=None) -> ImportReport:
+def import_plans(
+    sources: list[PlanSource],
+    out: str | Path,
+    cell_size: float = 0.2,
+    robot_radius_m: float = 0.2,
+    starts: int = 3,
+    seed: int = 0,
+    progress=None,
+) -> ImportReport:
     """Convert `sources` (`convert_plan`), drop duplicates and write them to `out` as a whole:
     `out` is replaced only once every file is written (a failure leaves it as it was)."""
     if not (math.isfinite(cell_size) and cell_size > 0):
@@ -318,9 +350,14 @@ def import_plans(sources: list[PlanSource], out: str | Path, cell_size: float = 
                     if licence.name not in licences:
                         shutil.copyfile(licence, folder / licence.name)
                         licences.append(licence.name)
-        manifest = {"cell_size_m": cell_size, "robot_radius_m": robot_radius_m, "seed": seed,
-                    "plans": [plan.record() for plan in plans],
-                    "duplicates": [{"dropped": a, "equals": b} for a, b in duplicates], "licence_files": licences}
+        manifest = {
+            "cell_size_m": cell_size,
+            "robot_radius_m": robot_radius_m,
+            "seed": seed,
+            "plans": [plan.record() for plan in plans],
+            "duplicates": [{"dropped": a, "equals": b} for a, b in duplicates],
+            "licence_files": licences,
+        }
         atomic_write_text(folder / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     return ImportReport(plans, duplicates, licences)
 
@@ -335,8 +372,9 @@ def symmetric(grid: np.ndarray, k: int) -> np.ndarray:
     return np.ascontiguousarray(np.rot90(grid[:, ::-1] if k >= 4 else grid, k % 4))
 
 
-def plan_floor_image(plans: Sequence[np.ndarray], side_m: tuple[float, float], cell_size: float,
-                     rng: np.random.Generator) -> np.ndarray:
+def plan_floor_image(
+    plans: Sequence[np.ndarray], side_m: tuple[float, float], cell_size: float, rng: np.random.Generator
+) -> np.ndarray:
     """A training floor drawn from real plans, as a map PNG image (`render_free_map`, start marked):
     a plan at random, one of its 8 rotations and flips, a window of a side drawn from `side_m`
     (the whole plan along a shorter side), its largest free component walled round, and a start
@@ -347,7 +385,7 @@ def plan_floor_image(plans: Sequence[np.ndarray], side_m: tuple[float, float], c
         rows, cols = free.shape
         height, width = min(side, rows), min(side, cols)
         top, left = int(rng.integers(rows - height + 1)), int(rng.integers(cols - width + 1))
-        crop = largest_component(free[top:top + height, left:left + width])
+        crop = largest_component(free[top : top + height, left : left + width])
         if crop.sum() >= MIN_FLOOR_SHARE * height * width:
             break
     crop = np.pad(crop, 1)  # walls round the window: nothing leads off the floor
@@ -366,16 +404,27 @@ def load_plan_grids(folder: str | Path, cell_size: float) -> list[np.ndarray]:
     for path in paths:
         plan = load_map(path)
         if abs(plan.cell_size - cell_size) > 1e-9:
-            raise MapError(path, f"its cells are {plan.cell_size:g} m, the protocol's {cell_size:g} m: import the plans "
-                                 f"at the protocol's cell size")
+            raise MapError(
+                path,
+                f"its cells are {plan.cell_size:g} m, the protocol's {cell_size:g} m: import the plans "
+                f"at the protocol's cell size",
+            )
         grids.append(plan.free)
     return grids
 
 
-def generate_plan_floors(plans: Sequence[np.ndarray], count: int, out_dir: str | Path, seed: int | Sequence[int],
-                         side_m: tuple[float, float], cell_size: float, prefix: str = "plan",
-                         progress: bool = True) -> list[Path]:
+def generate_plan_floors(
+    plans: Sequence[np.ndarray],
+    count: int,
+    out_dir: str | Path,
+    seed: int | Sequence[int],
+    side_m: tuple[float, float],
+    cell_size: float,
+    prefix: str = "plan",
+    progress: bool = True,
+) -> list[Path]:
     """Write `count` training floors drawn from `plans` (`plan_floor_image`) as `{prefix}_{i:04d}.png`,
     floor i from default_rng([*seed, i])."""
-    return generate_map_set(lambda rng: plan_floor_image(plans, side_m, cell_size, rng), count, out_dir, seed,
-                            prefix, progress)
+    return generate_map_set(
+        lambda rng: plan_floor_image(plans, side_m, cell_size, rng), count, out_dir, seed, prefix, progress
+    )

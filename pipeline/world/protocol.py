@@ -31,8 +31,9 @@ class Protocol:
 
     def __post_init__(self) -> None:
         if self.node_resolution < self.cell_size:
-            raise ValueError(f"node_resolution ({self.node_resolution:g} m) must be at least one cell "
-                             f"({self.cell_size:g} m)")
+            raise ValueError(
+                f"node_resolution ({self.node_resolution:g} m) must be at least one cell ({self.cell_size:g} m)"
+            )
 
     @property
     def uses_door_graph(self) -> bool:
@@ -91,8 +92,15 @@ def model_input_differences(trained: dict[str, Any] | None, protocol: Protocol) 
     ]
 
 
-PAPER_REAL_ROBOT = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, utility_range=5.0, region_size=10.0,
-                            done_unknown_cells=1000, max_steps=2000)
+PAPER_REAL_ROBOT = Protocol(
+    cell_size=0.2,
+    node_resolution=1.0,
+    sensor_range=10.0,
+    utility_range=5.0,
+    region_size=10.0,
+    done_unknown_cells=1000,
+    max_steps=2000,
+)
 """The paper's real-robot setting (0.2 m cells, 1 m nodes, 10 m sensor) as profiles/real_robot.yaml
 runs it: regions as wide as the sensor reaches, done at 40 m^2 unseen."""
 
@@ -118,7 +126,9 @@ def protocol_for_map(protocol: Protocol, ground_truth: GroundTruthMap, source: s
         protocol = protocol.with_cell_size(ground_truth.cell_size)
     rows, cols = ground_truth.free.shape
     diagonal_m = math.hypot(rows, cols) * protocol.cell_size
-    if protocol.sensor_range > 2 * diagonal_m:  # a ray table that long costs minutes and gigabytes, and sees nothing more
+    if (
+        protocol.sensor_range > 2 * diagonal_m
+    ):  # a ray table that long costs minutes and gigabytes, and sees nothing more
         raise MapError(
             where,
             f"sensor range {protocol.sensor_range:g} m is more than twice the map's diagonal ({diagonal_m:.1f} m); "

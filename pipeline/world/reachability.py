@@ -53,8 +53,6 @@ def reachable_from(passable: np.ndarray, start: Cell) -> np.ndarray:
     return labels == labels[row, col]
 
 
-
-
 def reachable_free(free: np.ndarray, start: Cell, radius_cells: float) -> np.ndarray:
     """The ground truth's free cells a robot of `radius_cells` reaches from `start`: the passable cells
     joined to the start, and every free cell its body covers from one of them (within the radius)."""

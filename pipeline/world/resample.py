@@ -81,7 +81,10 @@ def keep_doors(fine: np.ndarray, coarse: np.ndarray, factor: int, radius_cells: 
 
 
 def resample_map(
-    ground_truth: GroundTruthMap, cell_size: float, wall_cells: int = 1, speck_area: float = 0.1,
+    ground_truth: GroundTruthMap,
+    cell_size: float,
+    wall_cells: int = 1,
+    speck_area: float = 0.1,
     robot_radius_m: float = 0.0,
 ) -> tuple[GroundTruthMap, float]:
     """(the map at `cell_size`, metres the start moved).
@@ -96,7 +99,9 @@ def resample_map(
         raise ValueError(f"speck area must be a number of square metres >= 0, got {speck_area}")
     factor = resample_factor(ground_truth.cell_size, cell_size)
     if not 1 <= wall_cells <= factor * factor:
-        raise ValueError(f"wall cells must lie in 1..{factor * factor} (the fine cells of one new cell), got {wall_cells}")
+        raise ValueError(
+            f"wall cells must lie in 1..{factor * factor} (the fine cells of one new cell), got {wall_cells}"
+        )
     fine = remove_specks(ground_truth.free, int(speck_area / ground_truth.cell_size**2))
     free = resample_free(fine, factor, wall_cells)
     if robot_radius_m > 0:
@@ -110,22 +115,27 @@ def resample_map(
         nearest = cells[int(np.argmin(((cells - (row, col)) ** 2).sum(axis=1)))]
         moved = float(np.hypot(nearest[0] - row, nearest[1] - col) * cell_size)
         row, col = int(nearest[0]), int(nearest[1])
-    resampled = GroundTruthMap(free=free, start_cell=(int(col), int(row)), cell_size=float(cell_size),
-                               name=ground_truth.name)
+    resampled = GroundTruthMap(
+        free=free, start_cell=(int(col), int(row)), cell_size=float(cell_size), name=ground_truth.name
+    )
     return resampled, moved
 
 
-def write_ros_map(ground_truth: GroundTruthMap, yaml_path: str | Path, origin: tuple[float, float] = (0.0, 0.0)) -> Path:
+def write_ros_map(
+    ground_truth: GroundTruthMap, yaml_path: str | Path, origin: tuple[float, float] = (0.0, 0.0)
+) -> Path:
     """Write a map_server map (trinary PGM beside its YAML, with a `start` key), as `load_ros_map` reads it."""
     col, row = ground_truth.start_cell
     size = ground_truth.cell_size
     image = np.where(ground_truth.free, ROS_FREE_VALUE, ROS_OCCUPIED_VALUE).astype(np.uint8)
-    return write_map_server(image, size, origin, (origin[0] + (col + 0.5) * size, origin[1] + (row + 0.5) * size),
-                            yaml_path)
+    return write_map_server(
+        image, size, origin, (origin[0] + (col + 0.5) * size, origin[1] + (row + 0.5) * size), yaml_path
+    )
 
 
-def write_map_server(image: np.ndarray, resolution: float, origin: tuple[float, float], start: tuple[float, float],
-                     yaml_path: str | Path) -> Path:
+def write_map_server(
+    image: np.ndarray, resolution: float, origin: tuple[float, float], start: tuple[float, float], yaml_path: str | Path
+) -> Path:
     """A map_server map from its pixels (rows growing with y, as our grids'; 254 free, 0 occupied,
     205 unknown): the PGM beside `yaml_path` and the YAML with `origin` (the grid's corner) and a
     `start` key, both in map-frame metres. The PGM's path."""

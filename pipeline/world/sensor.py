@@ -106,10 +106,7 @@ def _walk_rays(padded, base, padded_flat, valid, step_place, n_cells):  # pragma
 
 
 def scan(
-    ground_free: np.ndarray,
-    cell: tuple[int, int],
-    range_cells: float,
-    angles: np.ndarray = DEFAULT_ANGLES,
+    ground_free: np.ndarray, cell: tuple[int, int], range_cells: float, angles: np.ndarray = DEFAULT_ANGLES
 ) -> ScanResult:
     """Cells the lidar at `cell` (col, row) reveals on the ground truth `ground_free[row, col]`.
 

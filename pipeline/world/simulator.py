@@ -122,8 +122,14 @@ class Episode:
         self._sense()
 
     @classmethod
-    def resume(cls, world: GroundTruthMap, protocol: Protocol, belief: np.ndarray, cell: tuple[int, int],
-               position: tuple[float, float]) -> "Episode":
+    def resume(
+        cls,
+        world: GroundTruthMap,
+        protocol: Protocol,
+        belief: np.ndarray,
+        cell: tuple[int, int],
+        position: tuple[float, float],
+    ) -> "Episode":
         """An episode on `world` that starts from a given belief and pose at distance 0, without a
         first scan: a planner's rollout on a map it imagines (`sampled_lookahead`)."""
         if belief.shape != world.shape:
@@ -200,8 +206,11 @@ class Episode:
             row = self.map.start_cell[1] + int(round(j * d / size))
         else:
             ci, cj = round(x / size), round(y / size)
-            if not self.protocol.uses_door_graph or abs(ci * size - x) > LATTICE_TOLERANCE_M \
-                    or abs(cj * size - y) > LATTICE_TOLERANCE_M:
+            if (
+                not self.protocol.uses_door_graph
+                or abs(ci * size - x) > LATTICE_TOLERANCE_M
+                or abs(cj * size - y) > LATTICE_TOLERANCE_M
+            ):
                 where = "a cell centre" if self.protocol.uses_door_graph else f"on the {d} m node lattice"
                 raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) is not {where}")
             position = (ci * size, cj * size)
@@ -354,6 +363,8 @@ def _result(
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
         reachable_share=seen / max(1, seen + unseen),
-        early_stop=failure == STOPPED and largest_unseen_region(
-            reachable, episode.belief.grid, episode.protocol.robot_radius_cells) * episode.map.cell_size**2 >= LEFTOVER_M2,
+        early_stop=failure == STOPPED
+        and largest_unseen_region(reachable, episode.belief.grid, episode.protocol.robot_radius_cells)
+        * episode.map.cell_size**2
+        >= LEFTOVER_M2,
     )

@@ -88,8 +88,9 @@ class TeamPlanner(ABC):
         """Warn when a trained model was trained at other protocol values; nothing to say by default."""
 
 
-def reset_team_planner(planner: TeamPlanner, ground_truth: GroundTruthMap, protocol: Protocol, seed: int,
-                       robots: int) -> None:
+def reset_team_planner(
+    planner: TeamPlanner, ground_truth: GroundTruthMap, protocol: Protocol, seed: int, robots: int
+) -> None:
     """Reset `planner` for an episode: an oracle gets the map, any other its frame only."""
     world = ground_truth if getattr(planner, "uses_ground_truth", False) else ground_truth.frame
     planner.reset(world, protocol, seed, robots)
@@ -180,8 +181,14 @@ class _Robot:
 class TeamEpisode:
     """N robots on one map: beliefs, positions and the protocol's rules, in time order."""
 
-    def __init__(self, ground_truth: GroundTruthMap, protocol: Protocol, robots: int,
-                 starts: Sequence[Sequence[float]] | None = None, comm_range_m: float | None = None):
+    def __init__(
+        self,
+        ground_truth: GroundTruthMap,
+        protocol: Protocol,
+        robots: int,
+        starts: Sequence[Sequence[float]] | None = None,
+        comm_range_m: float | None = None,
+    ):
         if not 1 <= int(robots) <= MAX_ROBOTS:
             raise ValueError(f"robots must be 1-{MAX_ROBOTS}, got {robots}")
         if comm_range_m is not None and not (math.isfinite(comm_range_m) and comm_range_m > 0):
@@ -323,8 +330,10 @@ class TeamEpisode:
         free = self.map.free if oracle else self.beliefs[robot].grid == FREE
         if not segment_is_known_free(free, r.cell, cell):
             what = "ground-truth free" if oracle else "known to be free"
-            raise MotionError(f"robot {robot}: segment ({r.position[0]:.3f}, {r.position[1]:.3f}) -> "
-                              f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}")
+            raise MotionError(
+                f"robot {robot}: segment ({r.position[0]:.3f}, {r.position[1]:.3f}) -> "
+                f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}"
+            )
         target = snap(waypoint, self.protocol)
         r.origin, r.departed_at = r.position, self.time
         r.heading = (target, cell)
@@ -340,17 +349,30 @@ class TeamEpisode:
         self.rows.append((self.time, robot, *target))
         self._sense(r)
 
-    def result(self, planner: str, decision_ms: list[list[float]], failure: str, violations: int,
-               seed: int) -> TeamEpisodeResult:
+    def result(
+        self, planner: str, decision_ms: list[list[float]], failure: str, violations: int, seed: int
+    ) -> TeamEpisodeResult:
         end = self.completion_time if self.complete else self.time
         rows = [row for row in self.rows if row[0] <= end]
         return TeamEpisodeResult(
-            map_name=self.map.name, planner=planner, robots=len(self.robots), rows=rows, complete=self.complete,
-            makespan_m=float(end), robot_distance_m=[r.travelled for r in self.robots],
-            explored_ratio=self.union.free_count / max(1, self.map.free_cell_count), decision_ms=decision_ms,
-            coverage=[c for c in self.coverage if c[0] <= end], merges=[m for m in self.merges if m[0] <= end],
-            comm_range_m=self.comm_range_m, failure="" if self.complete else failure, motion_violations=violations,
-            seed=seed, free_cell_count=self.map.free_cell_count, cell_size=self.map.cell_size)
+            map_name=self.map.name,
+            planner=planner,
+            robots=len(self.robots),
+            rows=rows,
+            complete=self.complete,
+            makespan_m=float(end),
+            robot_distance_m=[r.travelled for r in self.robots],
+            explored_ratio=self.union.free_count / max(1, self.map.free_cell_count),
+            decision_ms=decision_ms,
+            coverage=[c for c in self.coverage if c[0] <= end],
+            merges=[m for m in self.merges if m[0] <= end],
+            comm_range_m=self.comm_range_m,
+            failure="" if self.complete else failure,
+            motion_violations=violations,
+            seed=seed,
+            free_cell_count=self.map.free_cell_count,
+            cell_size=self.map.cell_size,
+        )
 
 
 def snap(point: Sequence[float], protocol: Protocol) -> Waypoint:
@@ -451,8 +473,11 @@ def run_team_episode(
             if other.waiting and not other.stopped and not any(e[2] == other.index for e in queue):
                 heapq.heappush(queue, (robot.clock, 1, other.index))
     if not episode.complete and not failure:
-        failure = (f"step limit ({protocol.max_steps} moves of a robot) reached" if any(r.stopped for r in episode.robots)
-                   else "no reachable target left for any robot")
+        failure = (
+            f"step limit ({protocol.max_steps} moves of a robot) reached"
+            if any(r.stopped for r in episode.robots)
+            else "no reachable target left for any robot"
+        )
     name = getattr(planner, "name", "") or type(planner).__name__
     return episode.result(name, decision_ms, failure, violations, seed)
 
@@ -474,8 +499,12 @@ class TeamReplay:
         return float(sum(self.robot_distance_m))
 
 
-def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, float, float]],
-                protocol: Protocol, oracle: bool = False) -> TeamReplay:
+def replay_team(
+    ground_truth: GroundTruthMap,
+    rows: Sequence[tuple[float, int, float, float]],
+    protocol: Protocol,
+    oracle: bool = False,
+) -> TeamReplay:
     """Replay a team file's rows: each row's segment from its robot's previous row must be
     known-free in the belief built from all earlier rows (the team's belief with full
     communication); with `oracle`, free in the ground truth (the team `optimal` reference's
@@ -508,8 +537,13 @@ def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, f
                 failure, violations = f"motion rule: robot {robot}: {error}", 1
                 break
             if not segment_is_known_free(ground_truth.free if oracle else belief.grid == FREE, cells[robot], cell):
-                failure, violations = (f"motion rule: robot {robot}: segment ({where[robot][0]:g}, {where[robot][1]:g}) -> "
-                                       f"({x:g}, {y:g}) at {t:g} s crosses cells not known to be free"), 1
+                failure, violations = (
+                    (
+                        f"motion rule: robot {robot}: segment ({where[robot][0]:g}, {where[robot][1]:g}) -> "
+                        f"({x:g}, {y:g}) at {t:g} s crosses cells not known to be free"
+                    ),
+                    1,
+                )
                 break
             point = snap((x, y), protocol)
             travelled[robot] += math.hypot(point[0] - where[robot][0], point[1] - where[robot][1])
@@ -520,5 +554,12 @@ def replay_team(ground_truth: GroundTruthMap, rows: Sequence[tuple[float, int, f
     complete = done()
     if not complete and not failure:
         failure = "the file ends before the map is explored"
-    return TeamReplay(complete, robots, end, travelled, belief.free_count / max(1, ground_truth.free_cell_count),
-                      "" if complete else failure, violations)
+    return TeamReplay(
+        complete,
+        robots,
+        end,
+        travelled,
+        belief.free_count / max(1, ground_truth.free_cell_count),
+        "" if complete else failure,
+        violations,
+    )

@@ -39,8 +39,6 @@ STEPS_SUFFIX = ".steps.csv"
 MAX_COORDINATE_M = 1e9  # a waypoint farther than this (a million km) is a malformed file, not a move
 
 
-
-
 def _format_number(value: float | None, decimals: int = 6) -> str:
     """A number with at most `decimals` decimals and no trailing zeros; empty for None or NaN (a
     per-step file's decision time a replay does not measure)."""
@@ -117,9 +115,7 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
         if not (math.isfinite(x) and math.isfinite(y)):
             raise ValueError(f"{path}: line {number} is not two finite numbers: {_quote(row)}")
         if abs(x) > MAX_COORDINATE_M or abs(y) > MAX_COORDINATE_M:
-            raise ValueError(
-                f"{path}: line {number} has a coordinate beyond ±{MAX_COORDINATE_M:,.0f} m: {_quote(row)}"
-            )
+            raise ValueError(f"{path}: line {number} has a coordinate beyond ±{MAX_COORDINATE_M:,.0f} m: {_quote(row)}")
         if not points and (abs(x) > LATTICE_TOLERANCE_M or abs(y) > LATTICE_TOLERANCE_M):
             raise ValueError(f"{path}: line {number}: the first row must be the start 0,0, got {_quote(row)}")
         points.append((x, y))
@@ -150,8 +146,6 @@ def is_trajectory_file(path: Path) -> bool:
     return path.suffix == ".csv" and not path.name.endswith(STEPS_SUFFIX)
 
 
-
-
 def write_steps_csv(path: str | Path, rows: Iterable[dict]) -> Path:
     """Write the per-step record (`EpisodeResult.step_rows`) with STEP_COLUMNS; an empty
     decision_ms is one the run did not measure (a replay), an empty prediction_trust one the
@@ -174,16 +168,19 @@ def read_steps_csv(path: str | Path) -> dict[str, np.ndarray]:
     (or an older one of LEGACY_STEP_COLUMNS, read with the missing columns all NaN)."""
     path = Path(path)
     if not is_file_named(path):
-        raise ValueError(f"{path}: file not found (guide benchmark writes one per trajectory; "
-                         "guide replay --steps makes one from a trajectory)")
+        raise ValueError(
+            f"{path}: file not found (guide benchmark writes one per trajectory; "
+            "guide replay --steps makes one from a trajectory)"
+        )
     with path.open(newline="", encoding="utf-8-sig") as handle:
         rows = list(csv.reader(handle))
     header = [c.strip() for c in rows[0]] if rows else []
     if header != STEP_COLUMNS and header not in LEGACY_STEP_COLUMNS:
         raise ValueError(f"{path}: a per-step file starts with the header {','.join(STEP_COLUMNS)}")
     try:
-        values = np.array([[float(v) if v.strip() else np.nan for v in row] for row in rows[1:] if row],
-                          dtype=np.float64).reshape(-1, len(header))
+        values = np.array(
+            [[float(v) if v.strip() else np.nan for v in row] for row in rows[1:] if row], dtype=np.float64
+        ).reshape(-1, len(header))
     except ValueError:
         raise ValueError(f"{path}: every row must be {len(header)} numbers ({','.join(header)})") from None
     if len(header) < len(STEP_COLUMNS):

@@ -23,15 +23,25 @@ def test_planners_lists_every_name():
 
 
 def test_every_command_has_help():
-    for command in (["--help"], ["explore", "--help"], ["benchmark", "--help"], ["replay", "--help"], ["mazes", "--help"],
-                    ["resample-map", "--help"], ["eval-predictor", "--help"], ["planners", "--help"]):
+    for command in (
+        ["--help"],
+        ["explore", "--help"],
+        ["benchmark", "--help"],
+        ["replay", "--help"],
+        ["mazes", "--help"],
+        ["resample-map", "--help"],
+        ["eval-predictor", "--help"],
+        ["planners", "--help"],
+    ):
         result = runner.invoke(app, command)
         assert result.exit_code == 0 and "Usage" in result.output
 
 
 def test_explore_writes_trajectory_metrics_png_and_gif(small_maze_path, tmp_path):
     out = tmp_path / "demo"
-    result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "nearest_frontier", "--out", str(out), "--gif"])
+    result = runner.invoke(
+        app, ["explore", "--map", str(small_maze_path), "--planner", "nearest_frontier", "--out", str(out), "--gif"]
+    )
     assert result.exit_code == 0, result.output
     for name in ("small.csv", "metrics.csv", "small.png", "small.gif"):
         assert (out / name).is_file(), name
@@ -70,9 +80,23 @@ def test_benchmark_command_logs_one_mlflow_run_per_planner(generated_maze_dir, t
     out = tmp_path / "bench"
     result = runner.invoke(
         app,
-        ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
-         "--planner", "greedy=greedy_utility:min_utility=3",
-         "--out", str(out), "--workers", "2", "--tracking-uri", mlflow_uri, "--experiment", "cli-test"],
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "nearest_frontier",
+            "--planner",
+            "greedy=greedy_utility:min_utility=3",
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            "--tracking-uri",
+            mlflow_uri,
+            "--experiment",
+            "cli-test",
+        ],
     )
     assert result.exit_code == 0, result.output
     assert (out / "metrics.csv").is_file() and (out / "summary.md").is_file() and (out / "run.json").is_file()
@@ -98,14 +122,18 @@ def test_mazes_draws_loadable_benchmark_mazes_and_refuses_a_used_folder(tmp_path
     assert paths[0].stat().st_mode & 0o777 == 0o644  # readable by others, unlike mkstemp's 0600
     first = load_map(paths[0])
     assert first.free.shape == (75, 75) and first.free.any()  # 30 m at 0.4 m cells
-    again = runner.invoke(app, ["mazes", "--out", str(tmp_path / "again"), "--count", "1", "--seed", "5", "--side", "30"])
+    again = runner.invoke(
+        app, ["mazes", "--out", str(tmp_path / "again"), "--count", "1", "--seed", "5", "--side", "30"]
+    )
     assert again.exit_code == 0
     assert (tmp_path / "again" / "maze_0000.png").read_bytes() == paths[0].read_bytes()  # the seed fixes the maze
     used = runner.invoke(app, ["mazes", "--out", str(out), "--count", "1"])
     assert used.exit_code == 2 and "already holds 2 maze PNGs" in used.output
     odd = runner.invoke(app, ["mazes", "--out", str(tmp_path / "odd"), "--count", "1", "--side", "7"])
     assert odd.exit_code == 2 and "--side 7 holds no whole number" in odd.output
-    huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "huge"), "--count", "1", "--side", "1e9"]))
+    huge = _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "huge"), "--count", "1", "--side", "1e9"])
+    )
     assert "more than the map loader reads; the largest side at 0.4 m cells is 1635 m" in huge  # not a MemoryError
 
 
@@ -113,16 +141,26 @@ def test_mazes_draws_office_floors_on_request(tmp_path):
     from pipeline.world.maps import load_map
 
     out = tmp_path / "offices"
-    result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "office"])
+    result = runner.invoke(
+        app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "office"]
+    )
     assert result.exit_code == 0, result.output
     paths = sorted(out.glob("office_*.png"))
     assert [p.name for p in paths] == ["office_0000.png", "office_0001.png"]
     floor = load_map(paths[0])
     assert floor.free.shape == (100, 100) and floor.free.mean() > 0.7  # open floors, not mazes
-    assert "already holds office PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "office"]))
-    assert "--kind must be maze, office, building or cave" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"]))
-    assert "side_m >= 20 m" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "office", "--side", "10"]))
-    huge = _one_error_line(runner.invoke(app, ["mazes", "--out", str(tmp_path / "h"), "--count", "1", "--kind", "office", "--side", "1e9"]))
+    assert "already holds office PNGs" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "office"])
+    )
+    assert "--kind must be maze, office, building or cave" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "k"), "--count", "1", "--kind", "hut"])
+    )
+    assert "side_m >= 20 m" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "office", "--side", "10"])
+    )
+    huge = _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "h"), "--count", "1", "--kind", "office", "--side", "1e9"])
+    )
     assert "the largest side at 0.4 m cells is" in huge
 
 
@@ -130,17 +168,25 @@ def test_mazes_draws_caves_on_request(tmp_path):
     from pipeline.world.maps import load_map
 
     out = tmp_path / "caves"
-    result = runner.invoke(app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "cave"])
+    result = runner.invoke(
+        app, ["mazes", "--out", str(out), "--count", "2", "--seed", "5", "--side", "40", "--kind", "cave"]
+    )
     assert result.exit_code == 0, result.output
     assert "wrote 2 caves of 40 m" in result.output
     paths = sorted(out.glob("cave_*.png"))
     assert [p.name for p in paths] == ["cave_0000.png", "cave_0001.png"]
     assert load_map(paths[0]).free.shape == (100, 100)
-    assert "already holds cave PNGs" in _one_error_line(runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "cave"]))
+    assert "already holds cave PNGs" in _one_error_line(
+        runner.invoke(app, ["mazes", "--out", str(out), "--count", "1", "--kind", "cave"])
+    )
     assert "caves need cell_size > 0 and side_m >= 20 m" in _one_error_line(
-        runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "cave", "--side", "10"]))
+        runner.invoke(app, ["mazes", "--out", str(tmp_path / "s"), "--count", "1", "--kind", "cave", "--side", "10"])
+    )
     assert "the 4 m block 4 m is under 4 cells" in _one_error_line(
-        runner.invoke(app, ["mazes", "--out", str(tmp_path / "c"), "--count", "1", "--kind", "cave", "--cell-size", "1.5"]))
+        runner.invoke(
+            app, ["mazes", "--out", str(tmp_path / "c"), "--count", "1", "--kind", "cave", "--cell-size", "1.5"]
+        )
+    )
 
 
 def _one_error_line(result) -> str:
@@ -173,30 +219,62 @@ def test_checkpoint_options_are_checked(small_maze_path, generated_maze_dir, tmp
     assert "not an inpainter export" in line
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide_tsp", "--checkpoint", str(fake)]))
     assert "no planner given uses one" in line  # --checkpoint is a policy; guide_tsp has none
-    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path / "nope.pt")]))
+    line = _one_error_line(
+        runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path / "nope.pt")])
+    )
     assert "file not found" in line
     line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(tmp_path)]))
     assert "a folder, not a file" in line
     assets = ROOT / "pipeline" / "assets"
-    line = _one_error_line(runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(assets / "inpainter.pt")]))
+    line = _one_error_line(
+        runner.invoke(app, explore + ["--planner", "guide", "--checkpoint", str(assets / "inpainter.pt")])
+    )
     assert "an inpainter export, not a planner policy" in line  # named for what it is, not by its config keys
-    line = _one_error_line(runner.invoke(app, explore + ["--planner", f"t=guide_tsp:inpainter_file={assets / 'planner_guide.pt'}"]))
+    line = _one_error_line(
+        runner.invoke(app, explore + ["--planner", f"t=guide_tsp:inpainter_file={assets / 'planner_guide.pt'}"])
+    )
     assert "a planner policy export, not an inpainter export" in line
-    line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out",
-                                               str(tmp_path / "p"), "--checkpoint", str(fake)]))
+    line = _one_error_line(
+        runner.invoke(
+            app,
+            [
+                "eval-predictor",
+                "--maps",
+                str(generated_maze_dir),
+                "--out",
+                str(tmp_path / "p"),
+                "--checkpoint",
+                str(fake),
+            ],
+        )
+    )
     assert "not an inpainter export" in line
 
 
 def test_eval_predictor_threshold_outside_0_1_is_refused(generated_maze_dir, tmp_path):
-    result = runner.invoke(app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out", str(tmp_path / "p"),
-                                 "--threshold", "1.5"])
+    result = runner.invoke(
+        app, ["eval-predictor", "--maps", str(generated_maze_dir), "--out", str(tmp_path / "p"), "--threshold", "1.5"]
+    )
     assert result.exit_code == 2 and "--threshold" in result.output and "Traceback" not in result.output
     assert not (tmp_path / "p").exists()
 
 
 def test_benchmark_baseline_must_name_a_planner(generated_maze_dir, tmp_path):
-    result = runner.invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
-                                 "--baseline", "nope", "--out", str(tmp_path / "b"), "--no-mlflow"])
+    result = runner.invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "nearest_frontier",
+            "--baseline",
+            "nope",
+            "--out",
+            str(tmp_path / "b"),
+            "--no-mlflow",
+        ],
+    )
     assert "--baseline 'nope' is not among the planners' labels: nearest_frontier" in _one_error_line(result)
 
 
@@ -228,13 +306,18 @@ def test_explore_records_the_run_and_defaults_to_a_folder_per_planner(small_maze
     "extra, message",
     [
         (["--sensor-range", "nan"], "error: --sensor-range: must be a finite number > 0 (metres), got nan"),
-        (["--node-resolution", "inf"],
-         "error: --node-resolution: must be a finite number > 0 (lattice spacing in metres), got inf"),
+        (
+            ["--node-resolution", "inf"],
+            "error: --node-resolution: must be a finite number > 0 (lattice spacing in metres), got inf",
+        ),
         (["--done-unknown-cells", "-3"], "error: --done-unknown-cells: must be a whole number >= 0 (cells), got -3"),
         (["--node-resolution", "0.1"], "error: protocol: node_resolution (0.1 m) must be at least one cell (0.4 m)"),
         (["--sensor-range", "1000"], "more than twice the map's diagonal"),
         (["--planner", "x=greedy_utility:min_utility=nan"], "must be a finite number"),
-        (["--planner", "g=guide:min_utility=-1"], "error: planner 'g': min_utility: must be a whole number >= 1, got -1"),
+        (
+            ["--planner", "g=guide:min_utility=-1"],
+            "error: planner 'g': min_utility: must be a whole number >= 1, got -1",
+        ),
         (["--planner", "g=guide:sampler=euler"], "error: planner 'g': sampler: must be one of 'ddpm', 'ddim', or null"),
     ],
 )
@@ -246,9 +329,11 @@ def test_explore_refuses_values_that_make_no_sense(small_maze_path, tmp_path, ex
 def test_an_out_folder_that_cannot_be_made_fails_before_any_work(small_maze_path, generated_maze_dir, tmp_path):
     blocked = tmp_path / "a_file"
     blocked.write_text("x")
-    for command in (["explore", "--map", str(small_maze_path)],
-                    ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier", "--no-mlflow"],
-                    ["mazes", "--count", "1"]):
+    for command in (
+        ["explore", "--map", str(small_maze_path)],
+        ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier", "--no-mlflow"],
+        ["mazes", "--count", "1"],
+    ):
         line = _one_error_line(runner.invoke(app, [*command, "--out", str(blocked / "sub")]))
         assert "cannot create or write the output folder" in line
 
@@ -258,8 +343,12 @@ def test_benchmark_checks_the_tracking_store_and_labels_before_running(generated
     base = ["benchmark", "--maps", str(generated_maze_dir), "--out", str(out)]
     line = _one_error_line(runner.invoke(app, [*base, "--planner", "nearest_frontier", "--tracking-uri", "foo://bar"]))
     assert "not one MLflow 3 can log to" in line
-    line = _one_error_line(runner.invoke(app, [*base, "--planner", "nearest_frontier",
-                                               "--tracking-uri", f"sqlite:///{tmp_path / 'missing' / 'm.db'}"]))
+    line = _one_error_line(
+        runner.invoke(
+            app,
+            [*base, "--planner", "nearest_frontier", "--tracking-uri", f"sqlite:///{tmp_path / 'missing' / 'm.db'}"],
+        )
+    )
     assert "does not exist" in line
     line = _one_error_line(runner.invoke(app, [*base, "--planner", "metrics.csv=nearest_frontier", "--no-mlflow"]))
     assert "name of a benchmark output file" in line
@@ -270,13 +359,43 @@ def test_benchmark_exits_1_when_an_episode_does_not_complete(small_maze_path, tm
     maps = tmp_path / "maps"
     maps.mkdir()
     (maps / "small.png").write_bytes(small_maze_path.read_bytes())
-    result = runner.invoke(app, ["benchmark", "--maps", str(maps), "--planner", "nearest_frontier", "--no-mlflow",
-                                 "--out", str(tmp_path / "b"), "--max-steps", "2", "--workers", "1"])
+    result = runner.invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(maps),
+            "--planner",
+            "nearest_frontier",
+            "--no-mlflow",
+            "--out",
+            str(tmp_path / "b"),
+            "--max-steps",
+            "2",
+            "--workers",
+            "1",
+        ],
+    )
     assert result.exit_code == 1 and "1 of 1 episodes did not complete" in result.output
     assert (tmp_path / "b" / "metrics.csv").is_file()
-    assert "warning: small is " in result.output and "; --max-steps 2 suits the benchmark's 100 m mazes" in result.output
-    result = runner.invoke(app, ["explore", "--map", str(maps / "small.png"), "--planner", "nearest_frontier",
-                                 "--no-progress", "--out", str(tmp_path / "e"), "--max-steps", "2"])
+    assert (
+        "warning: small is " in result.output and "; --max-steps 2 suits the benchmark's 100 m mazes" in result.output
+    )
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(maps / "small.png"),
+            "--planner",
+            "nearest_frontier",
+            "--no-progress",
+            "--out",
+            str(tmp_path / "e"),
+            "--max-steps",
+            "2",
+        ],
+    )
     assert result.exit_code == 1 and "raise it with the map's area (e.g. --max-steps 100)" in result.output
 
 
@@ -285,9 +404,24 @@ def test_a_map_that_cannot_be_completed_is_warned_about(tmp_path):
     grid[5:30, 5:30] = 1
     grid[40:58, 40:58] = 1  # 324 free cells the robot can never reach
     np.save(tmp_path / "two_rooms.npy", grid)
-    result = runner.invoke(app, ["explore", "--map", str(tmp_path / "two_rooms.npy"), "--start", "10", "10",
-                                 "--out", str(tmp_path / "o"), "--no-progress", "--node-resolution", "2",
-                                 "--sensor-range", "8"])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(tmp_path / "two_rooms.npy"),
+            "--start",
+            "10",
+            "10",
+            "--out",
+            str(tmp_path / "o"),
+            "--no-progress",
+            "--node-resolution",
+            "2",
+            "--sensor-range",
+            "8",
+        ],
+    )
     assert "warning: two_rooms: 324 free cells are not connected to the start" in result.output
     assert result.exit_code == 1  # incomplete, as the warning said
 
@@ -302,17 +436,65 @@ def test_a_map_with_free_cells_no_scan_can_reach_is_warned_about(tmp_path):
     maps.mkdir()
     np.save(maps / "pocket.npy", grid)
     small = ["--node-resolution", "2", "--sensor-range", "8", "--done-unknown-cells", "20", "--max-steps", "40"]
-    result = runner.invoke(app, ["explore", "--map", str(maps / "pocket.npy"), "--start", "10", "10", "--planner",
-                                 "greedy_utility", "--out", str(tmp_path / "o"), "--no-progress", *small])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(maps / "pocket.npy"),
+            "--start",
+            "10",
+            "10",
+            "--planner",
+            "greedy_utility",
+            "--out",
+            str(tmp_path / "o"),
+            "--no-progress",
+            *small,
+        ],
+    )
     warning = "warning: pocket: 100 free cells are seen from no lattice node the robot can reach"
     assert warning in result.output and "raise --done-unknown-cells above 100" in result.output
     assert result.exit_code == 1
-    result = runner.invoke(app, ["benchmark", "--maps", str(maps), "--start", "10", "10", "--planner", "greedy_utility",
-                                 "--out", str(tmp_path / "b"), "--no-mlflow", "--workers", "1", *small])
+    result = runner.invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(maps),
+            "--start",
+            "10",
+            "10",
+            "--planner",
+            "greedy_utility",
+            "--out",
+            str(tmp_path / "b"),
+            "--no-mlflow",
+            "--workers",
+            "1",
+            *small,
+        ],
+    )
     assert warning in result.output and result.exit_code == 1
-    result = runner.invoke(app, ["explore", "--map", str(maps / "pocket.npy"), "--start", "10", "10", "--planner",
-                                 "greedy_utility", "--out", str(tmp_path / "o"), "--no-progress", *small[:4],
-                                 "--done-unknown-cells", "120"])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(maps / "pocket.npy"),
+            "--start",
+            "10",
+            "10",
+            "--planner",
+            "greedy_utility",
+            "--out",
+            str(tmp_path / "o"),
+            "--no-progress",
+            *small[:4],
+            "--done-unknown-cells",
+            "120",
+        ],
+    )
     assert "warning" not in result.output and result.exit_code == 0
 
 
@@ -325,8 +507,23 @@ def test_explore_warns_before_the_episode_when_a_model_was_trained_at_another_pr
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "guide_tsp", "--no-progress",
-                                     "--node-resolution", "2", "--max-steps", "3", "--out", str(tmp_path / "o")])
+        result = runner.invoke(
+            app,
+            [
+                "explore",
+                "--map",
+                str(small_maze_path),
+                "--planner",
+                "guide_tsp",
+                "--no-progress",
+                "--node-resolution",
+                "2",
+                "--max-steps",
+                "3",
+                "--out",
+                str(tmp_path / "o"),
+            ],
+        )
     assert result.exit_code == 1 and "step limit" in result.output  # it ran (3 waypoints), the warning stopped nothing
     said = [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
     assert said and "inpainter.pt was trained at other protocol values (node_resolution 4 -> 2)" in str(said[0].message)
@@ -340,14 +537,50 @@ def test_explore_at_the_real_robots_lattice_and_lidar_runs_the_real_robot_models
     from pipeline.world.protocol import ProtocolMismatchWarning
 
     monkeypatch.chdir(tmp_path)  # no models/ here
-    drawn = runner.invoke(app, ["mazes", "--kind", "office", "--scale", "real_robot", "--cell-size", "0.2", "--side", "20",
-                                "--count", "1", "--seed", "3", "--out", "floors"])
+    drawn = runner.invoke(
+        app,
+        [
+            "mazes",
+            "--kind",
+            "office",
+            "--scale",
+            "real_robot",
+            "--cell-size",
+            "0.2",
+            "--side",
+            "20",
+            "--count",
+            "1",
+            "--seed",
+            "3",
+            "--out",
+            "floors",
+        ],
+    )
     assert drawn.exit_code == 0, drawn.output
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = runner.invoke(app, ["explore", "--map", "floors/office_0000.png", "--planner", "guide", "--no-progress",
-                                     "--cell-size", "0.2", "--node-resolution", "1", "--sensor-range", "10",
-                                     "--done-unknown-cells", "1000", "--out", "o"])
+        result = runner.invoke(
+            app,
+            [
+                "explore",
+                "--map",
+                "floors/office_0000.png",
+                "--planner",
+                "guide",
+                "--no-progress",
+                "--cell-size",
+                "0.2",
+                "--node-resolution",
+                "1",
+                "--sensor-range",
+                "10",
+                "--done-unknown-cells",
+                "1000",
+                "--out",
+                "o",
+            ],
+        )
     assert result.exit_code == 0, result.output
     assert not [w for w in caught if issubclass(w.category, ProtocolMismatchWarning)]
     assert "assets/real_robot/inpainter.pt" in result.output  # the description printed before the episode
@@ -384,7 +617,9 @@ def test_eval_predictor_takes_a_start_for_grids_without_one(small_maze, tmp_path
     line = _one_error_line(runner.invoke(app, ["eval-predictor", "--maps", str(grids), "--out", str(out)]))
     assert "needs its start cell" in line
     col, row = small_maze.start_cell
-    result = runner.invoke(app, ["eval-predictor", "--maps", str(grids), "--out", str(out), "--start", str(col), str(row)])
+    result = runner.invoke(
+        app, ["eval-predictor", "--maps", str(grids), "--out", str(out), "--start", str(col), str(row)]
+    )
     assert result.exit_code == 0, result.output
     frame = pd.read_csv(out / "precision.csv")
     assert frame["maps"].max() == 1
@@ -392,17 +627,32 @@ def test_eval_predictor_takes_a_start_for_grids_without_one(small_maze, tmp_path
 
 def test_replay_of_a_run_made_from_another_start_points_to_its_start(small_maze_path, small_maze, tmp_path):
     col, row = small_maze.start_cell
-    start = next((c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10))
-                 if small_maze.free[r, c])
+    start = next(
+        (c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10)) if small_maze.free[r, c]
+    )
     out = tmp_path / "moved"
-    explored = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--start", str(start[0]), str(start[1]),
-                                   "--out", str(out), "--no-progress"])
+    explored = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(small_maze_path),
+            "--start",
+            str(start[0]),
+            str(start[1]),
+            "--out",
+            str(out),
+            "--no-progress",
+        ],
+    )
     assert explored.exit_code == 0, explored.output
     trajectory = ["--trajectory", str(out / "small.csv")]
     result = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory])
     assert result.exit_code == 1
     assert f"says the run started at --start {start[0]} {start[1]}; replay it with the same --start" in result.output
-    again = runner.invoke(app, ["replay", "--map", str(small_maze_path), *trajectory, "--start", str(start[0]), str(start[1])])
+    again = runner.invoke(
+        app, ["replay", "--map", str(small_maze_path), *trajectory, "--start", str(start[0]), str(start[1])]
+    )
     assert again.exit_code == 0 and json.loads(again.output)["complete"]
 
 
@@ -427,21 +677,51 @@ def test_eval_predictor_says_when_no_exploration_reaches_a_step(tmp_path):
         result = runner.invoke(app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "p")])
     assert result.exit_code == 0, result.output
     said = [str(w.message) for w in caught]
-    assert any(m.startswith("no exploration reached step 15, 30, 45, 60: every episode completed earlier") for m in said)
+    assert any(
+        m.startswith("no exploration reached step 15, 30, 45, 60: every episode completed earlier") for m in said
+    )
     assert any(m.startswith("fig3.png not drawn") for m in said)
     assert pd.read_csv(tmp_path / "p" / "precision.csv")["maps"].eq(0).all()
-    nan = runner.invoke(app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "q"), "--threshold", "nan"])
+    nan = runner.invoke(
+        app, ["eval-predictor", "--maps", str(maps), "--out", str(tmp_path / "q"), "--threshold", "nan"]
+    )
     assert _one_error_line(nan) == "error: --threshold must be a probability in [0, 1], got nan"
 
 
 def test_explore_prints_every_model_file_the_planner_runs(small_maze_path, tmp_path):
-    result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "guide_tsp", "--out",
-                                 str(tmp_path / "o"), "--max-steps", "2", "--no-progress"])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(small_maze_path),
+            "--planner",
+            "guide_tsp",
+            "--out",
+            str(tmp_path / "o"),
+            "--max-steps",
+            "2",
+            "--no-progress",
+        ],
+    )
     (line,) = [line for line in result.output.splitlines() if line.startswith("models: ")]
     files = line.removeprefix("models: ").split(", ")
     assert [name.rsplit("/", 1)[-1] for name in files] == ["inpainter.pt", "sliver_gate.json"]
-    plain = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "nearest_frontier", "--out",
-                                str(tmp_path / "p"), "--max-steps", "2", "--no-progress"])
+    plain = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(small_maze_path),
+            "--planner",
+            "nearest_frontier",
+            "--out",
+            str(tmp_path / "p"),
+            "--max-steps",
+            "2",
+            "--no-progress",
+        ],
+    )
     assert "models: " not in plain.output  # no trained model: no line
 
 
@@ -450,7 +730,9 @@ def test_planners_options_says_what_guide_is_built_of():
     assert result.exit_code == 0
     (line,) = [line for line in result.output.splitlines() if "built as:" in line]
     assert "tour vote" in line and "guide/guide.py" in line
-    names = [line.split(" = ")[0].strip() for line in result.output.splitlines() if line.startswith("  ") and " = " in line]
+    names = [
+        line.split(" = ")[0].strip() for line in result.output.splitlines() if line.startswith("  ") and " = " in line
+    ]
     assert names[:2] == ["min_utility", "inpainter_file"] and "policy_file" in names[:8]  # the paper's options first
 
 
@@ -482,8 +764,13 @@ def test_explore_with_a_predicting_planner_records_its_trust(small_maze_path, tm
     steps = read_steps_csv(out / "small.steps.csv")
     assert np.isnan(steps["prediction_trust"][0]) and np.isfinite(steps["prediction_trust"][1:]).all()
     plain = tmp_path / "plain"
-    assert runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "plain=guide_tsp:trust=false",
-                               "--out", str(plain)]).exit_code == 0
+    assert (
+        runner.invoke(
+            app,
+            ["explore", "--map", str(small_maze_path), "--planner", "plain=guide_tsp:trust=false", "--out", str(plain)],
+        ).exit_code
+        == 0
+    )
     assert "prediction_trust" not in json.loads((plain / "run.json").read_text())
     taller = cv2.imread(str(out / "small.png")).shape[0] - cv2.imread(str(plain / "small.png")).shape[0]
     assert taller > 0  # the trust strip
@@ -505,7 +792,9 @@ def test_plans_import_writes_a_family_the_benchmark_reads_and_refuses_bad_input(
     assert "wrote 1 plan" in result.output and (out / "manifest.json").is_file()
     assert load_map(out / "floor.yaml").cell_size == pytest.approx(0.2)
     (src / "broken.png").write_bytes(b"not an image")
-    again = CliRunner().invoke(app, ["plans", "import", str(src), "--out", str(tmp_path / "other"), "--resolution", "0.05"])
+    again = CliRunner().invoke(
+        app, ["plans", "import", str(src), "--out", str(tmp_path / "other"), "--resolution", "0.05"]
+    )
     assert again.exit_code == 2
     assert again.output.strip().splitlines()[-1].startswith(f"error: {src / 'broken.png'}: not a readable image")
     assert not (tmp_path / "other").exists()  # nothing half-written

@@ -65,8 +65,10 @@ def test_a_live_runs_entries_are_kept(tmp_path):
         cmd = command_once_started(live.pid, "time.sleep(600)")
         assert holder_is_alive({"pid": live.pid, "cmd": cmd})
         assert not holder_is_alive({"pid": live.pid, "cmd": "dvc repro"})  # the id, another command
-        lock = {"write": {"a": {"pid": live.pid, "cmd": cmd}, "b": {"pid": os.getpid(), "cmd": "dvc repro"}},
-                "read": {"c": [{"pid": live.pid, "cmd": cmd}, {"pid": os.getpid(), "cmd": "dvc repro"}]}}
+        lock = {
+            "write": {"a": {"pid": live.pid, "cmd": cmd}, "b": {"pid": os.getpid(), "cmd": "dvc repro"}},
+            "read": {"c": [{"pid": live.pid, "cmd": cmd}, {"pid": os.getpid(), "cmd": "dvc repro"}]},
+        }
         assert sorted(drop_stale_entries(lock)) == ["b", "c"]
         assert lock == {"write": {"a": {"pid": live.pid, "cmd": cmd}}, "read": {"c": [{"pid": live.pid, "cmd": cmd}]}}
         project = dvc_project(tmp_path / "p")

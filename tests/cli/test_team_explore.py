@@ -23,8 +23,9 @@ def _maze(generated_maze_dir):
 
 
 def _explore(maze, out, *extra):
-    return runner.invoke(app, ["explore", "--map", str(maze), "--planner", "greedy_utility", "--out", str(out),
-                               "--no-progress", *extra])
+    return runner.invoke(
+        app, ["explore", "--map", str(maze), "--planner", "greedy_utility", "--out", str(out), "--no-progress", *extra]
+    )
 
 
 def _one_error_line(result) -> str:
@@ -121,8 +122,19 @@ def test_a_team_that_does_not_complete_exits_1_with_its_files_written(generated_
 def test_the_default_folder_is_named_by_label_and_robots(generated_maze_dir, tmp_path, monkeypatch):
     maze = _maze(generated_maze_dir)
     monkeypatch.chdir(tmp_path)
-    result = runner.invoke(app, ["explore", "--map", str(maze), "--planner", "u=uncoordinated_greedy_utility",
-                                 "--robots", "2", "--no-progress"])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(maze),
+            "--planner",
+            "u=uncoordinated_greedy_utility",
+            "--robots",
+            "2",
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert (tmp_path / "runs" / "explore" / "u@2" / f"{maze.stem}.team.csv").is_file()
 
@@ -152,11 +164,13 @@ def test_bad_team_flags_are_refused_in_one_line_before_any_work(generated_maze_d
 def test_explore_without_robots_writes_the_single_robot_files_only(generated_maze_dir, tmp_path):
     maze = _maze(generated_maze_dir)
     out = tmp_path / "single"
-    result = runner.invoke(app, ["explore", "--map", str(maze), "--planner", "greedy_utility", "--out", str(out),
-                                 "--no-progress"])
+    result = runner.invoke(
+        app, ["explore", "--map", str(maze), "--planner", "greedy_utility", "--out", str(out), "--no-progress"]
+    )
     assert result.exit_code == 0, result.output
     name = maze.stem
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [f"{name}.csv", f"{name}.steps.csv", "metrics.csv", f"{name}.png", "run.json"])
+        [f"{name}.csv", f"{name}.steps.csv", "metrics.csv", f"{name}.png", "run.json"]
+    )
     assert "robots" not in json.loads((out / "run.json").read_text())
     assert "robot" not in pd.read_csv(out / f"{name}.csv").columns

@@ -36,23 +36,26 @@ def refusal(kind, values: dict) -> str:
     return str(error.value)
 
 
-@pytest.mark.parametrize(("kind", "good", "bad"), [
-    (whole(1), [1, 7, 10**9, np.int64(3)], [0, -1, 2.0, 2.5, True, "3", None, math.nan]),
-    (whole(0, 3), [0, 3], [-1, 4]),
-    (real(), [0, -2.5, 1e300], [math.nan, math.inf, -math.inf, True, "1", None]),
-    (positive(), [1e-9, 3], [0, -1, math.inf]),
-    (fraction(), [0, 0.5, 1], [-0.1, 1.01, math.nan]),
-    (real(0.0, 1.0, low_open=True, high_open=True), [0.5], [0.0, 1.0]),
-    (flag(), [True, False], [0, 1, "true", None]),
-    (text(), ["a", "cpu"], ["", "  ", 3, None, ["a"]]),
-    (text(("cpu", "cuda")), ["cpu"], ["tpu", "CPU", None]),
-    (identifier(), ["num_inference_steps"], ["k-steps", "1x", 3]),
-    (maybe(whole(1)), [None, 2], [0, "x"]),
-    (list_of(whole(0)), [[0], [1, 2]], [[], [-1], "1", 1, {"a": 1}]),
-    (list_of(whole(0), min_length=0), [[]], [None]),
-    (pair(whole(1)), [[1, 1], [2, 5]], [[5, 2], [1], [1, 2, 3], [0, 2], "1,2"]),
-    (any_of(whole(1), text(("auto",))), [2, "auto"], [0, "gpu"]),
-])
+@pytest.mark.parametrize(
+    ("kind", "good", "bad"),
+    [
+        (whole(1), [1, 7, 10**9, np.int64(3)], [0, -1, 2.0, 2.5, True, "3", None, math.nan]),
+        (whole(0, 3), [0, 3], [-1, 4]),
+        (real(), [0, -2.5, 1e300], [math.nan, math.inf, -math.inf, True, "1", None]),
+        (positive(), [1e-9, 3], [0, -1, math.inf]),
+        (fraction(), [0, 0.5, 1], [-0.1, 1.01, math.nan]),
+        (real(0.0, 1.0, low_open=True, high_open=True), [0.5], [0.0, 1.0]),
+        (flag(), [True, False], [0, 1, "true", None]),
+        (text(), ["a", "cpu"], ["", "  ", 3, None, ["a"]]),
+        (text(("cpu", "cuda")), ["cpu"], ["tpu", "CPU", None]),
+        (identifier(), ["num_inference_steps"], ["k-steps", "1x", 3]),
+        (maybe(whole(1)), [None, 2], [0, "x"]),
+        (list_of(whole(0)), [[0], [1, 2]], [[], [-1], "1", 1, {"a": 1}]),
+        (list_of(whole(0), min_length=0), [[]], [None]),
+        (pair(whole(1)), [[1, 1], [2, 5]], [[5, 2], [1], [1, 2, 3], [0, 2], "1,2"]),
+        (any_of(whole(1), text(("auto",))), [2, "auto"], [0, "gpu"]),
+    ],
+)
 def test_each_type_accepts_its_values_and_refuses_the_others(kind, good, bad):
     for value in good:
         check_value(kind, value, "s.k")
@@ -78,17 +81,23 @@ class Training(Section):
 
 def test_a_refusal_is_one_line_naming_the_dotted_key_what_it_must_be_and_the_value():
     assert refusal(Training, {"ppo": {"lr": math.nan, "steps": 1}}) == "s.ppo.lr: must be a finite number > 0, got nan"
-    assert refusal(Training, {"ppo": {"lr": 1, "steps": 1}, "epochs": True}) == \
-        "s.epochs: must be a whole number >= 1 (epochs), got True"
-    assert refusal(Training, {"ppo": {"lr": 1, "steps": 1}, "sides": [1.0, -2.0]}) == \
-        "s.sides[1]: must be a finite number > 0, got -2.0"
+    assert (
+        refusal(Training, {"ppo": {"lr": 1, "steps": 1}, "epochs": True})
+        == "s.epochs: must be a whole number >= 1 (epochs), got True"
+    )
+    assert (
+        refusal(Training, {"ppo": {"lr": 1, "steps": 1}, "sides": [1.0, -2.0]})
+        == "s.sides[1]: must be a finite number > 0, got -2.0"
+    )
     assert "\n" not in refusal(Training, {"ppo": "text\nmore"})
 
 
 def test_missing_and_unknown_keys_are_named_at_any_depth():
     assert refusal(Training, {"ppo": {"lr": 0.1}}) == "s.ppo.steps: missing (the params file names every setting)"
-    assert refusal(Training, {"ppo": {"lr": 0.1, "steps": 2, "lrr": 3}}) == \
-        "s.ppo.lrr: unknown setting (known: lr, steps), got 3"
+    assert (
+        refusal(Training, {"ppo": {"lr": 0.1, "steps": 2, "lrr": 3}})
+        == "s.ppo.lrr: unknown setting (known: lr, steps), got 3"
+    )
     assert refusal(Training, {}) == "s.ppo: missing (the params file names every setting)"
     assert refusal(Training, {"ppo": [1]}) == "s.ppo: must be a mapping of Ppo settings, got [1]"
     assert refusal(Training, [1]) == "s: must be a mapping of Training settings, got [1]"
@@ -160,7 +169,9 @@ def test_read_stage_names_the_file_and_read_protocol_checks_the_protocol(tmp_pat
     path = tmp_path / "p.yaml"
     path.write_text("s: {n: 2}\nprotocol: {max_steps: 0}\n")
     assert read_stage(path, "s", Settings) == {"n": 2}
-    with pytest.raises(ValueError, match=r"^.*p.yaml: protocol.max_steps: must be a whole number >= 1 \(waypoints\), got 0$"):
+    with pytest.raises(
+        ValueError, match=r"^.*p.yaml: protocol.max_steps: must be a whole number >= 1 \(waypoints\), got 0$"
+    ):
         read_protocol(path)
     path.write_text("s: {n: 0}\n")
     with pytest.raises(ValueError, match=r"^.*p.yaml: s.n: must be a whole number >= 1, got 0$"):

@@ -39,11 +39,19 @@ def test_shared_inputs_reach_every_task_in_forked_workers():
 def test_results_are_handed_over_as_they_arrive_and_kept_for_a_rerun(tmp_path):
     seen: dict[int, int] = {}
     keep = KeptResults(tmp_path / "kept", {"work": "squares"})
-    assert run_tasks(_square_minus, [1, 2, 3], 2, "t", "task", keep=keep, on_result=seen.__setitem__, collect=False) == []
+    assert (
+        run_tasks(_square_minus, [1, 2, 3], 2, "t", "task", keep=keep, on_result=seen.__setitem__, collect=False) == []
+    )
     assert seen == {0: -2, 1: 1, 2: 6} and keep.count() == 3
     calls = []
-    again = run_tasks(lambda x: calls.append(x) or _square_minus(x), [1, 2, 3, 4], 1, "t", "task",
-                      keep=KeptResults(tmp_path / "kept", {"work": "squares"}))
+    again = run_tasks(
+        lambda x: calls.append(x) or _square_minus(x),
+        [1, 2, 3, 4],
+        1,
+        "t",
+        "task",
+        keep=KeptResults(tmp_path / "kept", {"work": "squares"}),
+    )
     assert again == [-2, 1, 6, 13] and calls == [4]  # only the task the first run did not finish
 
 

@@ -67,14 +67,27 @@ def test_tasks_run_on_both_nodes_with_the_shipped_package(on_cluster, tmp_path, 
 
 
 def test_shards_are_the_process_engines_bytes(on_cluster, generated_maze_dir, tmp_path):
-    pairs = PairsConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), pairs_per_shard=3,
-                        planners=("nearest_frontier", "greedy_utility"), snapshot_every=2, stop_steps=(3, 12), seed=5)
-    for name, make, params in (("count", _counting_shard, {"seed": 3, "size": 6}), ("pairs", collect_pairs_shard, {"config": pairs})):
+    pairs = PairsConfig(
+        maps=tuple(str(p) for p in list_maps(generated_maze_dir)),
+        pairs_per_shard=3,
+        planners=("nearest_frontier", "greedy_utility"),
+        snapshot_every=2,
+        stop_steps=(3, 12),
+        seed=5,
+    )
+    for name, make, params in (
+        ("count", _counting_shard, {"seed": 3, "size": 6}),
+        ("pairs", collect_pairs_shard, {"config": pairs}),
+    ):
         run_shards(make, 3, tmp_path / f"{name}_p", params, workers=2, backend="process", progress=False)
         run_shards(make, 3, tmp_path / f"{name}_r", params, workers=2, backend="ray", progress=False)
         for k in range(3):
-            assert shard_path(tmp_path / f"{name}_p", k).read_bytes() == shard_path(tmp_path / f"{name}_r", k).read_bytes()
-        assert (tmp_path / f"{name}_p/manifest.json").read_bytes() == (tmp_path / f"{name}_r/manifest.json").read_bytes()
+            assert (
+                shard_path(tmp_path / f"{name}_p", k).read_bytes() == shard_path(tmp_path / f"{name}_r", k).read_bytes()
+            )
+        assert (tmp_path / f"{name}_p/manifest.json").read_bytes() == (
+            tmp_path / f"{name}_r/manifest.json"
+        ).read_bytes()
 
 
 def test_a_benchmark_gives_the_process_engines_trajectories(on_cluster, generated_maze_dir, tmp_path):
@@ -94,7 +107,9 @@ def test_a_benchmark_gives_the_process_engines_trajectories(on_cluster, generate
 def test_a_killed_benchmark_resumes_on_the_cluster(on_cluster, tmp_path):
     from benchmark_runs import killed_and_resumed
 
-    kept, output, resumed, whole = killed_and_resumed(tmp_path, ("--backend", "ray"), {"RAY_ADDRESS": on_cluster.address})
+    kept, output, resumed, whole = killed_and_resumed(
+        tmp_path, ("--backend", "ray"), {"RAY_ADDRESS": on_cluster.address}
+    )
     assert 18 <= kept < 36
     assert f"episodes: {kept} of 36 kept from an interrupted run" in output
     columns = ["map", "planner", "distance_m", "steps", "complete"]

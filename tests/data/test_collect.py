@@ -18,8 +18,14 @@ from pipeline.world.simulator import Episode
 
 
 def pairs_config(maze_dir, **overrides):
-    values = dict(maps=tuple(str(p) for p in list_maps(maze_dir)), pairs_per_shard=6, planners=("nearest_frontier", "greedy_utility"),
-                  snapshot_every=2, stop_steps=(3, 12), seed=5)
+    values = dict(
+        maps=tuple(str(p) for p in list_maps(maze_dir)),
+        pairs_per_shard=6,
+        planners=("nearest_frontier", "greedy_utility"),
+        snapshot_every=2,
+        stop_steps=(3, 12),
+        seed=5,
+    )
     values.update(overrides)
     return PairsConfig(**values)
 
@@ -43,8 +49,13 @@ def test_pairs_shards_are_deterministic_and_well_formed(generated_maze_dir, tmp_
 
 
 def test_expert_episodes_rebuild_the_belief_exactly(generated_maze_dir, tmp_path):
-    config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir))[:1], episodes_per_shard=1,
-                          planner="nearest_frontier", horizon=4, seed=1)
+    config = ExpertConfig(
+        maps=tuple(str(p) for p in list_maps(generated_maze_dir))[:1],
+        episodes_per_shard=1,
+        planner="nearest_frontier",
+        horizon=4,
+        seed=1,
+    )
     manifest = run_shards(collect_expert_shard, 1, tmp_path / "e", {"config": config}, progress=False)
     assert read_manifest(tmp_path / "e")["totals"]["episodes"] == 1
     (episode,) = load_expert_episodes(shard_path(tmp_path / "e", 0))
@@ -64,15 +75,16 @@ def test_random_starts_give_distinct_expert_episodes_from_open_cells(generated_m
     from dataclasses import replace
 
     maps = tuple(str(p) for p in list_maps(generated_maze_dir))[:1]
-    config = ExpertConfig(maps=maps, episodes_per_shard=2, planner="nearest_frontier", horizon=4, seed=3,
-                          random_starts=True)
+    config = ExpertConfig(
+        maps=maps, episodes_per_shard=2, planner="nearest_frontier", horizon=4, seed=3, random_starts=True
+    )
     run_shards(collect_expert_shard, 1, tmp_path / "e", {"config": config}, progress=False)
     episodes = load_expert_episodes(shard_path(tmp_path / "e", 0))
     ground_truth = load_map(maps[0])
     starts = {episode.start_cell for episode in episodes}
     assert len(starts) == 2 and ground_truth.start_cell not in starts
     for col, row in starts:
-        assert ground_truth.free[row - 2: row + 3, col - 2: col + 3].all()  # 0.8 m clear on every side
+        assert ground_truth.free[row - 2 : row + 3, col - 2 : col + 3].all()  # 0.8 m clear on every side
     for episode in episodes:  # each replays exactly from its own start
         replayed = Episode(replace(ground_truth, start_cell=episode.start_cell), Protocol())
         assert (next(episode.beliefs()) == replayed.belief.grid).all()

@@ -16,8 +16,15 @@ SHIPPED_POLICY = ROOT / "pipeline" / "assets" / "planner_guide.pt"
 
 
 def config(maze_dir, **overrides):
-    values = dict(maps=tuple(str(p) for p in list_maps(maze_dir)), episodes_per_shard=1, teacher="tare", teacher_options={},
-                  horizon=8, seed=4, protocol=Protocol(max_steps=30))
+    values = dict(
+        maps=tuple(str(p) for p in list_maps(maze_dir)),
+        episodes_per_shard=1,
+        teacher="tare",
+        teacher_options={},
+        horizon=8,
+        seed=4,
+        protocol=Protocol(max_steps=30),
+    )
     values.update(overrides)
     return DaggerConfig(**values)
 

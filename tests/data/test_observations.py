@@ -22,7 +22,10 @@ from pipeline.world.protocol import Protocol
 def observations(expert_shard_dir):
     episodes = [e for k in range(2) for e in load_expert_episodes(shard_path(expert_shard_dir, k))]
     predictor = NodePredictor(lambda image: (image != 0).astype(np.float32))  # everything not known occupied is free
-    parts = [episode_observations(e, Protocol(), predictor, ObservationConfig(max_nodes=96), episode_id=i) for i, e in enumerate(episodes)]
+    parts = [
+        episode_observations(e, Protocol(), predictor, ObservationConfig(max_nodes=96), episode_id=i)
+        for i, e in enumerate(episodes)
+    ]
     return episodes, {v: concatenate(p[v] for p in parts) for v in ("guide", "dare")}
 
 
@@ -80,7 +83,9 @@ def test_dataset_augments_positions_and_actions_together(observations, tmp_path)
         assert a["features"].shape[0] == 2
         # Rotations and flips keep lengths: |dx, dy| and |action| are unchanged.
         np.testing.assert_allclose(a["features"][..., :2].norm(dim=-1), b["features"][..., :2].norm(dim=-1), atol=1e-3)
-        np.testing.assert_array_equal(a["actions"].abs().sum(-1).sort().values, b["actions"].abs().sum(-1).sort().values)
+        np.testing.assert_array_equal(
+            a["actions"].abs().sum(-1).sort().values, b["actions"].abs().sum(-1).sort().values
+        )
     with pytest.raises(FileNotFoundError, match="build_observations"):
         load_observations(tmp_path / "missing.npz")
 

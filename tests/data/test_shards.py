@@ -32,8 +32,14 @@ def test_the_data_do_not_depend_on_the_code_that_made_them(tmp_path, monkeypatch
     run_shards(make_counting_shard, 2, tmp_path / "a", {"seed": 1, "size": 5}, work_dir=tmp_path / "wa", progress=False)
     monkeypatch.setattr(shards, "source_digest", lambda sources=None: "other code")
     calls = []
-    run_shards(lambda job: calls.append(job.index) or make_counting_shard(job), 2, tmp_path / "a", {"seed": 1, "size": 5},
-               work_dir=tmp_path / "wa", progress=False)
+    run_shards(
+        lambda job: calls.append(job.index) or make_counting_shard(job),
+        2,
+        tmp_path / "a",
+        {"seed": 1, "size": 5},
+        work_dir=tmp_path / "wa",
+        progress=False,
+    )
     assert calls == [0, 1]  # made by other code: not resumed from
     run_shards(make_counting_shard, 2, tmp_path / "b", {"seed": 1, "size": 5}, work_dir=tmp_path / "wb", progress=False)
     for name in ("shard_00000.npz", "shard_00001.npz", MANIFEST):
@@ -63,11 +69,14 @@ def test_a_deleted_output_is_published_again_from_the_work_folder(tmp_path):
     """DVC deletes a stage's outputs before it reruns the stage: the finished shards survive in the work folder."""
     import shutil
 
-    run_shards(make_counting_shard, 2, tmp_path / "out", {"seed": 1, "size": 5}, work_dir=tmp_path / "work", progress=False)
+    run_shards(
+        make_counting_shard, 2, tmp_path / "out", {"seed": 1, "size": 5}, work_dir=tmp_path / "work", progress=False
+    )
     written = {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()}
     shutil.rmtree(tmp_path / "out")
-    again = run_shards(make_counting_shard, 2, tmp_path / "out", {"seed": 1, "size": 5}, work_dir=tmp_path / "work",
-                       progress=False)
+    again = run_shards(
+        make_counting_shard, 2, tmp_path / "out", {"seed": 1, "size": 5}, work_dir=tmp_path / "work", progress=False
+    )
     assert again["made_this_run"] == []
     assert {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()} == written
 
@@ -96,7 +105,9 @@ def test_changed_params_or_fewer_shards_leave_no_stale_data(tmp_path):
     out = tmp_path / "data"
     run_shards(make_counting_shard, 4, out, {"seed": 3, "size": 4}, progress=False)
     calls = []
-    run_shards(lambda job: calls.append(job.index) or make_counting_shard(job), 2, out, {"seed": 4, "size": 4}, progress=False)
+    run_shards(
+        lambda job: calls.append(job.index) or make_counting_shard(job), 2, out, {"seed": 4, "size": 4}, progress=False
+    )
     assert sorted(calls) == [0, 1]
     assert sorted(p.name for p in out.glob("shard_*.npz")) == ["shard_00000.npz", "shard_00001.npz"]
 
@@ -130,7 +141,10 @@ def test_shard_count_rounds_up_to_whole_shards_and_says_so(capsys):
 
     assert shard_count_for(300, 100, "pairs") == 3 and capsys.readouterr().out == ""
     assert shard_count_for(250, 100, "pairs") == 3
-    assert capsys.readouterr().out == "note: 250 pairs is not a multiple of 100 per shard; collecting 3 shards = 300 pairs\n"
+    assert (
+        capsys.readouterr().out
+        == "note: 250 pairs is not a multiple of 100 per shard; collecting 3 shards = 300 pairs\n"
+    )
     assert shard_count_for(1, 8, "episodes") == 1
     for requested, per_shard in ((0, 100), (10, 0), (-5, 2)):
         with pytest.raises(ValueError, match="must be at least 1"):
@@ -144,6 +158,8 @@ def test_a_backend_that_cannot_run_fails_before_any_shard_is_touched(tmp_path):
     with pytest.raises(ValueError, match="unknown backend 'dask'"):
         run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="dask", progress=False)
     if importlib.util.find_spec("ray") is None:
-        with pytest.raises(ValueError, match=r"backend 'ray' needs Ray, which is not installed: pip install -e '\.\[ray\]'"):
+        with pytest.raises(
+            ValueError, match=r"backend 'ray' needs Ray, which is not installed: pip install -e '\.\[ray\]'"
+        ):
             run_shards(make_counting_shard, 2, out, {"seed": 6, "size": 4}, backend="ray", progress=False)
     assert sorted(p.name for p in out.iterdir()) == before  # the manifest and the shards of the earlier run stay

@@ -49,7 +49,7 @@ def test_path_label_is_the_shortest_known_path_padded_by_staying(small_maze):
     _, pred = graph.shortest_paths(source)
     path = graph.path_from_predecessors(pred, target)[1:]
     np.testing.assert_allclose(label[: len(path)], graph.node_world[path])
-    np.testing.assert_allclose(label[len(path):], np.repeat(graph.node_world[[target]], 40 - len(path), axis=0))
+    np.testing.assert_allclose(label[len(path) :], np.repeat(graph.node_world[[target]], 40 - len(path), axis=0))
     staying = path_label(graph, position, None, horizon=3)
     np.testing.assert_allclose(staying, np.repeat(graph.node_world[[source]], 3, axis=0))
 
@@ -65,9 +65,13 @@ def test_a_planner_that_names_no_target_cannot_teach(small_maze):
 def test_straight_double_edges_are_split_into_unit_steps(small_maze):
     planner, _ = labelled_run(small_maze)
     graph = planner.teacher.graph
-    doubles = [(a, b) for a in range(graph.node_count) for b in graph.neighbours(a)
-               if np.abs(graph.node_ij[b] - graph.node_ij[a]).max() == 2
-               and np.all((graph.node_ij[b] - graph.node_ij[a]) % 2 == 0)]
+    doubles = [
+        (a, b)
+        for a in range(graph.node_count)
+        for b in graph.neighbours(a)
+        if np.abs(graph.node_ij[b] - graph.node_ij[a]).max() == 2
+        and np.all((graph.node_ij[b] - graph.node_ij[a]) % 2 == 0)
+    ]
     assert doubles  # the lattice's 5 x 5 window has them
     for a, b in doubles[:20]:
         split = unit_steps(graph, [int(a), int(b)])

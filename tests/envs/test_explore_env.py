@@ -66,12 +66,19 @@ class WholePathGreedy(GreedyUtilityPlanner):
 # ---------------------------------------------------------------------------------- gymnasium
 def test_the_id_is_registered_and_makes_an_environment_without_torch(small_maze_path):
     assert ENV_ID in gymnasium.registry
-    code = ("import sys, gymnasium, pipeline\n"
-            f"env = gymnasium.make('{ENV_ID}', map={str(small_maze_path)!r})\n"
-            "env.reset(seed=0); env.step(int(env.unwrapped.action_masks().argmax()))\n"
-            "print('torch' in sys.modules)")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    code = (
+        "import sys, gymnasium, pipeline\n"
+        f"env = gymnasium.make('{ENV_ID}', map={str(small_maze_path)!r})\n"
+        "env.reset(seed=0); env.step(int(env.unwrapped.action_masks().argmax()))\n"
+        "print('torch' in sys.modules)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.split()[-1] == "False"
 
@@ -89,10 +96,12 @@ def test_generated_mazes_pass_the_checker():
 
 
 def test_it_runs_in_an_async_vector_env(small_maze_path, generated_maze_dir):
-    envs = gymnasium.vector.AsyncVectorEnv([
-        lambda: gymnasium.make(ENV_ID, map=str(small_maze_path)),
-        lambda: gymnasium.make(ENV_ID, map=str(generated_maze_dir)),
-    ])
+    envs = gymnasium.vector.AsyncVectorEnv(
+        [
+            lambda: gymnasium.make(ENV_ID, map=str(small_maze_path)),
+            lambda: gymnasium.make(ENV_ID, map=str(generated_maze_dir)),
+        ]
+    )
     try:
         obs, _ = envs.reset(seed=3)
         assert obs["features"].shape == (2, 320, 7) and obs["action_mask"].shape == (2, 25)
@@ -247,13 +256,15 @@ def test_reward_parts_sum_and_the_episode_ends_by_the_done_rule(small_maze_path)
     weights = {"area_weight": 0.5, "distance_weight": 0.25, "completion_bonus": 7.0}
     env = ExploreEnv(map=str(small_maze_path), **weights)
     env.reset(seed=0)
-    cell_area = Protocol().cell_size**2
+    cell_area = Protocol().cell_size ** 2
     planner = make_planner("greedy_utility")
     planner.reset(env.episode.map, Protocol(), 0)
     bonuses = []
     while True:
         free_before, distance_before = env.episode.belief.free_count, env.episode.distance
-        _, reward, terminated, truncated, info = env.step(env.action_for_waypoint(planner.plan(env.episode.observe())[0]))
+        _, reward, terminated, truncated, info = env.step(
+            env.action_for_waypoint(planner.plan(env.episode.observe())[0])
+        )
         parts = [info[k] for k in ("reward_area", "reward_distance", "reward_bonus", "reward_invalid")]
         assert reward == pytest.approx(sum(parts))
         assert info["new_area_m2"] == pytest.approx((env.episode.belief.free_count - free_before) * cell_area)
@@ -283,8 +294,10 @@ def test_truncation_at_max_steps_and_at_max_waypoints(small_maze_path):
     env = ExploreEnv(map=str(small_maze_path), action="node", max_steps=1)
     obs, _ = env.reset(seed=0)
     _, predecessors = env.lattice.shortest_paths(env.lattice.nearest_node(env.episode.position))
-    hops = [len(env.lattice.path_from_predecessors(predecessors, int(env.row_nodes[row]))) - 1
-            for row in np.flatnonzero(obs["action_mask"])]
+    hops = [
+        len(env.lattice.path_from_predecessors(predecessors, int(env.row_nodes[row]))) - 1
+        for row in np.flatnonzero(obs["action_mask"])
+    ]
     far = int(np.flatnonzero(obs["action_mask"])[int(np.argmax(hops))])
     assert max(hops) >= 2
     *_, terminated, truncated, info = env.step(far)
@@ -304,7 +317,9 @@ def test_a_generated_maze_per_reset_seed(tmp_path):
     assert info_c["map_name"] != info_a["map_name"]
     # The grid is the one load_maze_png reads from that maze's PNG.
     seed = int(info_c["map_name"].removeprefix("maze_"))
-    path = write_maze_png(generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng(seed)), tmp_path / "m.png")
+    path = write_maze_png(
+        generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng(seed)), tmp_path / "m.png"
+    )
     from_file = load_maze_png(path)
     np.testing.assert_array_equal(env.episode.map.free, from_file.free)
     assert env.episode.map.start_cell == from_file.start_cell
@@ -356,41 +371,50 @@ def test_protocol_fields_are_parameters(small_maze_path):
     env.step(int(np.flatnonzero(env.action_masks())[0]))
     (x, y) = env.episode.position
     assert max(abs(x), abs(y)) <= 4.0 and (x, y) != (0.0, 0.0)
-    assert gymnasium.make(ENV_ID, map=str(small_maze_path), sensor_range=12.0).unwrapped.config.protocol().sensor_range == 12.0
+    assert (
+        gymnasium.make(ENV_ID, map=str(small_maze_path), sensor_range=12.0).unwrapped.config.protocol().sensor_range
+        == 12.0
+    )
 
 
-@pytest.mark.parametrize("values, parameter", [
-    ({"map": "no/such/map.png"}, "map"),
-    ({"area_weight": -1.0}, "area_weight"),
-    ({"distance_weight": float("nan")}, "distance_weight"),
-    ({"completion_bonus": -2}, "completion_bonus"),
-    ({"invalid_action_penalty": -0.1}, "invalid_action_penalty"),
-    ({"max_steps": 0}, "max_steps"),
-    ({"max_nodes": 0}, "max_nodes"),
-    ({"max_neighbors": 0}, "max_neighbors"),
-    ({"action": "teleport"}, "action"),
-    ({"cell_size": -0.4}, "cell_size"),
-    ({"maze_side_m": 12.0}, "maze_side_m"),
-    ({"map": "maze", "start": (1, 2)}, "start"),
-    ({"belief_shape": (10, 10)}, "belief_shape"),
-    ({"belief_image": True, "belief_shape": (0, 10)}, "belief_shape"),
-    ({"speed": 3}, "speed"),
-])
+@pytest.mark.parametrize(
+    "values, parameter",
+    [
+        ({"map": "no/such/map.png"}, "map"),
+        ({"area_weight": -1.0}, "area_weight"),
+        ({"distance_weight": float("nan")}, "distance_weight"),
+        ({"completion_bonus": -2}, "completion_bonus"),
+        ({"invalid_action_penalty": -0.1}, "invalid_action_penalty"),
+        ({"max_steps": 0}, "max_steps"),
+        ({"max_nodes": 0}, "max_nodes"),
+        ({"max_neighbors": 0}, "max_neighbors"),
+        ({"action": "teleport"}, "action"),
+        ({"cell_size": -0.4}, "cell_size"),
+        ({"maze_side_m": 12.0}, "maze_side_m"),
+        ({"map": "maze", "start": (1, 2)}, "start"),
+        ({"belief_shape": (10, 10)}, "belief_shape"),
+        ({"belief_image": True, "belief_shape": (0, 10)}, "belief_shape"),
+        ({"speed": 3}, "speed"),
+    ],
+)
 def test_bad_parameters_fail_naming_the_parameter(values, parameter):
     with pytest.raises(ValueError, match=re.escape(parameter)):
         ExploreEnv(**values)
 
 
-@pytest.mark.parametrize("values, message", [
-    ({"max_steps": 0}, "max_steps: must be a whole number >= 1, got 0"),
-    ({"max_steps": 3.0}, "max_steps: must be a whole number >= 1, got 3.0"),
-    ({"area_weight": -1.0}, "area_weight: must be a finite number >= 0, got -1.0"),
-    ({"action": "teleport"}, "action: must be one of 'neighbour', 'node', got 'teleport'"),
-    ({"belief_image": 1}, "belief_image: must be true or false, got 1"),
-    ({"map": "x.png", "start": (1.0, math.nan)}, "start[1]: must be a finite number, got nan"),
-    ({"belief_image": True, "belief_shape": (10, 10, 3)}, "belief_shape: must be two cell counts (rows, cols)"),
-    ({"node_resolution": 0.2}, "node_resolution (0.2 m) must be at least one cell (0.4 m)"),
-])
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"max_steps": 0}, "max_steps: must be a whole number >= 1, got 0"),
+        ({"max_steps": 3.0}, "max_steps: must be a whole number >= 1, got 3.0"),
+        ({"area_weight": -1.0}, "area_weight: must be a finite number >= 0, got -1.0"),
+        ({"action": "teleport"}, "action: must be one of 'neighbour', 'node', got 'teleport'"),
+        ({"belief_image": 1}, "belief_image: must be true or false, got 1"),
+        ({"map": "x.png", "start": (1.0, math.nan)}, "start[1]: must be a finite number, got nan"),
+        ({"belief_image": True, "belief_shape": (10, 10, 3)}, "belief_shape: must be two cell counts (rows, cols)"),
+        ({"node_resolution": 0.2}, "node_resolution (0.2 m) must be at least one cell (0.4 m)"),
+    ],
+)
 def test_a_bad_parameter_is_one_line_naming_it(values, message):
     with pytest.raises(ValueError) as error:
         ExploreEnvConfig.from_kwargs(**values)

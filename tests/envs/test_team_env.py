@@ -119,15 +119,18 @@ def test_a_fresh_maze_per_reset_seed_and_given_maps(small_maze):
         env.reset(options={"map": "small.png"})
 
 
-@pytest.mark.parametrize("values, message", [
-    ({"robots": 0}, "robots: must be a whole number in 1..8"),
-    ({"robots": 9}, "robots: must be a whole number in 1..8"),
-    ({"robots": 2, "starts": [(0, 0)]}, "starts gives 1 positions for 2 robots"),
-    ({"comm_range_m": -1.0}, "comm_range_m: must be a finite number > 0"),
-    ({"belief_image": True}, "belief_image is not offered"),
-    ({"step_limit": 0}, "step_limit: must be a whole number >= 1"),
-    ({"robot": 2}, "unknown parameter"),
-])
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"robots": 0}, "robots: must be a whole number in 1..8"),
+        ({"robots": 9}, "robots: must be a whole number in 1..8"),
+        ({"robots": 2, "starts": [(0, 0)]}, "starts gives 1 positions for 2 robots"),
+        ({"comm_range_m": -1.0}, "comm_range_m: must be a finite number > 0"),
+        ({"belief_image": True}, "belief_image is not offered"),
+        ({"step_limit": 0}, "step_limit: must be a whole number >= 1"),
+        ({"robot": 2}, "unknown parameter"),
+    ],
+)
 def test_bad_parameters_fail_naming_them(values, message):
     with pytest.raises(ValueError, match=message):
         TeamExploreEnv(maze_side_m=50.0, **values)
@@ -194,8 +197,9 @@ def test_the_acting_robots_mask_is_the_motion_rule_on_its_own_belief(small_maze)
                 if slot == STAY_SLOT:
                     continue
                 try:
-                    cell = lattice_cell(env.ground_truth, env.protocol, (robot.position[0] + dx * d,
-                                                                         robot.position[1] + dy * d))
+                    cell = lattice_cell(
+                        env.ground_truth, env.protocol, (robot.position[0] + dx * d, robot.position[1] + dy * d)
+                    )
                     free = bool(known[cell[1], cell[0]]) and segment_is_known_free(known, robot.cell, cell)
                 except MotionError:
                     free = False
@@ -226,8 +230,9 @@ def test_a_masked_action_makes_the_robot_wait_at_a_penalty():
 @pytest.mark.parametrize("planner", ["uncoordinated_nearest_frontier", "uncoordinated_greedy_utility"])
 @pytest.mark.parametrize("comm_range_m", [None, 12.0])
 def test_a_planner_through_the_environment_is_run_team_episode(small_maze, planner, comm_range_m):
-    reference = run_team_episode(small_maze, make_team_planner(planner), Protocol(), robots=3, starts=STARTS,
-                                 comm_range_m=comm_range_m)
+    reference = run_team_episode(
+        small_maze, make_team_planner(planner), Protocol(), robots=3, starts=STARTS, comm_range_m=comm_range_m
+    )
     env = TeamExploreEnv(robots=3, starts=STARTS, comm_range_m=comm_range_m)
     obs, _ = env.reset(seed=0, options={"map": small_maze})
     result = drive(env, obs, planner)
@@ -257,8 +262,12 @@ def test_masked_random_agents_finish_with_consistent_rewards():
                 assert info["reward_area"] == pytest.approx(env.config.area_weight * info["new_area_m2"])
                 assert info["reward_distance"] == pytest.approx(-env.config.distance_weight * info["step_distance_m"])
                 assert not info["invalid_action"]
-                for part, value in (("area", info["new_area_m2"]), ("distance", info["step_distance_m"]),
-                                    ("bonus", info["reward_bonus"]), ("reward", rewards[agent])):
+                for part, value in (
+                    ("area", info["new_area_m2"]),
+                    ("distance", info["step_distance_m"]),
+                    ("bonus", info["reward_bonus"]),
+                    ("reward", rewards[agent]),
+                ):
                     totals[agent][part] += value
         ended = next(iter(terminated))
         assert terminated[ended] == env.episode.complete and truncated[ended] != terminated[ended]
@@ -314,8 +323,14 @@ def test_a_waiting_robot_asks_again_after_the_next_arrival(small_maze):
         obs, _, _, _, _ = env.step(actions)
         deciders.append((env.acting_agents[0], env.episode.time))
     first, second = env.episode.rows[2][0], env.episode.rows[3][0]  # robot_1's two arrivals
-    assert deciders == [("robot_0", 0.0), ("robot_1", 0.0), ("robot_1", first), ("robot_0", first),
-                        ("robot_1", second), ("robot_0", second)]
+    assert deciders == [
+        ("robot_0", 0.0),
+        ("robot_1", 0.0),
+        ("robot_1", first),
+        ("robot_0", first),
+        ("robot_1", second),
+        ("robot_0", second),
+    ]
 
 
 def test_every_robot_waiting_ends_the_episode():
@@ -400,8 +415,11 @@ def test_teammates_targets_are_heard(small_maze):
     target = env.episode.robots[0].target
     scale = env.graph_config.position_scale_nodes * env.protocol.node_resolution
     here = env.episode.robots[1].position
-    np.testing.assert_allclose(obs["robot_1"]["teammates"][0, 4:],
-                               [1.0, (target[0] - here[0]) / scale, (target[1] - here[1]) / scale], rtol=1e-6)
+    np.testing.assert_allclose(
+        obs["robot_1"]["teammates"][0, 4:],
+        [1.0, (target[0] - here[0]) / scale, (target[1] - here[1]) / scale],
+        rtol=1e-6,
+    )
 
 
 # ---------------------------------------------------------------------------------- the single robot's terms
@@ -452,5 +470,8 @@ def test_the_docs_random_team_runs_as_written():
     with contextlib.redirect_stdout(printed):
         exec(compile(example, "docs/teams.md", "exec"), {"__name__": "docs_example"})
     line = printed.getvalue()
-    assert re.fullmatch(r"maze_\d+: (complete|.+ reached|no reachable target left for any robot) at \d+ m; "
-                        r"robot_0 -?[\d.]+, robot_1 -?[\d.]+, robot_2 -?[\d.]+\n", line), line
+    assert re.fullmatch(
+        r"maze_\d+: (complete|.+ reached|no reachable target left for any robot) at \d+ m; "
+        r"robot_0 -?[\d.]+, robot_1 -?[\d.]+, robot_2 -?[\d.]+\n",
+        line,
+    ), line

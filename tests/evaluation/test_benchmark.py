@@ -1,4 +1,3 @@
-
 import pandas as pd
 import pytest
 
@@ -12,7 +11,9 @@ from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv
 
 def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:2]
-    frame = run_benchmark(maps, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path, workers=2, progress=False).frame
+    frame = run_benchmark(
+        maps, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path, workers=2, progress=False
+    ).frame
     metrics = pd.read_csv(tmp_path / "metrics.csv")
     assert list(metrics.columns) == METRICS_COLUMNS
     assert len(metrics) == 4 and metrics["complete"].all()
@@ -27,11 +28,23 @@ def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_p
 
 def metrics_frame_of(distances: dict[str, list[float]]) -> pd.DataFrame:
     """A metrics.csv-like frame: per planner, one completed episode per map m0, m1, ... with these distances."""
-    return pd.DataFrame([
-        {"map": f"m{i}", "planner": planner, "distance_m": d, "steps": 5, "complete": True, "explored_ratio": 1.0,
-         "decision_ms_median": 1.0, "decision_ms_p95": 2.0, "seed": 0}
-        for planner, values in distances.items() for i, d in enumerate(values)
-    ])
+    return pd.DataFrame(
+        [
+            {
+                "map": f"m{i}",
+                "planner": planner,
+                "distance_m": d,
+                "steps": 5,
+                "complete": True,
+                "explored_ratio": 1.0,
+                "decision_ms_median": 1.0,
+                "decision_ms_p95": 2.0,
+                "seed": 0,
+            }
+            for planner, values in distances.items()
+            for i, d in enumerate(values)
+        ]
+    )
 
 
 def test_summary_compares_with_the_baseline_map_by_map():
@@ -40,7 +53,9 @@ def test_summary_compares_with_the_baseline_map_by_map():
     frame = metrics_frame_of({"greedy_utility": [100, 200, 300], "nf": [110, 220, 330]})
     text = summary_markdown(frame, Protocol())
     assert "vs greedy_utility (paired, 95 %)" in text
-    assert "| nf | 3 | 220.0 +- 89.8 | +10.0 % +- 12.4 |" in text  # differences 10, 20, 30 m over a 200 m mean; t(2 dof)
+    assert (
+        "| nf | 3 | 220.0 +- 89.8 | +10.0 % +- 12.4 |" in text
+    )  # differences 10, 20, 30 m over a 200 m mean; t(2 dof)
     assert "| greedy_utility | 3 | 200.0 +- 81.6 | — |" in text
     assert "vs " not in summary_markdown(frame, Protocol(), baseline=None)
     assert "vs " not in summary_markdown(frame[frame.planner == "nf"], Protocol())  # the baseline did not run
@@ -83,7 +98,9 @@ def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze
 
     plain = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0)
     assert plain.label == "nearest_frontier" and plain.options == {}
-    variant = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0, label="nf_u1", options={"min_utility": 1})
+    variant = EpisodeTask(
+        str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0, label="nf_u1", options={"min_utility": 1}
+    )
     assert run_task(variant).planner == "nf_u1"
     specs = resolve_planner_specs(["greedy_utility", PlannerSpec("nf_u1", "nearest_frontier", {"min_utility": 1})])
     assert [(s.label, s.name, s.options) for s in specs] == [
@@ -98,10 +115,12 @@ def test_benchmark_records_what_ran_and_applies_one_start(generated_maze_dir, tm
     maps = list_maps(generated_maze_dir)[:1]
     own = load_map(maps[0])
     col, row = own.start_cell
-    start = next((c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10))
-                 if own.free[r, c])  # a free cell 4 m from the marked start
-    run_benchmark(maps, ["nf=nearest_frontier:min_utility=3"], Protocol(), tmp_path, workers=1, progress=False,
-                  start=start)
+    start = next(
+        (c, r) for c, r in ((col + 10, row), (col, row + 10), (col - 10, row), (col, row - 10)) if own.free[r, c]
+    )  # a free cell 4 m from the marked start
+    run_benchmark(
+        maps, ["nf=nearest_frontier:min_utility=3"], Protocol(), tmp_path, workers=1, progress=False, start=start
+    )
     record = json.loads((tmp_path / "run.json").read_text())
     assert record["start"] == list(start) and record["seed"] == 0
     assert record["protocol"] == Protocol().to_dict() and record["maps"] == [str(maps[0])]
@@ -123,8 +142,15 @@ def test_a_map_with_too_few_free_cells_is_refused(tmp_path):
     with pytest.raises(MapError, match="only 100 free cells, not more than done_unknown_cells=250") as info:
         run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(), tmp_path / "out", start=(12, 12))
     assert str(info.value).startswith(f"{tmp_path / 'tiny.npy'}: ")  # the file, not just its stem
-    frame = run_benchmark([tmp_path / "tiny.npy"], ["nearest_frontier"], Protocol(done_unknown_cells=10),
-                          tmp_path / "out", workers=1, progress=False, start=(12, 12)).frame
+    frame = run_benchmark(
+        [tmp_path / "tiny.npy"],
+        ["nearest_frontier"],
+        Protocol(done_unknown_cells=10),
+        tmp_path / "out",
+        workers=1,
+        progress=False,
+        start=(12, 12),
+    ).frame
     assert frame["complete"].all()
 
 
@@ -169,13 +195,17 @@ def test_a_ros_map_is_recorded_and_summarised_at_its_own_cell_size(tmp_path):
 def test_a_reused_output_folder_with_other_planners_results_is_warned_about(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:1]
     run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False)
-    with pytest.warns(UserWarning, match=r"holds trajectories of planners this run does not write \(nearest_frontier\)"):
+    with pytest.warns(
+        UserWarning, match=r"holds trajectories of planners this run does not write \(nearest_frontier\)"
+    ):
         run_benchmark(maps, ["greedy_utility"], Protocol(), tmp_path, workers=1, progress=False)
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        run_benchmark(maps, ["greedy_utility", "nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False)  # all rewritten: quiet
+        run_benchmark(
+            maps, ["greedy_utility", "nearest_frontier"], Protocol(), tmp_path, workers=1, progress=False
+        )  # all rewritten: quiet
 
 
 def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir, tmp_path, monkeypatch):
@@ -195,14 +225,26 @@ def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir
 
     interrupt_after_the_first.calls = 0
     monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
-    result = CliRunner().invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
-                                      "--out", str(tmp_path / "b"), "--workers", "1", "--no-mlflow"])
+    result = CliRunner().invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "nearest_frontier",
+            "--out",
+            str(tmp_path / "b"),
+            "--workers",
+            "1",
+            "--no-mlflow",
+        ],
+    )
     assert result.exit_code == 130
     assert f"interrupted after 1 of 3 episodes; {tmp_path / 'b'}/metrics.csv and summary.md hold them" in result.output
     metrics = pd.read_csv(tmp_path / "b" / "metrics.csv")
     assert len(metrics) == 1 and bool(metrics["complete"].iloc[0])
     assert "nearest_frontier" in (tmp_path / "b" / "summary.md").read_text()
-
 
 
 @pytest.mark.slow
@@ -233,13 +275,16 @@ def test_episodes_kept_outside_the_output_folder_carry_over_to_a_new_one(generat
     monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
     maps, keep = list_maps(generated_maze_dir), tmp_path / "checkpoints" / "benchmark"
     with pytest.raises(benchmark.BenchmarkInterrupted):
-        run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path / "first", workers=1, progress=False, keep_dir=keep)
+        run_benchmark(
+            maps, ["nearest_frontier"], Protocol(), tmp_path / "first", workers=1, progress=False, keep_dir=keep
+        )
     assert len(list(keep.glob("item_*.pkl"))) == 1 and not (tmp_path / "first" / ".episodes").exists()
 
     ran = []
     monkeypatch.setattr(benchmark, "run_task", lambda task: ran.append(task) or finished(task))
-    run = run_benchmark(maps, ["nearest_frontier"], Protocol(), tmp_path / "second", workers=1, progress=False,
-                        keep_dir=keep)
+    run = run_benchmark(
+        maps, ["nearest_frontier"], Protocol(), tmp_path / "second", workers=1, progress=False, keep_dir=keep
+    )
     assert len(ran) == 2 and len(run.frame) == 3  # the kept episode was not run again
     assert not keep.exists()  # a complete run leaves nothing kept
 
@@ -271,12 +316,28 @@ def test_a_planner_that_raises_fails_its_episode_and_the_run_goes_on(generated_m
     assert len(pd.read_csv(tmp_path / "a" / "metrics.csv")) == len(maps)
     failed = run.frame[~run.frame["complete"].astype(bool)]
     assert list(failed["map"]) == [broken]
-    assert failed["failure"].iloc[0] == "planner error: RuntimeError: Padding size should be less than the corresponding input dimension"
+    assert (
+        failed["failure"].iloc[0]
+        == "planner error: RuntimeError: Padding size should be less than the corresponding input dimension"
+    )
     assert len(read_trajectory_csv(tmp_path / "a" / "nearest_frontier" / f"{broken}.csv")) >= 2  # the trajectory so far
     assert run.errors == [(broken, "nearest_frontier", failed["failure"].iloc[0])]
     assert "Traceback" in (tmp_path / "a" / "errors.txt").read_text()
-    result = CliRunner().invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "nearest_frontier",
-                                      "--out", str(tmp_path / "b"), "--workers", "1", "--no-mlflow"])
+    result = CliRunner().invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "nearest_frontier",
+            "--out",
+            str(tmp_path / "b"),
+            "--workers",
+            "1",
+            "--no-mlflow",
+        ],
+    )
     assert result.exit_code == 1
     assert f"1 episode failed with a planner error (tracebacks in {tmp_path / 'b' / 'errors.txt'})" in result.output
     assert f"nearest_frontier on {broken}: planner error: RuntimeError" in result.output

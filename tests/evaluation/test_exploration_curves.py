@@ -26,8 +26,10 @@ from pipeline.evaluation.exploration_curves import (
 
 def record(distances, shares, decisions=None, area=100.0):
     decisions = decisions if decisions is not None else [0.0] * len(distances)
-    return step_record({"step": k, "distance_m": d, "explored_m2": s * area, "explored_share": s, "decision_ms": t}
-                       for k, (d, s, t) in enumerate(zip(distances, shares, decisions)))
+    return step_record(
+        {"step": k, "distance_m": d, "explored_m2": s * area, "explored_share": s, "decision_ms": t}
+        for k, (d, s, t) in enumerate(zip(distances, shares, decisions))
+    )
 
 
 A = record([0, 4, 8, 12], [0.2, 0.5, 0.9, 1.0], [0.0, 1000.0, 0.0, 500.0])
@@ -81,10 +83,28 @@ def test_guide_benchmark_writes_curves_and_logs_them(generated_maze_dir, tmp_pat
     import mlflow
 
     out = tmp_path / "bench"
-    result = CliRunner().invoke(app, [
-        "benchmark", "--maps", str(generated_maze_dir), "--planner", "greedy_utility", "--planner", "nearest_frontier",
-        "--out", str(out), "--workers", "1", "--tracking-uri", mlflow_uri, "--experiment", "curves",
-        "--speed-mps", "1.5"])
+    result = CliRunner().invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "greedy_utility",
+            "--planner",
+            "nearest_frontier",
+            "--out",
+            str(out),
+            "--workers",
+            "1",
+            "--tracking-uri",
+            mlflow_uri,
+            "--experiment",
+            "curves",
+            "--speed-mps",
+            "1.5",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "coverage AUC" in (out / "summary.md").read_text()
     exploration = pd.read_csv(out / "exploration.csv").set_index("planner")
@@ -96,13 +116,27 @@ def test_guide_benchmark_writes_curves_and_logs_them(generated_maze_dir, tmp_pat
     mlflow.set_tracking_uri(mlflow_uri)
     runs = mlflow.search_runs(experiment_names=["curves"]).set_index("tags.mlflow.runName")
     assert runs.loc["greedy_utility", "metrics.distance_to_90_m"] == pytest.approx(
-        exploration.loc["greedy_utility", "distance_to_90_m"])
+        exploration.loc["greedy_utility", "distance_to_90_m"]
+    )
     assert runs.loc["nearest_frontier", "metrics.efficiency_m2_per_s"] > 0
     artifacts = mlflow.artifacts.list_artifacts(run_id=runs.loc["greedy_utility", "run_id"])
     assert {"coverage.png", "exploration.csv"} <= {a.path for a in artifacts}
 
 
 def test_guide_benchmark_refuses_a_bad_speed(generated_maze_dir, tmp_path):
-    result = CliRunner().invoke(app, ["benchmark", "--maps", str(generated_maze_dir), "--planner", "greedy_utility",
-                                      "--out", str(tmp_path / "b"), "--no-mlflow", "--speed-mps", "0"])
+    result = CliRunner().invoke(
+        app,
+        [
+            "benchmark",
+            "--maps",
+            str(generated_maze_dir),
+            "--planner",
+            "greedy_utility",
+            "--out",
+            str(tmp_path / "b"),
+            "--no-mlflow",
+            "--speed-mps",
+            "0",
+        ],
+    )
     assert result.exit_code == 2 and "--speed-mps" in result.output and not (tmp_path / "b").exists()

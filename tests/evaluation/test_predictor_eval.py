@@ -26,8 +26,15 @@ from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 
 STEPS = (3, 6)
 # The stage's settings these tests run with, each test writing its changes over them.
-STAGE = {"steps": [15, 30, 45, 60], "threshold": 0.8, "min_component": 3, "keep_share": 0.5,
-         "sweep_thresholds": [0.5, 0.6, 0.7, 0.8, 0.9], "checkpoint": None, "compare_checkpoint": None}
+STAGE = {
+    "steps": [15, 30, 45, 60],
+    "threshold": 0.8,
+    "min_component": 3,
+    "keep_share": 0.5,
+    "sweep_thresholds": [0.5, 0.6, 0.7, 0.8, 0.9],
+    "checkpoint": None,
+    "compare_checkpoint": None,
+}
 
 
 @pytest.fixture(scope="module")
@@ -61,8 +68,9 @@ def test_precision_counts_the_centroid_nodes_of_v_u(maze_paths, monkeypatch):
     """Pre(k) is over all of V_u: a centroid on a wall counts against it, as in the paper."""
     import pipeline.evaluation.predictor_eval as predictor_eval
 
-    monkeypatch.setattr(predictor_eval.Prediction, "centroid_cells",
-                        lambda self: np.array([[0, 0], [-5, 3]]))  # a border wall and a cell off the map
+    monkeypatch.setattr(
+        predictor_eval.Prediction, "centroid_cells", lambda self: np.array([[0, 0], [-5, 3]])
+    )  # a border wall and a cell off the map
     frame = evaluate_predictor(maze_paths[:1], steps=STEPS, inpaint_for=oracle_inpaint_for)
     kept = frame["predicted_nodes"] - frame["centroids"]
     assert (frame["centroids"] == 2).all() and (frame["predictions_precision"] == 1.0).all()
@@ -149,7 +157,9 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     assert tuple(sweep.columns) == SWEEP_COLUMNS and sorted(sweep["threshold"].unique()) == [0.5, 0.6, 0.7, 0.8, 0.9]
     at_half = sweep[sweep["threshold"] == 0.5]
     assert np.allclose(at_half["precision"], written["precision"])  # the table's own tau, the same numbers
-    assert (out / "threshold_sweep.png").stat().st_size > 0 and "Precision against tau" in (out / "table1.md").read_text()
+    assert (out / "threshold_sweep.png").stat().st_size > 0 and "Precision against tau" in (
+        out / "table1.md"
+    ).read_text()
 
     import mlflow
 
@@ -158,7 +168,9 @@ def test_stage_writes_reports_and_logs_a_run(maze_dir, tmp_path, monkeypatch, ml
     assert len(runs) >= 1  # the session's store may hold other tests' runs: the newest is this one
     assert runs.iloc[0]["metrics.precision_step3"] == pytest.approx(float(frame["precision"].iloc[0]))
     assert runs.iloc[0]["metrics.precision_step6"] == pytest.approx(float(frame["precision"].iloc[1]))
-    assert "metrics.compare_precision_step3" not in runs.columns or np.isnan(runs.iloc[0]["metrics.compare_precision_step3"])
+    assert "metrics.compare_precision_step3" not in runs.columns or np.isnan(
+        runs.iloc[0]["metrics.compare_precision_step3"]
+    )
     assert pd.read_csv(out / "precision_compare.csv").empty  # no compare_checkpoint: a header, so DVC finds its output
 
 
@@ -176,20 +188,33 @@ def test_stage_compares_another_inpainter_on_the_same_explorations(maze_dir, tmp
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
     networks = {None: graded_inpaint, "other.pt": all_free_inpaint}
     monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: networks[checkpoint])
-    monkeypatch.setattr(predictor_eval, "run", lambda *a, **k: (Path(a[1]).mkdir(parents=True, exist_ok=True),
-                                                                (Path(a[1]) / "table1.md").write_text("# Table I\n"),
-                                                                pd.DataFrame(columns=list(COLUMNS)))[-1])
+    monkeypatch.setattr(
+        predictor_eval,
+        "run",
+        lambda *a, **k: (
+            Path(a[1]).mkdir(parents=True, exist_ok=True),
+            (Path(a[1]) / "table1.md").write_text("# Table I\n"),
+            pd.DataFrame(columns=list(COLUMNS)),
+        )[-1],
+    )
     stage.main("params.yaml")
     out = tmp_path / "reports" / "predictor"
     compared = pd.read_csv(out / "precision_compare.csv")
-    expected = evaluate_predictor(list_maps(maze_dir), all_free_inpaint, [3, 6], NodePredictorConfig(threshold=0.5),
-                                  table1.table1_graph_config(0.5))
+    expected = evaluate_predictor(
+        list_maps(maze_dir),
+        all_free_inpaint,
+        [3, 6],
+        NodePredictorConfig(threshold=0.5),
+        table1.table1_graph_config(0.5),
+    )
     assert tuple(compared.columns) == COLUMNS
     assert np.allclose(compared["precision"], expected["precision"])
     assert list(compared["predicted_nodes"]) == list(expected["predicted_nodes"])
     table = (out / "table1.md").read_text()
     assert table.startswith("# Table I") and "Another inpainter: other.pt" in table
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"eval_predictor": {**section, "compare_checkpoint": "gone.pt"}}))
+    (tmp_path / "params.yaml").write_text(
+        yaml.safe_dump({"eval_predictor": {**section, "compare_checkpoint": "gone.pt"}})
+    )
     with pytest.raises(FileNotFoundError, match="gone.pt"):
         stage.main("params.yaml")
 
@@ -200,7 +225,9 @@ def test_table1_for_folder_writes_precision_csv(maze_dir, tmp_path, monkeypatch)
 
     seen = []
     monkeypatch.setattr(predictor_eval, "PAPER_STEPS", STEPS)
-    monkeypatch.setattr(predictor_eval, "load_inpaint_fn", lambda checkpoint=None: seen.append(checkpoint) or all_free_inpaint)
+    monkeypatch.setattr(
+        predictor_eval, "load_inpaint_fn", lambda checkpoint=None: seen.append(checkpoint) or all_free_inpaint
+    )
     table1.table1_for_folder(maze_dir, tmp_path / "out", "some.pt")
     assert seen == ["some.pt"]
     written = pd.read_csv(tmp_path / "out" / "precision.csv")

@@ -29,8 +29,12 @@ def test_team_benchmark_writes_every_file_and_each_team_file_replays(generated_m
     run = run_team_benchmark(maps, PLANNERS, Protocol(), tmp_path, robots=[3, 1], workers=2, progress=False)
     metrics = pd.read_csv(tmp_path / "team_metrics.csv")
     assert list(metrics.columns) == METRICS_COLUMNS
-    assert sorted(set(metrics["label"])) == ["nf@1", "nf@3", "uncoordinated_greedy_utility@1",
-                                             "uncoordinated_greedy_utility@3"]
+    assert sorted(set(metrics["label"])) == [
+        "nf@1",
+        "nf@3",
+        "uncoordinated_greedy_utility@1",
+        "uncoordinated_greedy_utility@3",
+    ]
     assert len(metrics) == 8 and metrics["complete"].all()
     assert set(metrics.loc[metrics["label"] == "nf@3", "planner"]) == {"uncoordinated_nearest_frontier"}
     speed = json.loads((tmp_path / "team_run.json").read_text())["speed_mps"]
@@ -51,7 +55,8 @@ def test_team_benchmark_writes_every_file_and_each_team_file_replays(generated_m
     for (label, name), episode in coverage.groupby(["label", "map"]):
         assert (np.diff(episode["explored_share"]) >= 0).all() and (np.diff(episode["time_m"]) >= 0).all()
         assert episode["time_m"].iloc[-1] == pytest.approx(
-            metrics.loc[(metrics["label"] == label) & (metrics["map"] == name), "makespan_m"].item(), abs=1e-3)
+            metrics.loc[(metrics["label"] == label) & (metrics["map"] == name), "makespan_m"].item(), abs=1e-3
+        )
     summary = json.loads((tmp_path / "team_summary.json").read_text())
     assert list(summary) == ["uncoordinated_greedy_utility@1", "uncoordinated_greedy_utility@3", "nf@1", "nf@3"]
     nf3 = summary["nf@3"]
@@ -69,14 +74,25 @@ def test_team_benchmark_writes_every_file_and_each_team_file_replays(generated_m
 
 def test_a_range_writes_the_merges_beside_each_team_file(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:2]
-    run_team_benchmark(maps, ["uncoordinated_nearest_frontier"], Protocol(), tmp_path, robots=[3], comm_range_m=12.0,
-                       workers=1, progress=False)
+    run_team_benchmark(
+        maps,
+        ["uncoordinated_nearest_frontier"],
+        Protocol(),
+        tmp_path,
+        robots=[3],
+        comm_range_m=12.0,
+        workers=1,
+        progress=False,
+    )
     metrics = pd.read_csv(tmp_path / "team_metrics.csv")
     assert (metrics["comm_range_m"] == 12.0).all() and (metrics["merges"] > 0).all()
     for row in metrics.itertuples():
         merges = pd.read_csv(merges_path(tmp_path / row.label / f"{row.map}.team.csv"))
         assert list(merges.columns) == ["time_s", "robots"] and len(merges) == row.merges
-    assert json.loads((tmp_path / "team_summary.json").read_text())["uncoordinated_nearest_frontier@3"]["comm_range_m"] == 12.0
+    assert (
+        json.loads((tmp_path / "team_summary.json").read_text())["uncoordinated_nearest_frontier@3"]["comm_range_m"]
+        == 12.0
+    )
 
 
 @pytest.mark.parametrize("counts", [[0], [9], [2, 9], [], [True], [2.5]])
@@ -97,14 +113,18 @@ def test_a_range_that_is_not_a_positive_distance_is_refused(metres):
 
 def test_bad_planners_are_refused_before_any_file(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:1]
-    for planners, message in ((["nope"], "unknown team planner 'nope'"),
-                              (["a=uncoordinated_greedy_utility", "a=uncoordinated_nearest_frontier"], "used twice"),
-                              (["g=uncoordinated_greedy_utility:no_such_option=1"], "planner 'g'"),
-                              (["expert"], "planner 'expert'")):
+    for planners, message in (
+        (["nope"], "unknown team planner 'nope'"),
+        (["a=uncoordinated_greedy_utility", "a=uncoordinated_nearest_frontier"], "used twice"),
+        (["g=uncoordinated_greedy_utility:no_such_option=1"], "planner 'g'"),
+        (["expert"], "planner 'expert'"),
+    ):
         with pytest.raises(ValueError, match=message):
             run_team_benchmark(maps, planners, Protocol(), tmp_path / "out", robots=[2], progress=False)
     with pytest.raises(ValueError, match="robot counts"):
-        run_team_benchmark(maps, ["uncoordinated_greedy_utility"], Protocol(), tmp_path / "out", robots=[9], progress=False)
+        run_team_benchmark(
+            maps, ["uncoordinated_greedy_utility"], Protocol(), tmp_path / "out", robots=[9], progress=False
+        )
     assert not (tmp_path / "out").exists()
 
 
@@ -145,7 +165,9 @@ def test_a_killed_team_benchmark_resumes_with_its_kept_episodes(generated_maze_d
     whole = tmp_path / "whole"
     run_team_benchmark(maps, out_dir=whole, **arguments)
     timed = ["decision_ms_median"]
-    pd.testing.assert_frame_equal(resumed.drop(columns=timed), pd.read_csv(whole / "team_metrics.csv").drop(columns=timed))
+    pd.testing.assert_frame_equal(
+        resumed.drop(columns=timed), pd.read_csv(whole / "team_metrics.csv").drop(columns=timed)
+    )
     assert (killed / "team_coverage.csv").read_bytes() == (whole / "team_coverage.csv").read_bytes()
     team_files = sorted(p.relative_to(whole) for p in whole.glob("*/*.team.csv"))
     assert len(team_files) == 12
@@ -155,9 +177,10 @@ def test_a_killed_team_benchmark_resumes_with_its_kept_episodes(generated_maze_d
 
 def test_team_figures_draw_each_robot_in_its_colour(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:1]
-    run = run_team_benchmark(maps, ["uncoordinated_nearest_frontier"], Protocol(), tmp_path, robots=[3], workers=1,
-                             progress=False)
-    (task, result), = run.episodes
+    run = run_team_benchmark(
+        maps, ["uncoordinated_nearest_frontier"], Protocol(), tmp_path, robots=[3], workers=1, progress=False
+    )
+    ((task, result),) = run.episodes
     ground_truth, protocol, _ = run.maps[result.map_name]
     image = team_paths_figure(ground_truth, result.rows, protocol, tmp_path / "paths.png", title="three robots")
     assert (tmp_path / "paths.png").is_file() and image.ndim == 3

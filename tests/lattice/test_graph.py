@@ -63,8 +63,6 @@ def test_incremental_updates_equal_a_fresh_build(small_maze):
     assert len(batches) > 3
 
 
-
-
 def test_a_graph_without_region_tracking_differs_only_in_its_regions(small_maze):
     """Rollout copies turn region labels off: nodes, edges, frontier and utilities stay exact."""
     episode, _ = partial_episode(small_maze)
@@ -83,6 +81,7 @@ def test_a_graph_without_region_tracking_differs_only_in_its_regions(small_maze)
         np.testing.assert_array_equal(getattr(tracked, name), getattr(untracked, name))
     assert tracked.region_observed.sum() > untracked.region_observed.sum()
 
+
 def test_neighbours_follow_the_edges_as_the_graph_grows(small_maze):
     """Neighbour lists are cached per graph change: each update must be seen."""
     episode, _ = partial_episode(small_maze, steps=6)
@@ -97,6 +96,7 @@ def test_neighbours_follow_the_edges_as_the_graph_grows(small_maze):
         replay.move(point)
         graph.update(replay.belief.grid, replay.observe().changed)
     assert graph.neighbours(int(np.setdiff1d(np.arange(graph.node_count), graph.edges)[0])).size == 0
+
 
 def test_edges_are_exactly_the_known_free_segments(small_maze):
     episode, _ = partial_episode(small_maze, steps=8)
@@ -156,7 +156,9 @@ def test_shortest_paths_equal_scipys_undirected_search(small_maze):
         graph.update(replay.belief.grid, replay.observe().changed)
         for source in graph.free_nodes[::3]:
             dist, pred = graph.shortest_paths(int(source))
-            want_dist, want_pred = dijkstra(graph.adjacency(), directed=False, indices=int(source), return_predecessors=True)
+            want_dist, want_pred = dijkstra(
+                graph.adjacency(), directed=False, indices=int(source), return_predecessors=True
+            )
             np.testing.assert_array_equal(dist, want_dist)
             np.testing.assert_array_equal(pred, want_pred)
             searched += 1
@@ -225,7 +227,9 @@ def test_lattice_at_real_robot_resolution():
     assert graph.node_count == len(graph.lattice_i) * len(graph.lattice_j)
 
 
-def reference_visible_counts(free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float) -> np.ndarray:
+def reference_visible_counts(
+    free: np.ndarray, targets: np.ndarray, origins: np.ndarray, range_cells: float
+) -> np.ndarray:
     """The ray-fan count written plainly in NumPy: every ray's cells up to its first non-free cell."""
     from pipeline.lattice.visibility import UTILITY_ANGLES
     from pipeline.world.geometry import ray_table
@@ -261,7 +265,7 @@ def test_nested_visible_counts_equal_three_separate_fans(seed):
     rng = np.random.default_rng(seed)
     outer = rng.random((90, 70)) < 0.9
     inner = outer & (rng.random((90, 70)) < 0.8)
-    first, second, third = (rng.random((3, 90, 70)) < [[[0.1]], [[0.3]], [[0.2]]])
+    first, second, third = rng.random((3, 90, 70)) < [[[0.1]], [[0.3]], [[0.2]]]
     origins = rng.integers(-4, 94, size=(40, 2))  # some outside the grid
     got = nested_visible_counts(outer, (first, second), inner, third, origins, 25.0)
     assert got.shape == (40, 3) and got.min(axis=0).min() >= 0 and (got.max(axis=0) > 0).all()

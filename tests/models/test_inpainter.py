@@ -79,25 +79,40 @@ def test_input_encodings():
         InpainterConfig(input_encoding="signed", in_channels=3)
 
 
-@pytest.mark.parametrize("values, message", [
-    ({"input_encoding": "signed", "in_channels": 3}, "model: input_encoding 'signed' makes (2,) input channels, "
-                                                     "not in_channels=3"),
-    ({"input_encoding": "rgb"}, "model.input_encoding: must be one of 'signed', 'lama', 'onehot', got 'rgb'"),
-    ({"ngf": 0}, "model.ngf: must be a whole number >= 1, got 0"),
-    ({"n_blocks": -1}, "model.n_blocks: must be a whole number >= 0, got -1"),
-    ({"ratio_gin": 1.5, "ratio_gout": 1.5}, "model.ratio_gin: must be a number in [0, 1], got 1.5"),
-    ({"ratio_gin": 0.5}, "model: ratio_gin and ratio_gout must be equal (the residual blocks add input and output)"),
-    ({"block_kernel_size": 4}, "model.block_kernel_size: must be an odd kernel size (a convolution pads half of it "
-                               "on each side), got 4"),
-    ({"padding_type": "mirror"}, "model.padding_type: must be one of 'reflect', 'zeros', 'replicate', 'circular', "
-                                 "got 'mirror'"),
-    ({"enable_lfu": 1}, "model.enable_lfu: must be true or false, got 1"),
-    ({"big_lama": "yes"}, "model.big_lama: must be true or false, got 'yes'"),
-    ({"ngf_": 8}, "model.ngf_: unknown setting (known: in_channels, out_channels, ngf, n_downsampling, n_blocks, "
-                  "max_features, init_ratio_g, downsample_ratio_g, ratio_gin, ratio_gout, enable_lfu, init_kernel_size, "
-                  "downsample_kernel_size, block_kernel_size, upsample_kernel_size, out_kernel_size, padding_type, "
-                  "fft_norm, input_encoding), got 8"),
-])
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        (
+            {"input_encoding": "signed", "in_channels": 3},
+            "model: input_encoding 'signed' makes (2,) input channels, not in_channels=3",
+        ),
+        ({"input_encoding": "rgb"}, "model.input_encoding: must be one of 'signed', 'lama', 'onehot', got 'rgb'"),
+        ({"ngf": 0}, "model.ngf: must be a whole number >= 1, got 0"),
+        ({"n_blocks": -1}, "model.n_blocks: must be a whole number >= 0, got -1"),
+        ({"ratio_gin": 1.5, "ratio_gout": 1.5}, "model.ratio_gin: must be a number in [0, 1], got 1.5"),
+        (
+            {"ratio_gin": 0.5},
+            "model: ratio_gin and ratio_gout must be equal (the residual blocks add input and output)",
+        ),
+        (
+            {"block_kernel_size": 4},
+            "model.block_kernel_size: must be an odd kernel size (a convolution pads half of it on each side), got 4",
+        ),
+        (
+            {"padding_type": "mirror"},
+            "model.padding_type: must be one of 'reflect', 'zeros', 'replicate', 'circular', got 'mirror'",
+        ),
+        ({"enable_lfu": 1}, "model.enable_lfu: must be true or false, got 1"),
+        ({"big_lama": "yes"}, "model.big_lama: must be true or false, got 'yes'"),
+        (
+            {"ngf_": 8},
+            "model.ngf_: unknown setting (known: in_channels, out_channels, ngf, n_downsampling, n_blocks, "
+            "max_features, init_ratio_g, downsample_ratio_g, ratio_gin, ratio_gout, enable_lfu, init_kernel_size, "
+            "downsample_kernel_size, block_kernel_size, upsample_kernel_size, out_kernel_size, padding_type, "
+            "fft_norm, input_encoding), got 8",
+        ),
+    ],
+)
 def test_a_bad_config_value_is_one_line_naming_its_key(values, message):
     with pytest.raises(ValueError) as refused:
         InpainterConfig.from_dict(values)
@@ -124,9 +139,11 @@ def test_spectral_branch_reaches_the_whole_image():
         block = FFCResnetBlock(16, ratio, ratio).eval()
         cg = int(16 * ratio)
         with torch.no_grad():
+
             def run(t):
                 out = block((t[:, : 16 - cg], t[:, 16 - cg :] if cg else None))
                 return torch.cat([o for o in out if o is not None], dim=1)
+
             diff = (run(x) - run(y)).abs()
         assert (diff[far].max().item() > 1e-4) == reaches, (ratio, diff[far].max().item())
 
@@ -190,8 +207,15 @@ def test_big_lama_layout_save_and_reload(tmp_path):
         for key in ("model.5.conv1.ffc.convg2g.fu.bn.running_mean", "model.25.running_var"):
             state[key].uniform_(0.5, 1.5)
     path = tmp_path / "best.ckpt"
-    torch.save({"state_dict": {**{f"generator.{k}": v for k, v in state.items()},
-                               "discriminator.model0.0.weight": torch.zeros(3)}}, path)
+    torch.save(
+        {
+            "state_dict": {
+                **{f"generator.{k}": v for k, v in state.items()},
+                "discriminator.model0.0.weight": torch.zeros(3),
+            }
+        },
+        path,
+    )
     del official
 
     ours = InpainterModel(InpainterConfig.big_lama())
@@ -199,11 +223,18 @@ def test_big_lama_layout_save_and_reload(tmp_path):
     assert summary["missing"] == [] and summary["unexpected"] == []
     loaded = ours.state_dict()
     first = state["model.1.ffc.convl2l.weight"]
-    assert torch.equal(loaded["model.1.ffc.convl2l.weight"], torch.cat([first[:, :3].sum(1, keepdim=True), first[:, 3:]], 1))
+    assert torch.equal(
+        loaded["model.1.ffc.convl2l.weight"], torch.cat([first[:, :3].sum(1, keepdim=True), first[:, 3:]], 1)
+    )
     assert torch.allclose(loaded["model.34.weight"], state["model.34.weight"].mean(0, keepdim=True))
     assert torch.allclose(loaded["model.34.bias"], state["model.34.bias"].mean().reshape(1))
-    for key in ("model.5.conv1.ffc.convg2g.fu.conv_layer.weight", "model.5.conv1.ffc.convg2g.fu.bn.running_mean",
-                "model.22.conv2.ffc.convl2g.weight", "model.25.running_var", "model.30.weight"):
+    for key in (
+        "model.5.conv1.ffc.convg2g.fu.conv_layer.weight",
+        "model.5.conv1.ffc.convg2g.fu.bn.running_mean",
+        "model.22.conv2.ffc.convl2g.weight",
+        "model.25.running_var",
+        "model.30.weight",
+    ):
         assert torch.equal(loaded[key], state[key]), key
 
 

@@ -42,15 +42,18 @@ def test_save_and_load_round_trip(tmp_path):
         load_block_model(tmp_path / "missing.pt")
 
 
-@pytest.mark.parametrize(("values", "message"), [
-    ({"width": 0}, "model.width: must be a whole number >= 1, got 0"),
-    ({"width": 12, "groups": 5}, "model: groups (5) must divide width (12)"),
-    ({"dilations": [1, 0]}, "model.dilations[1]: must be a whole number >= 1, got 0"),
-    ({"dilations": []}, "model.dilations: must be a non-empty list of a whole number >= 1, got []"),
-    ({"dilations": [1, 2.0]}, "model.dilations[1]: must be a whole number >= 1, got 2.0"),
-    ({"block_m": -5.0}, "model.block_m: must be a finite number > 0 (metres), got -5.0"),
-    ({"widht": 8}, "model.widht: unknown setting (known: width, dilations, groups, block_m), got 8"),
-])
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"width": 0}, "model.width: must be a whole number >= 1, got 0"),
+        ({"width": 12, "groups": 5}, "model: groups (5) must divide width (12)"),
+        ({"dilations": [1, 0]}, "model.dilations[1]: must be a whole number >= 1, got 0"),
+        ({"dilations": []}, "model.dilations: must be a non-empty list of a whole number >= 1, got []"),
+        ({"dilations": [1, 2.0]}, "model.dilations[1]: must be a whole number >= 1, got 2.0"),
+        ({"block_m": -5.0}, "model.block_m: must be a finite number > 0 (metres), got -5.0"),
+        ({"widht": 8}, "model.widht: unknown setting (known: width, dilations, groups, block_m), got 8"),
+    ],
+)
 def test_config_refuses_bad_values(values, message):
     """One line naming the key and what it must be."""
     with pytest.raises(ValueError) as refused:

@@ -24,8 +24,14 @@ N_NODES = ROWS * COLS
 N_NEIGHBORS = 8
 INVALID = (10, 11)  # padded nodes of the test graph
 TINY = DiffusionPolicyConfig(
-    feature_dim=5, max_nodes=N_NODES, max_neighbors=N_NEIGHBORS, d_model=32, heads=4,
-    encoder_layers=1, denoiser_layers=2, num_inference_steps=10,
+    feature_dim=5,
+    max_nodes=N_NODES,
+    max_neighbors=N_NEIGHBORS,
+    d_model=32,
+    heads=4,
+    encoder_layers=1,
+    denoiser_layers=2,
+    num_inference_steps=10,
 )
 
 
@@ -323,15 +329,15 @@ def test_config_round_trip_and_unknown_keys():
         ({"window_scale": float("nan")}, "model.window_scale: must be a finite number > 0, got nan"),
         ({"sampler": "euler"}, "model.sampler: must be one of 'ddpm', 'ddim', got 'euler'"),
         ({"clip_sample": "yes"}, "model.clip_sample: must be true or false, got 'yes'"),
-        ({"step_values": [0]}, "model.step_values: must be a list of at least 2 items of a whole number "
-                               "(lattice steps), got [0]"),
-        ({"step_values": [-1, 0.5]},
-         "model.step_values[1]: must be a whole number (lattice steps), got 0.5"),
+        (
+            {"step_values": [0]},
+            "model.step_values: must be a list of at least 2 items of a whole number (lattice steps), got [0]",
+        ),
+        ({"step_values": [-1, 0.5]}, "model.step_values[1]: must be a whole number (lattice steps), got 0.5"),
         ({"step_values": [1, 1]}, "model: step_values must be distinct, got [1, 1]"),
         ({"d_model": 30, "heads": 4}, "model: d_model (30) must be divisible by heads (4)"),
         ({"horizon": 1, "action_steps": 2}, "model: need horizon >= action_steps, got horizon=1, action_steps=2"),
-        ({"num_inference_steps": 101},
-         "model: num_inference_steps (101) must not exceed num_train_timesteps (100)"),
+        ({"num_inference_steps": 101}, "model: num_inference_steps (101) must not exceed num_train_timesteps (100)"),
     ],
 )
 def test_a_bad_value_from_a_mapping_is_one_line_naming_its_key(values, message):

@@ -32,10 +32,12 @@ def tiny_policy(seed: int = 0, **values) -> DRLPolicy:
 
 def batch(observations: list[dict]) -> tuple[torch.Tensor, ...]:
     """The model's inputs for a list of unbatched environment observations."""
-    return (torch.as_tensor(np.stack([o["features"] for o in observations])),
-            torch.as_tensor(np.stack([o["node_mask"] for o in observations])).bool(),
-            torch.as_tensor(np.stack([o["neighbors"] for o in observations])).long(),
-            torch.as_tensor([int(o["robot"]) for o in observations]))
+    return (
+        torch.as_tensor(np.stack([o["features"] for o in observations])),
+        torch.as_tensor(np.stack([o["node_mask"] for o in observations])).bool(),
+        torch.as_tensor(np.stack([o["neighbors"] for o in observations])).long(),
+        torch.as_tensor([int(o["robot"]) for o in observations]),
+    )
 
 
 def expected_slot_rows(env: ExploreEnv) -> np.ndarray:
@@ -93,8 +95,10 @@ def test_slot_rows_are_the_robots_lattice_neighbours(walks):
         assert ((rows >= 0).sum(axis=1) - 1).max() >= 4  # the walk saw well-connected nodes
     # With 6 rows, some allowed moves lead to nodes beyond the rows: those slots have none.
     assert any((rows < 0)[obs["action_mask"].astype(bool)].any() for obs, rows in walks[1])
-    assert all(np.array_equal(rows >= 0, obs["action_mask"].astype(bool) | (np.arange(SLOTS) == STAY_SLOT))
-               for obs, rows in walks[0])  # with 32 rows, every allowed move has its node
+    assert all(
+        np.array_equal(rows >= 0, obs["action_mask"].astype(bool) | (np.arange(SLOTS) == STAY_SLOT))
+        for obs, rows in walks[0]
+    )  # with 32 rows, every allowed move has its node
 
 
 def test_slots_without_a_node_get_the_masked_logit(walk):
@@ -140,8 +144,9 @@ def test_predict_action_is_the_best_allowed_slot(walk):
             assert nodeless[policy.predict_action(obs, nodeless)]
 
 
-@pytest.mark.parametrize("mask", [np.zeros(SLOTS, dtype=bool), np.ones(SLOTS - 1, dtype=bool),
-                                  np.ones((5, 5), dtype=bool)])
+@pytest.mark.parametrize(
+    "mask", [np.zeros(SLOTS, dtype=bool), np.ones(SLOTS - 1, dtype=bool), np.ones((5, 5), dtype=bool)]
+)
 def test_predict_action_refuses_an_empty_or_misshapen_mask(walk, mask):
     with pytest.raises(ValueError, match="action_mask must be 25 flags with at least one set"):
         tiny_policy().predict_action(walk[0][0], mask)
@@ -205,19 +210,25 @@ def test_loading_something_else_fails_in_one_line(tmp_path):
         load_drl_policy(tmp_path / "missing.pt")
 
 
-@pytest.mark.parametrize(("values", "message"), [
-    ({"d_model": 16, "heads": 3}, "model: heads (3) must divide d_model (16)"),
-    ({"guidepost_prior": -1.0}, "model.guidepost_prior: must be a finite number >= 0, got -1.0"),
-    ({"guidepost_prior": float("nan")}, "model.guidepost_prior: must be a finite number >= 0, got nan"),
-    ({"guidepost_prior": float("inf")}, "model.guidepost_prior: must be a finite number >= 0, got inf"),
-    ({"max_nodes": 0}, "model.max_nodes: must be a whole number >= 1, got 0"),
-    ({"encoder_layers": 1.5}, "model.encoder_layers: must be a whole number >= 1, got 1.5"),
-    ({"d_model": True}, "model.d_model: must be a whole number >= 1, got True"),
-    ({"logit_clip": 0}, "model.logit_clip: must be a finite number > 0, got 0"),
-    ({"window_scale": "10"}, "model.window_scale: must be a finite number > 0, got '10'"),
-    ({"layers": 2}, "model.layers: unknown setting (known: feature_dim, max_nodes, max_neighbors, d_model, heads, "
-                    "encoder_layers, window_scale, logit_clip, guidepost_prior), got 2"),
-])
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"d_model": 16, "heads": 3}, "model: heads (3) must divide d_model (16)"),
+        ({"guidepost_prior": -1.0}, "model.guidepost_prior: must be a finite number >= 0, got -1.0"),
+        ({"guidepost_prior": float("nan")}, "model.guidepost_prior: must be a finite number >= 0, got nan"),
+        ({"guidepost_prior": float("inf")}, "model.guidepost_prior: must be a finite number >= 0, got inf"),
+        ({"max_nodes": 0}, "model.max_nodes: must be a whole number >= 1, got 0"),
+        ({"encoder_layers": 1.5}, "model.encoder_layers: must be a whole number >= 1, got 1.5"),
+        ({"d_model": True}, "model.d_model: must be a whole number >= 1, got True"),
+        ({"logit_clip": 0}, "model.logit_clip: must be a finite number > 0, got 0"),
+        ({"window_scale": "10"}, "model.window_scale: must be a finite number > 0, got '10'"),
+        (
+            {"layers": 2},
+            "model.layers: unknown setting (known: feature_dim, max_nodes, max_neighbors, d_model, heads, "
+            "encoder_layers, window_scale, logit_clip, guidepost_prior), got 2",
+        ),
+    ],
+)
 def test_config_refuses_bad_values(values, message):
     """One line naming the key and what it must be."""
     with pytest.raises(ValueError) as refused:

@@ -74,10 +74,7 @@ def test_probability_and_threshold():
 
 def test_a_hidden_layer_computes_relu_then_sigmoid():
     # hidden unit 0 = relu(log1p(open) - log1p(9)), unit 1 = relu(-log1p(open)); output = 2 * unit 0 - unit 1
-    gate = SliverGate((
-        (((1.0, -1.0), (0.0, 0.0), (0.0, 0.0)), (-np.log1p(9.0), 0.0)),
-        (((2.0,), (-1.0,)), (0.0,)),
-    ))
+    gate = SliverGate(((((1.0, -1.0), (0.0, 0.0), (0.0, 0.0)), (-np.log1p(9.0), 0.0)), (((2.0,), (-1.0,)), (0.0,))))
     p = gate.probability(np.array([[0.0, 5, 5], [99.0, 5, 5]]))
     assert p[0] == pytest.approx(0.5)  # both units are 0 at no open unknown
     assert p[1] == pytest.approx(1 / (1 + np.exp(-2 * (np.log1p(99.0) - np.log1p(9.0)))))
@@ -91,7 +88,7 @@ def test_fit_learns_the_share_of_open_unknown():
     gains = np.where(share > 0.5, 200, 10) + rng.integers(0, 5, 4000)
     labels = gains >= 50
     gate = fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0)
-    (coef, _), = gate.layers
+    ((coef, _),) = gate.layers
     assert coef[0][0] > 0 > coef[1][0]  # open unknown counts for big, all unknown against
     for fitted in (gate, fit_sliver_gate(counts, gains, min_gain=50, wall_margin=2, range_cells=50.0, hidden=(8,))):
         assert ((fitted.probability(counts) >= 0.5) == labels).mean() > 0.9
@@ -110,14 +107,21 @@ def test_a_fit_on_drawn_samples_is_the_fit_on_that_subset():
     gains = np.where(share > 0.5, 200, 10)
     settings = dict(min_gain=50, wall_margin=2, range_cells=50.0, seed=3)
     drawn = np.sort(np.random.default_rng(3).choice(3000, 500, replace=False))
-    assert fit_sliver_gate(counts, gains, max_samples=500, **settings) == fit_sliver_gate(counts[drawn], gains[drawn], **settings)
+    assert fit_sliver_gate(counts, gains, max_samples=500, **settings) == fit_sliver_gate(
+        counts[drawn], gains[drawn], **settings
+    )
     assert fit_sliver_gate(counts, gains, max_samples=500, **settings) != fit_sliver_gate(counts, gains, **settings)
     assert fit_sliver_gate(counts, gains, max_samples=5000, **settings) == fit_sliver_gate(counts, gains, **settings)
 
 
 def test_file_round_trip_and_clear_errors(tmp_path):
-    gate = SliverGate(((((1.0, -2.0),) * 3, (0.5, 0.0)), (((1.5,), (-1.0,)), (-0.25,))),
-                      threshold=0.6, wall_margin=3, min_gain=40, range_cells=25.0)
+    gate = SliverGate(
+        ((((1.0, -2.0),) * 3, (0.5, 0.0)), (((1.5,), (-1.0,)), (-0.25,))),
+        threshold=0.6,
+        wall_margin=3,
+        min_gain=40,
+        range_cells=25.0,
+    )
     path = save_gate(gate, tmp_path / "g" / "gate.json", {"cell_size": 0.4}, samples=12)
     loaded, protocol = load_gate(path)
     assert loaded == gate and protocol == {"cell_size": 0.4}
@@ -143,4 +147,7 @@ def test_a_map_at_twice_the_resolution_is_gated_alike():
     gate, _ = load_gate(SHIPPED_GATE)
     fine = np.kron(corridor_belief(), np.ones((2, 2), dtype=np.uint8))  # every cell split in four
     cells = np.array([OPEN_END, NOTCH])
-    assert gate.passes(fine, 2 * cells, 2 * RANGE_CELLS).tolist() == gate.passes(corridor_belief(), cells, RANGE_CELLS).tolist()
+    assert (
+        gate.passes(fine, 2 * cells, 2 * RANGE_CELLS).tolist()
+        == gate.passes(corridor_belief(), cells, RANGE_CELLS).tolist()
+    )

@@ -16,7 +16,9 @@ PROTOCOL = replace(PAPER_REAL_ROBOT, done_unknown_cells=5, max_steps=200)
 def corridor(rows: int, cols: int) -> GroundTruthMap:
     """A free corridor of rows x cols cells of 0.2 m (the 1 m lattice: one node every 5 cells)."""
     start = (min(2, cols // 2), min(2, rows // 2))
-    return GroundTruthMap(free=np.ones((rows, cols), bool), start_cell=start, cell_size=0.2, name=f"corridor_{rows}x{cols}")
+    return GroundTruthMap(
+        free=np.ones((rows, cols), bool), start_cell=start, cell_size=0.2, name=f"corridor_{rows}x{cols}"
+    )
 
 
 @pytest.mark.parametrize("shape", [(3, 120), (7, 120), (120, 3)], ids=["one_row", "two_rows", "one_column"])

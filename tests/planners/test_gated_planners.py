@@ -12,21 +12,32 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
 
 
-@pytest.mark.parametrize(("name", "gated"), [("greedy_utility", False), ("nearest_frontier", False),
-                                             ("guide_tsp", True), ("guide", True), ("guide_noregion", True),
-                                             ("dare", False)])
+@pytest.mark.parametrize(
+    ("name", "gated"),
+    [
+        ("greedy_utility", False),
+        ("nearest_frontier", False),
+        ("guide_tsp", True),
+        ("guide", True),
+        ("guide_noregion", True),
+        ("dare", False),
+    ],
+)
 def test_which_planners_gate_by_default(name, gated):
     assert (make_planner(name).gate is not None) == gated
     assert (make_planner(name, sliver_gate=not gated).gate is not None) == (not gated)  # the option overrides
-    assert ("sliver gate" in make_planner(name, sliver_gate=True).description)  # run.json says which gate ran
+    assert "sliver gate" in make_planner(name, sliver_gate=True).description  # run.json says which gate ran
 
 
 def test_the_gate_keeps_a_subset_and_falls_back_when_it_passes_nothing(small_maze, tmp_path):
     protocol = Protocol()
     plain = make_planner("greedy_utility")
     gated = make_planner("greedy_utility", sliver_gate=True)
-    nothing = make_planner("greedy_utility", sliver_gate=True, gate_file=str(save_gate(
-        SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json")))
+    nothing = make_planner(
+        "greedy_utility",
+        sliver_gate=True,
+        gate_file=str(save_gate(SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json")),
+    )
     observation = Episode(small_maze, protocol).observe()  # the first scan
     for planner in (plain, gated, nothing):
         planner.reset(small_maze, protocol, 0)
@@ -47,8 +58,11 @@ def test_the_gate_falls_back_when_every_node_it_passes_is_unreachable(small_maze
     """A gate that passes only nodes the robot cannot reach must not leave it without a target
     (it did on an office-like map: the episode ended with reachable frontier left)."""
     protocol = Protocol()
-    always = make_planner("greedy_utility", sliver_gate=True, gate_file=str(save_gate(
-        SliverGate.logistic((0.0, 0.0, 0.0), 50.0), tmp_path / "always.json")))
+    always = make_planner(
+        "greedy_utility",
+        sliver_gate=True,
+        gate_file=str(save_gate(SliverGate.logistic((0.0, 0.0, 0.0), 50.0), tmp_path / "always.json")),
+    )
     always.reset(small_maze, protocol, 0)
     always.update_graph(Episode(small_maze, protocol).observe())
     everything = always.useful_nodes()
@@ -70,14 +84,18 @@ def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_
     protocol = Protocol()
     checked = kept = 0
     for path in sorted(generated_maze_dir.glob("*.png")):
-        planner = make_planner("greedy_utility", sliver_gate=True, gate_file=str(SHIPPED_GATE))  # no wrapper: plan is patched
+        planner = make_planner(
+            "greedy_utility", sliver_gate=True, gate_file=str(SHIPPED_GATE)
+        )  # no wrapper: plan is patched
         plan, judged_before = planner.plan, [np.zeros(0, dtype=bool)]
 
         def checked_plan(observation, planner=planner, plan=plan, judged_before=judged_before):
             nonlocal checked, kept
             waypoints = plan(observation)
             known = np.nonzero(planner._gate_known)[0]
-            fresh = planner.gate.passes(observation.belief, planner.graph.node_cells[known], protocol.sensor_range_cells)
+            fresh = planner.gate.passes(
+                observation.belief, planner.graph.node_cells[known], protocol.sensor_range_cells
+            )
             assert np.array_equal(planner._gate_big[known], fresh)
             if judged_before[0].size == planner._gate_known.size:
                 kept += int((judged_before[0] & planner._gate_known).sum())
@@ -98,8 +116,11 @@ def test_lazy_ranking_chooses_what_the_full_ranking_chooses(small_maze, tmp_path
     gated-greedy episode they must give `ranked_targets`' first target and its targets, also when
     the gate passes nothing and every useful node stays a target."""
     protocol = Protocol()
-    options = {} if gate == "fitted" else {"gate_file": str(save_gate(
-        SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json"))}
+    options = (
+        {}
+        if gate == "fitted"
+        else {"gate_file": str(save_gate(SliverGate.logistic((0.0, 0.0, 0.0), -50.0), tmp_path / "never.json"))}
+    )
     planner = make_planner("greedy_utility", sliver_gate=True, **options)
     lazy = make_planner("greedy_utility", sliver_gate=True, **options)  # judges only what the lazy rule asks for
     episode = Episode(small_maze, protocol)

@@ -59,7 +59,9 @@ def test_the_simulator_hands_the_ground_truth_to_oracles_only(small_maze):
         assert isinstance(spy.given, GroundTruthMap if oracle else MapFrame)
 
 
-@pytest.mark.parametrize("name", [n for n in planner_names() if not planner_config(n).uses_ground_truth and n not in HEAVY])
+@pytest.mark.parametrize(
+    "name", [n for n in planner_names() if not planner_config(n).uses_ground_truth and n not in HEAVY]
+)
 def test_a_planner_that_does_not_see_the_ground_truth_never_holds_it(name, small_maze):
     planner = make_planner(name)
     result = run_episode(small_maze, planner, PROTOCOL, seed=0)

@@ -33,8 +33,11 @@ def gate_files(tmp_path, monkeypatch):
     """The gate catalogue pointed at three files: the pipeline's (maze scale), the shipped maze one
     and the shipped real-robot one."""
     monkeypatch.chdir(tmp_path)
-    files = (_gate(tmp_path / "pipeline.json", Protocol(), 0.5), _gate(tmp_path / "maze.json", Protocol(), 0.6),
-             _gate(tmp_path / "real.json", REAL, 0.7))
+    files = (
+        _gate(tmp_path / "pipeline.json", Protocol(), 0.5),
+        _gate(tmp_path / "maze.json", Protocol(), 0.6),
+        _gate(tmp_path / "real.json", REAL, 0.7),
+    )
     monkeypatch.setitem(MODEL_FILES, "gate", (files[0], files[1:]))
     return files
 
@@ -79,7 +82,8 @@ def test_a_named_model_is_never_replaced_and_injected_objects_are_not_wrapped(ga
 
 
 def test_the_shipped_real_robot_models_are_picked_at_that_scale_and_the_maze_ones_at_the_benchmarks(
-        tmp_path, monkeypatch):
+    tmp_path, monkeypatch
+):
     monkeypatch.chdir(tmp_path)  # no models/ here: only the shipped sets
     for kind in ("inpainter", "policy_guide", "gate"):
         assert MODEL_FILES[kind][1][1].parent == REAL_ROBOT_ASSETS and MODEL_FILES[kind][1][1].is_file()
@@ -90,12 +94,16 @@ def test_the_shipped_real_robot_models_are_picked_at_that_scale_and_the_maze_one
     assert result.complete
     assert Path(planner.inner.config.policy_file) == REAL_ROBOT_ASSETS / "planner_guide.pt"
     assert Path(planner.inner.config.inpainter_file) == REAL_ROBOT_ASSETS / "inpainter.pt"
-    assert {Path(model) for model, _ in planner.trained_models} == {REAL_ROBOT_ASSETS / "planner_guide.pt",
-                                                                    REAL_ROBOT_ASSETS / "inpainter.pt"}
+    assert {Path(model) for model, _ in planner.trained_models} == {
+        REAL_ROBOT_ASSETS / "planner_guide.pt",
+        REAL_ROBOT_ASSETS / "inpainter.pt",
+    }
     planner.reset(_floor(), Protocol(cell_size=0.2), 0)
     assert planner.inner.config.policy_file is None  # the maze benchmark's protocol: the shipped maze models
-    assert {Path(model) for model, _ in planner.trained_models} == {defaults.SHIPPED_POLICY["guide"],
-                                                                    defaults.SHIPPED_INPAINTER}
+    assert {Path(model) for model, _ in planner.trained_models} == {
+        defaults.SHIPPED_POLICY["guide"],
+        defaults.SHIPPED_INPAINTER,
+    }
 
 
 def test_a_protocol_no_model_was_trained_at_still_warns(tmp_path, monkeypatch):

@@ -24,7 +24,12 @@ def test_the_example_planner_explores_a_maze(small_maze, small_maze_path, monkey
         sys.path.remove(str(ROOT / "examples"))
     result = run_episode(small_maze, make_planner("best_ratio"), Protocol(), seed=0)
     assert result.complete and result.motion_violations == 0
-    done = subprocess.run([sys.executable, str(ROOT / "examples" / "own_planner.py"), str(small_maze_path)],
-                          capture_output=True, text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "own_planner.py"), str(small_maze_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith("best_ratio: complete after ")

@@ -36,14 +36,23 @@ def test_every_registered_config_is_a_pydantic_config_dataclass(name):
             make_config(name, **{info.name: info.default})
 
 
-@pytest.mark.parametrize("spec, message", [
-    ("g=greedy_utility:min_utility=-1", "planner 'g': min_utility: must be a whole number >= 1, got -1"),
-    ("t=guide_tsp:exact_max=15", "planner 't': exact_max: must be a whole number in 1..14, got 15"),
-    ("o=optimal:time_limit_s=0", "planner 'o': time_limit_s: must be a finite number > 0, or null (no limit), got 0"),
-    ("x=nbvp:reuse_best_branch=yes", "planner 'x': option reuse_best_branch='yes' must be true or false"),
-    ("g=greedy_utility:gate_file=g.json", "planner 'g': gate_file is given but the sliver gate is off"),
-    ("b=oracle_tail:base=expert", "planner 'b': base: must be a lattice planner that does not see the ground truth"),
-])
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("g=greedy_utility:min_utility=-1", "planner 'g': min_utility: must be a whole number >= 1, got -1"),
+        ("t=guide_tsp:exact_max=15", "planner 't': exact_max: must be a whole number in 1..14, got 15"),
+        (
+            "o=optimal:time_limit_s=0",
+            "planner 'o': time_limit_s: must be a finite number > 0, or null (no limit), got 0",
+        ),
+        ("x=nbvp:reuse_best_branch=yes", "planner 'x': option reuse_best_branch='yes' must be true or false"),
+        ("g=greedy_utility:gate_file=g.json", "planner 'g': gate_file is given but the sliver gate is off"),
+        (
+            "b=oracle_tail:base=expert",
+            "planner 'b': base: must be a lattice planner that does not see the ground truth",
+        ),
+    ],
+)
 def test_a_bad_option_in_a_spec_is_one_line_naming_it(spec, message):
     with pytest.raises(ValueError) as error:
         build_planner(resolve_planner_specs([spec])[0])
@@ -69,24 +78,27 @@ def test_a_direct_config_still_refuses_and_replace_checks_again():
     assert dataclasses.replace(config, min_cover=3).min_cover == 3
 
 
-@pytest.mark.parametrize("annotation, kinds", [
-    (whole(1), {"int"}),
-    (real(0.0), {"float"}),
-    (positive(), {"float"}),
-    (flag(), {"bool"}),
-    (text(), {"str"}),
-    (maybe(text(SAMPLERS)), {"str"}),
-    (maybe(whole(1), "the policy's own"), {"int"}),
-    (Optional[int], {"int"}),
-    (int | float, {"int", "float"}),
-    (Union[bool, str, None], {"bool", "str"}),
-    (Literal["a", "b"], {"str"}),
-    (Literal[True], {"bool"}),
-    (GlobalGraphConfig, None),
-    (pydantic.InstanceOf[GlobalGraphConfig], None),
-    (dict[str, str], None),
-    (Optional[GlobalGraphConfig], None),
-])
+@pytest.mark.parametrize(
+    "annotation, kinds",
+    [
+        (whole(1), {"int"}),
+        (real(0.0), {"float"}),
+        (positive(), {"float"}),
+        (flag(), {"bool"}),
+        (text(), {"str"}),
+        (maybe(text(SAMPLERS)), {"str"}),
+        (maybe(whole(1), "the policy's own"), {"int"}),
+        (Optional[int], {"int"}),
+        (int | float, {"int", "float"}),
+        (Union[bool, str, None], {"bool", "str"}),
+        (Literal["a", "b"], {"str"}),
+        (Literal[True], {"bool"}),
+        (GlobalGraphConfig, None),
+        (pydantic.InstanceOf[GlobalGraphConfig], None),
+        (dict[str, str], None),
+        (Optional[GlobalGraphConfig], None),
+    ],
+)
 def test_option_kinds_reads_the_annotation(annotation, kinds):
     assert option_kinds(annotation) == (None if kinds is None else frozenset(kinds))
 

@@ -21,8 +21,9 @@ from tests.conftest import SINGLE_NODES
 BENCHMARK = Protocol()
 # DARE's lattice at a quarter scale too: a 1 m lattice would otherwise take the door-aware graph,
 # which passes gaps the full-scale lattice does not (a scaled maze has none to pass).
-QUARTER = Protocol(cell_size=0.1, node_resolution=1.0, sensor_range=5.0, utility_range=2.5, region_size=5.0,
-                   door_graph=False)
+QUARTER = Protocol(
+    cell_size=0.1, node_resolution=1.0, sensor_range=5.0, utility_range=2.5, region_size=5.0, door_graph=False
+)
 INPAINTER = str(SHIPPED_INPAINTER)
 # The targets guide's policy votes on are set: their defaults depend on the scale a protocol names
 # (`pipeline.planners.protocol_defaults`), and this check is of the mechanics, not of the defaults.
@@ -36,10 +37,18 @@ PLANNERS = {
     "guide_tsp": {"inpainter_file": INPAINTER},
     "mapex": {"inpainter_file": INPAINTER},
     # Two denoising steps: scale invariance does not depend on K, and K = 30 triples the test's time.
-    "guide": {"policy_file": str(SHIPPED_POLICY["guide"]), "inpainter_file": INPAINTER, "num_inference_steps": 2,
-              **TARGETS},
-    "guide_noregion": {"policy_file": str(SHIPPED_POLICY["guide"]), "inpainter_file": INPAINTER,
-                       "num_inference_steps": 2, **TARGETS},
+    "guide": {
+        "policy_file": str(SHIPPED_POLICY["guide"]),
+        "inpainter_file": INPAINTER,
+        "num_inference_steps": 2,
+        **TARGETS,
+    },
+    "guide_noregion": {
+        "policy_file": str(SHIPPED_POLICY["guide"]),
+        "inpainter_file": INPAINTER,
+        "num_inference_steps": 2,
+        **TARGETS,
+    },
     "dare": {"policy_file": str(SHIPPED_POLICY["dare"]), "num_inference_steps": 2, **TARGETS},
 }
 

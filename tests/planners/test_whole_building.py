@@ -79,6 +79,7 @@ def test_a_robot_standing_on_a_frontier_cell_goes_on_to_the_next_not_done():
     belief[5:25, 35:40] = UNKNOWN  # far away: a second unknown region
     planner = make_planner("nearest_frontier")
     from pipeline.world.maps import MapFrame
+
     planner.reset(MapFrame(belief.shape, 0.2, (6, 14)), PAPER_REAL_ROBOT, 0)
     innermost(planner).plan = lambda observation: []  # its own rule finds nothing
     waypoints = planner.plan(Observation(belief=belief, position=(0.0, 0.0), cell=(6, 14), changed=None, step=0))

@@ -22,7 +22,9 @@ from tests.conftest import SMALL_MAZE
 def test_block_index_splits_cells_by_their_centres():
     blocks, grid = block_index((25, 30), 0.4, 5.0)  # 10 m x 12 m of 0.4 m cells: 2 x 3 blocks of 5 m
     assert grid == (2, 3) and blocks.shape == (25, 30)
-    assert np.array_equal(np.bincount(blocks[:, 0] // 3), [12, 13])  # a 12.5-cell block: the split cell's centre is at 5 m
+    assert np.array_equal(
+        np.bincount(blocks[:, 0] // 3), [12, 13]
+    )  # a 12.5-cell block: the split cell's centre is at 5 m
     assert blocks[0, 29] == 2 and blocks[24, 0] == 3 and blocks[24, 29] == 5
     with pytest.raises(ValueError, match="must be positive"):
         block_index((4, 4), 0.4, 0.0)

@@ -85,7 +85,9 @@ def test_region_scores_prefer_near_regions_with_frontiers():
 
 def test_global_graph_joins_predictions_without_crossing_known_obstacles(partial):
     ground_truth, episode, planner, graph = partial
-    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(graph)
+    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(
+        graph
+    )
     global_graph = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=1.0)))
     global_graph.update(episode.belief.grid, episode.position, predicted, planner.visited)
     types = np.bincount(global_graph.types, minlength=3)
@@ -104,10 +106,14 @@ def test_global_graph_joins_predictions_without_crossing_known_obstacles(partial
 
 def test_region_evaluation_trims_far_predictions(partial):
     ground_truth, episode, planner, graph = partial
-    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(graph)
+    predicted = NodePredictor(oracle_inpainter(graph, ground_truth.free), NodePredictorConfig(min_component=1)).predict(
+        graph
+    )
     everything = GlobalGraph(graph, GlobalGraphConfig(use_region_evaluation=False))
     everything.update(episode.belief.grid, episode.position, predicted)
-    filtered = GlobalGraph(graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=0.2, centroid_density=0.0)))
+    filtered = GlobalGraph(
+        graph, GlobalGraphConfig(region=RegionEvaluationConfig(keep_share=0.2, centroid_density=0.0))
+    )
     filtered.update(episode.belief.grid, episode.position, predicted)
     assert (filtered.types == PREDICTED).sum() < (everything.types == PREDICTED).sum()
     # With no density bar, every unobserved region whose predictions were all dropped stands in as one
@@ -152,8 +158,9 @@ def test_guidepost_leads_to_the_nearest_unvisited_useful_node(partial):
     order = global_graph.row_order(np.asarray(episode.position, dtype=np.float64))
     on_path = order[features[: len(order), 3] > 0]
     dist, _ = global_graph.shortest_paths(robot)
-    useful = np.nonzero(~global_graph.visited & np.isfinite(dist)
-                        & (global_graph.utility >= global_graph.config.guidepost_min_utility))[0]
+    useful = np.nonzero(
+        ~global_graph.visited & np.isfinite(dist) & (global_graph.utility >= global_graph.config.guidepost_min_utility)
+    )[0]
     target = useful[np.argmin(dist[useful])]
     assert global_graph.visited[robot] and target != robot
     assert robot in on_path and target in on_path and len(on_path) >= 2  # a path, not the robot's node alone

@@ -93,21 +93,45 @@ def test_parse_planner_spec_bad(text, message):
     "planners, error, message",
     [
         (["x=no_such_planner:a=1"], KeyError, "unknown planner"),
-        (["x=nearest_frontier:no_such_option=1"], ValueError, "has no option no_such_option; it accepts: min_utility, sliver_gate, gate_file$"),
-        (["x=guide:k=1"], ValueError, "guide has no option k; it accepts: .*num_inference_steps.*beta"),  # the tour options too
+        (
+            ["x=nearest_frontier:no_such_option=1"],
+            ValueError,
+            "has no option no_such_option; it accepts: min_utility, sliver_gate, gate_file$",
+        ),
+        (
+            ["x=guide:k=1"],
+            ValueError,
+            "guide has no option k; it accepts: .*num_inference_steps.*beta",
+        ),  # the tour options too
         (["x=guide:prior_weight=abc"], ValueError, "option prior_weight='abc' must be a number"),
         (["x=guide:num_inference_steps=2.5"], ValueError, "option num_inference_steps=2.5 must be an integer"),
-        (["x=guide:num_inference_steps=0"], ValueError, r"num_inference_steps: must be a whole number >= 1, or null \(the policy's own\), got 0"),
+        (
+            ["x=guide:num_inference_steps=0"],
+            ValueError,
+            r"num_inference_steps: must be a whole number >= 1, or null \(the policy's own\), got 0",
+        ),
         (["x=expert:replan_on_change=1"], ValueError, "replan_on_change=1 must be true or false"),
         (["x=guide_tsp:inpaint=zeros"], ValueError, "'inpaint' takes a Python object"),
         (["x=guide_tsp:spread=-1"], ValueError, "'x'.*spread: must be a finite number >= 0"),
-        (["x=guide_tsp:beta=null"], ValueError, "'x'.*beta: must be a finite number >= 0, got None"),  # null where none is meant
+        (
+            ["x=guide_tsp:beta=null"],
+            ValueError,
+            "'x'.*beta: must be a finite number >= 0, got None",
+        ),  # null where none is meant
         (["x=guide_tsp:spread=2:beta=3"], ValueError, "separated by ','"),  # a ':' where a ',' belongs
         (["nearest_frontier", "nearest_frontier=greedy_utility"], ValueError, "used twice"),
         # an oracle bound passes the options it does not take to its base planner, and only those
-        (["x=oracle_tail:base=nearest_frontier,beta=1"], ValueError, "oracle_tail has no option beta; it accepts: base, handover_cells, min_utility"),
+        (
+            ["x=oracle_tail:base=nearest_frontier,beta=1"],
+            ValueError,
+            "oracle_tail has no option beta; it accepts: base, handover_cells, min_utility",
+        ),
         (["x=oracle_gate:base=guide_tsp,beta=abc"], ValueError, "option beta='abc' must be a number"),
-        (["x=oracle_gate:base=no_such_planner"], ValueError, "base: must be a lattice planner .*unknown planner 'no_such_planner'"),
+        (
+            ["x=oracle_gate:base=no_such_planner"],
+            ValueError,
+            "base: must be a lattice planner .*unknown planner 'no_such_planner'",
+        ),
     ],
 )
 def test_run_benchmark_rejects_bad_variants_up_front(small_maze_path, tmp_path, planners, error, message):
@@ -152,8 +176,15 @@ def metrics_rows(planner: str, distances, complete=None, ms=None, p95=None) -> l
     p95 = p95 or [2.0] * n
     return [
         {
-            "map": f"maze_{i:04d}", "planner": planner, "distance_m": float(d), "steps": 10, "complete": c,
-            "explored_ratio": 1.0, "decision_ms_median": m, "decision_ms_p95": p, "seed": 0,
+            "map": f"maze_{i:04d}",
+            "planner": planner,
+            "distance_m": float(d),
+            "steps": 10,
+            "complete": c,
+            "explored_ratio": 1.0,
+            "decision_ms_median": m,
+            "decision_ms_p95": p,
+            "seed": 0,
         }
         for i, (d, c, m, p) in enumerate(zip(distances, complete, ms, p95))
     ]
@@ -181,12 +212,17 @@ def test_table2_gap_and_paper_columns(bench_frame):
     assert rows.loc["optimal", "gap_to_optimal"] == 0.0 and np.isnan(rows.loc["optimal", "paper_gap_pct"])
     assert rows.loc["nearest_frontier", "completion_rate"] == 0.5
     assert rows.loc["nearest_frontier", "gap_to_optimal"] == pytest.approx(0.4)
-    assert rows.loc["nearest_frontier", "paper_row"] == "—" and np.isnan(rows.loc["nearest_frontier", "paper_distance_m"])
+    assert rows.loc["nearest_frontier", "paper_row"] == "—" and np.isnan(
+        rows.loc["nearest_frontier", "paper_distance_m"]
+    )
     assert (rows.loc["guide_tsp", "paper_distance_m"], rows.loc["guide_tsp", "paper_source"]) == (580.0, "Table III")
     text = table2_markdown(table)
     assert "| guide | GUIDE | 2 | 115.0 +- 5.0 | +15.0 % | — | 100 % | 4.00 | 545 | 8.8 % |" in text
     assert "| nearest_frontier | — | 2 | 140.0 +- 10.0 | +40.0 % | — | 50 % | 1.00 | — | — |" in text
-    assert "| guide_tsp | w/o diffusion | 2 | 125.0 +- 0.0 | +25.0 % | — | 100 % | 1.00 | 580 (Table III) | 15.7 % |" in text
+    assert (
+        "| guide_tsp | w/o diffusion | 2 | 125.0 +- 0.0 | +25.0 % | — | 100 % | 1.00 | 580 (Table III) | 15.7 % |"
+        in text
+    )
     assert table2_markdown(bench_frame) == text  # a raw metrics frame works too
 
 
@@ -226,7 +262,10 @@ def test_table3_marks_missing_planners_not_run(bench_frame):
     rows = table.set_index("planner")
     assert list(table["status"]) == ["ok", "not run", "ok", "not run"]
     assert rows.loc["guide_tsp", "gap_to_optimal"] == pytest.approx(0.25)
-    assert (rows.loc["guide_noregion", "paper_row"], rows.loc["guide_noregion", "paper_distance_m"]) == ("w/o region evaluation", 561.0)
+    assert (rows.loc["guide_noregion", "paper_row"], rows.loc["guide_noregion", "paper_distance_m"]) == (
+        "w/o region evaluation",
+        561.0,
+    )
     assert rows.loc["dare", "paper_source"] == "Table II" and rows.loc["dare", "paper_distance_m"] == 565.0
     assert np.isnan(rows.loc["dare", "distance_mean_m"]) and rows.loc["dare", "episodes"] == 0
     text = table3_markdown(table)
@@ -260,8 +299,15 @@ def test_table4_from_sweep():
 
 def precision_frame() -> pd.DataFrame:
     return pd.DataFrame(
-        {"step": [15, 30], "precision": [0.8, 0.9], "predicted_nodes": [10, 20], "maps": [2, 2],
-         "prediction_ms_median": [5.0, 6.0], "centroids": [1, 0], "predictions_precision": [0.85, 0.9]}
+        {
+            "step": [15, 30],
+            "precision": [0.8, 0.9],
+            "predicted_nodes": [10, 20],
+            "maps": [2, 2],
+            "prediction_ms_median": [5.0, 6.0],
+            "centroids": [1, 0],
+            "predictions_precision": [0.85, 0.9],
+        }
     )
 
 
@@ -274,8 +320,15 @@ def test_table1_reads_a_precision_csv_from_before_the_centroid_columns():
 
 def test_table1_adds_another_inpainters_rows_when_compared():
     """precision_compare.csv: its rows after ours, each saying whether it reaches the paper's step."""
-    compare = pd.DataFrame({"step": [15, 30], "precision": [0.8, 0.7], "predicted_nodes": [10, 20], "maps": [2, 2],
-                            "prediction_ms_median": [3.0, 3.5]})
+    compare = pd.DataFrame(
+        {
+            "step": [15, 30],
+            "precision": [0.8, 0.7],
+            "predicted_nodes": [10, 20],
+            "maps": [2, 2],
+            "prediction_ms_median": [3.0, 3.5],
+        }
+    )
     text = table1_markdown(precision_frame(), compare)
     assert text.index("Table I: structural inference precision") < text.index(COMPARE_LABEL)
     assert "| 15 | 80.00 % | 75.92 % | yes | 5.0 | 3.00 |" in text
@@ -289,8 +342,15 @@ def test_report_markdown_has_every_table(bench_frame):
     t2, t3 = table2(bench_frame), table3(bench_frame)
     t4 = table4(pd.DataFrame(metrics_rows("guide_k10", [1.0])), [10])
     text = report_markdown(
-        t2, t3, t4, precision_frame(), maps=["maze_0000", "maze_0001"], sweep_maps=["maze_0000"],
-        protocol=Protocol(), params={"k_values": [10]}, figure="trajectories.png",
+        t2,
+        t3,
+        t4,
+        precision_frame(),
+        maps=["maze_0000", "maze_0001"],
+        sweep_maps=["maze_0000"],
+        protocol=Protocol(),
+        params={"k_values": [10]},
+        figure="trajectories.png",
     )
     for heading in ("## Table I", "## Table II", "## Table III", "## Table IV", "## Trajectories"):
         assert heading in text
@@ -301,18 +361,30 @@ def test_report_markdown_has_every_table(bench_frame):
 
 
 def test_the_team_table_has_a_row_per_planner_and_size_with_the_metrics_defined(bench_frame):
-    row = {"label": "greedy_utility", "robots": 3, "episodes": 12, "makespan_mean_m": 200.04, "makespan_std_m": 20.5,
-           "total_distance_mean_m": 580.0, "time_to_90_mean_m": 150.25, "makespan_over_single_distance": 0.4035,
-           "completion_rate": 1.0}
-    text = team_table_markdown({"greedy_utility@3": row, "greedy_utility@1": {
-        **row, "robots": 1, "makespan_over_single_distance": 1.0, "completion_rate": 0.5}}, "teams/team_coverage.png")
+    row = {
+        "label": "greedy_utility",
+        "robots": 3,
+        "episodes": 12,
+        "makespan_mean_m": 200.04,
+        "makespan_std_m": 20.5,
+        "total_distance_mean_m": 580.0,
+        "time_to_90_mean_m": 150.25,
+        "makespan_over_single_distance": 0.4035,
+        "completion_rate": 1.0,
+    }
+    text = team_table_markdown(
+        {
+            "greedy_utility@3": row,
+            "greedy_utility@1": {**row, "robots": 1, "makespan_over_single_distance": 1.0, "completion_rate": 0.5},
+        },
+        "teams/team_coverage.png",
+    )
     assert "| greedy_utility | 3 | 12 | 200.0 +- 20.5 | 580.0 | 150.2 | 0.40 | 100 % |" in text
     assert "| greedy_utility | 1 | 12 |" in text and "| 1.00 | 50 % |" in text
     assert "MARVEL" in text and "IR2" in text and "![team coverage](teams/team_coverage.png)" in text
     for none in (None, {}):
         assert "not run" in team_table_markdown(none).lower()
-    assert "## Teams" in report_markdown(table2(bench_frame), table3(bench_frame),
-                                                 teams={"greedy_utility@3": row})
+    assert "## Teams" in report_markdown(table2(bench_frame), table3(bench_frame), teams={"greedy_utility@3": row})
 
 
 def test_metrics_json_is_flat_numbers(bench_frame):
@@ -338,12 +410,13 @@ def test_log_tables_to_mlflow_one_experiment_per_table(bench_frame, mlflow_uri):
     }
     run_ids = log_tables_to_mlflow(tables, tracking_uri=mlflow_uri, params={"maps": "test"})
     assert {name: len(ids) for name, ids in run_ids.items()} == {
-        "table1_inference": 2, "table2_benchmark": 4, "table3_ablation": 4, "table4_denoising_steps": 2,
+        "table1_inference": 2,
+        "table2_benchmark": 4,
+        "table3_ablation": 4,
+        "table4_denoising_steps": 2,
     }
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
-    runs = client.search_runs(
-        [client.get_experiment_by_name("table4_denoising_steps").experiment_id]
-    )
+    runs = client.search_runs([client.get_experiment_by_name("table4_denoising_steps").experiment_id])
     by_name = {run.info.run_name: run for run in runs if run.info.run_id in run_ids["table4_denoising_steps"]}
     assert set(by_name) == {"guide_k10", "guide_k30"}
     assert by_name["guide_k30"].data.params == {"planner": "guide", "K": "30", "maps": "test"}
@@ -374,9 +447,14 @@ def report_workspace(small_maze_path, tmp_path, monkeypatch, mlflow_uri):
     params = {
         "protocol": {"max_steps": 500},
         "report": {
-            "k_values": [1, 2], "k_planners": ["nearest_frontier"], "k_option": "min_utility", "k_maps": 1,
-            "ablation_planners": ["guide", "nearest_frontier"], "figure_planners": ["optimal", "nearest_frontier"],
-            "workers": 1, "seed": 0,
+            "k_values": [1, 2],
+            "k_planners": ["nearest_frontier"],
+            "k_option": "min_utility",
+            "k_maps": 1,
+            "ablation_planners": ["guide", "nearest_frontier"],
+            "figure_planners": ["optimal", "nearest_frontier"],
+            "workers": 1,
+            "seed": 0,
         },
     }
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
@@ -391,7 +469,8 @@ def report_workspace(small_maze_path, tmp_path, monkeypatch, mlflow_uri):
         write_steps_csv(steps_path(path), rows)
         records[(planner, "small")] = step_record(rows)
     planner_table(episode_table(records, SpeedModel(2.0)), SpeedModel(2.0)).to_csv(
-        tmp_path / "reports/benchmark/exploration.csv", index=False)
+        tmp_path / "reports/benchmark/exploration.csv", index=False
+    )
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
     return tmp_path

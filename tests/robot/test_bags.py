@@ -48,8 +48,10 @@ def write_slam_bag(path: Path, maze, storage: StoragePlugin, maps: int = 6) -> l
     store = ros.typestore()
     positions = []
     with Writer(path, version=9, storage_plugin=storage) as writer:
-        topics = {name: writer.add_connection(name, kind, typestore=store) for name, kind in
-                  (("/map", "nav_msgs/msg/OccupancyGrid"), ("/tf", "tf2_msgs/msg/TFMessage"))}
+        topics = {
+            name: writer.add_connection(name, kind, typestore=store)
+            for name, kind in (("/map", "nav_msgs/msg/OccupancyGrid"), ("/tf", "tf2_msgs/msg/TFMessage"))
+        }
         goals = [(4.0, 0.0), (8.0, 0.0), (8.0, 4.0), (4.0, 4.0), (0.0, 4.0), (0.0, 0.0)]
         for index in range(maps):
             seconds = 1.0 + index
@@ -59,11 +61,20 @@ def write_slam_bag(path: Path, maze, storage: StoragePlugin, maps: int = 6) -> l
             c, s = math.cos(-drift[2]), math.sin(-drift[2])
             odom_xy = (c * ox - s * oy, s * ox + c * oy)
             for parent, child, (tx, ty, yaw) in (("map", "odom", drift), ("odom", "base_link", (*odom_xy, -drift[2]))):
-                writer.write(topics["/tf"], int((seconds - 0.01) * 1e9),
-                             store.serialize_cdr(ros.tf_message(tx, ty, yaw, seconds, parent, child), "tf2_msgs/msg/TFMessage"))
+                writer.write(
+                    topics["/tf"],
+                    int((seconds - 0.01) * 1e9),
+                    store.serialize_cdr(ros.tf_message(tx, ty, yaw, seconds, parent, child), "tf2_msgs/msg/TFMessage"),
+                )
             fields = slam_map(robot, 0.05, rng)
-            grid = ros.occupancy_grid(fields["data"], fields["width"], fields["height"], fields["resolution"],
-                                      (fields["x"], fields["y"]), seconds)
+            grid = ros.occupancy_grid(
+                fields["data"],
+                fields["width"],
+                fields["height"],
+                fields["resolution"],
+                (fields["x"], fields["y"]),
+                seconds,
+            )
             writer.write(topics["/map"], int(seconds * 1e9), store.serialize_cdr(grid, "nav_msgs/msg/OccupancyGrid"))
             positions.append(robot.xy)
             robot.drive(goals[index % len(goals)], 0.3, 2.0, rng)
@@ -78,7 +89,13 @@ def test_every_map_of_a_slam_bag_gets_a_plan_from_the_pose_tf_gives(storage, sma
     assert (result.maps, result.plans, result.waiting, result.skipped) == (6, 6, 0, 0), result
     topics = decoded(tmp_path / "out.mcap")
     assert {topic: len(messages) for topic, messages in topics.items()} == {
-        "/map": 6, "/tf": 6, "/guide/plan": 6, "/guide/waypoint": 6, "/guide/graph": 6, "/guide/decision": 6}
+        "/map": 6,
+        "/tf": 6,
+        "/guide/plan": 6,
+        "/guide/waypoint": 6,
+        "/guide/graph": 6,
+        "/guide/decision": 6,
+    }
     for tf, (x, y) in zip(topics["/tf"], positions):  # tf composed through the drifting odom frame
         pose = tf.transforms[0].transform.translation
         assert (pose.x, pose.y) == (pytest.approx(x, abs=1e-6), pytest.approx(y, abs=1e-6))
@@ -94,8 +111,21 @@ def test_every_map_of_a_slam_bag_gets_a_plan_from_the_pose_tf_gives(storage, sma
 
 def test_guide_explore_records_a_bag_that_guide_bag_plans_at_every_map(small_maze_path, tmp_path):
     recorded = tmp_path / "explore" / "run.mcap"
-    result = runner.invoke(app, ["explore", "--map", str(small_maze_path), "--planner", "greedy_utility",
-                                 "--out", str(tmp_path / "explore"), "--bag", str(recorded), "--no-progress"])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(small_maze_path),
+            "--planner",
+            "greedy_utility",
+            "--out",
+            str(tmp_path / "explore"),
+            "--bag",
+            str(recorded),
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 0, result.output
     topics = decoded(recorded)
     maps = len(topics["/map"])
@@ -104,8 +134,21 @@ def test_guide_explore_records_a_bag_that_guide_bag_plans_at_every_map(small_maz
     grid = topics["/map"][-1]
     assert grid.info.resolution == pytest.approx(0.4) and set(np.unique(grid.data)) <= {-1, 0, 100}
 
-    replayed = runner.invoke(app, ["bag", "--bag", str(recorded), "--out", str(tmp_path / "replay.mcap"),
-                                   "--planner", "guide2=guide:candidates=2", "--protocol", "maze", "--no-progress"])
+    replayed = runner.invoke(
+        app,
+        [
+            "bag",
+            "--bag",
+            str(recorded),
+            "--out",
+            str(tmp_path / "replay.mcap"),
+            "--planner",
+            "guide2=guide:candidates=2",
+            "--protocol",
+            "maze",
+            "--no-progress",
+        ],
+    )
     assert replayed.exit_code == 0, replayed.output
     assert f"{maps} maps, {maps} plans;" in replayed.output
     again = decoded(tmp_path / "replay.mcap")
@@ -118,10 +161,14 @@ def test_bad_bags_and_outputs_are_one_error_line(small_maze, tmp_path):
     cases = [
         (["--bag", str(tmp_path / "none"), "--out", str(tmp_path / "o.mcap")], "no such bag"),
         (["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.txt")], "ends in .mcap"),
-        (["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--map-topic", "/grid"],
-         "no /grid topic; it has: /map, /tf"),
-        (["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--map-topic", "/tf"],
-         "/tf holds tf2_msgs/msg/TFMessage, not nav_msgs/msg/OccupancyGrid"),
+        (
+            ["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--map-topic", "/grid"],
+            "no /grid topic; it has: /map, /tf",
+        ),
+        (
+            ["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--map-topic", "/tf"],
+            "/tf holds tf2_msgs/msg/TFMessage, not nav_msgs/msg/OccupancyGrid",
+        ),
         (["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--protocol", "moon"], "--protocol"),
         (["--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--planner", "nope"], "nope"),
     ]
@@ -129,9 +176,23 @@ def test_bad_bags_and_outputs_are_one_error_line(small_maze, tmp_path):
         result = runner.invoke(app, ["bag", "--no-progress", *arguments])
         assert result.exit_code == 2, (arguments, result.output)
         assert message in result.output and "Traceback" not in result.output, result.output
-    result = runner.invoke(app, ["bag", "--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"),
-                                 "--planner", "greedy_utility", "--protocol", "maze", "--base-frame", "gripper",
-                                 "--no-progress"])
+    result = runner.invoke(
+        app,
+        [
+            "bag",
+            "--bag",
+            str(tmp_path / "bag"),
+            "--out",
+            str(tmp_path / "o.mcap"),
+            "--planner",
+            "greedy_utility",
+            "--protocol",
+            "maze",
+            "--base-frame",
+            "gripper",
+            "--no-progress",
+        ],
+    )
     assert result.exit_code == 1 and "--base-frame" in result.output, result.output
 
 
@@ -150,12 +211,39 @@ def test_a_bag_saves_its_final_map_which_plans_import_takes(small_maze, tmp_path
     from pipeline.world.maps import load_map
 
     write_slam_bag(tmp_path / "bag", small_maze, StoragePlugin.SQLITE3, maps=4)
-    result = runner.invoke(app, ["bag", "--bag", str(tmp_path / "bag"), "--out", str(tmp_path / "o.mcap"), "--planner",
-                                 "greedy_utility", "--protocol", "maze", "--no-progress", "--save-map", str(tmp_path / "saved")])
+    result = runner.invoke(
+        app,
+        [
+            "bag",
+            "--bag",
+            str(tmp_path / "bag"),
+            "--out",
+            str(tmp_path / "o.mcap"),
+            "--planner",
+            "greedy_utility",
+            "--protocol",
+            "maze",
+            "--no-progress",
+            "--save-map",
+            str(tmp_path / "saved"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert f"wrote {tmp_path / 'saved' / 'map.yaml'}" in result.output
-    imported = runner.invoke(app, ["plans", "import", str(tmp_path / "saved" / "map.yaml"), "--out", str(tmp_path / "plans"),
-                                   "--cell-size", "0.4", "--licence", "our lab's own run"])
+    imported = runner.invoke(
+        app,
+        [
+            "plans",
+            "import",
+            str(tmp_path / "saved" / "map.yaml"),
+            "--out",
+            str(tmp_path / "plans"),
+            "--cell-size",
+            "0.4",
+            "--licence",
+            "our lab's own run",
+        ],
+    )
     assert imported.exit_code == 0, imported.output
     plan = load_map(tmp_path / "plans" / "map.yaml")
     assert plan.cell_size == pytest.approx(0.4) and 0 < plan.free_cell_count <= small_maze.free_cell_count

@@ -29,7 +29,9 @@ def test_exploration_completes_through_cdr_maps_noisy_poses_and_failing_goals(pl
 @pytest.mark.parametrize("planner", ["greedy_utility", "guide"])
 def test_the_session_explores_the_room_behind_a_door_the_lattice_misses(planner):
     """Real-robot protocol: the session says done only when all it can reach is seen."""
-    session = ExplorationSession(planner, "real_robot", planner_options={"candidates": 2} if planner == "guide" else None)
+    session = ExplorationSession(
+        planner, "real_robot", planner_options={"candidates": 2} if planner == "guide" else None
+    )
     result = run_closed_loop(two_rooms(), session, ClosedLoopConfig(fail_every=0, max_decisions=400), seed=1)
     assert result.done and not result.early_stop and result.reachable_share >= 0.97, result
 
@@ -56,7 +58,14 @@ def test_the_edge_of_the_ground_truth_reads_as_a_wall_beside_free_cells_only():
 
 
 def test_a_map_survives_cdr_with_rosbags_types():
-    fields = {"data": np.array([0, -1, 100, 42], np.int8), "width": 2, "height": 2, "resolution": 0.05, "x": 1.5, "y": -2.0}
+    fields = {
+        "data": np.array([0, -1, 100, 42], np.int8),
+        "width": 2,
+        "height": 2,
+        "resolution": 0.05,
+        "x": 1.5,
+        "y": -2.0,
+    }
     msg = as_ros_message(fields, 12.25)
     assert type(msg).__msgtype__ == "nav_msgs/msg/OccupancyGrid" and msg.header.frame_id == "map"
     grid = read_grid(msg)

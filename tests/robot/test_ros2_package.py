@@ -38,14 +38,18 @@ def test_the_manifest_declares_every_ros_package_the_node_and_launch_file_import
     assert manifest.findtext("name") == "guide_ros"
     assert manifest.find("export/build_type").text == "ament_python"
     declared = {element.text for element in manifest.findall("exec_depend")}
-    used = imported_packages(PACKAGE / "guide_ros" / "explorer.py") | imported_packages(PACKAGE / "launch" / "explore.launch.py")
+    used = imported_packages(PACKAGE / "guide_ros" / "explorer.py") | imported_packages(
+        PACKAGE / "launch" / "explore.launch.py"
+    )
     assert used <= declared, used - declared
 
 
 def test_the_console_script_names_the_nodes_main():
     setup = (PACKAGE / "setup.py").read_text()
     assert "explorer = {PACKAGE}.explorer:main" in setup and (PACKAGE / "resource" / "guide_ros").exists()
-    functions = {node.name for node in parsed(PACKAGE / "guide_ros" / "explorer.py").body if isinstance(node, ast.FunctionDef)}
+    functions = {
+        node.name for node in parsed(PACKAGE / "guide_ros" / "explorer.py").body if isinstance(node, ast.FunctionDef)
+    }
     assert "main" in functions
     parsed(PACKAGE / "launch" / "explore.launch.py")
 
@@ -72,8 +76,12 @@ def test_the_configured_planner_and_protocol_make_a_session():
 
     config = yaml.safe_load((PACKAGE / "config" / "guide.yaml").read_text())["guide_explorer"]["ros__parameters"]
     (spec,) = resolve_planner_specs([config["planner"]])
-    session = ExplorationSession(build_planner(spec), config["protocol"], seed=config["seed"],
-                                 goal_tolerance_m=config["goal_tolerance_m"],
-                                 replan_changed_cells=config["replan_changed_cells"],
-                                 replan_after_s=config["replan_after_s"])
+    session = ExplorationSession(
+        build_planner(spec),
+        config["protocol"],
+        seed=config["seed"],
+        goal_tolerance_m=config["goal_tolerance_m"],
+        replan_changed_cells=config["replan_changed_cells"],
+        replan_after_s=config["replan_after_s"],
+    )
     assert session.protocol.node_resolution == 1.0

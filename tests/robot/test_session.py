@@ -27,10 +27,9 @@ def occupancy_message(episode: Episode, rng=None) -> GridMessage:
 def test_a_cell_is_free_only_where_every_finer_cell_is_and_occupied_where_any_is():
     canvas = Canvas(cell_size=0.4, step_cells=10, anchor=(0.2, 0.2))
     canvas.cover((0.0, 0.0, 0.8, 0.4))
-    values = np.array([[0, 0, 0, 0, 0, 0, 0, 0],
-                       [0, 0, 0, 0, 0, -1, 0, 0],
-                       [0, 0, 0, 0, 0, 0, 0, 90],
-                       [0, 0, 0, 0, 0, 0, 0, 0]])  # 0.1 m cells: two 0.4 m cells side by side
+    values = np.array(
+        [[0, 0, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, -1, 0, 0], [0, 0, 0, 0, 0, 0, 0, 90], [0, 0, 0, 0, 0, 0, 0, 0]]
+    )  # 0.1 m cells: two 0.4 m cells side by side
     grid = read_grid(GridMessage(values.reshape(-1).tolist(), 8, 4, 0.1, 0.0, 0.0))
     canvas.paint(grid)
     first, second = canvas.to_cell(0.2, 0.2), canvas.to_cell(0.6, 0.2)

@@ -22,8 +22,15 @@ from pipeline.world.protocol import Protocol
 from stages import build_observations
 
 SHIPPED_INPAINTER = ROOT / "pipeline/assets/inpainter.pt"
-SECTION = dict(max_nodes=64, max_neighbors=16, threshold=0.5, count_threshold=0.5, min_component=3,
-               inpainter=str(SHIPPED_INPAINTER), workers=1)
+SECTION = dict(
+    max_nodes=64,
+    max_neighbors=16,
+    threshold=0.5,
+    count_threshold=0.5,
+    min_component=3,
+    inpainter=str(SHIPPED_INPAINTER),
+    workers=1,
+)
 PREDICTED = FEATURE_NAMES.index("is_predicted")
 
 
@@ -32,16 +39,23 @@ def stage_folder(root: Path, expert_dir: Path | None, section: dict[str, Any]) -
     (root / "data").mkdir(parents=True)
     if expert_dir is not None:
         (root / "data/expert").symlink_to(expert_dir, target_is_directory=True)
-    (root / "params.yaml").write_text(yaml.safe_dump({"protocol": {}, "collect_expert": {"ignored": True},
-                                                      "build_observations": section}))
+    (root / "params.yaml").write_text(
+        yaml.safe_dump({"protocol": {}, "collect_expert": {"ignored": True}, "build_observations": section})
+    )
 
 
 @pytest.fixture(scope="module")
 def expert_dir(expert_shard_dir, generated_maze_dir, tmp_path_factory) -> Path:
     """Expert shards of 2 and 1 episodes: episode ids must count on across shards of unequal size."""
     directory = tmp_path_factory.mktemp("expert_2_1")
-    config = ExpertConfig(maps=tuple(str(p) for p in list_maps(generated_maze_dir)), episodes_per_shard=2,
-                          planner="expert", horizon=8, seed=4, random_starts=True)
+    config = ExpertConfig(
+        maps=tuple(str(p) for p in list_maps(generated_maze_dir)),
+        episodes_per_shard=2,
+        planner="expert",
+        horizon=8,
+        seed=4,
+        random_starts=True,
+    )
     two = tmp_path_factory.mktemp("expert_two")
     run_shards(collect_expert_shard, 1, two, {"config": config}, progress=False)
     shutil.copy(shard_path(two, 0), shard_path(directory, 0))
@@ -74,8 +88,15 @@ def test_every_expert_step_becomes_one_padded_observation(built, episodes, varia
     """Rows follow the episodes step by step, so T_o histories and action chunks line up with the expert."""
     root, _ = built
     arrays, meta = load_observations(root / f"data/observations/{variant}.npz")
-    assert meta == {"variant": variant, "max_nodes": 64, "max_neighbors": 16, "threshold": 0.5, "min_component": 3,
-                    "count_threshold": 0.5, "protocol": Protocol().to_dict()}  # the policy export carries it on
+    assert meta == {
+        "variant": variant,
+        "max_nodes": 64,
+        "max_neighbors": 16,
+        "threshold": 0.5,
+        "min_component": 3,
+        "count_threshold": 0.5,
+        "protocol": Protocol().to_dict(),
+    }  # the policy export carries it on
     lengths = [len(e.positions) for e in episodes]
     total = sum(lengths)
     assert np.array_equal(arrays["episode"], np.repeat(np.arange(len(episodes)), lengths))
@@ -118,7 +139,9 @@ def test_summary_reports_the_written_observations(built, episodes):
         assert summary[variant] == {
             "samples": sum(len(e.positions) for e in episodes),
             "nodes_median": float(np.median(mask.sum(axis=1))),
-            "predicted_nodes_median": float(np.median(arrays["features"][..., PREDICTED].astype(np.float32).sum(axis=1))),
+            "predicted_nodes_median": float(
+                np.median(arrays["features"][..., PREDICTED].astype(np.float32).sum(axis=1))
+            ),
             "truncated_share": float(mask.all(axis=1).mean()),
         }
 
@@ -130,16 +153,26 @@ def test_rerun_is_byte_identical_and_the_threshold_changes_only_guide(built, exp
     stage_folder(tmp_path, expert_dir, SECTION)
     build_observations.main("params.yaml")
     for variant in ("guide", "dare"):
-        assert (tmp_path / f"data/observations/{variant}.npz").read_bytes() == (root / f"data/observations/{variant}.npz").read_bytes()
+        assert (tmp_path / f"data/observations/{variant}.npz").read_bytes() == (
+            root / f"data/observations/{variant}.npz"
+        ).read_bytes()
 
     stage_folder(tmp_path / "strict", expert_dir, {**SECTION, "threshold": 0.9})
     monkeypatch.chdir(tmp_path / "strict")
     build_observations.main("params.yaml")
-    loaded = {name: {variant: load_observations(folder / f"data/observations/{variant}.npz")[0] for variant in ("guide", "dare")}
-              for name, folder in (("tau 0.5", root), ("tau 0.9", tmp_path / "strict"))}
-    predicted = {name: int(sets["guide"]["features"][..., PREDICTED].astype(np.float32).sum()) for name, sets in loaded.items()}
+    loaded = {
+        name: {
+            variant: load_observations(folder / f"data/observations/{variant}.npz")[0] for variant in ("guide", "dare")
+        }
+        for name, folder in (("tau 0.5", root), ("tau 0.9", tmp_path / "strict"))
+    }
+    predicted = {
+        name: int(sets["guide"]["features"][..., PREDICTED].astype(np.float32).sum()) for name, sets in loaded.items()
+    }
     assert predicted["tau 0.9"] < predicted["tau 0.5"]  # a stricter tau keeps fewer predicted nodes
-    assert all(np.array_equal(loaded["tau 0.5"]["dare"][k], loaded["tau 0.9"]["dare"][k]) for k in loaded["tau 0.5"]["dare"])
+    assert all(
+        np.array_equal(loaded["tau 0.5"]["dare"][k], loaded["tau 0.9"]["dare"][k]) for k in loaded["tau 0.5"]["dare"]
+    )
 
 
 def test_count_threshold_changes_the_utilities_not_the_graph_nodes(built, expert_dir, tmp_path, monkeypatch):
@@ -159,13 +192,19 @@ def test_count_threshold_changes_the_utilities_not_the_graph_nodes(built, expert
 
 
 def test_stage_stops_with_a_hint_when_an_input_is_missing(expert_shard_dir, tmp_path, monkeypatch):
-    stage_folder(tmp_path / "no_inpainter", expert_shard_dir, {**SECTION, "inpainter": None})  # default: models/inpainter
+    stage_folder(
+        tmp_path / "no_inpainter", expert_shard_dir, {**SECTION, "inpainter": None}
+    )  # default: models/inpainter
     monkeypatch.chdir(tmp_path / "no_inpainter")
-    with pytest.raises(SystemExit, match=r"models/inpainter/inpainter.pt: no inpainter export; run the train_inpainter"):
+    with pytest.raises(
+        SystemExit, match=r"models/inpainter/inpainter.pt: no inpainter export; run the train_inpainter"
+    ):
         build_observations.main()
     stage_folder(tmp_path / "no_shards", None, SECTION)
     monkeypatch.chdir(tmp_path / "no_shards")
-    with pytest.raises(SystemExit, match="data/expert: no finished expert data set .*run the collect_expert stage first"):
+    with pytest.raises(
+        SystemExit, match="data/expert: no finished expert data set .*run the collect_expert stage first"
+    ):
         build_observations.main()
     unfinished = tmp_path / "unfinished_collection"  # shards but no manifest: a collection that never finished
     unfinished.mkdir()

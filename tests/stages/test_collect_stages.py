@@ -20,10 +20,25 @@ from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import LATTICE_TOLERANCE_M
 from stages import collect_expert, collect_pairs
 
-PAIRS = dict(seed=5, pairs=6, pairs_per_shard=3, planners=["nearest_frontier", "greedy_utility"], snapshot_every=2,
-             stop_steps=[3, 12], workers=1)
-EXPERT = dict(seed=12, episodes=2, episodes_per_shard=1, planner="expert", planner_options={"time_limit_s": 20}, horizon=4,
-              random_starts=True, workers=1)
+PAIRS = dict(
+    seed=5,
+    pairs=6,
+    pairs_per_shard=3,
+    planners=["nearest_frontier", "greedy_utility"],
+    snapshot_every=2,
+    stop_steps=[3, 12],
+    workers=1,
+)
+EXPERT = dict(
+    seed=12,
+    episodes=2,
+    episodes_per_shard=1,
+    planner="expert",
+    planner_options={"time_limit_s": 20},
+    horizon=4,
+    random_starts=True,
+    workers=1,
+)
 
 
 def stage_folder(root: Path, maze_dir: Path | None, params: dict[str, Any]) -> None:
@@ -67,7 +82,9 @@ def test_pairs_stage_writes_shards_manifest_summary_and_preview(generated_maze_d
         observed, target, valid = group["observed"], group["target"], group["valid"]
         assert observed.shape[1:] == target.shape[1:] == valid.shape[1:] == (size, size) and valid.dtype == bool
         assert set(np.unique(observed)) <= {0, 128, 255} and set(np.unique(target)) <= {0, 255}
-        assert (observed[~valid] == 0).all() and (target[~valid] == 0).all()  # padding: obstacle in (the map ends), no loss out
+        assert (observed[~valid] == 0).all() and (
+            target[~valid] == 0
+        ).all()  # padding: obstacle in (the map ends), no loss out
         assert (target[observed == 255] == 255).all()  # what was seen free is free in the ground truth
         assert ((observed == 128) & valid).any()  # rollouts stop early: part of each maze is still unknown
 
@@ -84,7 +101,9 @@ def test_pairs_stage_writes_shards_manifest_summary_and_preview(generated_maze_d
     assert preview.shape == (sum(6 * s + 8 for s in rows), max(6 * (2 * s + 2) + 8 for s in rows), 3)
 
 
-def test_pairs_stage_rerun_reuses_its_shards_and_drops_those_no_longer_asked_for(generated_maze_dir, tmp_path, monkeypatch):
+def test_pairs_stage_rerun_reuses_its_shards_and_drops_those_no_longer_asked_for(
+    generated_maze_dir, tmp_path, monkeypatch
+):
     """A resumed `dvc repro` must not redo finished shards, nor change a byte DVC has hashed."""
     monkeypatch.chdir(tmp_path)
     stage_folder(tmp_path, generated_maze_dir, {"collect_pairs": PAIRS})
@@ -137,7 +156,9 @@ def test_expert_stage_stores_lattice_episodes_and_a_matching_summary(generated_m
         assert np.array_equal(episode.future_waypoints[-1], np.repeat(positions[-1:], 4, axis=0))
 
     summary = json.loads((tmp_path / "reports/expert_summary.json").read_text())
-    assert summary["episodes"] == 2 and summary["steps"] == totals["steps"] and summary["complete"] == totals["complete"]
+    assert (
+        summary["episodes"] == 2 and summary["steps"] == totals["steps"] and summary["complete"] == totals["complete"]
+    )
     assert summary["bytes"] == sum(shard_path(out_dir, k).stat().st_size for k in range(2))
     assert summary["bytes_per_step"] == round(summary["bytes"] / summary["steps"], 1)
     assert summary["episodes_per_minute"] > 0

@@ -13,8 +13,17 @@ from pipeline.world.offices import OfficeConfig, generate_office_set
 from stages import fit_gate
 
 # These tests' own settings, over which each test writes its changes: a logistic gate on mazes alone.
-BASE = {"maps": 48, "holdout_maps": 12, "offices": 0, "office_holdout": 0, "hidden": [], "min_gain": 50,
-        "wall_margin": 2, "threshold": 0.5, "workers": 2}
+BASE = {
+    "maps": 48,
+    "holdout_maps": 12,
+    "offices": 0,
+    "office_holdout": 0,
+    "hidden": [],
+    "min_gain": 50,
+    "wall_margin": 2,
+    "threshold": 0.5,
+    "workers": 2,
+}
 
 
 def _project(tmp_path, generated_maze_dir, section, offices=0):
@@ -40,8 +49,11 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     import mlflow
 
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
-    (run,) = client.search_runs([client.get_experiment_by_name("sliver_gate").experiment_id],
-                                order_by=["attribute.start_time DESC"], max_results=1)
+    (run,) = client.search_runs(
+        [client.get_experiment_by_name("sliver_gate").experiment_id],
+        order_by=["attribute.start_time DESC"],
+        max_results=1,
+    )
     assert [i.dataset.name for i in run.inputs.dataset_inputs] == ["data/mazes/train"]  # no floors drawn here
     assert (tmp_path / "reports/sliver_gate.png").stat().st_size > 5000
     first = (tmp_path / "models/sliver_gate/sliver_gate.json").read_bytes()
@@ -49,17 +61,26 @@ def test_stage_fits_measures_and_logs_the_gate(tmp_path, monkeypatch, generated_
     assert (tmp_path / "models/sliver_gate/sliver_gate.json").read_bytes() == first  # a rerun writes the same bytes
 
 
-@pytest.mark.parametrize(("section", "message"), [
-    ({"maps": 3, "holdout_maps": 3}, r"fit_gate: holdout_maps \(3\) must be below maps \(3\)"),
-    ({"maps": 0}, r"fit_gate\.maps: must be a whole number >= 1"),
-    ({"min_gain": 2.5}, r"fit_gate\.min_gain: must be a whole number >= 0 \(cells\)"),
-    ({"mpas": 3}, r"fit_gate\.mpas: unknown setting \(known: maps, holdout_maps, offices, office_holdout, hidden, fit_samples, min_gain, wall_margin, threshold, workers\)"),
-    ({"maps": 8, "holdout_maps": 4}, "3 maps, need more than fit_gate.holdout_maps = 4"),
-    ({"offices": 2, "office_holdout": 2}, r"fit_gate: office_holdout \(2\) must be below offices \(2\)"),
-    ({"maps": 3, "holdout_maps": 1, "offices": 5, "office_holdout": 2}, "2 maps, need more than fit_gate.office_holdout = 2"),
-    ({"hidden": 16}, r"fit_gate\.hidden: must be a list of layer widths \(whole numbers >= 1; \[\]: logistic\)"),
-    ({"threshold": None}, r"fit_gate\.threshold: missing \(the params file names every setting\)"),
-])
+@pytest.mark.parametrize(
+    ("section", "message"),
+    [
+        ({"maps": 3, "holdout_maps": 3}, r"fit_gate: holdout_maps \(3\) must be below maps \(3\)"),
+        ({"maps": 0}, r"fit_gate\.maps: must be a whole number >= 1"),
+        ({"min_gain": 2.5}, r"fit_gate\.min_gain: must be a whole number >= 0 \(cells\)"),
+        (
+            {"mpas": 3},
+            r"fit_gate\.mpas: unknown setting \(known: maps, holdout_maps, offices, office_holdout, hidden, fit_samples, min_gain, wall_margin, threshold, workers\)",
+        ),
+        ({"maps": 8, "holdout_maps": 4}, "3 maps, need more than fit_gate.holdout_maps = 4"),
+        ({"offices": 2, "office_holdout": 2}, r"fit_gate: office_holdout \(2\) must be below offices \(2\)"),
+        (
+            {"maps": 3, "holdout_maps": 1, "offices": 5, "office_holdout": 2},
+            "2 maps, need more than fit_gate.office_holdout = 2",
+        ),
+        ({"hidden": 16}, r"fit_gate\.hidden: must be a list of layer widths \(whole numbers >= 1; \[\]: logistic\)"),
+        ({"threshold": None}, r"fit_gate\.threshold: missing \(the params file names every setting\)"),
+    ],
+)
 def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, section, message):
     monkeypatch.chdir(tmp_path)
     _project(tmp_path, generated_maze_dir, section, offices=2)
@@ -70,8 +91,12 @@ def test_stage_refuses_bad_settings(tmp_path, monkeypatch, generated_maze_dir, s
 def test_stage_fits_one_network_on_mazes_and_office_floors(tmp_path, monkeypatch, generated_maze_dir, mlflow_uri):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("MLFLOW_TRACKING_URI", mlflow_uri)
-    _project(tmp_path, generated_maze_dir, {"maps": 3, "holdout_maps": 1, "offices": 2, "office_holdout": 1,
-                                             "hidden": [8], "workers": 1}, offices=2)
+    _project(
+        tmp_path,
+        generated_maze_dir,
+        {"maps": 3, "holdout_maps": 1, "offices": 2, "office_holdout": 1, "hidden": [8], "workers": 1},
+        offices=2,
+    )
     metrics = fit_gate.main("params.yaml")
     gate, _ = load_gate(tmp_path / "models/sliver_gate/sliver_gate.json")
     assert [len(biases) for _, biases in gate.layers] == [8, 1]

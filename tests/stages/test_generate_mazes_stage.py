@@ -65,11 +65,14 @@ def test_stage_writes_mazes_and_preview(tmp_path, monkeypatch):
     assert (tmp_path / "data/mazes/train/maze_0000.png").read_bytes() == first
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"room_blocks": [1, 3]}, "room_blocks"),
-    ({"offices": {"count": -1}}, r"mazes\.offices\.count: must be a whole number >= 0"),
-    ({"offices": {"count": 2, "side": 50}}, r"mazes\.offices\.side: unknown setting \(known: count\)"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"room_blocks": [1, 3]}, "room_blocks"),
+        ({"offices": {"count": -1}}, r"mazes\.offices\.count: must be a whole number >= 0"),
+        ({"offices": {"count": 2, "side": 50}}, r"mazes\.offices\.side: unknown setting \(known: count\)"),
+    ],
+)
 def test_bad_params_fail_before_any_file_is_written(tmp_path, monkeypatch, change, message):
     monkeypatch.chdir(tmp_path)
     bad = {**PARAMS, "mazes": {**PARAMS["mazes"], **change}}

@@ -17,7 +17,7 @@ def test_the_stage_writes_the_plans_of_its_source(tmp_path, monkeypatch):
     source.mkdir()
     for k, width in enumerate((120, 160)):
         image = np.zeros((80, width), np.uint8)
-        image[8:72, 8:width - 8] = 255
+        image[8:72, 8 : width - 8] = 255
         image[8:72, 60:63] = 0
         image[30:44, 60:63] = 255  # a 0.7 m door
         cv2.imwrite(str(source / f"floor_{k}.png"), image)

@@ -82,31 +82,47 @@ ALLOWED = {
     # door_graph is on, off or null (on below a 2 m lattice): a bool is one of its values.
     ("protocol.door_graph", "bool"),
     # generate_mazes reads these with MazeConfig's defaults, and no office floors without `offices`.
-    ("mazes.block_m", "delete"), ("mazes.rooms", "delete"), ("mazes.room_blocks", "delete"),
-    ("mazes.extra_loops", "delete"), ("mazes.offices", "delete"),
+    ("mazes.block_m", "delete"),
+    ("mazes.rooms", "delete"),
+    ("mazes.room_blocks", "delete"),
+    ("mazes.extra_loops", "delete"),
+    ("mazes.offices", "delete"),
     # train_inpainter reads its section with TrainConfig's and InpainterConfig's defaults
     # (params_section, not complete_section; tests/training/test_train_inpainter.py writes a partial one).
     ("train_inpainter.*", "delete"),
     # A model mapping names only the fields it changes from the config's defaults (tests/tiny_project.py).
-    ("train_drl.model.*", "delete"), ("train_block_model.model.*", "delete"), ("train_planner.model.*", "delete"),
+    ("train_drl.model.*", "delete"),
+    ("train_block_model.model.*", "delete"),
+    ("train_planner.model.*", "delete"),
     # The map kinds and office sizes default to the maze benchmark's (older params files lack them).
-    ("mazes.office_scale", "delete"), ("mazes.train.kind", "delete"), ("mazes.test.kind", "delete"),
+    ("mazes.office_scale", "delete"),
+    ("mazes.train.kind", "delete"),
+    ("mazes.test.kind", "delete"),
     # No plans_share: no floors drawn from the imported plans (params files from before the plans).
-    ("mazes.train.plans_share", "delete"), ("mazes.test.plans_share", "delete"),
+    ("mazes.train.plans_share", "delete"),
+    ("mazes.test.plans_share", "delete"),
     # Lightning's devices may be a list of device indices.
-    ("train_inpainter.devices", "list"), ("train_planner.devices", "list"),
+    ("train_inpainter.devices", "list"),
+    ("train_planner.devices", "list"),
     # PPOSettings takes any finite entropy and value coefficients (stable-baselines3 does).
-    ("train_drl.ppo.ent_coef", "negative"), ("train_drl.ppo.vf_coef", "negative"),
+    ("train_drl.ppo.ent_coef", "negative"),
+    ("train_drl.ppo.vf_coef", "negative"),
     # An empty list has a meaning: a logistic gate; no threshold sweep; no denoising-steps sweep.
-    ("fit_gate.hidden", "empty list"), ("eval_predictor.sweep_thresholds", "empty list"),
-    ("report.k_values", "empty list"), ("report.k_planners", "empty list"),
+    ("fit_gate.hidden", "empty list"),
+    ("eval_predictor.sweep_thresholds", "empty list"),
+    ("report.k_values", "empty list"),
+    ("report.k_planners", "empty list"),
     # Params files from before the teams and the gate's draw: no team runs, one shared belief, all samples.
-    ("benchmark.robots", "delete"), ("benchmark.team_planners", "delete"), ("benchmark.comm_range_m", "delete"),
+    ("benchmark.robots", "delete"),
+    ("benchmark.team_planners", "delete"),
+    ("benchmark.comm_range_m", "delete"),
     ("fit_gate.fit_samples", "delete"),
     # No team sizes or no team planners: no team runs.
-    ("benchmark.robots", "empty list"), ("benchmark.team_planners", "empty list"),
+    ("benchmark.robots", "empty list"),
+    ("benchmark.team_planners", "empty list"),
     # Benchmark labels, not registered names: one absent from the benchmark shows as "not run".
-    ("report.ablation_planners[*]", "unknown planner"), ("report.figure_planners[*]", "unknown planner"),
+    ("report.ablation_planners[*]", "unknown planner"),
+    ("report.figure_planners[*]", "unknown planner"),
 }
 
 
@@ -138,7 +154,13 @@ def bad_values(value: Any, key: str) -> Iterator[tuple[str, Any]]:
     if isinstance(value, bool):
         yield from (("number", 1), ("string", "yes"))
     elif isinstance(value, (int, float)):
-        yield from (("negative", -abs(value) - 1), ("nan", math.nan), ("inf", math.inf), ("string", "abc"), ("bool", True))
+        yield from (
+            ("negative", -abs(value) - 1),
+            ("nan", math.nan),
+            ("inf", math.inf),
+            ("string", "abc"),
+            ("bool", True),
+        )
     elif isinstance(value, str):
         yield from (("number", 7), ("bool", True), ("empty string", ""))
         if "planner" in key:
@@ -241,8 +263,9 @@ def run_case(case: Case, folder: Path, monkeypatch: pytest.MonkeyPatch, capsys: 
     return outcome
 
 
-def check_cases(cases: list[Case], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                capsys: pytest.CaptureFixture) -> Counter:
+def check_cases(
+    cases: list[Case], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> Counter:
     counts: Counter = Counter()
     problems = []
     for number, case in enumerate(cases):
@@ -272,8 +295,20 @@ def test_the_fuzz_covers_every_stage_and_mutation():
     assert len(CASES) >= 1000
     assert {case.stage.name for case in CASES} == {stage.name for stage in STAGES}
     kinds = {case.mutation for case in CASES}
-    assert {"negative", "nan", "inf", "string", "number", "bool", "list", "dict", "delete", "unknown key",
-            "empty list", "unknown planner"} <= kinds
+    assert {
+        "negative",
+        "nan",
+        "inf",
+        "string",
+        "number",
+        "bool",
+        "list",
+        "dict",
+        "delete",
+        "unknown key",
+        "empty list",
+        "unknown planner",
+    } <= kinds
     # every allow-list entry is used by some case (a stale entry would hide nothing, but mislead)
     for pattern, kind in ALLOWED:
         assert any(case.mutation == kind and matches(case.path, pattern) for case in CASES), (pattern, kind)
@@ -306,7 +341,9 @@ SUBPROCESS_CASES = [
     ("generate_mazes", "mazes.train.count", "negative", "mazes.train.count"),
     ("benchmark", "benchmark.planners[2]", "unknown planner", "benchmark.planners[2]"),
     ("collect_pairs", "collect_pairs.workers", "string", "collect_pairs.workers"),
-    pytest.param("train_drl", "train_drl.ppo.learning_rate", "nan", "train_drl.ppo.learning_rate", marks=pytest.mark.slow),
+    pytest.param(
+        "train_drl", "train_drl.ppo.learning_rate", "nan", "train_drl.ppo.learning_rate", marks=pytest.mark.slow
+    ),
     pytest.param("report", "report.zz_not_a_setting", "unknown key", "report.zz_not_a_setting", marks=pytest.mark.slow),
 ]
 
@@ -316,8 +353,14 @@ def test_the_command_line_prints_one_error_line(tmp_path, module, path, mutation
     case = next(c for c in CASES if c.stage.module == module and c.path == path and c.mutation == mutation)
     (tmp_path / "fuzzed.yaml").write_text(yaml.safe_dump(case.params, sort_keys=False))
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    done = subprocess.run([sys.executable, "-m", f"stages.{module}", "--params", "fuzzed.yaml"], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", f"stages.{module}", "--params", "fuzzed.yaml"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2, done.stderr
     assert len(lines) == 1 and lines[0].startswith("error: fuzzed.yaml: ") and named in lines[0], lines

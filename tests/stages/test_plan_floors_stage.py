@@ -16,10 +16,10 @@ def plan_image() -> np.ndarray:
     image = np.zeros((200, 320), np.uint8)
     image[10:190, 10:310] = 255
     for col in (80, 160, 240):  # rooms off a corridor, each with a 0.8 m door
-        image[10:120, col:col + 3] = 0
+        image[10:120, col : col + 3] = 0
         image[120:123, 10:310] = 0
     for col in (40, 120, 200, 280):
-        image[120:123, col:col + 16] = 255
+        image[120:123, col : col + 16] = 255
     return image
 
 
@@ -28,9 +28,15 @@ def test_a_share_of_the_training_floors_comes_from_the_plans(tmp_path, monkeypat
     source.mkdir()
     cv2.imwrite(str(source / "wing.png"), plan_image())
     import_plans(find_plan_sources(source, resolution=0.05), tmp_path / "data" / "plans")
-    params = {"protocol": {"cell_size": 0.2},
-              "mazes": {"seed": 3, "train": {"kind": "building", "count": 4, "side_m": [20, 24], "plans_share": 0.5},
-                        "test": {"kind": "building", "count": 1, "side_m": [20, 20]}, "offices": {"count": 0}}}
+    params = {
+        "protocol": {"cell_size": 0.2},
+        "mazes": {
+            "seed": 3,
+            "train": {"kind": "building", "count": 4, "side_m": [20, 24], "plans_share": 0.5},
+            "test": {"kind": "building", "count": 1, "side_m": [20, 20]},
+            "offices": {"count": 0},
+        },
+    }
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     monkeypatch.chdir(tmp_path)
     main()
@@ -46,9 +52,15 @@ def test_a_share_of_the_training_floors_comes_from_the_plans(tmp_path, monkeypat
 
 
 def test_plans_at_another_cell_size_or_none_are_refused(tmp_path, monkeypatch):
-    params = {"protocol": {"cell_size": 0.2},
-              "mazes": {"seed": 3, "train": {"kind": "building", "count": 2, "side_m": [20, 20], "plans_share": 1.0},
-                        "test": {"kind": "building", "count": 1, "side_m": [20, 20]}, "offices": {"count": 0}}}
+    params = {
+        "protocol": {"cell_size": 0.2},
+        "mazes": {
+            "seed": 3,
+            "train": {"kind": "building", "count": 2, "side_m": [20, 20], "plans_share": 1.0},
+            "test": {"kind": "building", "count": 1, "side_m": [20, 20]},
+            "offices": {"count": 0},
+        },
+    }
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     monkeypatch.chdir(tmp_path)
     with pytest.raises(Exception, match="holds no imported plans"):

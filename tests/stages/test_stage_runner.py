@@ -18,7 +18,10 @@ from pipeline.world.map_files import MapError
     "error, message",
     [
         (FileNotFoundError("data/mazes/test: not a directory"), "data/mazes/test: not a directory" + UPSTREAM_HINT),
-        (FileNotFoundError("models/x.pt: no export; run the train stage first"), "models/x.pt: no export; run the train stage first"),
+        (
+            FileNotFoundError("models/x.pt: no export; run the train stage first"),
+            "models/x.pt: no export; run the train stage first",
+        ),
         (FileNotFoundError("my.png not found"), "my.png not found"),
         (MapError("a.png", "no free cell"), "a.png: no free cell"),
         (ValueError("tau must be in (0, 1)"), "tau must be in (0, 1)"),
@@ -49,8 +52,14 @@ def test_run_stage_main_prints_one_line_and_exits_2(capsys):
 def test_python_m_stage_without_inputs_is_one_error_line(tmp_path):
     (tmp_path / "params.yaml").write_text((ROOT / "params.yaml").read_text())
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    done = subprocess.run([sys.executable, "-m", "stages.train_planner"], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "stages.train_planner"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines() == [
         "error: data/observations/guide.npz: no observations; run the build_observations stage first"
@@ -72,11 +81,15 @@ def test_stages_without_their_inputs_print_one_line(tmp_path, monkeypatch, capsy
 
     monkeypatch.chdir(tmp_path)  # a fresh folder: no params.yaml, no data
     assert "nope.yaml" in stage_error(capsys, generate_mazes, "nope.yaml")
-    (tmp_path / "params.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2.0}\n")
+    (tmp_path / "params.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2.0}\n"
+    )
     line = stage_error(capsys, benchmark, "params.yaml")
     assert "data/mazes/test" in line and "dvc repro" in line
     (tmp_path / "params.yaml").write_text((ROOT / "params.yaml").read_text())
-    assert "no observations; run the build_observations stage first" in stage_error(capsys, train_planner, "params.yaml", "dare")
+    assert "no observations; run the build_observations stage first" in stage_error(
+        capsys, train_planner, "params.yaml", "dare"
+    )
 
 
 def test_stage_params_that_are_not_a_params_file_are_one_error_line(tmp_path, monkeypatch, capsys):
@@ -98,20 +111,42 @@ def test_benchmark_stage_settings_are_checked_before_any_episode(generated_maze_
 
     monkeypatch.chdir(tmp_path)
     shutil.copytree(generated_maze_dir, tmp_path / "data" / "mazes" / "test")
-    (tmp_path / "p.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier, foo], seed: 0, workers: 1, speed_mps: 2.0}\n")
+    (tmp_path / "p.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier, foo], seed: 0, workers: 1, speed_mps: 2.0}\n"
+    )
     line = stage_error(capsys, benchmark, "p.yaml")
-    assert line.startswith("error: p.yaml: benchmark.planners[1]: ") and "unknown planner 'foo'" in line and "nearest_frontier" in line
-    (tmp_path / "w.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0, speed_mps: 2}\n")
-    assert stage_error(capsys, benchmark, "w.yaml") == "error: w.yaml: benchmark.workers: must be a whole number >= 1, or null (all cores), got 0"
-    (tmp_path / "r.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
-                                     " robots: [1, 9], team_planners: [greedy_utility]}\n")
-    assert stage_error(capsys, benchmark, "r.yaml").startswith("error: r.yaml: benchmark.robots[1]: must be a whole number")
-    (tmp_path / "t.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
-                                     " robots: [3], team_planners: [uncoordinated_foo]}\n")
+    assert (
+        line.startswith("error: p.yaml: benchmark.planners[1]: ")
+        and "unknown planner 'foo'" in line
+        and "nearest_frontier" in line
+    )
+    (tmp_path / "w.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 0, speed_mps: 2}\n"
+    )
+    assert (
+        stage_error(capsys, benchmark, "w.yaml")
+        == "error: w.yaml: benchmark.workers: must be a whole number >= 1, or null (all cores), got 0"
+    )
+    (tmp_path / "r.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
+        " robots: [1, 9], team_planners: [greedy_utility]}\n"
+    )
+    assert stage_error(capsys, benchmark, "r.yaml").startswith(
+        "error: r.yaml: benchmark.robots[1]: must be a whole number"
+    )
+    (tmp_path / "t.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: 2,"
+        " robots: [3], team_planners: [uncoordinated_foo]}\n"
+    )
     line = stage_error(capsys, benchmark, "t.yaml")
     assert line.startswith("error: t.yaml: benchmark.team_planners[0]: ") and "uncoordinated_foo" in line
-    (tmp_path / "s.yaml").write_text("protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: -2}\n")
-    assert stage_error(capsys, benchmark, "s.yaml") == "error: s.yaml: benchmark.speed_mps: must be a finite number > 0 (metres per second), got -2"
+    (tmp_path / "s.yaml").write_text(
+        "protocol: {}\nbenchmark: {planners: [nearest_frontier], seed: 0, workers: 1, speed_mps: -2}\n"
+    )
+    assert (
+        stage_error(capsys, benchmark, "s.yaml")
+        == "error: s.yaml: benchmark.speed_mps: must be a finite number > 0 (metres per second), got -2"
+    )
     assert not (tmp_path / "reports" / "benchmark").exists()
 
 
@@ -128,7 +163,12 @@ def test_train_planner_refuses_zero_epochs_before_touching_its_checkpoints(tmp_p
 def test_every_stage_takes_params_and_says_what_it_does():
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     for stage in sorted(path.stem for path in (ROOT / "stages").glob("*.py") if path.stem != "__init__"):
-        done = subprocess.run([sys.executable, "-m", f"stages.{stage}", "--help"], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [sys.executable, "-m", f"stages.{stage}", "--help"],
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert done.returncode == 0 and "--params" in done.stdout, (stage, done.stderr)
-

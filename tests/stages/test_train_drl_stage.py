@@ -132,24 +132,36 @@ def test_a_checkpoint_at_another_protocol_or_past_the_steps_asked_is_not_continu
     assert "unreadable; training afresh" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    ({"timesteps": 0}, r"train_drl\.timesteps: must be a whole number >= 1"),
-    ({"checkpoint_every": 2.5}, r"train_drl\.checkpoint_every: must be a whole number >= 1"),
-    ({"eval_mazes": -1}, r"train_drl\.eval_mazes: must be a whole number >= 0"),
-    ({"model": {"max_nodes": 32, "d_model": 16, "heads": 3}}, r"train_drl.model: .*heads \(3\) must divide d_model \(16\)"),
-    ({"model": {"layers": 2}}, r"train_drl\.model\.layers: unknown setting \(known: feature_dim, max_nodes, max_neighbors, d_model, heads, encoder_layers, window_scale, logit_clip, guidepost_prior\)"),
-    ({"model": [16]}, r"train_drl\.model: must be a mapping of DRLPolicyConfig settings, got \[16\]"),
-    ({"env": {"maze_sides_m": [52]}}, r"train_drl.env.maze_sides_m: maze_side_m 52"),
-    ({"env": {"max_steps": 0}}, r"train_drl\.env\.max_steps: must be a whole number >= 1"),
-    ({"env": {"area_weight": -1.0}}, r"train_drl\.env\.area_weight: must be a finite number >= 0"),
-    ({"ppo": {"batch_size": 0}}, r"train_drl\.ppo\.batch_size: must be a whole number >= 1"),
-    ({"ppo": {"gamma": 2.0}}, r"train_drl\.ppo\.gamma: must be a number in \[0, 1\]"),
-    ({"eval_side_m": 52}, r"train_drl.eval_side_m: maze_side_m 52"),
-    ({"device": "tpu"}, r"train_drl\.device: must be one of 'cpu', 'cuda', 'auto'"),
-    ({"experiment": ""}, r"train_drl\.experiment: must be a non-empty string \(an MLflow experiment\)"),
-    ({"timestep": 64}, r"train_drl\.timestep: unknown setting \(known: model, env, ppo, imitation, init_checkpoint, timesteps, checkpoint_every, eval_mazes, eval_side_m, eval_seed, seed, threads, device, experiment\)"),
-    ({"seed": None}, r"train_drl\.seed: missing \(the params file names every setting\)"),
-])
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"timesteps": 0}, r"train_drl\.timesteps: must be a whole number >= 1"),
+        ({"checkpoint_every": 2.5}, r"train_drl\.checkpoint_every: must be a whole number >= 1"),
+        ({"eval_mazes": -1}, r"train_drl\.eval_mazes: must be a whole number >= 0"),
+        (
+            {"model": {"max_nodes": 32, "d_model": 16, "heads": 3}},
+            r"train_drl.model: .*heads \(3\) must divide d_model \(16\)",
+        ),
+        (
+            {"model": {"layers": 2}},
+            r"train_drl\.model\.layers: unknown setting \(known: feature_dim, max_nodes, max_neighbors, d_model, heads, encoder_layers, window_scale, logit_clip, guidepost_prior\)",
+        ),
+        ({"model": [16]}, r"train_drl\.model: must be a mapping of DRLPolicyConfig settings, got \[16\]"),
+        ({"env": {"maze_sides_m": [52]}}, r"train_drl.env.maze_sides_m: maze_side_m 52"),
+        ({"env": {"max_steps": 0}}, r"train_drl\.env\.max_steps: must be a whole number >= 1"),
+        ({"env": {"area_weight": -1.0}}, r"train_drl\.env\.area_weight: must be a finite number >= 0"),
+        ({"ppo": {"batch_size": 0}}, r"train_drl\.ppo\.batch_size: must be a whole number >= 1"),
+        ({"ppo": {"gamma": 2.0}}, r"train_drl\.ppo\.gamma: must be a number in \[0, 1\]"),
+        ({"eval_side_m": 52}, r"train_drl.eval_side_m: maze_side_m 52"),
+        ({"device": "tpu"}, r"train_drl\.device: must be one of 'cpu', 'cuda', 'auto'"),
+        ({"experiment": ""}, r"train_drl\.experiment: must be a non-empty string \(an MLflow experiment\)"),
+        (
+            {"timestep": 64},
+            r"train_drl\.timestep: unknown setting \(known: model, env, ppo, imitation, init_checkpoint, timesteps, checkpoint_every, eval_mazes, eval_side_m, eval_seed, seed, threads, device, experiment\)",
+        ),
+        ({"seed": None}, r"train_drl\.seed: missing \(the params file names every setting\)"),
+    ],
+)
 def test_the_stage_refuses_bad_settings(tmp_path, monkeypatch, change, message):
     monkeypatch.chdir(tmp_path)
     section = tiny_section()

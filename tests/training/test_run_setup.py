@@ -55,27 +55,35 @@ def test_fresh_checkpoints_set_old_ones_aside_and_restore_them_on_failure(tmp_pa
     assert file_bytes(out) == {"inpainter.pt": b"export", "last.ckpt": b"crashed run"}
 
 
-@pytest.mark.parametrize("accelerator, devices, message", [
-    ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
-    ("CPU", 1, r"accelerator 'CPU': unknown"),
-    ("cpu", 0, r"^devices: must be a number of devices >= 1, a list of device indices, 'auto' \(all\), "
-               r"or one of those as text such as '0,1', got 0$"),
-    ("cpu", "0", r"^devices: must be .*, got '0'$"),
-    ("cpu", [], r"^devices: must be .*, got \[\]$"),
-    ("cpu", "1,-1", r"^devices: must be .*, got '1,-1'$"),
-    ("auto", -1, r"^devices: must be a number of devices >= 1, .*got -1$"),
-    ("cpu", "two", r"^devices: must be .*, got 'two'$"),
-    ("cpu", True, r"^devices: must be .*, got True$"),
-    ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
-])
+@pytest.mark.parametrize(
+    "accelerator, devices, message",
+    [
+        ("foo", 1, r"accelerator 'foo': unknown; use one of auto, cpu, cuda, gpu, mps, tpu \(available here: .*cpu"),
+        ("CPU", 1, r"accelerator 'CPU': unknown"),
+        (
+            "cpu",
+            0,
+            r"^devices: must be a number of devices >= 1, a list of device indices, 'auto' \(all\), "
+            r"or one of those as text such as '0,1', got 0$",
+        ),
+        ("cpu", "0", r"^devices: must be .*, got '0'$"),
+        ("cpu", [], r"^devices: must be .*, got \[\]$"),
+        ("cpu", "1,-1", r"^devices: must be .*, got '1,-1'$"),
+        ("auto", -1, r"^devices: must be a number of devices >= 1, .*got -1$"),
+        ("cpu", "two", r"^devices: must be .*, got 'two'$"),
+        ("cpu", True, r"^devices: must be .*, got True$"),
+        ("cpu", [0, 1], r"devices \[0, 1\]: the cpu accelerator takes a number of processes"),
+    ],
+)
 def test_training_settings_are_checked(accelerator, devices, message):
     with pytest.raises(ValueError, match=message):
         check_accelerator(accelerator, devices)
 
 
-@pytest.mark.parametrize("devices, kept", [
-    (1, 1), (np.int64(2), 2), ([0, 1], [0, 1]), ((0,), [0]), ("auto", "auto"), ("0,1", "0,1"), ("2", "2"),
-])
+@pytest.mark.parametrize(
+    "devices, kept",
+    [(1, 1), (np.int64(2), 2), ([0, 1], [0, 1]), ((0,), [0]), ("auto", "auto"), ("0,1", "0,1"), ("2", "2")],
+)
 def test_devices_take_every_shape_lightning_reads(devices, kept):
     """A count, device indices or "auto", or one of those as the command line's text (kept as given:
     Lightning reads it)."""
@@ -93,11 +101,13 @@ def test_run_options_are_checked_once_with_one_line_errors(tmp_path):
     assert run.out_dir == tmp_path and run.checkpoint_dir == tmp_path and run.devices == "1" and run.mlflow
     other = RunOptions.from_dict({"out_dir": tmp_path, "checkpoint_dir": tmp_path / "c"})
     assert other.checkpoint_dir == tmp_path / "c"
-    for values, message in (({"devices": 1.5}, "devices: must be a number of devices >= 1, "),
-                            ({"resume": "yes"}, "resume: must be true or false, got 'yes'"),
-                            ({"experiment": ""}, "experiment: must be a non-empty string (an MLflow experiment)"),
-                            ({"accelerator": "foo"}, "accelerator 'foo': unknown; use one of "),
-                            ({"epochs": 3}, "epochs: unknown setting (known: out_dir, checkpoint_dir, ")):
+    for values, message in (
+        ({"devices": 1.5}, "devices: must be a number of devices >= 1, "),
+        ({"resume": "yes"}, "resume: must be true or false, got 'yes'"),
+        ({"experiment": ""}, "experiment: must be a non-empty string (an MLflow experiment)"),
+        ({"accelerator": "foo"}, "accelerator 'foo': unknown; use one of "),
+        ({"epochs": 3}, "epochs: unknown setting (known: out_dir, checkpoint_dir, "),
+    ):
         with pytest.raises(ValueError) as refused:
             RunOptions.from_dict({"out_dir": tmp_path, **values})
         assert str(refused.value).startswith(message) and "\n" not in str(refused.value), str(refused.value)
@@ -110,7 +120,9 @@ def test_unavailable_accelerators_are_named():
         check_accelerator(accelerator, devices)  # accepted
     if not torch.cuda.is_available():
         for name in ("gpu", "cuda"):
-            with pytest.raises(ValueError, match=rf"accelerator '{name}': no (CUDA )?GPU is visible to torch .*use cpu or auto"):
+            with pytest.raises(
+                ValueError, match=rf"accelerator '{name}': no (CUDA )?GPU is visible to torch .*use cpu or auto"
+            ):
                 check_accelerator(name, 1)
     else:
         with pytest.raises(ValueError, match=r"devices 99: torch sees \d+ CUDA GPU"):
@@ -136,8 +148,14 @@ def test_training_host_names_the_torch_build_kernels_and_threads_in_use():
     with torch_threads(other):
         host = training_host()
     name, flags = cpu_model()
-    assert host == {"torch": torch.__version__, "cpu": name, "cpu_flags": flags,
-                    "cpu_capability": torch.backends.cpu.get_cpu_capability(), "threads": other, "device": "cpu"}
+    assert host == {
+        "torch": torch.__version__,
+        "cpu": name,
+        "cpu_flags": flags,
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "threads": other,
+        "device": "cpu",
+    }
 
 
 def test_cpu_model_reads_the_name_and_the_matmul_flags_of_the_first_processor():

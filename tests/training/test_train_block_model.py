@@ -92,14 +92,28 @@ def test_a_killed_training_resumes_from_its_last_epoch_to_the_same_model(generat
     with pytest.raises(Killed):
         train_block_model(samples, None, config, epochs=3, batch_size=16, log=kill_in_epoch_2, checkpoint=checkpoint)
     epochs_run = []
-    resumed, history = train_block_model(samples, None, config, epochs=3, batch_size=16,
-                                         log=lambda row: epochs_run.append(row["epoch"]), checkpoint=checkpoint)
+    resumed, history = train_block_model(
+        samples,
+        None,
+        config,
+        epochs=3,
+        batch_size=16,
+        log=lambda row: epochs_run.append(row["epoch"]),
+        checkpoint=checkpoint,
+    )
     assert epochs_run == [2, 3] and [row["epoch"] for row in history] == [1, 2, 3]
     for a, b in zip(whole.state_dict().values(), resumed.state_dict().values()):
         assert torch.equal(a, b)
     assert [row["loss"] for row in history] == [row["loss"] for row in whole_history]
     # Other settings never resume from it.
     epochs_run.clear()
-    train_block_model(samples, None, config, epochs=3, batch_size=16, log=lambda row: epochs_run.append(row["epoch"]),
-                      checkpoint=TrainingCheckpoint(tmp_path, "settings-b"))
+    train_block_model(
+        samples,
+        None,
+        config,
+        epochs=3,
+        batch_size=16,
+        log=lambda row: epochs_run.append(row["epoch"]),
+        checkpoint=TrainingCheckpoint(tmp_path, "settings-b"),
+    )
     assert epochs_run == [1, 2, 3]

@@ -36,38 +36,47 @@ ENVIRONMENT = TrainingEnvironment(maze_sides_m=(50,), max_steps=30)
 PROTOCOL = Protocol()
 
 
-@pytest.mark.parametrize(("values", "message"), [
-    ({"n_envs": 0}, "ppo.n_envs: must be a whole number >= 1, got 0"),
-    ({"n_steps": 32.0}, "ppo.n_steps: must be a whole number >= 1, got 32.0"),
-    ({"batch_size": True}, "ppo.batch_size: must be a whole number >= 1, got True"),
-    ({"n_epochs": -1}, "ppo.n_epochs: must be a whole number >= 1, got -1"),
-    ({"learning_rate": 0.0}, "ppo.learning_rate: must be a finite number > 0, got 0.0"),
-    ({"learning_rate": float("nan")}, "ppo.learning_rate: must be a finite number > 0, got nan"),
-    ({"gamma": 1.5}, "ppo.gamma: must be a number in [0, 1], got 1.5"),
-    ({"gae_lambda": -0.1}, "ppo.gae_lambda: must be a number in [0, 1], got -0.1"),
-    ({"clip_range": 0}, "ppo.clip_range: must be a finite number > 0, got 0"),
-    ({"ent_coef": float("inf")}, "ppo.ent_coef: must be a finite number, got inf"),
-    ({"vf_coef": "half"}, "ppo.vf_coef: must be a finite number, got 'half'"),
-    ({"max_grad_norm": -1.0}, "ppo.max_grad_norm: must be a finite number > 0, got -1.0"),
-    ({"subprocess": "yes"}, "ppo.subprocess: must be true or false, got 'yes'"),
-    ({"lr": 0.001}, "ppo.lr: unknown setting (known: n_envs, n_steps, batch_size, n_epochs, learning_rate, gamma, "
-                    "gae_lambda, clip_range, ent_coef, vf_coef, max_grad_norm, subprocess), got 0.001"),
-])
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"n_envs": 0}, "ppo.n_envs: must be a whole number >= 1, got 0"),
+        ({"n_steps": 32.0}, "ppo.n_steps: must be a whole number >= 1, got 32.0"),
+        ({"batch_size": True}, "ppo.batch_size: must be a whole number >= 1, got True"),
+        ({"n_epochs": -1}, "ppo.n_epochs: must be a whole number >= 1, got -1"),
+        ({"learning_rate": 0.0}, "ppo.learning_rate: must be a finite number > 0, got 0.0"),
+        ({"learning_rate": float("nan")}, "ppo.learning_rate: must be a finite number > 0, got nan"),
+        ({"gamma": 1.5}, "ppo.gamma: must be a number in [0, 1], got 1.5"),
+        ({"gae_lambda": -0.1}, "ppo.gae_lambda: must be a number in [0, 1], got -0.1"),
+        ({"clip_range": 0}, "ppo.clip_range: must be a finite number > 0, got 0"),
+        ({"ent_coef": float("inf")}, "ppo.ent_coef: must be a finite number, got inf"),
+        ({"vf_coef": "half"}, "ppo.vf_coef: must be a finite number, got 'half'"),
+        ({"max_grad_norm": -1.0}, "ppo.max_grad_norm: must be a finite number > 0, got -1.0"),
+        ({"subprocess": "yes"}, "ppo.subprocess: must be true or false, got 'yes'"),
+        (
+            {"lr": 0.001},
+            "ppo.lr: unknown setting (known: n_envs, n_steps, batch_size, n_epochs, learning_rate, gamma, "
+            "gae_lambda, clip_range, ent_coef, vf_coef, max_grad_norm, subprocess), got 0.001",
+        ),
+    ],
+)
 def test_ppo_settings_refuse_bad_values(values, message):
     with pytest.raises(ValueError) as refused:
         PPOSettings.from_dict(values)
     assert str(refused.value) == message
 
 
-@pytest.mark.parametrize(("values", "message"), [
-    ({"planner": "nope"}, "imitation.planner: must be a registered planner (unknown planner 'nope'; choose from: "),
-    ({"planner": 3}, "imitation.planner: must be a non-empty string, got 3"),
-    ({"episodes": -1}, "imitation.episodes: must be a whole number >= 0, got -1"),
-    ({"epochs": 0}, "imitation.epochs: must be a whole number >= 1, got 0"),
-    ({"learning_rate": 0}, "imitation.learning_rate: must be a finite number > 0, got 0"),
-    ({"value_weight": -0.5}, "imitation.value_weight: must be a finite number >= 0, got -0.5"),
-    ({"teacher": "guide"}, "imitation.teacher: unknown setting (known: planner, episodes, "),
-])
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"planner": "nope"}, "imitation.planner: must be a registered planner (unknown planner 'nope'; choose from: "),
+        ({"planner": 3}, "imitation.planner: must be a non-empty string, got 3"),
+        ({"episodes": -1}, "imitation.episodes: must be a whole number >= 0, got -1"),
+        ({"epochs": 0}, "imitation.epochs: must be a whole number >= 1, got 0"),
+        ({"learning_rate": 0}, "imitation.learning_rate: must be a finite number > 0, got 0"),
+        ({"value_weight": -0.5}, "imitation.value_weight: must be a finite number >= 0, got -0.5"),
+        ({"teacher": "guide"}, "imitation.teacher: unknown setting (known: planner, episodes, "),
+    ],
+)
 def test_imitation_settings_refuse_bad_values(values, message):
     with pytest.raises(ValueError) as refused:
         ImitationSettings.from_dict(values)
@@ -90,21 +99,27 @@ def test_ppo_settings_pass_sb3_its_own_arguments():
 SIDES = "env.maze_sides_m: must be a non-empty list of maze sides (m), each > 0, got "
 
 
-@pytest.mark.parametrize(("values", "message"), [
-    ({"maze_sides_m": []}, SIDES + "[]"),
-    ({"maze_sides_m": [50, -5]}, SIDES + "[50, -5]"),
-    ({"maze_sides_m": "50"}, SIDES + "'50'"),
-    ({"maze_sides_m": [True]}, SIDES + "[True]"),
-    ({"maze_sides_m": [float("nan")]}, SIDES + "[nan]"),
-    ({"max_steps": 0}, "env.max_steps: must be a whole number >= 1, got 0"),
-    ({"max_steps": 20.5}, "env.max_steps: must be a whole number >= 1, got 20.5"),
-    ({"area_weight": "much"}, "env.area_weight: must be a finite number >= 0, got 'much'"),
-    ({"area_weight": -1.0}, "env.area_weight: must be a finite number >= 0, got -1.0"),
-    ({"distance_weight": float("nan")}, "env.distance_weight: must be a finite number >= 0, got nan"),
-    ({"completion_bonus": -20}, "env.completion_bonus: must be a finite number >= 0, got -20"),
-    ({"max_step": 20}, "env.max_step: unknown setting (known: maze_sides_m, max_steps, area_weight, distance_weight, "
-                       "completion_bonus), got 20"),
-])
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"maze_sides_m": []}, SIDES + "[]"),
+        ({"maze_sides_m": [50, -5]}, SIDES + "[50, -5]"),
+        ({"maze_sides_m": "50"}, SIDES + "'50'"),
+        ({"maze_sides_m": [True]}, SIDES + "[True]"),
+        ({"maze_sides_m": [float("nan")]}, SIDES + "[nan]"),
+        ({"max_steps": 0}, "env.max_steps: must be a whole number >= 1, got 0"),
+        ({"max_steps": 20.5}, "env.max_steps: must be a whole number >= 1, got 20.5"),
+        ({"area_weight": "much"}, "env.area_weight: must be a finite number >= 0, got 'much'"),
+        ({"area_weight": -1.0}, "env.area_weight: must be a finite number >= 0, got -1.0"),
+        ({"distance_weight": float("nan")}, "env.distance_weight: must be a finite number >= 0, got nan"),
+        ({"completion_bonus": -20}, "env.completion_bonus: must be a finite number >= 0, got -20"),
+        (
+            {"max_step": 20},
+            "env.max_step: unknown setting (known: maze_sides_m, max_steps, area_weight, distance_weight, "
+            "completion_bonus), got 20",
+        ),
+    ],
+)
 def test_training_environment_refuses_bad_values(values, message):
     with pytest.raises(ValueError) as refused:
         TrainingEnvironment.from_dict(values)
@@ -118,8 +133,15 @@ def test_training_environment_makes_the_policys_environments():
     assert TrainingEnvironment.from_dict(environment.to_dict()) == environment
     configs = [environment.make(i, PROTOCOL, POLICY).config for i in range(3)]
     assert [c.maze_side_m for c in configs] == [50.0, 60.0, 50.0]  # round robin
-    assert all(c.map == "maze" and c.action == "neighbour" and c.max_nodes == 32 and c.max_neighbors == 25
-               and c.max_steps == 12 and c.area_weight == 0.5 for c in configs)
+    assert all(
+        c.map == "maze"
+        and c.action == "neighbour"
+        and c.max_nodes == 32
+        and c.max_neighbors == 25
+        and c.max_steps == 12
+        and c.area_weight == 0.5
+        for c in configs
+    )
     # A maze side the protocol cannot make fails when the environment is made, naming the parameter.
     with pytest.raises(ValueError, match="maze_side_m 52"):
         TrainingEnvironment(maze_sides_m=(52,)).make(0, PROTOCOL, POLICY)
@@ -201,17 +223,23 @@ def test_the_agents_greedy_action_is_the_policys(trained):
             with torch.no_grad():
                 distribution = agent.policy.get_distribution(tensor_obs, action_masks=mask[None])
                 features = agent.policy.extract_features(tensor_obs)
-                logits, value = policy(torch.as_tensor(obs["features"])[None],
-                                       torch.as_tensor(obs["node_mask"])[None].bool(),
-                                       torch.as_tensor(obs["neighbors"])[None].long(),
-                                       torch.as_tensor([int(obs["robot"])]))
+                logits, value = policy(
+                    torch.as_tensor(obs["features"])[None],
+                    torch.as_tensor(obs["node_mask"])[None].bool(),
+                    torch.as_tensor(obs["neighbors"])[None].long(),
+                    torch.as_tensor([int(obs["robot"])]),
+                )
             assert features.shape == (1, SLOTS + 1)
             torch.testing.assert_close(features[:, :SLOTS], logits, rtol=1e-5, atol=1e-4)
             torch.testing.assert_close(agent.policy.predict_values(tensor_obs)[:, 0], value, rtol=1e-5, atol=1e-5)
             masked = torch.where(torch.as_tensor(mask)[None], logits, torch.full_like(logits, MASKED_LOGIT))
             allowed = torch.as_tensor(mask)
-            torch.testing.assert_close(distribution.distribution.logits[0, allowed],
-                                       torch.log_softmax(masked, -1)[0, allowed], rtol=1e-4, atol=1e-4)
+            torch.testing.assert_close(
+                distribution.distribution.logits[0, allowed],
+                torch.log_softmax(masked, -1)[0, allowed],
+                rtol=1e-4,
+                atol=1e-4,
+            )
             obs, _, terminated, truncated, info = env.step(action)
             assert not info["invalid_action"]
             done = terminated or truncated
@@ -237,8 +265,10 @@ def test_the_episode_log_sums_returns_per_environment():
     logger = SimpleNamespace(name_to_value={"train/value_loss": 0.5})
     log = EpisodeLog()
     log.model, log.num_timesteps = SimpleNamespace(logger=logger), 6
-    infos = [{"distance": 10.0, "explored_share": 0.5, "complete": False}, {"distance": 30.0, "explored_share": 1.0,
-                                                                             "complete": True}]
+    infos = [
+        {"distance": 10.0, "explored_share": 0.5, "complete": False},
+        {"distance": 30.0, "explored_share": 1.0, "complete": True},
+    ]
     for rewards, dones in (([1.0, 2.0], [False, False]), ([3.0, 4.0], [True, False]), ([5.0, 6.0], [True, True])):
         log.locals = {"rewards": np.array(rewards), "dones": np.array(dones), "infos": infos}
         log._on_step()

@@ -64,8 +64,9 @@ def synthetic_pair(rng: np.random.Generator, size: int, truth: np.ndarray | None
     return obs, tgt, valid
 
 
-def write_pairs(directory: Path, shards: int = 2, per_size: int = 6, sizes=(32, 40), seed: int = 0,
-                mazes: int = 0) -> Path:
+def write_pairs(
+    directory: Path, shards: int = 2, per_size: int = 6, sizes=(32, 40), seed: int = 0, mazes: int = 0
+) -> Path:
     """A Stage I data set as collect_pairs writes it: shards + manifest. With `mazes` > 0 the
     pairs of each size come from that many mazes (several views of each), else one maze each."""
     directory.mkdir(parents=True, exist_ok=True)
@@ -75,8 +76,10 @@ def write_pairs(directory: Path, shards: int = 2, per_size: int = 6, sizes=(32, 
     for k in range(shards):
         arrays = {"fingerprint": np.array("test")}
         for size in sizes:
-            pairs = [synthetic_pair(rng, size, pool[size][int(rng.integers(mazes))] if mazes else None)
-                     for _ in range(per_size)]
+            pairs = [
+                synthetic_pair(rng, size, pool[size][int(rng.integers(mazes))] if mazes else None)
+                for _ in range(per_size)
+            ]
             for name, index in (("observed", 0), ("target", 1), ("valid", 2)):
                 arrays[f"{name}_{size}"] = np.stack([p[index] for p in pairs])
         name = f"shard_{k:05d}.npz"
@@ -133,7 +136,8 @@ def test_hole_metrics_count_only_the_hole():
     counts = hole_counts(probs, obs, tgt, valid, 0.5).tolist()
     assert counts == [1, 1, 0]  # pixel 2 is padding, pixel 3 is known
     assert precision_recall_f1(counts) == pytest.approx(
-        {"precision": 0.5, "recall": 1.0, "f1": 2 / 3, "predicted": 2, "actual": 1})
+        {"precision": 0.5, "recall": 1.0, "f1": 2 / 3, "predicted": 2, "actual": 1}
+    )
 
 
 # --------------------------------------------------------------------------- data
@@ -189,7 +193,9 @@ def test_dihedral_augmentation_is_the_square_group():
     assert len(images) == 8
     rng = np.random.default_rng(2)
     obs, tgt, valid = synthetic_pair(rng, 32)
-    dataset = NodeImagePairDataset({32: {"observed": obs[None], "target": tgt[None], "valid": valid[None]}}, augment=True)
+    dataset = NodeImagePairDataset(
+        {32: {"observed": obs[None], "target": tgt[None], "valid": valid[None]}}, augment=True
+    )
     for _ in range(5):
         o, t, v = (x.numpy() for x in dataset[0])
         assert (o[~v] == 128).all() and ((o == 255) <= (t == 255)).all()  # pairs transformed together
@@ -211,8 +217,16 @@ def test_batches_hold_one_size():
 def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
     out = tmp_path / "inpainter"
     artifacts = str(tmp_path / "mlartifacts")  # a new experiment's artifacts, kept out of ./mlruns
-    path = train_inpainter(TINY, pairs_dir, out, max_epochs=1, tracking_uri=mlflow_uri, train_config=FAST,
-                           experiment_name="inpainter-test", artifact_location=artifacts)
+    path = train_inpainter(
+        TINY,
+        pairs_dir,
+        out,
+        max_epochs=1,
+        tracking_uri=mlflow_uri,
+        train_config=FAST,
+        experiment_name="inpainter-test",
+        artifact_location=artifacts,
+    )
     assert path == out / "inpainter.pt" and path.is_file()
     assert (out / "last.ckpt").is_file() and (out / "best.ckpt").is_file()
     export = read_inpainter_export(path)
@@ -227,8 +241,17 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
     first_epoch = export["history"][0]
     # Resume: the epoch counter, step counter and history continue from last.ckpt (epoch 0 is
     # not trained again: its record, timing included, is the first run's).
-    path = train_inpainter(TINY, pairs_dir, out, max_epochs=2, resume=True, tracking_uri=mlflow_uri, train_config=FAST,
-                           experiment_name="inpainter-test", artifact_location=artifacts)
+    path = train_inpainter(
+        TINY,
+        pairs_dir,
+        out,
+        max_epochs=2,
+        resume=True,
+        tracking_uri=mlflow_uri,
+        train_config=FAST,
+        experiment_name="inpainter-test",
+        artifact_location=artifacts,
+    )
     export = read_inpainter_export(path)
     assert export["epochs"] == 2 and [h["epoch"] for h in export["history"]] == [0, 1]
     assert export["history"][0] == first_epoch
@@ -249,8 +272,14 @@ def test_train_export_and_resume(pairs_dir, tmp_path, mlflow_uri):
 
 
 def test_training_reduces_the_loss(pairs_dir, tmp_path):
-    path = train_inpainter(TINY, pairs_dir, tmp_path / "fit", max_epochs=4, mlflow=False,
-                           train_config={**FAST, "lr": 0.01, "augment": False, "split": "maze"})
+    path = train_inpainter(
+        TINY,
+        pairs_dir,
+        tmp_path / "fit",
+        max_epochs=4,
+        mlflow=False,
+        train_config={**FAST, "lr": 0.01, "augment": False, "split": "maze"},
+    )
     export = read_inpainter_export(path)
     assert export["pairs"] == {"train": 18, "val": 6} and export["mazes"] == {"train": 18, "val": 6}
     history = export["history"]
@@ -267,8 +296,14 @@ def test_training_reduces_the_loss(pairs_dir, tmp_path):
 
 
 def test_adversarial_training_runs(pairs_dir, tmp_path):
-    path = train_inpainter(TINY, pairs_dir, tmp_path / "gan", max_epochs=1, mlflow=False,
-                           train_config={**FAST, "adversarial_weight": 0.1, "discriminator_width": 8})
+    path = train_inpainter(
+        TINY,
+        pairs_dir,
+        tmp_path / "gan",
+        max_epochs=1,
+        mlflow=False,
+        train_config={**FAST, "adversarial_weight": 0.1, "discriminator_width": 8},
+    )
     state = torch.load(tmp_path / "gan" / "last.ckpt", map_location="cpu", weights_only=True)["state_dict"]
     assert any(k.startswith("discriminator.") for k in state)
     assert not any(k.startswith("discriminator.") for k in read_inpainter_export(path)["state_dict"])
@@ -303,19 +338,36 @@ def test_a_failed_run_keeps_the_previous_checkpoints(pairs_dir, tmp_path):
         ({"devices": -2}, ValueError, r"^devices: must be a number of devices >= 1, .*, got -2$"),
         ({"devices": "0"}, ValueError, r"^devices: must be a number of devices >= 1, .*, got '0'$"),
         ({"devices": -1}, ValueError, r"devices: must be a number of devices >= 1, .*got -1"),
-        ({"init_checkpoint": tmp_path / "missing.ckpt"}, FileNotFoundError, r"init checkpoint .*missing\.ckpt not found"),
-        ({"init_checkpoint": corrupt}, ValueError, r"corrupt\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"),
+        (
+            {"init_checkpoint": tmp_path / "missing.ckpt"},
+            FileNotFoundError,
+            r"init checkpoint .*missing\.ckpt not found",
+        ),
+        (
+            {"init_checkpoint": corrupt},
+            ValueError,
+            r"corrupt\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)",
+        ),
         ({"data_dir": tmp_path / "no-data"}, FileNotFoundError, r"no manifest"),
     ]
     if not torch.cuda.is_available():  # "No supported gpu backend found!" from Lightning, after the clean-up, before
-        failures.append(({"accelerator": "gpu"}, ValueError,
-                         r"accelerator 'gpu': no GPU is visible to torch \(torch\.cuda\.is_available\(\) is False\); use cpu or auto"))
+        failures.append(
+            (
+                {"accelerator": "gpu"},
+                ValueError,
+                r"accelerator 'gpu': no GPU is visible to torch \(torch\.cuda\.is_available\(\) is False\); use cpu or auto",
+            )
+        )
     for options, error, message in failures:
         settings = {"data_dir": pairs_dir, **options}
         with warnings.catch_warnings(record=True) as caught, pytest.raises(error, match=message):
             warnings.simplefilter("always")
-            train_inpainter(TINY, settings.pop("data_dir"), out, max_epochs=1, mlflow=False, train_config=FAST, **settings)
-        assert not [str(w.message) for w in caught if "Big-LaMa" in str(w.message) or "unpickling" in str(w.message)], options
+            train_inpainter(
+                TINY, settings.pop("data_dir"), out, max_epochs=1, mlflow=False, train_config=FAST, **settings
+            )
+        assert not [str(w.message) for w in caught if "Big-LaMa" in str(w.message) or "unpickling" in str(w.message)], (
+            options
+        )
         assert file_bytes(out) == before, options
 
 
@@ -341,11 +393,24 @@ def test_bad_settings_and_missing_data_fail_before_mlflow_and_files(pairs_dir, t
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
     out = tmp_path / "never"
     with pytest.raises(ValueError, match="accelerator 'foo'"):
-        train_inpainter(TINY, pairs_dir, out, accelerator="foo", tracking_uri=mlflow_uri,
-                        experiment_name="inpainter-bad-settings", train_config=FAST)
+        train_inpainter(
+            TINY,
+            pairs_dir,
+            out,
+            accelerator="foo",
+            tracking_uri=mlflow_uri,
+            experiment_name="inpainter-bad-settings",
+            train_config=FAST,
+        )
     with pytest.raises(FileNotFoundError, match="no manifest"):
-        train_inpainter(TINY, tmp_path / "no-data", out, tracking_uri=mlflow_uri, experiment_name="inpainter-no-data",
-                        train_config=FAST)
+        train_inpainter(
+            TINY,
+            tmp_path / "no-data",
+            out,
+            tracking_uri=mlflow_uri,
+            experiment_name="inpainter-no-data",
+            train_config=FAST,
+        )
     assert client.get_experiment_by_name("inpainter-bad-settings") is None
     assert client.get_experiment_by_name("inpainter-no-data") is None
     assert not out.exists()
@@ -361,7 +426,9 @@ def test_init_checkpoint_reading(tmp_path):
         read_init_checkpoint(policy)  # named for what it is, not taken for Big-LaMa weights
     noise = tmp_path / "noise.ckpt"
     noise.write_bytes(bytes(range(256)) * 8)
-    with pytest.raises(ValueError, match=r"noise\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"):
+    with pytest.raises(
+        ValueError, match=r"noise\.ckpt: not a readable checkpoint \(not a file written by torch\.save\)"
+    ):
         read_init_checkpoint(noise)
     weights = {"state_dict": {"generator.model.1.weight": torch.ones(2, 2)}}
     plain = tmp_path / "plain.ckpt"
@@ -392,9 +459,18 @@ def test_init_checkpoint_can_be_an_inpainter_export(pairs_dir, tmp_path):
     start, start_config = load_inpainter(first)
     other = {"ngf": 8, "n_blocks": 1}  # the configured layout differs: the export's wins, with a warning
     tiny_steps = {**FAST, "lr": 1e-12}  # Adam moves each weight by about lr: the start stays visible
-    with pytest.warns(UserWarning, match=r"init_checkpoint is an inpainter export: using its layout \(ngf 4, 1 blocks\)"):
-        tuned = train_inpainter(other, pairs_dir, tmp_path / "tuned", max_epochs=1, train_config=tiny_steps,
-                                mlflow=False, init_checkpoint=first)
+    with pytest.warns(
+        UserWarning, match=r"init_checkpoint is an inpainter export: using its layout \(ngf 4, 1 blocks\)"
+    ):
+        tuned = train_inpainter(
+            other,
+            pairs_dir,
+            tmp_path / "tuned",
+            max_epochs=1,
+            train_config=tiny_steps,
+            mlflow=False,
+            init_checkpoint=first,
+        )
     model, config = load_inpainter(tuned)
     assert config == start_config == InpainterConfig(**TINY)
     for name, weight in start.named_parameters():
@@ -409,19 +485,37 @@ def test_stage_writes_model_and_reports(pairs_dir, tmp_path, monkeypatch, mlflow
     monkeypatch.chdir(tmp_path)
     Path("data").mkdir()
     Path("data/pairs").symlink_to(pairs_dir, target_is_directory=True)
-    params = {"other_section": {"ignored": True}, "protocol": {"node_resolution": 2.0},
-              "train_inpainter": {"model": TINY, "max_epochs": 1, **FAST, "threshold": 0.4, "threads": 1}}
+    params = {
+        "other_section": {"ignored": True},
+        "protocol": {"node_resolution": 2.0},
+        "train_inpainter": {"model": TINY, "max_epochs": 1, **FAST, "threshold": 0.4, "threads": 1},
+    }
     Path("params.yaml").write_text(yaml.safe_dump(params))
     metrics = stage.main("params.yaml", tracking_uri=mlflow_uri, artifact_location=str(tmp_path / "mlartifacts"))
-    assert sorted(p.name for p in Path("models/inpainter").iterdir()) == ["inpainter.pt"]  # the output: the export alone
-    for path in ("models/inpainter/inpainter.pt", "checkpoints/inpainter/last.ckpt", "reports/inpainter_metrics.json",
-                 "reports/inpainter_curves.png", "reports/inpainter_samples.png"):
+    assert sorted(p.name for p in Path("models/inpainter").iterdir()) == [
+        "inpainter.pt"
+    ]  # the output: the export alone
+    for path in (
+        "models/inpainter/inpainter.pt",
+        "checkpoints/inpainter/last.ckpt",
+        "reports/inpainter_metrics.json",
+        "reports/inpainter_curves.png",
+        "reports/inpainter_samples.png",
+    ):
         assert Path(path).is_file(), path
     written = json.loads(Path("reports/inpainter_metrics.json").read_text())
     assert written == metrics
     assert written["threshold"] == 0.4 and "0.4" in written["by_threshold"]
-    assert {"val_precision", "val_recall", "val_f1", "num_parameters", "train_seconds", "predict_ms_48",
-            "val_mazes", "split"} <= set(written)
+    assert {
+        "val_precision",
+        "val_recall",
+        "val_f1",
+        "num_parameters",
+        "train_seconds",
+        "predict_ms_48",
+        "val_mazes",
+        "split",
+    } <= set(written)
     # The protocol the pairs were drawn at travels with the model, for the planners' check.
     assert read_inpainter_export("models/inpainter/inpainter.pt")["protocol"] == Protocol(node_resolution=2.0).to_dict()
     # The metrics say where the model was trained, at the stage's thread count (params threads: 1).
@@ -452,8 +546,14 @@ def test_two_process_training_exports_once(pairs_dir, tmp_path, adversarial_weig
     script.write_text(DDP_SCRIPT.format(model=TINY, train={**FAST, "adversarial_weight": adversarial_weight}))
     out = tmp_path / "ddp"
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-    done = subprocess.run([sys.executable, str(script), str(pairs_dir), str(out)], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, str(script), str(pairs_dir), str(out)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
     assert sorted(lines) == [f"exported: {out / 'inpainter.pt'}", "exported: None"]
@@ -462,16 +562,18 @@ def test_two_process_training_exports_once(pairs_dir, tmp_path, adversarial_weig
 
 def test_max_minutes_caps_the_wall_clock(pairs_dir, tmp_path):
     """A time cap (a timed GPU lease) stops a long run early and still exports a model."""
-    path = train_inpainter(TINY, pairs_dir, tmp_path / "capped", max_epochs=200, mlflow=False,
-                           train_config={**FAST, "max_minutes": 0.05})
+    path = train_inpainter(
+        TINY, pairs_dir, tmp_path / "capped", max_epochs=200, mlflow=False, train_config={**FAST, "max_minutes": 0.05}
+    )
     export = read_inpainter_export(path)
     assert 1 <= export["epochs"] < 200
     assert load_inpainter(path)[0] is not None
     for bad in (0, -1.0, "ten", True):
         with pytest.raises(ValueError) as refused:
             TrainConfig.from_dict({"max_minutes": bad})
-        assert str(refused.value) == (f"train_inpainter.max_minutes: must be a finite number > 0 (minutes), or null "
-                                      f"(no cap), got {bad!r}")
+        assert str(refused.value) == (
+            f"train_inpainter.max_minutes: must be a finite number > 0 (minutes), or null (no cap), got {bad!r}"
+        )
 
 
 def test_training_settings_round_trip_and_name_a_bad_key():
@@ -520,7 +622,11 @@ def test_stage_killed_mid_training_resumes_from_its_last_epoch(pairs_dir, tmp_pa
     assert "train_inpainter: resuming from checkpoints/inpainter/last.ckpt after" in again.stdout
     metrics = json.loads((tmp_path / "reports/inpainter_metrics.json").read_text())
     assert metrics["epochs"] == 3 and 1 <= metrics["resumed_after_epochs"] < 3
-    assert [row["epoch"] for row in read_inpainter_export(tmp_path / "models/inpainter/inpainter.pt")["history"]] == [0, 1, 2]
+    assert [row["epoch"] for row in read_inpainter_export(tmp_path / "models/inpainter/inpainter.pt")["history"]] == [
+        0,
+        1,
+        2,
+    ]
     params["train_inpainter"]["lr"] = 0.004
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     afresh = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
@@ -547,12 +653,16 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(pairs_dir
                 raise Killed  # after the second epoch's checkpoint
 
     make_trainer = lightning_run.make_trainer
-    monkeypatch.setattr(lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    monkeypatch.setattr(
+        lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]})
+    )
     with pytest.raises(Killed):
         train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST)
     assert not (tmp_path / "cut" / "inpainter.pt").exists()
     monkeypatch.setattr(lightning_run, "make_trainer", make_trainer)
-    resumed = train_inpainter(TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST, resume=True)
+    resumed = train_inpainter(
+        TINY, pairs_dir, tmp_path / "cut", max_epochs=3, mlflow=False, train_config=FAST, resume=True
+    )
     a, b = read_inpainter_export(whole), read_inpainter_export(resumed)
     assert [row["epoch"] for row in b["history"]] == [0, 1, 2]
     assert all(torch.equal(a["state_dict"][k], b["state_dict"][k]) for k in a["state_dict"])

@@ -20,9 +20,12 @@ from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
 
-TINY_MODEL = dict(max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1,
-                  num_inference_steps=5)
-TINY_TRAIN = dict(max_epochs=2, batch_size=16, warmup_steps=2, val_accuracy_samples=24)  # sampled accuracy spans 2 val batches
+TINY_MODEL = dict(
+    max_nodes=96, max_neighbors=25, d_model=32, heads=2, encoder_layers=1, denoiser_layers=1, num_inference_steps=5
+)
+TINY_TRAIN = dict(
+    max_epochs=2, batch_size=16, warmup_steps=2, val_accuracy_samples=24
+)  # sampled accuracy spans 2 val batches
 
 
 def wall_aware_inpaint(image: np.ndarray) -> np.ndarray:
@@ -35,12 +38,22 @@ def trained(expert_shard_dir, tmp_path_factory, mlflow_uri):
     root = tmp_path_factory.mktemp("planner")
     episodes = [e for k in range(2) for e in load_expert_episodes(shard_path(expert_shard_dir, k))]
     predictor = NodePredictor(wall_aware_inpaint)
-    parts = [episode_observations(e, Protocol(), predictor, ObservationConfig(max_nodes=96), episode_id=i) for i, e in enumerate(episodes)]
+    parts = [
+        episode_observations(e, Protocol(), predictor, ObservationConfig(max_nodes=96), episode_id=i)
+        for i, e in enumerate(episodes)
+    ]
     paths = {}
     for variant in ("guide", "dare"):
         save_observations(root / f"{variant}.npz", concatenate(p[variant] for p in parts), {"variant": variant})
-        paths[variant] = train_planner(root / f"{variant}.npz", root / variant, TINY_MODEL, TINY_TRAIN,
-                                       tracking_uri=mlflow_uri, experiment_name="test_planner", run_name=variant)
+        paths[variant] = train_planner(
+            root / f"{variant}.npz",
+            root / variant,
+            TINY_MODEL,
+            TINY_TRAIN,
+            tracking_uri=mlflow_uri,
+            experiment_name="test_planner",
+            run_name=variant,
+        )
     return root, paths
 
 
@@ -66,8 +79,15 @@ def test_resume_continues_from_the_last_checkpoint(trained, tmp_path, mlflow_uri
     first_history = read_policy_export(paths["guide"])["history"]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        path = train_planner(root / "guide.npz", out_dir, TINY_MODEL, {**TINY_TRAIN, "max_epochs": 3}, resume=True,
-                             tracking_uri=mlflow_uri, experiment_name="test_planner")
+        path = train_planner(
+            root / "guide.npz",
+            out_dir,
+            TINY_MODEL,
+            {**TINY_TRAIN, "max_epochs": 3},
+            resume=True,
+            tracking_uri=mlflow_uri,
+            experiment_name="test_planner",
+        )
     assert not [w for w in caught if "training from scratch" in str(w.message)]
     export = read_policy_export(path)
     assert export["epochs"] == 3 and [h["epoch"] for h in export["history"]] == [0, 1, 2]
@@ -93,16 +113,25 @@ def test_bad_settings_fail_before_checkpoints_files_or_mlflow_change(trained, tm
     shutil.copytree(root / "guide", out_dir)
     before = {p.name: p.read_bytes() for p in sorted(out_dir.iterdir()) if p.is_file()}
     assert {"best.ckpt", "last.ckpt", "policy.pt"} <= set(before)
-    failures = [({"accelerator": "foo"}, r"accelerator 'foo': unknown; use one of auto, cpu, "),
-                ({"devices": 0}, r"^devices: must be a number of devices >= 1, .*, got 0$"),
-                ({"devices": "0"}, r"^devices: must be a number of devices >= 1, .*, got '0'$"),  # the CLI passes a string
-                ({"devices": -1}, r"devices: must be a number of devices >= 1, .*got -1")]
+    failures = [
+        ({"accelerator": "foo"}, r"accelerator 'foo': unknown; use one of auto, cpu, "),
+        ({"devices": 0}, r"^devices: must be a number of devices >= 1, .*, got 0$"),
+        ({"devices": "0"}, r"^devices: must be a number of devices >= 1, .*, got '0'$"),  # the CLI passes a string
+        ({"devices": -1}, r"devices: must be a number of devices >= 1, .*got -1"),
+    ]
     if not torch.cuda.is_available():  # Lightning's "No supported gpu backend found!" came after the clean-up
         failures.append(({"accelerator": "gpu"}, r"accelerator 'gpu': no GPU is visible to torch .*use cpu or auto"))
     for options, message in failures:
         with pytest.raises(ValueError, match=message):
-            train_planner(root / "guide.npz", out_dir, TINY_MODEL, TINY_TRAIN, tracking_uri=mlflow_uri,
-                          experiment_name="test_planner_bad_settings", **options)
+            train_planner(
+                root / "guide.npz",
+                out_dir,
+                TINY_MODEL,
+                TINY_TRAIN,
+                tracking_uri=mlflow_uri,
+                experiment_name="test_planner_bad_settings",
+                **options,
+            )
         assert {p.name: p.read_bytes() for p in sorted(out_dir.iterdir()) if p.is_file()} == before, options
     assert mlflow.MlflowClient(tracking_uri=mlflow_uri).get_experiment_by_name("test_planner_bad_settings") is None
     with pytest.raises(ValueError, match="accelerator 'foo'"):
@@ -113,15 +142,21 @@ def test_bad_settings_fail_before_checkpoints_files_or_mlflow_change(trained, tm
 def test_max_minutes_caps_the_wall_clock(trained, tmp_path):
     """A time cap (a timed GPU lease) stops a long run early and still exports a policy."""
     root, _ = trained
-    path = train_planner(root / "dare.npz", tmp_path / "capped", TINY_MODEL, {**TINY_TRAIN, "max_epochs": 200, "max_minutes": 0.05},
-                         mlflow=False)
+    path = train_planner(
+        root / "dare.npz",
+        tmp_path / "capped",
+        TINY_MODEL,
+        {**TINY_TRAIN, "max_epochs": 200, "max_minutes": 0.05},
+        mlflow=False,
+    )
     assert 1 <= read_policy_export(path)["epochs"] < 200
     assert load_policy(path)[0] is not None
     for bad in (0, -2, "soon", False):
         with pytest.raises(ValueError) as refused:
             PlannerTrainConfig.from_dict({"max_minutes": bad})
-        assert str(refused.value) == (f"train.max_minutes: must be a finite number > 0 (minutes), or null (no cap), "
-                                      f"got {bad!r}")
+        assert str(refused.value) == (
+            f"train.max_minutes: must be a finite number > 0 (minutes), or null (no cap), got {bad!r}"
+        )
     for key, bad in (("max_epochs", 0), ("max_epochs", -1), ("max_epochs", 2.5), ("batch_size", 0)):
         with pytest.raises(ValueError) as refused:  # 0 epochs: an untrained export
             PlannerTrainConfig.from_dict({key: bad})
@@ -132,9 +167,11 @@ def test_training_settings_round_trip_and_name_a_bad_key():
     config = PlannerTrainConfig.from_dict({"max_epochs": 3, "lr": 1, "max_minutes": 2})
     assert config.lr == 1.0 and config.max_minutes == 2.0  # numbers kept as floats: the same values as before
     assert PlannerTrainConfig.from_dict(dataclasses.asdict(config)) == config
-    for values, message in (({"val_fraction": 1.0}, "train.val_fraction: must be a number in [0, 1), got 1.0"),
-                            ({"augment": "yes"}, "train.augment: must be true or false, got 'yes'"),
-                            ({"max_epoch": 3}, "train.max_epoch: unknown setting (known: max_epochs, ")):
+    for values, message in (
+        ({"val_fraction": 1.0}, "train.val_fraction: must be a number in [0, 1), got 1.0"),
+        ({"augment": "yes"}, "train.augment: must be true or false, got 'yes'"),
+        ({"max_epoch": 3}, "train.max_epoch: unknown setting (known: max_epochs, "),
+    ):
         with pytest.raises(ValueError) as refused:
             PlannerTrainConfig.from_dict(values)
         assert str(refused.value).startswith(message), str(refused.value)
@@ -150,8 +187,14 @@ def test_episode_split_holds_out_whole_episodes():
 
 @pytest.mark.parametrize(
     "name, mode, candidates",
-    [("guide", "tour", 8), ("guide", "policy", 8), ("guide", "policy", 1), ("guide_noregion", "tour", 4), ("dare", "tour", 4),
-     ("dare", "policy", 4)],
+    [
+        ("guide", "tour", 8),
+        ("guide", "policy", 8),
+        ("guide", "policy", 1),
+        ("guide_noregion", "tour", 4),
+        ("dare", "tour", 4),
+        ("dare", "policy", 4),
+    ],
 )
 def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, generated_maze_dir, name, mode, candidates):
     _, paths = trained
@@ -162,7 +205,9 @@ def test_diffusion_planners_explore_a_maze_within_the_motion_rule(trained, gener
     planner = make_planner(name, policy_file=str(checkpoint), num_inference_steps=3, **options)
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
     result = run_episode(ground_truth, planner, Protocol())
-    assert result.complete, result.failure  # tour targets / the stall guard guarantee progress even for a 2-epoch policy
+    assert result.complete, (
+        result.failure
+    )  # tour targets / the stall guard guarantee progress even for a 2-epoch policy
     assert result.motion_violations == 0
     assert 0.0 <= planner.last_decision["fallback_share"] <= 1.0
 
@@ -213,7 +258,9 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
 def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated_maze_dir):
     _, paths = trained
     ground_truth = load_map(list_maps(generated_maze_dir)[0])
-    planner = make_planner("guide", policy_file=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint, prior_weight=0.0)
+    planner = make_planner(
+        "guide", policy_file=str(paths["guide"]), num_inference_steps=3, inpaint=wall_aware_inpaint, prior_weight=0.0
+    )
     planner.reset(ground_truth, Protocol(), 0)
     observation = Episode(ground_truth, Protocol()).observe()
     planner.plan(observation)
@@ -245,11 +292,15 @@ def test_without_pipeline_models_the_shipped_defaults_are_used(monkeypatch, tmp_
     import pipeline.models.defaults as guide_module
 
     for k in ("guide", "dare"):
-        monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", guide_module.MODEL_FILES[f"policy_{k}"][1]))
+        monkeypatch.setitem(
+            guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", guide_module.MODEL_FILES[f"policy_{k}"][1])
+        )
     planner = make_planner("dare")
     assert planner.policy_source.endswith("planner_dare.pt") and "assets" in planner.policy_source
     for k in ("guide", "dare"):
-        monkeypatch.setitem(guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", (tmp_path / f"shipped_{k}.pt",)))
+        monkeypatch.setitem(
+            guide_module.MODEL_FILES, f"policy_{k}", (tmp_path / f"{k}.pt", (tmp_path / f"shipped_{k}.pt",))
+        )
     with pytest.raises(FileNotFoundError, match="train_planner"):
         make_planner("guide")
 
@@ -275,8 +326,14 @@ def test_two_process_training_exports_once(trained, tmp_path):
     script.write_text(DDP_SCRIPT.format(model=TINY_MODEL, train=TINY_TRAIN))
     out = tmp_path / "ddp"
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-    done = subprocess.run([sys.executable, str(script), str(root / "guide.npz"), str(out)], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, str(script), str(root / "guide.npz"), str(out)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     lines = [line for line in done.stdout.splitlines() if line.startswith("exported:")]
     assert sorted(lines) == [f"exported: {out / 'policy.pt'}", "exported: None"]
@@ -291,8 +348,15 @@ def test_a_training_in_a_child_process_starts_its_ddp_processes_there(trained, t
     from pipeline.training.policy_launch import train_in_subprocess
 
     root, _ = trained
-    export = train_in_subprocess(observations=root / "guide.npz", out_dir=tmp_path / "child", model_config=TINY_MODEL,
-                                 train_config=TINY_TRAIN, accelerator="cpu", devices=2, mlflow=False)
+    export = train_in_subprocess(
+        observations=root / "guide.npz",
+        out_dir=tmp_path / "child",
+        model_config=TINY_MODEL,
+        train_config=TINY_TRAIN,
+        accelerator="cpu",
+        devices=2,
+        mlflow=False,
+    )
     assert export == tmp_path / "child" / "policy.pt"
     assert read_policy_export(export)["epochs"] == 2
 
@@ -324,12 +388,23 @@ def test_a_resumed_run_trains_the_same_weights_as_an_uninterrupted_one(trained, 
                 raise Killed
 
     make_trainer = lightning_run.make_trainer
-    monkeypatch.setattr(lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]}))
+    monkeypatch.setattr(
+        lightning_run, "make_trainer", lambda **o: make_trainer(**{**o, "callbacks": [*o["callbacks"], Interrupt()]})
+    )
     with pytest.raises(Killed):
-        train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, checkpoint_dir=tmp_path / "ckpt")
+        train_planner(
+            root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, checkpoint_dir=tmp_path / "ckpt"
+        )
     monkeypatch.setattr(lightning_run, "make_trainer", make_trainer)
-    resumed = train_planner(root / "guide.npz", tmp_path / "cut", TINY_MODEL, settings, mlflow=False, resume=True,
-                            checkpoint_dir=tmp_path / "ckpt")
+    resumed = train_planner(
+        root / "guide.npz",
+        tmp_path / "cut",
+        TINY_MODEL,
+        settings,
+        mlflow=False,
+        resume=True,
+        checkpoint_dir=tmp_path / "ckpt",
+    )
     assert sorted(p.name for p in (tmp_path / "cut").iterdir()) == ["policy.pt"]
     a, b = torch.load(whole, weights_only=True), torch.load(resumed, weights_only=True)
     assert [row["epoch"] for row in b["history"]] == [0, 1, 2]
@@ -340,18 +415,33 @@ def test_a_fresh_run_can_start_from_an_export(trained, tmp_path, mlflow_uri):
     """DAgger fine-tunes each round from the round before: `init_policy` gives a fresh run its weights."""
     root, paths = trained
     no_steps = dict(TINY_TRAIN, max_epochs=1, lr=1e-12, warmup_steps=0, ema_decay=0.0)  # a step of ~0: weights kept
-    export = train_planner(root / "guide.npz", tmp_path / "from", TINY_MODEL, no_steps, tracking_uri=mlflow_uri,
-                           experiment_name="test_planner", init_policy=paths["guide"])
+    export = train_planner(
+        root / "guide.npz",
+        tmp_path / "from",
+        TINY_MODEL,
+        no_steps,
+        tracking_uri=mlflow_uri,
+        experiment_name="test_planner",
+        init_policy=paths["guide"],
+    )
     start, _ = load_policy(paths["guide"])
     tuned, _ = load_policy(export)
     for name, value in start.state_dict().items():
         torch.testing.assert_close(tuned.state_dict()[name], value, atol=1e-6, rtol=0)
     scratch = train_planner(root / "guide.npz", tmp_path / "scratch", TINY_MODEL, dict(no_steps, seed=7), mlflow=False)
     drawn, _ = load_policy(scratch)
-    assert any(not torch.allclose(drawn.state_dict()[k], v) for k, v in start.state_dict().items() if v.is_floating_point())
+    assert any(
+        not torch.allclose(drawn.state_dict()[k], v) for k, v in start.state_dict().items() if v.is_floating_point()
+    )
     with pytest.raises(ValueError, match="model config differs"):
-        train_planner(root / "guide.npz", tmp_path / "other", dict(TINY_MODEL, d_model=16, heads=2), no_steps, mlflow=False,
-                      init_policy=paths["guide"])
+        train_planner(
+            root / "guide.npz",
+            tmp_path / "other",
+            dict(TINY_MODEL, d_model=16, heads=2),
+            no_steps,
+            mlflow=False,
+            init_policy=paths["guide"],
+        )
 
 
 TWO_NODE_SCRIPT = """
@@ -389,18 +479,43 @@ def test_a_two_node_training_killed_after_an_epoch_resumes_into_one_mlflow_run(t
             port = probe.getsockname()[1]
         nodes = []
         for rank in (0, 1):
-            env = {**os.environ, "PYTHONWARNINGS": "ignore", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port),
-                   "NODE_RANK": str(rank), "LOCAL_RANK": "0", "WORLD_SIZE": "2"}
+            env = {
+                **os.environ,
+                "PYTHONWARNINGS": "ignore",
+                "MASTER_ADDR": "127.0.0.1",
+                "MASTER_PORT": str(port),
+                "NODE_RANK": str(rank),
+                "LOCAL_RANK": "0",
+                "WORLD_SIZE": "2",
+            }
             logs = [open(tmp_path / f"{mode}_{rank}.{stream}", "w") for stream in ("out", "err")]  # files: a pipe fills
-            nodes.append(subprocess.Popen([sys.executable, str(script), str(root / "guide.npz"), str(out), mlflow_uri,
-                                           str(checkpoints), mode], cwd=tmp_path, env=env, stdout=logs[0],
-                                          stderr=logs[1], text=True, start_new_session=True))
+            nodes.append(
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        str(script),
+                        str(root / "guide.npz"),
+                        str(out),
+                        mlflow_uri,
+                        str(checkpoints),
+                        mode,
+                    ],
+                    cwd=tmp_path,
+                    env=env,
+                    stdout=logs[0],
+                    stderr=logs[1],
+                    text=True,
+                    start_new_session=True,
+                )
+            )
             for log in logs:
                 log.close()
         return nodes
 
     def logs(mode: str) -> str:
-        return "".join(f"--- node {rank} ---\n" + (tmp_path / f"{mode}_{rank}.err").read_text()[-3000:] for rank in (0, 1))
+        return "".join(
+            f"--- node {rank} ---\n" + (tmp_path / f"{mode}_{rank}.err").read_text()[-3000:] for rank in (0, 1)
+        )
 
     def finish(nodes: list[subprocess.Popen], mode: str, seconds: float) -> None:
         """Wait for both nodes; one failing (the other then waits for it forever) or the time
@@ -419,8 +534,11 @@ def test_a_two_node_training_killed_after_an_epoch_resumes_into_one_mlflow_run(t
 
     first = launch("fresh")
     deadline = time.monotonic() + 240
-    while (not (checkpoints / "last.ckpt").is_file() and time.monotonic() < deadline
-           and all(node.poll() is None for node in first)):
+    while (
+        not (checkpoints / "last.ckpt").is_file()
+        and time.monotonic() < deadline
+        and all(node.poll() is None for node in first)
+    ):
         time.sleep(0.2)
     for node in first:
         os.killpg(node.pid, signal.SIGKILL)
@@ -463,9 +581,28 @@ def test_a_tracking_server_receives_the_benchmark_and_training_runs(trained, gen
         port = probe.getsockname()[1]
     uri = f"http://127.0.0.1:{port}"
     server = subprocess.Popen(
-        [sys.executable, "-m", "mlflow", "server", "--host", "127.0.0.1", "--port", str(port), "--workers", "1",
-         "--backend-store-uri", f"sqlite:///{tmp_path / 'server.db'}", "--artifacts-destination", str(tmp_path / "store")],
-        cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        [
+            sys.executable,
+            "-m",
+            "mlflow",
+            "server",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
+            "1",
+            "--backend-store-uri",
+            f"sqlite:///{tmp_path / 'server.db'}",
+            "--artifacts-destination",
+            str(tmp_path / "store"),
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
@@ -480,17 +617,40 @@ def test_a_tracking_server_receives_the_benchmark_and_training_runs(trained, gen
         mazes = tmp_path / "mazes"
         mazes.mkdir()
         shutil.copy(sorted(generated_maze_dir.glob("*.png"))[0], mazes)
-        bench = subprocess.run([guide, "benchmark", "--maps", str(mazes), "--planner", "nearest_frontier",
-                                "--out", str(tmp_path / "bench"), "--workers", "1"], cwd=tmp_path, env=env,
-                               capture_output=True, text=True)
+        bench = subprocess.run(
+            [
+                guide,
+                "benchmark",
+                "--maps",
+                str(mazes),
+                "--planner",
+                "nearest_frontier",
+                "--out",
+                str(tmp_path / "bench"),
+                "--workers",
+                "1",
+            ],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+        )
         assert bench.returncode == 0, bench.stderr[-3000:]
         monkeypatch.setenv("MLFLOW_TRACKING_URI", uri)
         root, _ = trained
-        train_planner(root / "guide.npz", tmp_path / "policy", TINY_MODEL, TINY_TRAIN, experiment_name="on_server",
-                      run_name="tiny")
+        train_planner(
+            root / "guide.npz",
+            tmp_path / "policy",
+            TINY_MODEL,
+            TINY_TRAIN,
+            experiment_name="on_server",
+            run_name="tiny",
+        )
         client = mlflow.MlflowClient(tracking_uri=uri)
         (bench_run,) = client.search_runs([client.get_experiment_by_name("benchmark").experiment_id])
-        assert bench_run.data.params["planner"] == "nearest_frontier" and bench_run.data.metrics["completion_rate"] == 1.0
+        assert (
+            bench_run.data.params["planner"] == "nearest_frontier" and bench_run.data.metrics["completion_rate"] == 1.0
+        )
         (maze_input,) = bench_run.inputs.dataset_inputs
         assert maze_input.dataset.source_type == "local" and str(mazes) in maze_input.dataset.source
         assert "summary.md" in {a.path for a in client.list_artifacts(bench_run.info.run_id)}

@@ -37,8 +37,15 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     out = workspace / "reports/benchmark"
     workflow.benchmark_test_mazes(SECTION, Protocol())
     first = files(out)
-    assert {"metrics.csv", "summary.md", "run.json", "exploration.csv", "coverage.png",
-            "nearest_frontier/small.csv", "nearest_frontier/small.steps.csv"} <= set(first)
+    assert {
+        "metrics.csv",
+        "summary.md",
+        "run.json",
+        "exploration.csv",
+        "coverage.png",
+        "nearest_frontier/small.csv",
+        "nearest_frontier/small.steps.csv",
+    } <= set(first)
     (out / "retired").mkdir()
     (out / "retired/small.csv").write_text("x,y\n0,0\n")  # a planner an earlier run had
     before = files(out)

@@ -19,10 +19,20 @@ def test_explore_prepares_checks_and_writes_every_file(small_maze_path, tmp_path
     run = explore.prepare(small_maze_path, "nf=nearest_frontier:min_utility=3", Protocol(), tmp_path / "out")
     assert (run.label, run.name, run.options, run.problems) == ("nf", "nearest_frontier", {"min_utility": 3}, [])
     result, written = explore.run(run, progress=False)
-    assert result.complete and {path.name for path in written} == {"small.csv", "small.steps.csv", "metrics.csv", "small.png", "run.json"}
+    assert result.complete and {path.name for path in written} == {
+        "small.csv",
+        "small.steps.csv",
+        "metrics.csv",
+        "small.png",
+        "run.json",
+    }
     record = json.loads((tmp_path / "out" / "run.json").read_text())
-    assert record["planner"] == {"label": "nf", "name": "nearest_frontier", "options": {"min_utility": 3},
-                                 "description": run.planner.description}
+    assert record["planner"] == {
+        "label": "nf",
+        "name": "nearest_frontier",
+        "options": {"min_utility": 3},
+        "description": run.planner.description,
+    }
     assert explore.summary_line(run, result).startswith("small nf: complete, ")
     assert explore.after_failure(run, result) is None
     with pytest.raises(ValueError, match="unknown planner 'nope'"):
@@ -36,13 +46,23 @@ def test_explore_says_why_a_map_cannot_be_completed_before_the_episode(tmp_path)
     np.save(tmp_path / "pocket.npy", grid)
     protocol = Protocol(node_resolution=2.0, sensor_range=8.0, utility_range=4.0, done_unknown_cells=20, max_steps=40)
     run = explore.prepare(tmp_path / "pocket.npy", "greedy_utility", protocol, start=(10, 10))
-    assert any("100 free cells are seen from no lattice node the robot can reach" in problem for problem in run.problems)
+    assert any(
+        "100 free cells are seen from no lattice node the robot can reach" in problem for problem in run.problems
+    )
 
 
 def test_benchmark_folder_runs_every_map_and_logs_one_run_per_planner(generated_maze_dir, tmp_path, mlflow_uri):
     said: list[str] = []
-    frame = benchmark_folder(generated_maze_dir, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path / "b",
-                             workers=1, tracking_uri=mlflow_uri, experiment="benchmark", warn=said.append).frame
+    frame = benchmark_folder(
+        generated_maze_dir,
+        ["nearest_frontier", "greedy_utility"],
+        Protocol(),
+        tmp_path / "b",
+        workers=1,
+        tracking_uri=mlflow_uri,
+        experiment="benchmark",
+        warn=said.append,
+    ).frame
     assert len(frame) == 6 and frame["complete"].all() and not said
     assert "vs greedy_utility (paired, 95 %)" in (tmp_path / "b" / "summary.md").read_text()
     client = mlflow.MlflowClient(tracking_uri=mlflow_uri)
@@ -50,14 +70,23 @@ def test_benchmark_folder_runs_every_map_and_logs_one_run_per_planner(generated_
     names = {run.info.run_name for run in client.search_runs([experiment.experiment_id])}
     assert {"nearest_frontier", "greedy_utility"} <= names
     with pytest.raises(ValueError, match="--baseline 'x' is not among the planners' labels"):
-        benchmark_folder(generated_maze_dir, ["nearest_frontier"], Protocol(), tmp_path / "c", baseline="x", mlflow=False)
+        benchmark_folder(
+            generated_maze_dir, ["nearest_frontier"], Protocol(), tmp_path / "c", baseline="x", mlflow=False
+        )
     (tmp_path / "empty").mkdir()
     with pytest.raises(MapError, match="no maps in this folder"):
         benchmark_folder(tmp_path / "empty", ["nearest_frontier"], Protocol(), tmp_path / "d", mlflow=False)
 
 
 def test_distil_policy_builds_its_observations_as_the_start_policy_was_trained():
-    seen = {"variant": "guide", "threshold": 0.7, "count_threshold": 0.4, "min_component": 2, "max_nodes": 64, "max_neighbors": 25}
+    seen = {
+        "variant": "guide",
+        "threshold": 0.7,
+        "count_threshold": 0.4,
+        "min_component": 2,
+        "max_nodes": 64,
+        "max_neighbors": 25,
+    }
     assert observation_settings({"observations": seen}) == {k: v for k, v in seen.items() if k != "variant"}
     assert observation_settings({})["threshold"] == 0.8  # older exports: the planners' defaults
     with pytest.raises(SystemExit, match="dare observations"):

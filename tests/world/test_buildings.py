@@ -170,8 +170,10 @@ def test_the_png_names_the_start_drawn_and_the_same_seed_draws_the_same_floor(tm
     assert np.array_equal(loaded.free, floor.free)
     drawn = [generate_building(config, np.random.default_rng(1)) for _ in range(2)]
     assert np.array_equal(*drawn)
-    sides = [load_maze_png(p, cell_size=0.2).free.shape[0] * 0.2 for p in
-             generate_building_set(config, 4, tmp_path / "sides", seed=[2], progress=False, side_m=(20, 60))]
+    sides = [
+        load_maze_png(p, cell_size=0.2).free.shape[0] * 0.2
+        for p in generate_building_set(config, 4, tmp_path / "sides", seed=[2], progress=False, side_m=(20, 60))
+    ]
     assert all(20 <= s <= 60 for s in sides) and len(set(sides)) > 1
 
 

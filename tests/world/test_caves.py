@@ -55,7 +55,9 @@ def test_every_open_block_holds_a_lattice_node_the_robot_can_stand_on(tmp_path):
 
 def test_the_same_seed_draws_the_same_cave_and_bad_settings_are_refused():
     config = CaveConfig(side_m=40.0)
-    assert np.array_equal(generate_cave(config, np.random.default_rng(1)), generate_cave(config, np.random.default_rng(1)))
+    assert np.array_equal(
+        generate_cave(config, np.random.default_rng(1)), generate_cave(config, np.random.default_rng(1))
+    )
     with pytest.raises(ValueError, match="under 4 cells"):
         CaveConfig(cell_size=1.5)
     with pytest.raises(ValueError, match="open_chance and min_open_share"):

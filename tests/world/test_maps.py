@@ -46,13 +46,7 @@ def write_maze(path: Path, cells: np.ndarray) -> Path:
     return write_png(path, upsample(cells))
 
 
-def write_ros(
-    directory: Path,
-    pixels: np.ndarray,
-    name: str = "map",
-    image_name: str = "map.pgm",
-    **overrides,
-) -> Path:
+def write_ros(directory: Path, pixels: np.ndarray, name: str = "map", image_name: str = "map.pgm", **overrides) -> Path:
     """Write a map_server YAML + image; `overrides` replace keys, a value of None drops the key."""
     write_png(directory / image_name, pixels)
     meta = {
@@ -142,8 +136,17 @@ def test_maze_custom_cell_size(tmp_path):
 @pytest.mark.parametrize(
     "value, free",
     [
-        (0, False), (49, False), (50, True), (65, True), (80, True), (81, False),
-        (127, False), (150, False), (151, True), (195, True), (255, True),
+        (0, False),
+        (49, False),
+        (50, True),
+        (65, True),
+        (80, True),
+        (81, False),
+        (127, False),
+        (150, False),
+        (151, True),
+        (195, True),
+        (255, True),
     ],
 )
 def test_maze_free_thresholds(tmp_path, value, free):
@@ -479,8 +482,14 @@ def test_yaml_invalid(tmp_path):
 
 def test_yaml_image_unreadable(tmp_path):
     (tmp_path / "map.pgm").write_bytes(b"not an image at all")
-    meta = {"image": "map.pgm", "resolution": 0.1, "origin": [0, 0, 0], "occupied_thresh": 0.65,
-            "free_thresh": 0.2, "start": [0, 0]}
+    meta = {
+        "image": "map.pgm",
+        "resolution": 0.1,
+        "origin": [0, 0, 0],
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.2,
+        "start": [0, 0],
+    }
     path = tmp_path / "map.yaml"
     path.write_text(yaml.safe_dump(meta))
     error = assert_map_error(path, "not a readable image", lambda: load_map(path))
@@ -567,8 +576,13 @@ def test_bad_cell_size(tmp_path):
 
 # ----------------------------------------------------------------------------- fuzzing
 
-FUZZ = settings(max_examples=80, deadline=None, derandomize=True, database=None,  # the same examples on every run
-                suppress_health_check=[HealthCheck.function_scoped_fixture])
+FUZZ = settings(
+    max_examples=80,
+    deadline=None,
+    derandomize=True,
+    database=None,  # the same examples on every run
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
 
 
 def load_or_map_error(path: Path, start=None) -> None:
@@ -616,14 +630,33 @@ def test_fuzz_plausible_headers(tmp_path, prefix, data, suffix):
     load_or_map_error(path, start=(1, 1))
     # the same bytes as the image a YAML names
     (tmp_path / "map.pgm").write_bytes(prefix + data)
-    meta = {"image": "map.pgm", "resolution": 0.5, "origin": [0, 0, 0], "occupied_thresh": 0.65,
-            "free_thresh": 0.196, "start": [0.1, 0.1]}
+    meta = {
+        "image": "map.pgm",
+        "resolution": 0.5,
+        "origin": [0, 0, 0],
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+        "start": [0.1, 0.1],
+    }
     (tmp_path / "map.yaml").write_text(yaml.safe_dump(meta))
     load_or_map_error(tmp_path / "map.yaml")
 
 
-DTYPES = [np.bool_, np.uint8, np.int8, np.uint16, np.int32, np.int64, np.float32, np.float64, np.complex64,
-          ">u2", "<i8", "U3", "S2"]
+DTYPES = [
+    np.bool_,
+    np.uint8,
+    np.int8,
+    np.uint16,
+    np.int32,
+    np.int64,
+    np.float32,
+    np.float64,
+    np.complex64,
+    ">u2",
+    "<i8",
+    "U3",
+    "S2",
+]
 
 
 @FUZZ
@@ -641,8 +674,11 @@ def test_fuzz_random_arrays(tmp_path, shape, dtype, seed, start):
     load_or_map_error(path, start=start)
     # a well-formed 2-D grid of an accepted dtype with a start on a free cell must load
     if (
-        array.ndim == 2 and np.dtype(dtype).kind in "biu" and start is not None
-        and 0 <= start[0] < array.shape[1] and 0 <= start[1] < array.shape[0]
+        array.ndim == 2
+        and np.dtype(dtype).kind in "biu"
+        and start is not None
+        and 0 <= start[0] < array.shape[1]
+        and 0 <= start[1] < array.shape[0]
         and array[start[1], start[0]] == 1
     ):
         grid = load_map(path, start=start)
@@ -686,12 +722,18 @@ YAML_VALUES = st.recursive(
             key: YAML_VALUES
             for key in ("image", "resolution", "origin", "occupied_thresh", "free_thresh", "negate", "start", "mode")
         },
-    ),
+    )
 )
 def test_fuzz_yaml_values(tmp_path, values):
     write_png(tmp_path / "real.pgm", ros_image())
-    meta = {"image": "real.pgm", "resolution": 0.5, "origin": [-1, -2, 0], "occupied_thresh": 0.65,
-            "free_thresh": 0.196, "start": [0.2, -1.9]}
+    meta = {
+        "image": "real.pgm",
+        "resolution": 0.5,
+        "origin": [-1, -2, 0],
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+        "start": [0.2, -1.9],
+    }
     meta.update(values)
     path = tmp_path / "fuzz.yaml"
     path.write_text(yaml.safe_dump(meta, allow_unicode=True))
@@ -752,8 +794,18 @@ def test_corrupt_png_prints_nothing_but_the_error(tmp_path, capfd, cut):
     # the image a ROS YAML names goes through the same decoder
     (tmp_path / "map.pgm").write_bytes(path.read_bytes())
     ros = tmp_path / "map.yaml"
-    ros.write_text(yaml.safe_dump({"image": "map.pgm", "resolution": 0.5, "origin": [0, 0, 0],
-                                   "occupied_thresh": 0.65, "free_thresh": 0.196, "start": [0.1, 0.1]}))
+    ros.write_text(
+        yaml.safe_dump(
+            {
+                "image": "map.pgm",
+                "resolution": 0.5,
+                "origin": [0, 0, 0],
+                "occupied_thresh": 0.65,
+                "free_thresh": 0.196,
+                "start": [0.1, 0.1],
+            }
+        )
+    )
     assert_map_error(ros, "not a readable image", lambda: load_map(ros))
     assert capfd.readouterr().err == ""
 

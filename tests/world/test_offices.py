@@ -31,9 +31,13 @@ def test_the_start_the_format_names_is_the_one_drawn(tmp_path):
 
 def test_the_same_seed_draws_the_same_floor_and_doors_pass_the_lattice():
     config = OfficeConfig(side_m=40.0)
-    assert np.array_equal(generate_office(config, np.random.default_rng(1)), generate_office(config, np.random.default_rng(1)))
+    assert np.array_equal(
+        generate_office(config, np.random.default_rng(1)), generate_office(config, np.random.default_rng(1))
+    )
     with pytest.raises(ValueError, match="lattice_m .* whole number"):
-        OfficeConfig(door_m=(1.0, 2.0), lattice_m=4.1)  # narrow doors go over lattice lines: the lattice must fit the cells
+        OfficeConfig(
+            door_m=(1.0, 2.0), lattice_m=4.1
+        )  # narrow doors go over lattice lines: the lattice must fit the cells
     with pytest.raises(ValueError, match="two cells"):
         OfficeConfig(door_m=(0.2, 2.0))
     with pytest.raises(ValueError, match="twice min_room_m"):

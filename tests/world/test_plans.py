@@ -83,12 +83,15 @@ def report_source_free(folder):
     return find_plan_sources(folder, resolution=0.05)[0].free
 
 
-@pytest.mark.parametrize("case, message", [
-    ("empty", "not a readable image (the file is empty)"),
-    ("no free", "no free cell"),
-    ("no resolution", "no resolution"),
-    ("missing image", "map image"),
-])
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("empty", "not a readable image (the file is empty)"),
+        ("no free", "no free cell"),
+        ("no resolution", "no resolution"),
+        ("missing image", "map image"),
+    ],
+)
 def test_bad_plans_are_refused_naming_the_file(tmp_path, case, message):
     path = tmp_path / "plan.png"
     if case == "empty":
@@ -99,7 +102,9 @@ def test_bad_plans_are_refused_naming_the_file(tmp_path, case, message):
         write_png(path, two_room_plan())
     else:
         path = tmp_path / "map.yaml"
-        path.write_text("image: gone.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+        path.write_text(
+            "image: gone.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+        )
     with pytest.raises(MapError, match=re.escape(message)) as error:
         find_plan_sources(path, resolution=None if case == "no resolution" else 0.05)
     assert str(path) in str(error.value)

@@ -10,7 +10,7 @@ def corridor(width: int) -> np.ndarray:
     """A 40 x 40 free square split by a wall (rows 18-21) with a gap `width` cells wide."""
     belief = np.full((40, 40), FREE, np.uint8)
     belief[18:22, :] = OCCUPIED
-    belief[18:22, 10:10 + width] = FREE
+    belief[18:22, 10 : 10 + width] = FREE
     return belief
 
 

@@ -19,13 +19,15 @@ def office_at_5cm(seed: int = 0) -> np.ndarray:
     free[140:180, 197:203] = True  # ... with a 2 m door
     rng = np.random.default_rng(seed)
     for row, col in rng.integers((20, 20), (300, 380), size=(30, 2)):
-        free[row:row + 2, col:col + 2] = False  # 0.1 m specks
+        free[row : row + 2, col : col + 2] = False  # 0.1 m specks
     return free
 
 
 def test_the_factor_is_a_whole_number_of_cells():
     assert resample_factor(0.05, 0.4) == 8 and resample_factor(0.05, 0.3) == 6 and resample_factor(0.4, 0.4) == 1
-    with pytest.raises(ValueError, match=r"not a whole number of the map's 0.05 m cells; use a multiple, e.g. 0.3 or 0.35 m"):
+    with pytest.raises(
+        ValueError, match=r"not a whole number of the map's 0.05 m cells; use a multiple, e.g. 0.3 or 0.35 m"
+    ):
         resample_factor(0.05, 0.33)
     with pytest.raises(ValueError, match="positive"):
         resample_factor(0.05, 0.0)
@@ -38,7 +40,9 @@ def test_any_obstacle_cell_keeps_a_thin_wall_closed_where_a_count_opens_it():
     broken = {1: 0, 8: 0}
     for _ in range(20):
         angle, centre = rng.uniform(0, np.pi), rng.uniform(60, 140, 2)
-        ends = [tuple(int(v) for v in centre + sign * 300 * np.array([np.cos(angle), np.sin(angle)])) for sign in (-1, 1)]
+        ends = [
+            tuple(int(v) for v in centre + sign * 300 * np.array([np.cos(angle), np.sin(angle)])) for sign in (-1, 1)
+        ]
         line = np.zeros((200, 200), np.uint8)
         cv2.line(line, ends[0], ends[1], 1, 1, lineType=cv2.LINE_8)
         free = line == 0
@@ -86,18 +90,35 @@ def test_the_written_map_reads_back_the_same(tmp_path):
 
 def test_resample_map_command_writes_a_map_the_planners_explore(tmp_path):
     fine = write_fine_ros_map(tmp_path, office_at_5cm(), 0.05, (3.0, 3.0))
-    result = runner.invoke(app, ["explore", "--map", str(fine), "--planner", "nearest_frontier", "--no-progress",
-                                 "--max-steps", "1", "--out", str(tmp_path / "fine")])
+    result = runner.invoke(
+        app,
+        [
+            "explore",
+            "--map",
+            str(fine),
+            "--planner",
+            "nearest_frontier",
+            "--no-progress",
+            "--max-steps",
+            "1",
+            "--out",
+            str(tmp_path / "fine"),
+        ],
+    )
     assert "warning: office is drawn at 0.05 m per cell: the lidar's rays pass 3.5 cells apart at 20 m" in result.output
     out = tmp_path / "coarse" / "office.yaml"
     result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert "400x320 cells of 0.05 m -> 50x40 cells of 0.4 m" in result.output
     assert load_ros_map(out).cell_size == 0.4
-    result = runner.invoke(app, ["explore", "--map", str(out), "--planner", "greedy_utility", "--no-progress",
-                                 "--out", str(tmp_path / "run")])
+    result = runner.invoke(
+        app,
+        ["explore", "--map", str(out), "--planner", "greedy_utility", "--no-progress", "--out", str(tmp_path / "run")],
+    )
     assert result.exit_code == 0 and "complete" in result.output and "warning" not in result.output
-    result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(tmp_path / "c.yaml"), "--to-cell-size", "0.33"])
+    result = runner.invoke(
+        app, ["resample-map", "--map", str(fine), "--out", str(tmp_path / "c.yaml"), "--to-cell-size", "0.33"]
+    )
     assert result.exit_code == 2 and "not a whole number of the map's 0.05 m cells" in result.output
     result = runner.invoke(app, ["resample-map", "--map", str(fine), "--out", str(tmp_path / "c.png")])
     assert result.exit_code == 2 and "name the ROS map YAML to write" in result.output

@@ -192,7 +192,10 @@ def test_real_robot_setting_explores_an_office_with_narrow_doors(tmp_path):
     assert result.explored_ratio > 0.99
 
 
-@pytest.mark.parametrize("planner", [p for p in planner_names() if not planner_config(p).uses_ground_truth and not planner_config(p).needs_policy])
+@pytest.mark.parametrize(
+    "planner",
+    [p for p in planner_names() if not planner_config(p).uses_ground_truth and not planner_config(p).needs_policy],
+)
 def test_every_planner_completes_generated_mazes(generated_maze_dir, planner):
     for path in sorted(generated_maze_dir.glob("*.png")):
         result = run_episode(load_map(path), make_planner(planner), Protocol())
@@ -213,8 +216,13 @@ def test_resume_starts_from_a_given_belief_and_pose(small_maze):
     resumed.move((8.0, 0.0))
     episode.move((8.0, 0.0))
     assert resumed.distance == 4.0 and np.array_equal(resumed.belief.grid, episode.belief.grid)
-    known = Episode.resume(small_maze, protocol, np.where(small_maze.free, FREE, OCCUPIED).astype(np.uint8),
-                           observation.cell, observation.position)
+    known = Episode.resume(
+        small_maze,
+        protocol,
+        np.where(small_maze.free, FREE, OCCUPIED).astype(np.uint8),
+        observation.cell,
+        observation.position,
+    )
     assert known.complete and known.completion_distance == 0.0  # a fully known map is explored already
     with pytest.raises(ValueError, match="differ in shape"):
         Episode.resume(small_maze, protocol, observation.belief[1:], observation.cell, observation.position)
@@ -230,4 +238,3 @@ def test_a_cell_centre_off_the_lattice_is_a_waypoint_only_under_the_door_graph()
     lattice = Episode(world, replace(PAPER_REAL_ROBOT, door_graph=False))
     with pytest.raises(MotionError, match="node lattice"):
         lattice.waypoint_cell(door)
-

@@ -75,8 +75,12 @@ def held_out_run(tmp_path_factory):
     root = tmp_path_factory.mktemp("held_out")
     maps = []
     for i in range(2):
-        maps.append(write_maze_png(generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng([90210, i])),
-                                   root / f"maze_{i:04d}.png"))
+        maps.append(
+            write_maze_png(
+                generate_maze(MazeConfig(side_m=(50.0, 50.0)), np.random.default_rng([90210, i])),
+                root / f"maze_{i:04d}.png",
+            )
+        )
     run_benchmark(maps, ["greedy_utility", "optimal"], Protocol(), root / "out", workers=1, progress=False)
     return maps, root / "out"
 
@@ -90,11 +94,13 @@ def test_benchmark_steps_agree_with_an_independent_replay(held_out_run):
             trajectory = read_trajectory_csv(out / planner / f"{path.stem}.csv")
             record = read_steps_csv(out / planner / f"{path.stem}.steps.csv")
             assert len(record["step"]) == len(trajectory)
-            expected = reference_explored_cells(ground_truth.free, ground_truth.start_cell, trajectory,
-                                                protocol.cell_size, protocol.sensor_range_cells)
+            expected = reference_explored_cells(
+                ground_truth.free, ground_truth.start_cell, trajectory, protocol.cell_size, protocol.sensor_range_cells
+            )
             np.testing.assert_allclose(record["explored_m2"], np.asarray(expected) * protocol.cell_size**2, atol=1e-4)
-            np.testing.assert_allclose(record["explored_share"], np.asarray(expected) / ground_truth.free_cell_count,
-                                       atol=1e-6)
+            np.testing.assert_allclose(
+                record["explored_share"], np.asarray(expected) / ground_truth.free_cell_count, atol=1e-6
+            )
             assert np.isfinite(record["decision_ms"]).all()
 
 
@@ -104,8 +110,19 @@ def test_guide_replay_recomputes_the_benchmark_steps(held_out_run, tmp_path):
     for path in maps:
         for planner, flags in (("greedy_utility", []), ("optimal", ["--oracle"])):
             mine = tmp_path / f"{planner}_{path.stem}.steps.csv"
-            result = runner.invoke(app, ["replay", "--map", str(path), "--trajectory",
-                                         str(out / planner / f"{path.stem}.csv"), "--steps-csv", str(mine), *flags])
+            result = runner.invoke(
+                app,
+                [
+                    "replay",
+                    "--map",
+                    str(path),
+                    "--trajectory",
+                    str(out / planner / f"{path.stem}.csv"),
+                    "--steps-csv",
+                    str(mine),
+                    *flags,
+                ],
+            )
             assert result.exit_code == 0, result.output
             assert json.loads(result.stdout)["complete"]
             theirs = read_steps_csv(out / planner / f"{path.stem}.steps.csv")
@@ -118,6 +135,7 @@ def test_guide_replay_recomputes_the_benchmark_steps(held_out_run, tmp_path):
 def test_guide_replay_refuses_to_overwrite_the_trajectory(held_out_run):
     maps, out = held_out_run
     trajectory = out / "greedy_utility" / f"{maps[0].stem}.csv"
-    result = CliRunner().invoke(app, ["replay", "--map", str(maps[0]), "--trajectory", str(trajectory),
-                                      "--steps-csv", str(trajectory)])
+    result = CliRunner().invoke(
+        app, ["replay", "--map", str(maps[0]), "--trajectory", str(trajectory), "--steps-csv", str(trajectory)]
+    )
     assert result.exit_code == 2 and "would overwrite the trajectory" in result.output

@@ -47,8 +47,13 @@ def test_a_team_of_one_is_the_single_robot_episode(small_maze):
 
 
 def test_arrivals_come_in_time_order_each_at_its_robots_travelled_distance(small_maze):
-    team = run_team_episode(small_maze, make_team_planner("uncoordinated_nearest_frontier"), Protocol(), robots=3,
-                            starts=[(0, 0), (0, 4), (4, 0)])
+    team = run_team_episode(
+        small_maze,
+        make_team_planner("uncoordinated_nearest_frontier"),
+        Protocol(),
+        robots=3,
+        starts=[(0, 0), (0, 4), (4, 0)],
+    )
     assert team.complete and not team.failure
     assert [row[:2] for row in team.rows[:3]] == [(0.0, 0), (0.0, 1), (0.0, 2)]  # the starts first
     times = [row[0] for row in team.rows]
@@ -128,17 +133,30 @@ def test_out_of_range_robots_keep_their_own_beliefs_and_merge_when_they_meet(sma
 
 def test_the_done_rule_counts_the_union_of_beliefs(small_maze):
     protocol = Protocol()
-    full = run_team_episode(small_maze, make_team_planner("uncoordinated_nearest_frontier"), protocol, robots=2,
-                            starts=[(0, 0), (4, 0)])
-    ranged = run_team_episode(small_maze, make_team_planner("uncoordinated_nearest_frontier"), protocol, robots=2,
-                              starts=[(0, 0), (4, 0)], comm_range_m=1.0)
+    full = run_team_episode(
+        small_maze, make_team_planner("uncoordinated_nearest_frontier"), protocol, robots=2, starts=[(0, 0), (4, 0)]
+    )
+    ranged = run_team_episode(
+        small_maze,
+        make_team_planner("uncoordinated_nearest_frontier"),
+        protocol,
+        robots=2,
+        starts=[(0, 0), (4, 0)],
+        comm_range_m=1.0,
+    )
     assert full.complete and ranged.complete
     assert ranged.explored_ratio >= 1 - protocol.done_unknown_cells / small_maze.free_cell_count
 
 
 def test_team_files_round_trip_and_replay_clean(small_maze, tmp_path):
-    team = run_team_episode(small_maze, make_team_planner("uncoordinated_greedy_utility"), Protocol(), robots=2,
-                            starts=[(0, 0), (0, 4)], comm_range_m=10.0)
+    team = run_team_episode(
+        small_maze,
+        make_team_planner("uncoordinated_greedy_utility"),
+        Protocol(),
+        robots=2,
+        starts=[(0, 0), (0, 4)],
+        comm_range_m=10.0,
+    )
     path = write_team_csv(tmp_path / "small.team.csv", team.rows, speed_mps=2.0)
     assert path.read_text().splitlines()[0] == "time_s,robot,x,y"
     rows = read_team_csv(path)
@@ -158,14 +176,17 @@ def test_a_replay_refuses_a_segment_the_team_had_not_seen(small_maze, tmp_path):
     assert not replayed.complete and replayed.motion_violations == 1 and "robot 1" in replayed.failure
 
 
-@pytest.mark.parametrize("text, message", [
-    ("x,y\n0,0\n", "starts with the header"),
-    ("time_s,robot,x,y\n0,0,0,0\n5,0,4,0\n3,0,8,0\n", "goes back"),
-    ("time_s,robot,x,y\n0,0,0,0\n4,1,4,0\n", "robot 1 has no start row"),
-    ("time_s,robot,x,y\n0,0,0,0\n4,9,4,0\n", "robot must be a whole number 0-7"),
-    ("time_s,robot,x,y\n0,0,0,0\n4,0,nan,0\n", "finite"),
-    ("time_s,robot,x,y\n", "no rows"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("x,y\n0,0\n", "starts with the header"),
+        ("time_s,robot,x,y\n0,0,0,0\n5,0,4,0\n3,0,8,0\n", "goes back"),
+        ("time_s,robot,x,y\n0,0,0,0\n4,1,4,0\n", "robot 1 has no start row"),
+        ("time_s,robot,x,y\n0,0,0,0\n4,9,4,0\n", "robot must be a whole number 0-7"),
+        ("time_s,robot,x,y\n0,0,0,0\n4,0,nan,0\n", "finite"),
+        ("time_s,robot,x,y\n", "no rows"),
+    ],
+)
 def test_bad_team_files_are_refused_with_the_line(tmp_path, text, message):
     path = tmp_path / "t.team.csv"
     path.write_text(text)
@@ -189,4 +210,3 @@ def test_a_start_shares_its_first_scan_with_the_whole_team(small_maze):
     seen = episode.observe(0).observation.belief
     assert (seen == FREE).sum() == episode.union.free_count > 0
     assert np.array_equal(seen, episode.observe(1).observation.belief)
-

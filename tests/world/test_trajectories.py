@@ -97,8 +97,13 @@ def test_a_nul_byte_or_giant_field_is_a_value_error(tmp_path):
 
 @pytest.mark.parametrize(
     "text, fragment",
-    [("", "header 'x,y'"), ("a,b\n0,0\n", "header 'x,y'"), ("x,y\n", "no waypoint rows"),
-     ("x,y\n0,0\n1,2,3\n", "line 3 is not two numbers"), ("x,y\n0,0\nfour,0\n", "not two numbers")],
+    [
+        ("", "header 'x,y'"),
+        ("a,b\n0,0\n", "header 'x,y'"),
+        ("x,y\n", "no waypoint rows"),
+        ("x,y\n0,0\n1,2,3\n", "line 3 is not two numbers"),
+        ("x,y\n0,0\nfour,0\n", "not two numbers"),
+    ],
 )
 def test_other_malformed_files(tmp_path, text, fragment):
     path = tmp_path / "t.csv"

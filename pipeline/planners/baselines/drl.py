@@ -42,11 +42,12 @@ class DRLConfig(PlannerConfig):
     objects = ("policy",)
     renamed = {"checkpoint": "policy_file"}
 
-    policy_file: maybe(text()) = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped "
-                                              "one]")
+    policy_file: maybe(text()) = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped one]")
     stall_steps: whole(0, note="0 = never hand over") = option(
-        4, "decisions in a row that reveal no free cell before the nearest-frontier hand-over breaks a cycle (0: "
-           "never; the policy alone, as in the environment)")
+        4,
+        "decisions in a row that reveal no free cell before the nearest-frontier hand-over breaks a cycle (0: "
+        "never; the policy alone, as in the environment)",
+    )
 
     def model_slots(self) -> dict[str, str]:
         return {"policy_file": "drl"}
@@ -75,12 +76,17 @@ class DRLPlanner(Planner):
     def check_protocol(self, protocol: Protocol) -> None:
         if "protocol" not in self.trained_on:
             return
-        differences = [d for d in model_input_differences(self.trained_on["protocol"], protocol)
-                       if d.split()[0] in OBSERVED_GRAPH_INPUTS]
+        differences = [
+            d
+            for d in model_input_differences(self.trained_on["protocol"], protocol)
+            if d.split()[0] in OBSERVED_GRAPH_INPUTS
+        ]
         if differences:
-            warnings.warn(f"the {self.source} was trained at other protocol values ({', '.join(differences)}): its "
-                          "graph means something else here; retrain with `dvc repro train_drl` at your maps' values",
-                          ProtocolMismatchWarning)
+            warnings.warn(
+                f"the {self.source} was trained at other protocol values ({', '.join(differences)}): its "
+                "graph means something else here; retrain with `dvc repro train_drl` at your maps' values",
+                ProtocolMismatchWarning,
+            )
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.check_protocol(protocol)
@@ -93,8 +99,14 @@ class DRLPlanner(Planner):
         """Fold the observation into the graph; (the observation arrays, the valid window slots)."""
         self.graph.update(observation.belief, observation.changed)
         self.visited[self.graph.nearest_node(observation.position)] = True
-        view = observe_lattice(self.graph, self.table, observation.position, self.visited, self.graph_config,
-                               self.policy.config.max_neighbors)
+        view = observe_lattice(
+            self.graph,
+            self.table,
+            observation.position,
+            self.visited,
+            self.graph_config,
+            self.policy.config.max_neighbors,
+        )
         return view, window_moves(self.graph, self.table, view.robot_node)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
@@ -102,8 +114,12 @@ class DRLPlanner(Planner):
         reachable = np.isfinite(view.distance) & ~self.visited & (self.graph.utility > 0)
         if not moves.any() or not reachable.any():
             return []
-        arrays = {"features": view.features, "node_mask": view.node_mask, "neighbors": view.neighbors,
-                  "robot": view.robot_row}
+        arrays = {
+            "features": view.features,
+            "node_mask": view.node_mask,
+            "neighbors": view.neighbors,
+            "robot": view.robot_row,
+        }
         free_cells = int(np.count_nonzero(observation.belief == FREE))
         self.stalled = 0 if free_cells > self.free_cells else self.stalled + 1
         self.free_cells = free_cells

@@ -97,8 +97,11 @@ class GreedyUtilityPlanner(GraphPlanner):
             if kept is None or kept[0] != graph.utility_version or kept[1] is not dist:
                 useful = self.ungated_useful_nodes()
                 reachable = useful[np.isfinite(dist[useful]) & (useful != self.robot)]
-                kept = (graph.utility_version, dist,
-                        reachable[np.argsort(-graph.utility[reachable] / dist[reachable], kind="stable")])
+                kept = (
+                    graph.utility_version,
+                    dist,
+                    reachable[np.argsort(-graph.utility[reachable] / dist[reachable], kind="stable")],
+                )
                 self._ranking = kept
             order = kept[2]
             top = order[:count]

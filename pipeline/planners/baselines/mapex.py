@@ -29,14 +29,22 @@ from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
 
 @config_dataclass
 class MapExConfig(PredictorOptions):
-    description = ("MapEx (Ho 2024): frontier viewpoints scored by gain on the predicted map (predicted-free "
-                   "unknown cells in the ray fan, unweighted: no ensemble variance) over path cost")
+    description = (
+        "MapEx (Ho 2024): frontier viewpoints scored by gain on the predicted map (predicted-free "
+        "unknown cells in the ray fan, unweighted: no ensemble variance) over path cost"
+    )
 
     # Its predicted map is a count of likely-free space, not graph nodes: the utility count's tau.
-    threshold: fraction() = option(DEFAULT_COUNT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= "
-                                                            "tau (the broad tau of the utility count, not the graph's)")
-    wall_margin: whole(0, note="0 = off") = option(2, "cells: predicted-free unknown this close to a known obstacle is "
-                                                      "the inside of a seen wall, not counted (0 = off)")
+    threshold: fraction() = option(
+        DEFAULT_COUNT_THRESHOLD,
+        "tau: an unknown node is predicted free at P(free) >= "
+        "tau (the broad tau of the utility count, not the graph's)",
+    )
+    wall_margin: whole(0, note="0 = off") = option(
+        2,
+        "cells: predicted-free unknown this close to a known obstacle is "
+        "the inside of a seen wall, not counted (0 = off)",
+    )
 
 
 class MapExPlanner(PredictingPlanner):
@@ -79,7 +87,9 @@ class MapExPlanner(PredictingPlanner):
             painted = self.predicted_free_cells(belief, predicted)
             if painted.any():
                 free = (belief == FREE) | painted
-                gain = gain + visible_counts(free, painted, graph.node_cells[candidates], graph.spec.utility_range / graph.spec.cell_size)
+                gain = gain + visible_counts(
+                    free, painted, graph.node_cells[candidates], graph.spec.utility_range / graph.spec.cell_size
+                )
         score = gain / dist[candidates]
         best = int(candidates[np.lexsort((candidates, dist[candidates], -score))[0]])
         self.last_decision = {"target": best, "predicted": int(len(predicted))}

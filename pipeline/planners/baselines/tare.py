@@ -133,18 +133,24 @@ def greedy_set_cover(cover: list[np.ndarray], tie_cost: np.ndarray, min_cover: i
 
 @config_dataclass
 class TareConfig(LatticePlannerConfig):
-    description = ("Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
-                   "the 3x3-region local horizon ordered by a TSP path that joins the global tour")
+    description = (
+        "Cao 2021 TARE: global TSP tour over exploring regions, greedy set-cover viewpoints in "
+        "the 3x3-region local horizon ordered by a TSP path that joins the global tour"
+    )
 
     horizon_radius: whole(0, note="0 = the robot's region only") = option(
-        1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)")
+        1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)"
+    )
     min_cover: whole(1) = option(2, "frontier cells a viewpoint (or an exploring region) must add to count")
     cover_range: maybe(real(0.0, note="0 = off"), "the utility range") = option(
-        None, "metres: frontier seen from this close to where the robot was counts as covered (0 = off) [default: the "
-              "utility range]")
+        None,
+        "metres: frontier seen from this close to where the robot was counts as covered (0 = off) [default: the "
+        "utility range]",
+    )
     exact_max: whole(1, 14) = option(10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
     max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(
-        200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)")
+        200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)"
+    )
     loop_guard: flag() = option(True, "back at a node with nothing new seen, keep the target chosen there")
 
 
@@ -323,10 +329,5 @@ class TarePlanner(GraphPlanner):
                 target, mode = self._target, "kept"
                 path = graph.path_from_predecessors(pred_robot, target)
         self._target = target
-        self.last_decision = {
-            "mode": mode,
-            "target": target,
-            "local_tour": local_tour,
-            "global_tour": global_tour,
-        }
+        self.last_decision = {"mode": mode, "target": target, "local_tour": local_tour, "global_tour": global_tour}
         return self.waypoints_along(path)

@@ -52,38 +52,60 @@ class LookaheadConfig(PlannerConfig):
 
     renamed = {"block_model": "block_model_file"}
 
-    lookahead: any_of(whole(0, 0), whole(2), description="0 (off) or a whole number >= 2 (the best tour options "
-                                                          "rolled out)") = option(
-        0, "mode tour: roll out this many candidate targets on maps drawn from the block model and head for the "
-           "shortest (0 = off)")
+    lookahead: any_of(
+        whole(0, 0), whole(2), description="0 (off) or a whole number >= 2 (the best tour options rolled out)"
+    ) = option(
+        0,
+        "mode tour: roll out this many candidate targets on maps drawn from the block model and head for the "
+        "shortest (0 = off)",
+    )
     lookahead_samples: whole(1) = option(4, "maps drawn per lookahead decision")
-    lookahead_targets: text(LOOKAHEAD_TARGETS) = option("greedy", "greedy: guide's choice and gated greedy's best "
-                                                                  "targets are rolled out; tour: guide's best tour "
-                                                                  "options")
-    lookahead_commit: maybe(flag(), "on") = option(None, "keep the lookahead's target until reached or no longer a "
-                                                         "target, as the rollouts assumed [None: on]")
+    lookahead_targets: text(LOOKAHEAD_TARGETS) = option(
+        "greedy",
+        "greedy: guide's choice and gated greedy's best targets are rolled out; tour: guide's best tour options",
+    )
+    lookahead_commit: maybe(flag(), "on") = option(
+        None, "keep the lookahead's target until reached or no longer a target, as the rollouts assumed [None: on]"
+    )
     lookahead_rollout: maybe(text(LOOKAHEAD_ROLLOUTS), "full") = option(
-        None, "full (gated greedy, a choice at every node) or fast (greedy walking each target's whole path) "
-              "[None: full]")
+        None,
+        "full (gated greedy, a choice at every node) or fast (greedy walking each target's whole path) [None: full]",
+    )
     lookahead_workers: maybe(whole(1, 2, note=WORKERS_NOTE), "1") = option(
-        None, "2: the rollouts shared with a forked second process, the same routes [None: 1]")
-    block_model_file: maybe(text()) = option(None, "the block model [default: models/block_model/block_model.pt, "
-                                                   "else the shipped one]")
+        None, "2: the rollouts shared with a forked second process, the same routes [None: 1]"
+    )
+    block_model_file: maybe(text()) = option(
+        None, "the block model [default: models/block_model/block_model.pt, else the shipped one]"
+    )
 
     def check(self) -> None:
         super().check()
         lookahead_only = (self.block_model_file, self.lookahead_commit, self.lookahead_rollout, self.lookahead_workers)
         if any(value is not None for value in lookahead_only) and not self.lookahead:
-            raise ValueError("block_model_file, lookahead_commit, lookahead_rollout or lookahead_workers is given but "
-                             "the lookahead is off; add lookahead=3")
+            raise ValueError(
+                "block_model_file, lookahead_commit, lookahead_rollout or lookahead_workers is given but "
+                "the lookahead is off; add lookahead=3"
+            )
 
     def model_slots(self) -> dict[str, str]:
         return {**super().model_slots(), **({"block_model_file": "block_model"} if self.lookahead > 0 else {})}
 
 
 #: What a gated-greedy rollout reads of a graph planner: its lattice graph, visits and gate state.
-GRAPH_STATE = ("min_utility", "graph", "visited", "protocol", "rng", "gate", "gate_source", "_gated",
-               "_gate_known", "_gate_big", "robot", "belief")
+GRAPH_STATE = (
+    "min_utility",
+    "graph",
+    "visited",
+    "protocol",
+    "rng",
+    "gate",
+    "gate_source",
+    "_gated",
+    "_gate_known",
+    "_gate_big",
+    "robot",
+    "belief",
+)
 
 
 def gated_greedy_like(planner: GraphPlanner, gated: bool = True) -> GreedyUtilityPlanner:
@@ -109,10 +131,26 @@ class BlockLookahead:
     (`GreedyUtilityPlanner.finish_episode`).
     """
 
-    def __init__(self, model: BlockModel, samples: int = 4, horizon_m: float = 20.0, exit_weight: float = 0.0,
-                 temperature: float = 1.0, per_target: bool = False, workers: int = 1):
-        validate(RolloutSettings, {"samples": samples, "horizon_m": horizon_m, "exit_weight": exit_weight,
-                                   "temperature": temperature, "workers": workers})
+    def __init__(
+        self,
+        model: BlockModel,
+        samples: int = 4,
+        horizon_m: float = 20.0,
+        exit_weight: float = 0.0,
+        temperature: float = 1.0,
+        per_target: bool = False,
+        workers: int = 1,
+    ):
+        validate(
+            RolloutSettings,
+            {
+                "samples": samples,
+                "horizon_m": horizon_m,
+                "exit_weight": exit_weight,
+                "temperature": temperature,
+                "workers": workers,
+            },
+        )
         self.model, self.samples, self.horizon_m = model, int(samples), float(horizon_m)
         self.exit_weight, self.temperature = float(exit_weight), float(temperature)
         self.per_target = bool(per_target)
@@ -139,18 +177,31 @@ class BlockLookahead:
             self._worker.close()
             self._worker = None
 
-    def costs(self, planner: GreedyUtilityPlanner, observation: Observation, candidates: list[int], pred: np.ndarray,
-              rng: np.random.Generator) -> np.ndarray:
+    def costs(
+        self,
+        planner: GreedyUtilityPlanner,
+        observation: Observation,
+        candidates: list[int],
+        pred: np.ndarray,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
         """Mean rollout distance (m) per candidate target; `pred`: the planner's known-graph predecessors from the robot."""
         return self.finish(self.start(planner, observation, candidates, pred, rng), candidates)
 
-    def start(self, planner: GreedyUtilityPlanner, observation: Observation, candidates: list[int], pred: np.ndarray,
-              rng: np.random.Generator) -> "Rollouts":
+    def start(
+        self,
+        planner: GreedyUtilityPlanner,
+        observation: Observation,
+        candidates: list[int],
+        pred: np.ndarray,
+        rng: np.random.Generator,
+    ) -> "Rollouts":
         """Draw the maps and, with a worker, start rolling out `candidates` there; `finish` collects.
         A planner with work of its own before it knows every candidate (`guide`'s denoising) starts
         the ones it knows first."""
-        probability = self.model.free_probability(block_shares(observation.belief, self.blocks, self.block_grid),
-                                                 self.temperature)
+        probability = self.model.free_probability(
+            block_shares(observation.belief, self.blocks, self.block_grid), self.temperature
+        )
         drawn = [rng.random(probability.shape) < probability for _ in range(self.samples)]
         rollouts = Rollouts(JobContext(planner, observation, pred, drawn), list(dict.fromkeys(candidates)))
         if self.workers > 1 and rollouts.candidates:
@@ -220,13 +271,18 @@ class BlockLookahead:
         observation, drawn = context.observation, context.drawn[sample]
         free = drawn_world(observation.belief, self.blocks, drawn, self.horizon_cells)
         world = GroundTruthMap(free, self.start_cell, self.cell_size, name="sampled")
-        start = Episode.resume(world, context.planner.protocol, observation.belief, observation.cell, observation.position)
-        exits = (exit_steps(free, imagined_free(observation.belief, self.blocks, drawn))
-                 if self.exit_weight > 0 else None)
+        start = Episode.resume(
+            world, context.planner.protocol, observation.belief, observation.cell, observation.position
+        )
+        exits = (
+            exit_steps(free, imagined_free(observation.belief, self.blocks, drawn)) if self.exit_weight > 0 else None
+        )
         return start, exits
 
     @staticmethod
-    def rollout(trial: GreedyUtilityPlanner, episode: Episode, target: int, pred: np.ndarray, per_target: bool = False) -> float:
+    def rollout(
+        trial: GreedyUtilityPlanner, episode: Episode, target: int, pred: np.ndarray, per_target: bool = False
+    ) -> float:
         """On `trial` (a copy of the rollout planner): head for `target`, then its rule, on `episode`'s
         drawn map. The distance when that map is explored or no target is left (inf past the step
         limit): when the drawn map's walls hide the rest, its cost so far is the estimate."""

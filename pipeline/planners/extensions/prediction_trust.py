@@ -24,12 +24,17 @@ from pipeline.world.protocol import Protocol
 
 @config_dataclass
 class PredictionTrustOptions(PlannerConfig):
-    trust: flag() = option(True, "lean on predictions only as far as they have been right: their lift over the base "
-                                 "rate of free nodes among the nodes seen since (off: believe them in full)")
-    trust_full: real(-1.0, 1.0) = option(PredictionTrustConfig.full_at, "lift over the base rate at or above which "
-                                                                         "predictions are used in full")
-    trust_none: real(-1.0, 1.0) = option(PredictionTrustConfig.none_at, "lift at or below which no prediction is "
-                                                                         "used (the observed graph only)")
+    trust: flag() = option(
+        True,
+        "lean on predictions only as far as they have been right: their lift over the base "
+        "rate of free nodes among the nodes seen since (off: believe them in full)",
+    )
+    trust_full: real(-1.0, 1.0) = option(
+        PredictionTrustConfig.full_at, "lift over the base rate at or above which predictions are used in full"
+    )
+    trust_none: real(-1.0, 1.0) = option(
+        PredictionTrustConfig.none_at, "lift at or below which no prediction is used (the observed graph only)"
+    )
 
     def check(self) -> None:
         if not self.trust_none < self.trust_full:
@@ -47,8 +52,10 @@ class TrustingPlanner(PlannerWrapper):
         base = innermost(inner)
         self.trusted = TrustedPredictor(base.predictor, config)
         base.predictor = self.trusted
-        self.description = (f"{inner.description} [trust in predictions: in full at a lift of {config.full_at:g} over "
-                            f"the base rate, none at {config.none_at:g}]")
+        self.description = (
+            f"{inner.description} [trust in predictions: in full at a lift of {config.full_at:g} over "
+            f"the base rate, none at {config.none_at:g}]"
+        )
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.inner.reset(frame, protocol, seed)

@@ -24,8 +24,9 @@ LATER_STEP_WEIGHT = 0.8  # a plan's k-th step counts 0.8^k of its utility: near 
 class SampledPlansConfig(PlannerConfig):
     """How many plans the policy samples per decision (the ranked plans and the tour vote read it)."""
 
-    candidates: whole(1) = option(8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's "
-                                     "single sample)")
+    candidates: whole(1) = option(
+        8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's single sample)"
+    )
 
 
 class RankedPlans(PlannerWrapper):
@@ -56,7 +57,8 @@ class RankedPlans(PlannerWrapper):
         useful = paper.useful_nodes()
         to_useful = (
             dijkstra(graph.adjacency(), directed=False, indices=useful, min_only=True)
-            if useful.size else np.zeros(graph.node_count)
+            if useful.size
+            else np.zeros(graph.node_count)
         )
         utility = np.zeros(graph.node_count)  # u(v) of the global graph's known nodes (Sec. IV-B.3)
         gg = paper.global_graph

@@ -94,8 +94,18 @@ class RolloutWorker:
         """A decision's first batch: its context and the jobs of `candidates` on every drawn map."""
         planner = context.planner
         view = {name: getattr(planner, name) for name in self.state_names}
-        self._send(("start", self.spec, planner.graph.state(), view, context.observation, context.pred,
-                    context.drawn, candidates))
+        self._send(
+            (
+                "start",
+                self.spec,
+                planner.graph.state(),
+                view,
+                context.observation,
+                context.pred,
+                context.drawn,
+                candidates,
+            )
+        )
 
     def more(self, candidates: list[int]) -> None:
         """Another batch on the same decision's context."""
@@ -140,7 +150,9 @@ class RolloutWorker:
             pass
 
 
-def _serve(connection: Connection, run_job: RunJob, template: LatticeGraph, counter) -> None:  # pragma: no cover - child
+def _serve(
+    connection: Connection, run_job: RunJob, template: LatticeGraph, counter
+) -> None:  # pragma: no cover - child
 
     context: JobContext | None = None
     while True:

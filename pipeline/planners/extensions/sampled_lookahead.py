@@ -48,25 +48,32 @@ from pipeline.world.protocol import Protocol
 
 @config_dataclass
 class SampledLookaheadConfig(GreedyUtilityConfig):
-    description = ("gated greedy whose k best targets are each run to completion on maps drawn from the learned "
-                   "block model; one step toward the one whose rollouts are shortest")
+    description = (
+        "gated greedy whose k best targets are each run to completion on maps drawn from the learned "
+        "block model; one step toward the one whose rollouts are shortest"
+    )
     objects = ("model",)  # an injected block model
     renamed = {"checkpoint": "block_model_file"}
 
     sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
     k: whole(1) = option(3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself")
-    samples: whole(1) = option(4, "block maps drawn from the block model per decision; each target is rolled out on "
-                                  "each")
-    horizon_m: real(0.0, note="metres") = option(20.0, "metres: the drawn maps are cut this far beyond the known free "
-                                                       "space")
-    block_model_file: maybe(text()) = option(None, "the block model [default: models/block_model/block_model.pt, "
-                                                   "else the shipped one]")
+    samples: whole(1) = option(
+        4, "block maps drawn from the block model per decision; each target is rolled out on each"
+    )
+    horizon_m: real(0.0, note="metres") = option(
+        20.0, "metres: the drawn maps are cut this far beyond the known free space"
+    )
+    block_model_file: maybe(text()) = option(
+        None, "the block model [default: models/block_model/block_model.pt, else the shipped one]"
+    )
     switch_margin_m: maybe(real(0.0, note="metres"), "off") = option(
-        None, "metres: leave the last target only for one whose mean rollout is shorter by more (None: off)")
+        None, "metres: leave the last target only for one whose mean rollout is shorter by more (None: off)"
+    )
     exit_weight: real(0.0) = option(0.0, "weight of each rollout's way back to the horizon cut (0 = off)")
     temperature: positive() = option(1.0, "maps are drawn from sigmoid(logit / temperature)")
-    workers: whole(1, 2, note=WORKERS_NOTE) = option(1, "2: the rollouts shared with a forked second process (the "
-                                                        "same costs and routes)")
+    workers: whole(1, 2, note=WORKERS_NOTE) = option(
+        1, "2: the rollouts shared with a forked second process (the same costs and routes)"
+    )
 
     def model_slots(self) -> dict[str, str]:
         return {**super().model_slots(), "block_model_file": "block_model"}
@@ -102,7 +109,11 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
         if self.k > 1 and ranked.size > 1:
             candidates = [int(t) for t in ranked[: self.k]]
             incumbent = 0  # the candidate a challenger must beat by the margin
-            if self.switch_margin_m is not None and self.last_target is not None and self.last_target in set(ranked.tolist()):
+            if (
+                self.switch_margin_m is not None
+                and self.last_target is not None
+                and self.last_target in set(ranked.tolist())
+            ):
                 if self.last_target not in candidates:
                     candidates.append(self.last_target)
                 incumbent = candidates.index(self.last_target)

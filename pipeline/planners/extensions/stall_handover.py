@@ -23,8 +23,9 @@ from pipeline.world.sensor import FREE
 
 @config_dataclass
 class StallHandoverConfig(PlannerConfig):
-    stall_steps: whole(1) = option(3, "mode policy: after this many moves that reveal nothing, one step toward the "
-                                      "nearest useful node instead")
+    stall_steps: whole(1) = option(
+        3, "mode policy: after this many moves that reveal nothing, one step toward the nearest useful node instead"
+    )
 
 
 class StallHandover(PlannerWrapper):

@@ -47,20 +47,45 @@ from pipeline.world.protocol import Protocol
 @config_dataclass
 class TourVoteConfig(PlannerConfig):
     prior_weight: real(0.0, note="0 = the policy does not vote") = option(
-        1.0, "mode tour: an option's score is multiplied by 1 + prior_weight x the share of samples heading for it "
-             "(0: the policy does not vote)")
+        1.0,
+        "mode tour: an option's score is multiplied by 1 + prior_weight x the share of samples heading for it "
+        "(0: the policy does not vote)",
+    )
 
 
 class TourVote(PlannerWrapper):
     """guide_tsp's frontier tour (`FrontierTour`), its first target voted on by the samples of
     GUIDE's policy (`paper`, a `GuidePlanner`, which keeps the graphs and the T_o history)."""
 
-    own = frozenset({"paper", "tour", "prior_weight", "lookahead", "lookahead_k", "lookahead_targets",
-                     "lookahead_commit", "lookahead_rollout", "lookahead_rng", "lookahead_choice", "queue",
-                     "decisions", "fallbacks", "last_decision", "description"})
+    own = frozenset(
+        {
+            "paper",
+            "tour",
+            "prior_weight",
+            "lookahead",
+            "lookahead_k",
+            "lookahead_targets",
+            "lookahead_commit",
+            "lookahead_rollout",
+            "lookahead_rng",
+            "lookahead_choice",
+            "queue",
+            "decisions",
+            "fallbacks",
+            "last_decision",
+            "description",
+        }
+    )
 
-    def __init__(self, paper: GuidePlanner, tour: TourOptions, vote: TourVoteConfig, lookahead: LookaheadConfig,
-                 candidates: int, description: str):
+    def __init__(
+        self,
+        paper: GuidePlanner,
+        tour: TourOptions,
+        vote: TourVoteConfig,
+        lookahead: LookaheadConfig,
+        candidates: int,
+        description: str,
+    ):
         super().__init__(paper)
         self.paper = paper
         self.paper.candidates = int(candidates)
@@ -73,14 +98,21 @@ class TourVote(PlannerWrapper):
         lookahead_source = ""
         if lookahead.lookahead:
             model, lookahead_source = block_model_for(lookahead.block_model_file)
-            self.lookahead = BlockLookahead(model, lookahead.lookahead_samples,
-                                            per_target=self.lookahead_rollout == "fast",
-                                            workers=lookahead.lookahead_workers or 1)
+            self.lookahead = BlockLookahead(
+                model,
+                lookahead.lookahead_samples,
+                per_target=self.lookahead_rollout == "fast",
+                workers=lookahead.lookahead_workers or 1,
+            )
             processes = f" in {self.lookahead.workers} processes" if self.lookahead.workers > 1 else ""
-            lookahead_source = (f"; lookahead {lookahead.lookahead} x {lookahead.lookahead_samples} maps, "
-                                f"{self.lookahead_rollout} rollouts{processes}, {lookahead_source}")
-        self.description = (f"{description} [mode tour; policy {paper.policy_source}; {paper.predictor_source}; "
-                            f"{paper.gate_source}; K={paper.num_inference_steps}{lookahead_source}]")
+            lookahead_source = (
+                f"; lookahead {lookahead.lookahead} x {lookahead.lookahead_samples} maps, "
+                f"{self.lookahead_rollout} rollouts{processes}, {lookahead_source}"
+            )
+        self.description = (
+            f"{description} [mode tour; policy {paper.policy_source}; {paper.predictor_source}; "
+            f"{paper.gate_source}; K={paper.num_inference_steps}{lookahead_source}]"
+        )
         self.last_decision: dict = {}
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
@@ -111,14 +143,21 @@ class TourVote(PlannerWrapper):
         if queued is None and self.lookahead is not None and not committed and self.lookahead_targets == "greedy":
             ranked = useful[np.argsort(-graph.utility[useful] / dist[useful], kind="stable")]
             greedy = [int(t) for t in ranked[: self.lookahead_k]]
-            if len(greedy) > 1:  # there will be rollouts: gated greedy's best start now, beside the prediction and denoising
+            if (
+                len(greedy) > 1
+            ):  # there will be rollouts: gated greedy's best start now, beside the prediction and denoising
                 rollouts = self.lookahead.start(self._rollout_planner(), observation, greedy, pred, self.lookahead_rng)
         paper.update_global_graph(observation)
         paper.observe(observation.position)
         self.decisions += 1
         if queued is not None:
             self.queue.pop(0)
-            self.last_decision = {"target": target, "sampled": False, "fallback": False, "fallback_share": self.fallbacks / self.decisions}
+            self.last_decision = {
+                "target": target,
+                "sampled": False,
+                "fallback": False,
+                "fallback_share": self.fallbacks / self.decisions,
+            }
             return [tuple(map(float, graph.node_world[queued]))]
         self.queue = []
         options = self.tour.first_target_scores(graph, paper.global_graph, robot, dist, useful)
@@ -141,7 +180,9 @@ class TourVote(PlannerWrapper):
                 candidates = list(dict.fromkeys([target] + greedy))
             if len(candidates) > 1:
                 if rollouts is None:
-                    rollouts = self.lookahead.start(self._rollout_planner(), observation, candidates, pred, self.lookahead_rng)
+                    rollouts = self.lookahead.start(
+                        self._rollout_planner(), observation, candidates, pred, self.lookahead_rng
+                    )
                 costs = self.lookahead.finish(rollouts, candidates)
                 target = candidates[int(np.argmin(costs))]
                 tour = [target] + [t for t in tour if t != target]

@@ -31,12 +31,17 @@ class GuideConfig(GlobalGraphOptions):
 
     # action_steps and num_inference_steps are bounded above by the policy (its T_p, its training
     # timesteps): `GuidePlanner` checks those bounds when it loads it.
-    policy_file: maybe(text()) = option(None, "the policy export [default: models/planner_guide/policy.pt "
-                                              "(models/planner_dare/ for dare), else the shipped one]")
-    action_steps: maybe(whole(1), "the policy's own") = option(None, "T_a of the T_p sampled steps executed before "
-                                                                     "sampling again [default: the policy's own]")
-    num_inference_steps: maybe(whole(1), "the policy's own") = option(None, "K denoising steps per sample [default: "
-                                                                            "the policy's own]")
+    policy_file: maybe(text()) = option(
+        None,
+        "the policy export [default: models/planner_guide/policy.pt "
+        "(models/planner_dare/ for dare), else the shipped one]",
+    )
+    action_steps: maybe(whole(1), "the policy's own") = option(
+        None, "T_a of the T_p sampled steps executed before sampling again [default: the policy's own]"
+    )
+    num_inference_steps: maybe(whole(1), "the policy's own") = option(
+        None, "K denoising steps per sample [default: the policy's own]"
+    )
     sampler: maybe(text(SAMPLERS), "the policy's own") = option(None, "ddpm or ddim [default: the policy's own]")
     seed: maybe(whole(0), "the episode's seed") = option(None, "the sampling seed [default: the episode's seed]")
 

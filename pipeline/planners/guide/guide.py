@@ -79,11 +79,14 @@ class GuidePlanner(GlobalGraphPlanner):
         self.candidates = 1
         self.plan_ranker: PlanRanker | None = None
         # The global graph as the policy was trained on it: its node count, the variant's region evaluation.
-        self.global_config = replace(self.global_config, max_nodes=model.max_nodes,
-                                     use_region_evaluation=config.region_evaluation)
-        self.description = (f"{config.description} [policy {self.policy_source}; {self.predictor_source}; "
-                            f"{self.gate_source}; T_o={self.obs_steps} T_p={self.horizon} T_a={self.action_steps} "
-                            f"K={self.num_inference_steps}]")
+        self.global_config = replace(
+            self.global_config, max_nodes=model.max_nodes, use_region_evaluation=config.region_evaluation
+        )
+        self.description = (
+            f"{config.description} [policy {self.policy_source}; {self.predictor_source}; "
+            f"{self.gate_source}; T_o={self.obs_steps} T_p={self.horizon} T_a={self.action_steps} "
+            f"K={self.num_inference_steps}]"
+        )
 
     def load_policy(self, config: GuideConfig, policy=None) -> tuple[object, str]:
         """(the policy, where it came from): the injected one, else `policy_file`, else the pipeline's
@@ -93,8 +96,10 @@ class GuidePlanner(GlobalGraphPlanner):
             policy, trained_on = cached_policy(path)
             variant = trained_on.get("variant")
             if variant is not None and variant != config.variant:
-                raise ValueError(f"{path}: a {variant} policy (trained on {variant} observations); "
-                                 f"{config.name or 'guide'} needs a {config.variant} policy")
+                raise ValueError(
+                    f"{path}: a {variant} policy (trained on {variant} observations); "
+                    f"{config.name or 'guide'} needs a {config.variant} policy"
+                )
             if config.predicts:
                 warn_if_trained_at_other_taus(path, trained_on, config.threshold, config.count_threshold)
             self.trained_models.append((str(path), trained_on.get("protocol")))
@@ -183,13 +188,17 @@ class GuidePlanner(GlobalGraphPlanner):
             o = self.history[index]
             with torch.inference_mode():
                 self.encodings[index] = self.policy.encoder(
-                    torch.from_numpy(o.features)[None], torch.from_numpy(o.node_mask)[None],
-                    torch.from_numpy(o.neighbors.astype(np.int64))[None], torch.tensor([o.robot]),
+                    torch.from_numpy(o.features)[None],
+                    torch.from_numpy(o.node_mask)[None],
+                    torch.from_numpy(o.neighbors.astype(np.int64))[None],
+                    torch.tensor([o.robot]),
                 )
         return self.encodings[index]
 
 
-def warn_if_trained_at_other_taus(path: Path, trained_on: dict, threshold: float, count_threshold: float | None) -> None:
+def warn_if_trained_at_other_taus(
+    path: Path, trained_on: dict, threshold: float, count_threshold: float | None
+) -> None:
     """A policy sees graphs built at its training observations' taus; others still run, but say so."""
     trained_tau = trained_on.get("threshold")
     if trained_tau is None:

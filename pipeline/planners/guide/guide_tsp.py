@@ -69,7 +69,12 @@ class FrontierTour:
         self.quiet_choices: list[tuple[int, int]] = []  # (robot, first target) since the belief last changed
 
     def select_targets(
-        self, graph: LatticeGraph, candidates: np.ndarray, utility: np.ndarray, dist: np.ndarray, keep: int | None = None
+        self,
+        graph: LatticeGraph,
+        candidates: np.ndarray,
+        utility: np.ndarray,
+        dist: np.ndarray,
+        keep: int | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """(cluster targets, cluster weights); `keep` (the previous first target) seeds the first cluster.
 
@@ -129,8 +134,9 @@ class FrontierTour:
             order = [0, first] + [rest[i - 1] for i in tail[1:]]
         return order, path_length(d, order)
 
-    def first_target_scores(self, graph: LatticeGraph, global_graph: GlobalGraph, robot: int, dist: np.ndarray,
-                            candidates: np.ndarray) -> dict:
+    def first_target_scores(
+        self, graph: LatticeGraph, global_graph: GlobalGraph, robot: int, dist: np.ndarray, candidates: np.ndarray
+    ) -> dict:
         """Cluster the useful nodes, tour them, and score the possible first targets (steps 1-3).
 
         `global_graph` must be updated for this decision. Returns `targets` and
@@ -192,8 +198,9 @@ class FrontierTour:
         nearest_neighbour = points <= 2 or (points > self.exact_max and self.max_moves == 0)
         return self.beta != 0 or not nearest_neighbour
 
-    def first_target_options(self, gg: GlobalGraph, points: np.ndarray, targets: np.ndarray, weight: np.ndarray,
-                             kept: bool) -> dict:
+    def first_target_options(
+        self, gg: GlobalGraph, points: np.ndarray, targets: np.ndarray, weight: np.ndarray, kept: bool
+    ) -> dict:
         """`first_target_scores` without a tour: each option scored by its weight per metre of
         distance from the robot (global-graph rows `points`: the robot's, then the targets')."""
         from_robot = dijkstra(gg.adjacency, directed=False, indices=points[:1])[0, points]
@@ -223,7 +230,9 @@ class FrontierTour:
         if self.committed is not None and (self.committed == robot or self.committed not in useful):
             self.committed = None
         if self.committed is None:
-            earlier = [target for node, target in self.quiet_choices if node == robot and target != robot and target in useful]
+            earlier = [
+                target for node, target in self.quiet_choices if node == robot and target != robot and target in useful
+            ]
             if earlier:
                 self.committed = earlier[0]
         chosen = first if self.committed is None else self.committed

@@ -35,11 +35,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from pipeline.lattice.tsp import EXACT_TSP_MAX_NODES, open_tsp_order
-from pipeline.planners.references.coverage_model import (
-    CoverageModel,
-    CoverageObjective,
-    coverage_model,
-)
+from pipeline.planners.references.coverage_model import CoverageModel, CoverageObjective, coverage_model
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
@@ -287,8 +283,9 @@ def refine(
     if not plan.complete and objective.need > 0:
         topped = insertion_cover(objective, robot, np.random.default_rng(0), start_order=plan.order)
         if len(topped) > len(plan.order):
-            plan = _refine_rounds(objective, evaluate_order(objective, topped), exact_max_nodes, rounds, deadline,
-                                  relocate_radius_m)
+            plan = _refine_rounds(
+                objective, evaluate_order(objective, topped), exact_max_nodes, rounds, deadline, relocate_radius_m
+            )
     return plan
 
 
@@ -378,8 +375,14 @@ def plan_coverage(
     best: CoveragePlan | None = None
     if warm_order is not None:
         warm = [robot] + [int(v) for v in warm_order if int(v) != robot]
-        best = refine(objective, warm, exact_max_nodes, deadline=deadline,
-                      relocate_radius_m=relocate_radius_m, reorder_first=False)
+        best = refine(
+            objective,
+            warm,
+            exact_max_nodes,
+            deadline=deadline,
+            relocate_radius_m=relocate_radius_m,
+            reorder_first=False,
+        )
         log.append(("warm", best.length))
     for r in range(restarts):
         if best is not None and time.perf_counter() >= deadline:
@@ -448,8 +451,13 @@ def coverage_plan(
     model = coverage_model(ground_truth, protocol)
     uncovered = uncovered_after_scan(model, model.start)
     plan = plan_coverage(
-        model, model.start, uncovered, np.random.default_rng(seed), restarts,
-        lns_iterations=lns_iterations, time_limit=time_limit,
+        model,
+        model.start,
+        uncovered,
+        np.random.default_rng(seed),
+        restarts,
+        lns_iterations=lns_iterations,
+        time_limit=time_limit,
     )
     return model, plan
 

@@ -99,7 +99,8 @@ class ExpertConfig(LatticePlannerConfig):
     restarts: whole(1) = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
     lns_iterations: whole(0, note=_NO_LNS) = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
     replan_restarts: whole(0, note="0 = only refine the previous tour") = option(
-        2, "fresh constructions that compete with the refined previous tour at a replan (0 = only refine it)")
+        2, "fresh constructions that compete with the refined previous tour at a replan (0 = only refine it)"
+    )
     replan_lns_iterations: whole(0, note=_NO_LNS) = option(0, "ruin-and-recreate rounds at a replan (0 = none)")
     time_limit_s: maybe(positive(), "no limit") = option(60.0, _TIME_HELP)
     replan_time_limit_s: maybe(positive(), "no limit") = option(5.0, "seconds a replan may take (None: no limit)")
@@ -194,12 +195,21 @@ class ExpertPlanner(GraphPlanner):
             # The first plan is exactly `optimal`'s (same search, same seed).
             self.rng = np.random.default_rng(self.seed)
             plan = plan_coverage(
-                model, robot, uncovered, self.rng, self.restarts,
-                lns_iterations=self.lns_iterations, time_limit=self.time_limit_s,
+                model,
+                robot,
+                uncovered,
+                self.rng,
+                self.restarts,
+                lns_iterations=self.lns_iterations,
+                time_limit=self.time_limit_s,
             )
         else:
             plan = plan_coverage(
-                model, robot, uncovered, self.rng, self.replan_restarts if self.fresh_search else 0,
+                model,
+                robot,
+                uncovered,
+                self.rng,
+                self.replan_restarts if self.fresh_search else 0,
                 warm_order=self.tour,
                 lns_iterations=self.replan_lns_iterations if self.fresh_search else 0,
                 time_limit=self.replan_time_limit_s,
@@ -240,7 +250,9 @@ class ExpertPlanner(GraphPlanner):
                 break
         if goal < 0:
             useful = self.useful_nodes()
-            useful = useful[np.isfinite(dist_known[useful]) & (model.local[useful] >= 0) & (model.local[useful] != robot)]
+            useful = useful[
+                np.isfinite(dist_known[useful]) & (model.local[useful] >= 0) & (model.local[useful] != robot)
+            ]
             if useful.size == 0:
                 return []
             goal = int(useful[np.argmin(dist_known[useful])])

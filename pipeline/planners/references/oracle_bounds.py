@@ -62,7 +62,8 @@ class OracleWrapperConfig(PlannerConfig):
     objects = ("base_options",)  # the base planner's options, as given beside this config's
 
     base: satisfies(_lattice_base, "a lattice planner that does not see the ground truth", text()) = option(
-        DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)")
+        DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)"
+    )
 
     @classmethod
     def base_planner(cls, options: dict) -> str:
@@ -104,8 +105,9 @@ class TrueGainGate:
         reach = int(math.ceil(range_cells)) + 1
         return max(reach, self.learned.reach_cells(range_cells)) if self.learned is not None else reach
 
-    def passes(self, belief: np.ndarray, cells: np.ndarray, range_cells: float,
-               frontier: np.ndarray | None = None) -> np.ndarray:
+    def passes(
+        self, belief: np.ndarray, cells: np.ndarray, range_cells: float, frontier: np.ndarray | None = None
+    ) -> np.ndarray:
         big = self.true_gain.gains(belief, cells) >= self.min_gain
         if self.learned is not None:
             big &= self.learned.passes(belief, cells, range_cells, frontier)
@@ -114,12 +116,17 @@ class TrueGainGate:
 
 @config_dataclass
 class OracleGateConfig(OracleWrapperConfig):
-    description = ("oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; "
-                   "veto=true: vetoes the learned gate's slivers)")
+    description = (
+        "oracle bound: the base planner (base=) with a ground-truth sliver gate (true gain >= min_gain; "
+        "veto=true: vetoes the learned gate's slivers)"
+    )
 
-    min_gain: whole(1, note="cells") = option(50, "cells: a target passes when its scan on the ground truth would "
-                                                  "reveal this many the belief lacks (the label the learned gate is "
-                                                  "fitted to)")
+    min_gain: whole(1, note="cells") = option(
+        50,
+        "cells: a target passes when its scan on the ground truth would "
+        "reveal this many the belief lacks (the label the learned gate is "
+        "fitted to)",
+    )
     veto: flag() = option(False, "the learned gate still decides, and the truth only vetoes the slivers it passes")
 
 
@@ -150,8 +157,10 @@ class OracleGatePlanner(_OracleWrapper):
 
 @config_dataclass
 class OracleTailConfig(OracleWrapperConfig):
-    description = ("oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, "
-                   "then the ground-truth expert")
+    description = (
+        "oracle bound: the base planner (base=) until handover_cells ground-truth free cells are unknown, "
+        "then the ground-truth expert"
+    )
 
     handover_cells: whole(0) = option(8000, "ground-truth free cells still unknown when the expert takes over")
 
@@ -187,8 +196,10 @@ class OracleTailPlanner(_OracleWrapper):
 
 @config_dataclass
 class OracleLookaheadConfig(GreedyUtilityConfig):
-    description = ("oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
-                   "episode on the ground truth; one step toward the one that completes soonest")
+    description = (
+        "oracle bound: gated greedy whose k best targets are each run to completion in a copy of the "
+        "episode on the ground truth; one step toward the one that completes soonest"
+    )
     uses_ground_truth = True
 
     sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])

@@ -38,12 +38,16 @@ from pipeline.world.team import TeamObservation, TeamPlanner
 
 @config_dataclass
 class CoordinatedGreedyConfig(GreedyUtilityConfig):
-    description = ("greedy utility per robot, utilities reduced near teammates' goals (Burgard et al. 2005) so that "
-                   "no two robots chase the same frontier")
+    description = (
+        "greedy utility per robot, utilities reduced near teammates' goals (Burgard et al. 2005) so that "
+        "no two robots chase the same frontier"
+    )
 
     reduction_range: maybe(positive(), "the sensor range") = option(
-        None, "metres: a teammate's goal reduces the utility of nodes this near it, by 1 - distance / range "
-              "[default: the protocol's sensor range]")
+        None,
+        "metres: a teammate's goal reduces the utility of nodes this near it, by 1 - distance / range "
+        "[default: the protocol's sensor range]",
+    )
 
 
 def base_options(config: Any, base_config: type) -> dict[str, Any]:
@@ -61,8 +65,14 @@ def reduction_factors(node_xy: np.ndarray, goals_xy: np.ndarray, reach: float) -
     return factors
 
 
-def burgard_choice(node_world: np.ndarray, utility: np.ndarray, targets: np.ndarray, dist: np.ndarray,
-                   teammates_goals: list[int], reach: float) -> int:
+def burgard_choice(
+    node_world: np.ndarray,
+    utility: np.ndarray,
+    targets: np.ndarray,
+    dist: np.ndarray,
+    teammates_goals: list[int],
+    reach: float,
+) -> int:
     """The target with the most utility per metre of path once utilities are reduced near
     `teammates_goals` (greedy's order on a tie: the first of `targets`); by plain utility per
     metre when every target is some teammate's goal. `utility` and `dist` are per lattice node."""
@@ -91,7 +101,9 @@ class CoordinatedGreedyTeam(TeamPlanner):
             self.planners = [make_planner("greedy_utility", **self.base) for _ in range(robots)]
         for k, planner in enumerate(self.planners):
             planner.reset(frame, protocol, seed * 1009 + k)
-        self.reach = float(protocol.sensor_range if self.config.reduction_range is None else self.config.reduction_range)
+        self.reach = float(
+            protocol.sensor_range if self.config.reduction_range is None else self.config.reduction_range
+        )
         self.goals = HeardGoals(robots)
 
     def plan(self, observation: TeamObservation) -> list[Waypoint]:

@@ -59,23 +59,30 @@ class TeamRouteOptions(PlannerConfig):
     """How a coordinated tour team splits the frontier into min-max routes."""
 
     routes_exact_max: whole(0, EXACT_MAX_LIMIT) = option(
-        8, "min-max splits of up to this many targets are solved exactly; larger ones by OR-Tools")
+        8, "min-max splits of up to this many targets are solved exactly; larger ones by OR-Tools"
+    )
     routes_time_ms: whole(1) = option(30, "milliseconds OR-Tools may search a min-max split of more targets")
     routes_search: text(METAHEURISTICS) = option(
-        "greedy_descent", "OR-Tools' local search: greedy_descent (stops at its first local optimum) or "
-                          "guided_local_search (searches the whole time limit)")
+        "greedy_descent",
+        "OR-Tools' local search: greedy_descent (stops at its first local optimum) or "
+        "guided_local_search (searches the whole time limit)",
+    )
 
 
 @config_dataclass
 class CoordinatedGuideTspConfig(GuideTspOptions, TeamRouteOptions):
-    description = ("guide_tsp per robot, the global graph's frontier clusters split into min-max routes over the "
-                   "team; each robot steps toward its own route's first target")
+    description = (
+        "guide_tsp per robot, the global graph's frontier clusters split into min-max routes over the "
+        "team; each robot steps toward its own route's first target"
+    )
 
 
 @config_dataclass
 class CoordinatedGuideConfig(TourVoteOptions, TeamRouteOptions):
-    description = ("guide (tour vote) per robot, the global graph's frontier clusters split into min-max routes over "
-                   "the team; each robot's policy votes on its own route's first targets")
+    description = (
+        "guide (tour vote) per robot, the global graph's frontier clusters split into min-max routes over "
+        "the team; each robot's policy votes on its own route's first targets"
+    )
     # guide_tsp's clusters (`TourVoteOptions`), not guide's single-node targets: the team splits its targets into
     # min-max routes, and one target per useful node would make that split a routing problem over all of them.
 
@@ -83,7 +90,9 @@ class CoordinatedGuideConfig(TourVoteOptions, TeamRouteOptions):
         if self.mode != "tour":
             raise ValueError(f"the team guide splits the tour: mode must be tour, got {self.mode!r}")
         if self.lookahead:
-            raise ValueError(f"the team guide has no lookahead (its rollouts are single-robot), got lookahead={self.lookahead}")
+            raise ValueError(
+                f"the team guide has no lookahead (its rollouts are single-robot), got lookahead={self.lookahead}"
+            )
         super().check()
 
 
@@ -122,9 +131,17 @@ def known_row(global_graph: GlobalGraph, node: int) -> int | None:
     return row if row < len(known_ids) and known_ids[row] == node else None
 
 
-def split_frontier(graph: LatticeGraph, global_graph: GlobalGraph, tour: FrontierTour, robot: int, dist: np.ndarray,
-                   candidates: np.ndarray, observation: TeamObservation, goals: list[int | None],
-                   options: TeamRouteOptions) -> FrontierSplit:
+def split_frontier(
+    graph: LatticeGraph,
+    global_graph: GlobalGraph,
+    tour: FrontierTour,
+    robot: int,
+    dist: np.ndarray,
+    candidates: np.ndarray,
+    observation: TeamObservation,
+    goals: list[int | None],
+    options: TeamRouteOptions,
+) -> FrontierSplit:
     """Cluster the deciding robot's reachable useful nodes as guide_tsp does and split the cluster
     targets into min-max routes for the team (steps 1-2 of the module's doc). `goals` are every
     robot's goals as the deciding robot knows them (its own: its previous first target)."""
@@ -245,8 +262,14 @@ class CoordinatedTourTeam(TeamPlanner):
         goals[observation.robot] = tour.previous
         return goals
 
-    def next_target(self, split: FrontierSplit, graph: LatticeGraph, dist: np.ndarray, candidates: np.ndarray,
-                    goals: list[int | None]) -> int:
+    def next_target(
+        self,
+        split: FrontierSplit,
+        graph: LatticeGraph,
+        dist: np.ndarray,
+        candidates: np.ndarray,
+        goals: list[int | None],
+    ) -> int:
         """The first target of the deciding robot's own route; with no route of its own (more
         robots than targets), the useful node the coordinated greedy would choose, its teammates'
         goals being the ones it knows (`goals`, its own entry aside) and the other routes' first
@@ -267,14 +290,20 @@ class CoordinatedTourTeam(TeamPlanner):
             self.goals.decided(observation, None)
             return []
         planner.update_global_graph(own)
-        split = split_frontier(graph, planner.global_graph, planner.tour, robot, dist, candidates, observation, goals,
-                               self.config)
+        split = split_frontier(
+            graph, planner.global_graph, planner.tour, robot, dist, candidates, observation, goals, self.config
+        )
         first = self.next_target(split, graph, dist, candidates, goals)
         first = planner.tour.keep_through_cycles(own, robot, candidates, first)
         planner.tour.previous = first
         self.goals.decided(observation, first)
-        self.last_decision = {"robot": observation.robot, "target": first, "targets": split.targets,
-                              "routes": split.routes, "members": split.members}
+        self.last_decision = {
+            "robot": observation.robot,
+            "target": first,
+            "targets": split.targets,
+            "routes": split.routes,
+            "members": split.members,
+        }
         return planner.waypoints_along(graph.path_from_predecessors(pred, first))
 
 
@@ -307,7 +336,9 @@ class CoordinatedTourVoteTeam(CoordinatedTourTeam):
             self.goals.decided(observation, target)
             return [tuple(map(float, graph.node_world[queued]))]
         vote.queue = []
-        split = split_frontier(graph, paper.global_graph, vote.tour, robot, dist, useful, observation, goals, self.config)
+        split = split_frontier(
+            graph, paper.global_graph, vote.tour, robot, dist, useful, observation, goals, self.config
+        )
         deltas, expected = paper.sample_plans()
         paths = drive(graph, robot, deltas, expected)
         votes = None
@@ -326,12 +357,20 @@ class CoordinatedTourVoteTeam(CoordinatedTourTeam):
             chunk = graph.path_from_predecessors(pred, target)[1 : 1 + paper.action_steps]
         vote.queue = chunk[1:]
         self.goals.decided(observation, target)
-        self.last_decision = {"robot": observation.robot, "target": target, "targets": split.targets,
-                              "routes": split.routes, "members": split.members, "votes": votes}
+        self.last_decision = {
+            "robot": observation.robot,
+            "target": target,
+            "targets": split.targets,
+            "routes": split.routes,
+            "members": split.members,
+            "votes": votes,
+        }
         return [tuple(map(float, graph.node_world[chunk[0]]))]
 
     @staticmethod
-    def queued_step(vote: TourVote, graph: LatticeGraph, robot: int, dist: np.ndarray, useful: np.ndarray) -> int | None:
+    def queued_step(
+        vote: TourVote, graph: LatticeGraph, robot: int, dist: np.ndarray, useful: np.ndarray
+    ) -> int | None:
         """The next step of the last chunk while its target is still useful and the step still a known-free edge."""
         target = vote.tour.previous
         if not vote.queue or target is None or target not in set(useful.tolist()):
@@ -375,4 +414,3 @@ def build_coordinated_guide_tsp(config: CoordinatedGuideTspConfig) -> TeamPlanne
 @register_team_planner("guide", CoordinatedGuideConfig)
 def build_coordinated_guide(config: CoordinatedGuideConfig) -> TeamPlanner:
     return CoordinatedTourVoteTeam(config)
-

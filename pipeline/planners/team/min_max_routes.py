@@ -35,8 +35,13 @@ COST_SCALE = 100.0  # OR-Tools costs are integers: centimetres
 SPAN_WEIGHT = 1000  # the longest route's weight in OR-Tools' objective, against the sum of routes
 
 
-def min_max_routes(distance: np.ndarray, robots: int, time_limit_ms: int = 30, exact_max: int = 8,
-                   metaheuristic: str = "greedy_descent") -> list[list[int]]:
+def min_max_routes(
+    distance: np.ndarray,
+    robots: int,
+    time_limit_ms: int = 30,
+    exact_max: int = 8,
+    metaheuristic: str = "greedy_descent",
+) -> list[list[int]]:
     """One open route per robot through all targets, minimising the longest route.
 
     `distance` is (robots + targets) square, metres: rows 0..robots-1 the robots' starts, the
@@ -91,7 +96,7 @@ def _exact_routes(d: np.ndarray, robots: int) -> list[list[int]]:
     # Every (set, part of it) pair once: target k is out of the set (digit 0), in the set but not
     # the part (1), or in the part (2), for the base-3 numbers 0 .. 3^targets - 1.
     weights = 1 << np.arange(targets)
-    digits = (np.arange(3 ** targets)[:, None] // (3 ** np.arange(targets))[None, :]) % 3
+    digits = (np.arange(3**targets)[:, None] // (3 ** np.arange(targets))[None, :]) % 3
     whole, part = (digits > 0) @ weights, (digits == 2) @ weights
     order = np.lexsort((part, whole))
     whole, part = whole[order], part[order]
@@ -163,8 +168,9 @@ def _ortools_routes(d: np.ndarray, robots: int, time_limit_ms: int, metaheuristi
     try:
         from ortools.constraint_solver import pywrapcp, routing_enums_pb2
     except ImportError as error:  # an optional dependency: the `team` extra
-        raise ImportError(f"min-max routes through more targets than exact_max need OR-Tools: pip install ortools "
-                          f"({error})") from None
+        raise ImportError(
+            f"min-max routes through more targets than exact_max need OR-Tools: pip install ortools ({error})"
+        ) from None
 
     nodes = d.shape[0]
     end = nodes  # the dummy end every route finishes at, at distance 0 from everything
@@ -180,8 +186,10 @@ def _ortools_routes(d: np.ndarray, robots: int, time_limit_ms: int, metaheuristi
     parameters = pywrapcp.DefaultRoutingSearchParameters()
     parameters.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PARALLEL_CHEAPEST_INSERTION
     parameters.local_search_metaheuristic = (
-        routing_enums_pb2.LocalSearchMetaheuristic.GREEDY_DESCENT if metaheuristic == "greedy_descent"
-        else routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH)
+        routing_enums_pb2.LocalSearchMetaheuristic.GREEDY_DESCENT
+        if metaheuristic == "greedy_descent"
+        else routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+    )
     parameters.time_limit.FromMilliseconds(max(1, time_limit_ms))
     solution = routing.SolveWithParameters(parameters)
     if solution is None:  # no solution within the time limit: cannot happen without constraints; be safe

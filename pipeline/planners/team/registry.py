@@ -31,7 +31,9 @@ class TeamPlannerEntry:
 _TEAM_REGISTRY: dict[str, TeamPlannerEntry] = {}
 
 
-def register_team_planner(name: str, config: type[PlannerConfig]) -> Callable[[Callable[..., TeamPlanner]], Callable[..., TeamPlanner]]:
+def register_team_planner(
+    name: str, config: type[PlannerConfig]
+) -> Callable[[Callable[..., TeamPlanner]], Callable[..., TeamPlanner]]:
     """Decorator: `name`'s coordinated team version, built as `build(config)`."""
 
     def decorate(build: Callable[..., TeamPlanner]) -> Callable[..., TeamPlanner]:

@@ -50,14 +50,18 @@ _EPS = 1e-7
 
 @config_dataclass
 class TeamOptimalConfig(OptimalConfig, TeamRouteOptions):
-    description = ("oracle: the single optimal's ground-truth viewpoints split into min-max routes for the team, "
-                   "the team reference")
+    description = (
+        "oracle: the single optimal's ground-truth viewpoints split into min-max routes for the team, "
+        "the team reference"
+    )
 
     # A one-off split at reset, not one per decision: OR-Tools may take longer than a tour team's.
     routes_time_ms: whole(1) = option(1000, "milliseconds OR-Tools may search a min-max split of more targets")
     top_up_rounds: whole(0) = option(
-        3, "times a split that leaves too much unseen gets a greedy cover of the rest before the viewpoints of a "
-           "full cover are added")
+        3,
+        "times a split that leaves too much unseen gets a greedy cover of the rest before the viewpoints of a "
+        "full cover are added",
+    )
 
 
 @dataclass
@@ -118,8 +122,13 @@ def team_makespan(objective: CoverageObjective, paths: list[list[int]]) -> tuple
     return float(when[first]), int(remaining[first])
 
 
-def split_viewpoints(model: CoverageModel, objective: CoverageObjective, starts: list[int], viewpoints: list[int],
-                     config: TeamOptimalConfig) -> TeamCoveragePlan:
+def split_viewpoints(
+    model: CoverageModel,
+    objective: CoverageObjective,
+    starts: list[int],
+    viewpoints: list[int],
+    config: TeamOptimalConfig,
+) -> TeamCoveragePlan:
     """Viewpoints split into min-max routes from the starts (local nodes), expanded and judged."""
     targets = [v for v in dict.fromkeys(viewpoints) if v not in starts]
     nodes = starts + targets
@@ -129,8 +138,9 @@ def split_viewpoints(model: CoverageModel, objective: CoverageObjective, starts:
     return judge_routes(model, objective, starts, routes)
 
 
-def judge_routes(model: CoverageModel, objective: CoverageObjective, starts: list[int],
-                 routes: list[list[int]]) -> TeamCoveragePlan:
+def judge_routes(
+    model: CoverageModel, objective: CoverageObjective, starts: list[int], routes: list[list[int]]
+) -> TeamCoveragePlan:
     paths = [model.expand([start] + route) for start, route in zip(starts, routes)]
     makespan, remaining = team_makespan(objective, paths)
     return TeamCoveragePlan(routes, paths, makespan, remaining)
@@ -144,8 +154,13 @@ def unseen_after(model: CoverageModel, paths: list[list[int]]) -> np.ndarray:
     return unseen
 
 
-def prune_routes(model: CoverageModel, objective: CoverageObjective, starts: list[int], plan: TeamCoveragePlan,
-                 deadline: float = np.inf) -> TeamCoveragePlan:
+def prune_routes(
+    model: CoverageModel,
+    objective: CoverageObjective,
+    starts: list[int],
+    plan: TeamCoveragePlan,
+    deadline: float = np.inf,
+) -> TeamCoveragePlan:
     """Drop viewpoints while the team still completes no later (what every path sees on the way
     counts); within a route, the costliest detours are tried first."""
     improved = True
@@ -167,8 +182,14 @@ def prune_routes(model: CoverageModel, objective: CoverageObjective, starts: lis
     return plan
 
 
-def covering_split(model: CoverageModel, objective: CoverageObjective, starts: list[int], viewpoints: list[int],
-                   config: TeamOptimalConfig, rng: np.random.Generator) -> TeamCoveragePlan:
+def covering_split(
+    model: CoverageModel,
+    objective: CoverageObjective,
+    starts: list[int],
+    viewpoints: list[int],
+    config: TeamOptimalConfig,
+    rng: np.random.Generator,
+) -> TeamCoveragePlan:
     """The min-max split of `viewpoints`, topped up until the team's paths meet the done rule.
 
     Up to `config.top_up_rounds` times, a greedy set cover of what the split's paths leave unseen
@@ -191,16 +212,24 @@ def covering_split(model: CoverageModel, objective: CoverageObjective, starts: l
     return plan
 
 
-def plan_team_coverage(model: CoverageModel, starts: list[int], config: TeamOptimalConfig,
-                       seed: int = 0) -> TeamCoveragePlan:
+def plan_team_coverage(
+    model: CoverageModel, starts: list[int], config: TeamOptimalConfig, seed: int = 0
+) -> TeamCoveragePlan:
     """The team reference's routes from the starts (local nodes of `model`, one per robot)."""
     deadline = time.perf_counter() + config.time_limit_s if config.time_limit_s else np.inf
     objective = CoverageObjective(model, np.ones(len(model.cells), dtype=bool))
     uncovered = model.uncovered()
     for start in starts:
         uncovered[model.row(start)] = False
-    single = plan_coverage(model, starts[0], uncovered, np.random.default_rng(seed), config.restarts,
-                           lns_iterations=config.lns_iterations, time_limit=config.time_limit_s)
+    single = plan_coverage(
+        model,
+        starts[0],
+        uncovered,
+        np.random.default_rng(seed),
+        config.restarts,
+        lns_iterations=config.lns_iterations,
+        time_limit=config.time_limit_s,
+    )
     viewpoints = [int(v) for v in single.order[1:]]
     if len(single.path) > 1 and int(single.path[-1]) not in viewpoints:
         viewpoints.append(int(single.path[-1]))  # its path is cut on the way to the next viewpoint
@@ -209,8 +238,9 @@ def plan_team_coverage(model: CoverageModel, starts: list[int], config: TeamOpti
     # The single `optimal`'s own path for the first robot, the others staying at their starts.
     path = [int(v) for v in single.path]
     alone = [path] + [[start] for start in starts[1:]]
-    own = TeamCoveragePlan([[int(v) for v in single.order[1:]]] + [[] for _ in starts[1:]], alone,
-                           *team_makespan(objective, alone))
+    own = TeamCoveragePlan(
+        [[int(v) for v in single.order[1:]]] + [[] for _ in starts[1:]], alone, *team_makespan(objective, alone)
+    )
     if own.better_than(plan):
         plan = own
     return plan

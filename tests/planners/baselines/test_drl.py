@@ -33,8 +33,9 @@ def fresh_policy(seed: int, **values) -> DRLPolicy:
 
 def env_episode(path, policy: DRLPolicy, protocol: Protocol) -> dict:
     """The environment's episode with `policy` choosing greedily: its last info."""
-    env = ExploreEnv(map=str(path), protocol=protocol, max_nodes=policy.config.max_nodes,
-                     max_neighbors=policy.config.max_neighbors)
+    env = ExploreEnv(
+        map=str(path), protocol=protocol, max_nodes=policy.config.max_nodes, max_neighbors=policy.config.max_neighbors
+    )
     obs, info = env.reset(seed=0)
     done = False
     while not done:
@@ -50,12 +51,15 @@ def maps(small_maze_path, generated_maze_dir):
     return [small_maze_path, list_maps(generated_maze_dir)[0]]
 
 
-@pytest.mark.parametrize(("seed", "values", "protocol"), [
-    (1, {"guidepost_prior": 0.0}, Protocol(max_steps=30)),  # a random pointer: loops back and forth
-    (2, {}, Protocol(max_steps=30)),  # the default prior: partly follows the guidepost
-    (3, {"guidepost_prior": 30.0}, Protocol(max_steps=60)),  # follows the guidepost to the end
-    (4, {"max_neighbors": 6}, Protocol(max_steps=30, node_resolution=3.0, sensor_range=15.0)),
-])
+@pytest.mark.parametrize(
+    ("seed", "values", "protocol"),
+    [
+        (1, {"guidepost_prior": 0.0}, Protocol(max_steps=30)),  # a random pointer: loops back and forth
+        (2, {}, Protocol(max_steps=30)),  # the default prior: partly follows the guidepost
+        (3, {"guidepost_prior": 30.0}, Protocol(max_steps=60)),  # follows the guidepost to the end
+        (4, {"max_neighbors": 6}, Protocol(max_steps=30, node_resolution=3.0, sensor_range=15.0)),
+    ],
+)
 def test_the_planner_decides_as_the_environments_agent(maps, seed, values, protocol):
     policy = fresh_policy(seed, **values)
     for path in maps:
@@ -72,11 +76,17 @@ def test_the_planner_decides_as_the_environments_agent(maps, seed, values, proto
 
 def test_the_episodes_compared_are_not_trivial(maps):
     """The random pointer revisits nodes until the step limit; the guidepost-led one completes."""
-    looping = run_episode(load_map(maps[0]), make_planner("drl", policy=fresh_policy(1, guidepost_prior=0.0), stall_steps=0),
-                          Protocol(max_steps=30))
+    looping = run_episode(
+        load_map(maps[0]),
+        make_planner("drl", policy=fresh_policy(1, guidepost_prior=0.0), stall_steps=0),
+        Protocol(max_steps=30),
+    )
     assert len(looping.trajectory) == 31 and len(set(looping.trajectory)) < 31 and not looping.complete
-    led = run_episode(load_map(maps[0]), make_planner("drl", policy=fresh_policy(3, guidepost_prior=30.0), stall_steps=0),
-                      Protocol(max_steps=60))
+    led = run_episode(
+        load_map(maps[0]),
+        make_planner("drl", policy=fresh_policy(3, guidepost_prior=30.0), stall_steps=0),
+        Protocol(max_steps=60),
+    )
     assert led.complete and len(set(led.trajectory)) == len(led.trajectory)
 
 
@@ -107,7 +117,9 @@ def test_the_pipelines_policy_comes_before_the_shipped_one(tmp_path, monkeypatch
 
 
 def test_no_policy_anywhere_is_a_one_line_error(tmp_path, monkeypatch):
-    monkeypatch.setitem(defaults.MODEL_FILES, "drl", (tmp_path / "a" / "policy.pt", (tmp_path / "b" / "planner_drl.pt",)))
+    monkeypatch.setitem(
+        defaults.MODEL_FILES, "drl", (tmp_path / "a" / "policy.pt", (tmp_path / "b" / "planner_drl.pt",))
+    )
     with pytest.raises(ValueError, match="no drl policy") as error:
         make_planner("drl")
     assert "\n" not in str(error.value)

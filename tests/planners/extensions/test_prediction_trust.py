@@ -18,19 +18,23 @@ from pipeline.world.simulator import run_episode
 
 @pytest.fixture(scope="module")
 def building(tmp_path_factory):
-    path = generate_building_set(BuildingConfig(side_m=24.0), 1, tmp_path_factory.mktemp("b"), seed=[5], progress=False)[0]
+    path = generate_building_set(
+        BuildingConfig(side_m=24.0), 1, tmp_path_factory.mktemp("b"), seed=[5], progress=False
+    )[0]
     return load_maze_png(path, cell_size=0.2)
 
 
 def oracle_for(ground_truth, wrong: bool = False):
     """An inpainter that knows the ground truth: each image answered from the node states it
     shows, free where the truth is free (or, `wrong`, exactly where it is not)."""
+
     def inpaint(image: np.ndarray) -> np.ndarray:
         planner = innermost(holder["planner"])
         truth = node_states_image(planner.graph, ground_truth_states(planner.graph, ground_truth.free))
         padded, _ = pad_to_multiple(truth, 8, 255 if wrong else 0)
         answer = (padded == 0) if wrong else (padded == 255)
         return answer.astype(np.float32) if padded.shape == image.shape else np.zeros(image.shape, np.float32)
+
     holder: dict = {}
     return inpaint, holder
 

@@ -37,7 +37,9 @@ def _truth(maze) -> np.ndarray:
 def test_k1_is_gated_greedy(small_maze):
     protocol = Protocol()
     gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
-    one = run_episode(small_maze, make_planner("sampled_lookahead", k=1, model=KnownBlocks(_truth(small_maze))), protocol, 0)
+    one = run_episode(
+        small_maze, make_planner("sampled_lookahead", k=1, model=KnownBlocks(_truth(small_maze))), protocol, 0
+    )
     assert one.trajectory == gated.trajectory and one.complete
 
 
@@ -61,8 +63,12 @@ def test_explores_without_reading_the_ground_truth(small_maze):
 def test_a_true_block_map_makes_it_no_longer_than_gated_greedy(small_maze):
     protocol = Protocol()
     gated = run_episode(small_maze, make_planner("greedy_utility", sliver_gate=True), protocol, 0)
-    looked = run_episode(small_maze, make_planner("sampled_lookahead", samples=1, horizon_m=100.0,
-                                                  model=KnownBlocks(_truth(small_maze))), protocol, 0)
+    looked = run_episode(
+        small_maze,
+        make_planner("sampled_lookahead", samples=1, horizon_m=100.0, model=KnownBlocks(_truth(small_maze))),
+        protocol,
+        0,
+    )
     assert looked.complete and looked.motion_violations == 0
     assert looked.distance_m <= gated.distance_m
 
@@ -96,8 +102,11 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
         _, ranked = planner.ranked_targets(observation)
         assert ranked.size >= 2
         planner.last_target = int(ranked[1])
-        monkeypatch.setattr(BlockLookahead, "rollout",
-                            staticmethod(lambda trial, ep, target, pred, per_target=False: 10.0 if target == int(ranked[1]) else 9.0))
+        monkeypatch.setattr(
+            BlockLookahead,
+            "rollout",
+            staticmethod(lambda trial, ep, target, pred, per_target=False: 10.0 if target == int(ranked[1]) else 9.0),
+        )
         planner.plan(observation)
         monkeypatch.undo()
         chosen[margin] = planner.last_target == int(ranked[1])
@@ -127,7 +136,11 @@ def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, mo
             return 10.0
 
         monkeypatch.setattr(module.BlockLookahead, "rollout", staticmethod(rollout))
-        monkeypatch.setattr(module, "exit_steps", lambda world, imagined: np.tile(np.arange(world.shape[1], dtype=np.float32), (world.shape[0], 1)))
+        monkeypatch.setattr(
+            module,
+            "exit_steps",
+            lambda world, imagined: np.tile(np.arange(world.shape[1], dtype=np.float32), (world.shape[0], 1)),
+        )
         planner.plan(observation)
         monkeypatch.undo()
         return planner.last_target == int(ranked[1])
@@ -139,7 +152,9 @@ def _guide(**options):
     from pipeline.models.defaults import SHIPPED_POLICY
 
     blank = lambda image: np.zeros(np.shape(image), np.float32)  # noqa: E731
-    return make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options)
+    return make_planner(
+        "guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, num_inference_steps=3, **options
+    )
 
 
 @pytest.mark.parametrize("targets", ["greedy", "tour"])
@@ -158,7 +173,9 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
         return finish(self, rollouts, candidates)
 
     def decide(cheap: int | None) -> dict:
-        planner = _guide(lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model_file=str(SHIPPED_BLOCK_MODEL))
+        planner = _guide(
+            lookahead=3, lookahead_samples=2, lookahead_targets=targets, block_model_file=str(SHIPPED_BLOCK_MODEL)
+        )
         planner.reset(small_maze, protocol, 0)
         observation = Episode(small_maze, protocol).observe()
 
@@ -214,13 +231,22 @@ def test_guide_lookahead_keeps_its_target_until_reached_unless_told_not_to(small
 
     protocol = Protocol()
     calls: list[int] = []
-    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(lambda trial, ep, target, pred, per_target=False: calls.append(target) or 10.0))
+    monkeypatch.setattr(
+        BlockLookahead,
+        "rollout",
+        staticmethod(lambda trial, ep, target, pred, per_target=False: calls.append(target) or 10.0),
+    )
     rounds = {}
     for commit in (None, False):
         # guide_tsp's clusters as the tour's options: their targets lie a few steps away, so a kept one is not
         # reached at every decision (a single-node target next to the robot often is)
-        planner = _guide(lookahead=2, lookahead_samples=1, spread=None, min_weight=30.0,
-                         **({} if commit is None else {"lookahead_commit": commit}))
+        planner = _guide(
+            lookahead=2,
+            lookahead_samples=1,
+            spread=None,
+            min_weight=30.0,
+            **({} if commit is None else {"lookahead_commit": commit}),
+        )
         planner.reset(small_maze, protocol, 0)
         episode = Episode(small_maze, protocol)
         decisions = []  # (rolled out, target)
@@ -280,10 +306,19 @@ def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
     from pipeline.planners.extensions.lookahead import BlockLookahead
 
     seen = []
-    monkeypatch.setattr(BlockLookahead, "rollout", staticmethod(
-        lambda trial, ep, target, pred, per_target=False: seen.append((trial.gate is None, per_target)) or 10.0))
-    planner = _guide(lookahead=3, lookahead_samples=1, sliver_gate=True,
-                     **({} if rollout is None else {"lookahead_rollout": rollout}))
+    monkeypatch.setattr(
+        BlockLookahead,
+        "rollout",
+        staticmethod(
+            lambda trial, ep, target, pred, per_target=False: seen.append((trial.gate is None, per_target)) or 10.0
+        ),
+    )
+    planner = _guide(
+        lookahead=3,
+        lookahead_samples=1,
+        sliver_gate=True,
+        **({} if rollout is None else {"lookahead_rollout": rollout}),
+    )
     assert planner.gate is not None
     planner.reset(small_maze, Protocol(), 0)
     planner.plan(Episode(small_maze, Protocol()).observe())
@@ -311,8 +346,9 @@ def _lookahead_decision(small_maze, workers: int, steps: int = 6):
         episode.move(planner.plan(episode.observe())[0])
     observation = episode.observe()
     pred, ranked = planner.ranked_targets(observation)
-    lookahead = BlockLookahead(KnownBlocks(np.where(_truth(small_maze) > 0, 0.8, 0.2).astype(np.float32)),
-                               samples=3, workers=workers)
+    lookahead = BlockLookahead(
+        KnownBlocks(np.where(_truth(small_maze) > 0, 0.8, 0.2).astype(np.float32)), samples=3, workers=workers
+    )
     lookahead.reset(small_maze)
     return lookahead, gated_greedy_like(planner), observation, [int(t) for t in ranked[:4]], pred
 
@@ -348,8 +384,12 @@ def test_a_dead_worker_leaves_the_rollouts_to_the_planner(small_maze):
         first = paired._worker.pid
         os.kill(first, signal.SIGKILL)
         os.waitpid(first, 0)
-        np.testing.assert_array_equal(paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want)
-        np.testing.assert_array_equal(paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want)
+        np.testing.assert_array_equal(
+            paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want
+        )
+        np.testing.assert_array_equal(
+            paired.costs(planner, observation, candidates, pred, np.random.default_rng(2)), want
+        )
         assert paired._worker is not None and paired._worker.pid != first
     finally:
         paired.close()
@@ -369,8 +409,10 @@ def test_copies_of_a_lookahead_leave_its_worker_behind(small_maze):
 
 
 def test_guide_with_two_lookahead_processes_takes_the_same_route(small_maze):
-    routes = [run_episode(small_maze, _guide(lookahead=2, lookahead_samples=2, lookahead_workers=workers), Protocol(), 0)
-              for workers in (1, 2)]
+    routes = [
+        run_episode(small_maze, _guide(lookahead=2, lookahead_samples=2, lookahead_workers=workers), Protocol(), 0)
+        for workers in (1, 2)
+    ]
     assert routes[0].trajectory == routes[1].trajectory and routes[1].complete
     with pytest.raises(ValueError, match=r"workers: must be a whole number in 1\.\.2"):
         _guide(lookahead=3, lookahead_workers=3)
@@ -389,6 +431,8 @@ def test_a_decision_that_never_collects_its_rollouts_leaves_no_stale_answer(smal
     paired = _lookahead_decision(small_maze, workers=2)[0]
     try:
         paired.start(planner, observation, candidates, pred, np.random.default_rng(1))  # abandoned
-        np.testing.assert_array_equal(paired.costs(planner, observation, candidates[:2], pred, np.random.default_rng(9)), want)
+        np.testing.assert_array_equal(
+            paired.costs(planner, observation, candidates[:2], pred, np.random.default_rng(9)), want
+        )
     finally:
         paired.close()

@@ -26,8 +26,15 @@ def corridor() -> GroundTruthMap:
 def swinging_guide(favoured: list[int]):
     """`guide` (nothing predicted, one executed step per decision) whose vote at decision i goes
     wholly to first-target option `favoured[i]`."""
-    planner = make_planner("guide", inpaint=lambda image: np.zeros(image.shape, np.float32), prior_weight=1000.0,
-                           candidates=2, num_inference_steps=2, action_steps=1, **SINGLE_NODES)
+    planner = make_planner(
+        "guide",
+        inpaint=lambda image: np.zeros(image.shape, np.float32),
+        prior_weight=1000.0,
+        candidates=2,
+        num_inference_steps=2,
+        action_steps=1,
+        **SINGLE_NODES,
+    )
     turn = [0]
 
     def votes(robot, paths, options):

@@ -30,8 +30,19 @@ class CountingPolicy(DiffusionPolicy):
 
     def __init__(self):
         torch.manual_seed(0)
-        super().__init__(DiffusionPolicyConfig(max_nodes=48, d_model=16, heads=2, encoder_layers=1, denoiser_layers=1,
-                                               horizon=T_P, obs_steps=T_O, action_steps=2, num_inference_steps=10))
+        super().__init__(
+            DiffusionPolicyConfig(
+                max_nodes=48,
+                d_model=16,
+                heads=2,
+                encoder_layers=1,
+                denoiser_layers=1,
+                horizon=T_P,
+                obs_steps=T_O,
+                action_steps=2,
+                num_inference_steps=10,
+            )
+        )
         self.eval()
         self.conditionings: list[torch.Tensor] = []
         self.denoiser_calls: list[int] = []
@@ -146,8 +157,17 @@ def test_a_seed_gives_the_same_plans_and_another_seed_other_plans(small_maze):
 def test_guide_mode_policy_with_the_papers_options_is_this_object_driving(small_maze):
     policy = CountingPolicy()
     paper = run_episode(small_maze, paper_planner(policy), PROTOCOL, seed=3)
-    registered = make_planner("guide", mode="policy", candidates=1, stall_steps=10**6, sliver_gate=False,
-                              action_steps=T_A, num_inference_steps=K, inpaint=blank, policy=policy)
+    registered = make_planner(
+        "guide",
+        mode="policy",
+        candidates=1,
+        stall_steps=10**6,
+        sliver_gate=False,
+        action_steps=T_A,
+        num_inference_steps=K,
+        inpaint=blank,
+        policy=policy,
+    )
     driven = run_episode(small_maze, registered, PROTOCOL, seed=3)
     assert driven.trajectory == paper.trajectory
     assert len(paper.trajectory) > 5
@@ -156,8 +176,16 @@ def test_guide_mode_policy_with_the_papers_options_is_this_object_driving(small_
 def test_the_config_holds_the_papers_options_only():
     names = [option.name for option in GuideConfig.options()]
     assert len(names) <= 12
-    assert {"policy_file", "inpainter_file", "threshold", "count_threshold", "global_graph", "action_steps",
-            "num_inference_steps", "seed"} <= set(names)
+    assert {
+        "policy_file",
+        "inpainter_file",
+        "threshold",
+        "count_threshold",
+        "global_graph",
+        "action_steps",
+        "num_inference_steps",
+        "seed",
+    } <= set(names)
     assert not {"candidates", "stall_steps", "prior_weight", "lookahead", "mode", "sliver_gate"} & set(names)
 
 

@@ -221,7 +221,9 @@ def test_guide_warns_when_its_policy_was_trained_at_other_taus(recwarn):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank)
-        make_planner("dare", policy_file=str(SHIPPED_POLICY["dare"]), threshold=0.3)  # predicts nothing: no tau to match
+        make_planner(
+            "dare", policy_file=str(SHIPPED_POLICY["dare"]), threshold=0.3
+        )  # predicts nothing: no tau to match
     with pytest.warns(UserWarning, match=r"tau 0.8 \(utility count at 0.5\); this planner builds them at 0.5 \(0.5\)"):
         make_planner("guide", policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, threshold=0.5)
     with pytest.warns(UserWarning, match=r"at 0.8 \(0.3\)"):
@@ -284,7 +286,9 @@ def test_guide_warns_when_its_policy_was_trained_at_another_protocol(maze, tmp_p
         planner.reset(maze, wide, 0)
     with pytest.warns(ProtocolMismatchWarning) as record:
         planner.reset(maze, PROTOCOL, 0)
-    assert [str(w.message).split(" was trained")[0] for w in record] == [str(policy)]  # the injected inpainter has no record
+    assert [str(w.message).split(" was trained")[0] for w in record] == [
+        str(policy)
+    ]  # the injected inpainter has no record
     assert "(sensor_range 30 -> 20, utility_range 15 -> 10)" in str(record[0].message)
 
 
@@ -329,8 +333,7 @@ def test_without_regret_the_options_are_those_of_the_whole_tour(maze, monkeypatc
         return fast
 
     monkeypatch.setattr(FrontierTour, "first_target_scores", both)
-    planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2,
-                           **SINGLE_NODES)
+    planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2, **SINGLE_NODES)
     assert not planner.tour.tour_scores(2) and not planner.tour.tour_scores(10)
     result = run_episode(maze, planner, PROTOCOL)
     assert result.complete and len(seen) >= 5 and max(seen) >= 3

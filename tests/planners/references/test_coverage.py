@@ -168,7 +168,9 @@ def test_open_tsp_heuristic_on_graph_distances(small_maze):
     model = cm.coverage_model(small_maze, PROTOCOL)
     rng = np.random.default_rng(0)
     for _ in range(5):
-        nodes = [model.start] + [int(v) for v in rng.choice(model.node_count, size=9, replace=False) if v != model.start]
+        nodes = [model.start] + [
+            int(v) for v in rng.choice(model.node_count, size=9, replace=False) if v != model.start
+        ]
         dist = model.dist[np.ix_(nodes, nodes)]
         heuristic = tsp.open_tsp_order(dist, exact_max_nodes=0)
         assert heuristic[0] == 0 and sorted(heuristic) == list(range(len(nodes)))
@@ -232,15 +234,7 @@ def test_uncoverable_cells_make_the_plan_cover_everything_it_can(tmp_path):
     """A sealed room (> done_unknown_cells free cells) cannot be seen: cover all the rest."""
     from conftest import maze_from_blocks
 
-    blocks = [
-        "##########",
-        "#S.......#",
-        "#.######.#",
-        "#.#..#.#.#",
-        "#.####.#.#",
-        "#......#.#",
-        "##########",
-    ]
+    blocks = ["##########", "#S.......#", "#.######.#", "#.#..#.#.#", "#.####.#.#", "#......#.#", "##########"]
     path = write_maze_png(maze_from_blocks(blocks), tmp_path / "sealed.png")
     ground_truth = load_maze_png(path)
     model, plan = cov.coverage_plan(ground_truth, PROTOCOL, **FAST)

@@ -60,8 +60,9 @@ def test_the_utility_reduction_falls_with_distance_over_the_range():
     assert both == pytest.approx([0.0, 0.25, 1.0, 0.0])
 
 
-@pytest.mark.parametrize("name,options,robots", [("greedy_utility", {}, 3), ("guide_tsp", {}, 3),
-                                                 ("guide", FAST_GUIDE, 2)])
+@pytest.mark.parametrize(
+    "name,options,robots", [("greedy_utility", {}, 3), ("guide_tsp", {}, 3), ("guide", FAST_GUIDE, 2)]
+)
 def test_coordinated_teams_complete_and_their_files_replay_clean(mazes, tmp_path, name, options, robots):
     for maze in mazes if name != "guide" else mazes[:1]:
         result = run_team_episode(maze, make_team_planner(name, **options), PROTOCOL, robots)
@@ -83,15 +84,18 @@ def test_robots_from_one_start_head_for_different_targets(mazes, name, options):
 
 def test_coordinated_greedy_finishes_sooner_than_uncoordinated_greedy(mazes):
     coordinated = [run_team_episode(m, make_team_planner("greedy_utility"), PROTOCOL, 3).makespan_m for m in mazes]
-    blind = [run_team_episode(m, make_team_planner("uncoordinated_greedy_utility"), PROTOCOL, 3).makespan_m for m in mazes]
+    blind = [
+        run_team_episode(m, make_team_planner("uncoordinated_greedy_utility"), PROTOCOL, 3).makespan_m for m in mazes
+    ]
     assert sum(coordinated) < sum(blind)
     assert sum(c < b for c, b in zip(coordinated, blind)) >= 2, (coordinated, blind)
 
 
 def test_a_coordinated_team_completes_under_a_communication_range(mazes):
     for name in ("greedy_utility", "guide_tsp"):
-        result = run_team_episode(mazes[1], make_team_planner(name), PROTOCOL, 3, starts=[(0, 0), (0, 0), (0, 0)],
-                                  comm_range_m=12.0)
+        result = run_team_episode(
+            mazes[1], make_team_planner(name), PROTOCOL, 3, starts=[(0, 0), (0, 0), (0, 0)], comm_range_m=12.0
+        )
         assert result.complete, (name, result.failure)
 
 

@@ -58,7 +58,9 @@ def test_ortools_routes_cover_every_target_near_the_optimum_and_repeat():
         longest = max(route_lengths(distance, routes))
         optimum = brute_force(distance, robots)[0]
         assert optimum - 1e-6 <= longest <= 1.25 * optimum
-        assert min_max_routes(distance, robots, time_limit_ms=2000, exact_max=0) == routes  # greedy descent: deterministic
+        assert (
+            min_max_routes(distance, robots, time_limit_ms=2000, exact_max=0) == routes
+        )  # greedy descent: deterministic
 
 
 @pytest.mark.parametrize("exact_max", [8, 0])
@@ -81,12 +83,9 @@ def test_routes_are_open_and_ordered_from_the_start():
 
 
 def test_a_target_one_robot_cannot_reach_goes_to_the_other():
-    distance = np.array([
-        [0.0, 50.0, 5.0, np.inf],
-        [50.0, 0.0, np.inf, 40.0],
-        [5.0, np.inf, 0.0, np.inf],
-        [np.inf, 40.0, np.inf, 0.0],
-    ])
+    distance = np.array(
+        [[0.0, 50.0, 5.0, np.inf], [50.0, 0.0, np.inf, 40.0], [5.0, np.inf, 0.0, np.inf], [np.inf, 40.0, np.inf, 0.0]]
+    )
     assert min_max_routes(distance, 2) == [[0], [1]]
 
 
