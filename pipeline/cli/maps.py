@@ -33,8 +33,8 @@ from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.resample import resample_map, write_ros_map
 from pipeline.world.simulator import MotionError
 from pipeline.world.simulator import replay as replay_trajectory
-from pipeline.world.team import replay_team
 from pipeline.world.team_files import TEAM_SUFFIX, read_team_csv
+from pipeline.world.team_replay import replay_team
 from pipeline.world.trajectories import read_trajectory_csv, recorded_start, write_steps_csv
 
 app = typer.Typer(rich_markup_mode=None)

@@ -1,5 +1,6 @@
 """Neural models: the Stage I node-image inpainter (LaMa's FFC ResNet generator) and the diffusion policy."""
 
+from pipeline.models.big_lama import load_big_lama_generator
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.configuration_inpainter import INPUT_ENCODINGS, InpainterConfig
 from pipeline.models.modeling_diffusion import (
@@ -20,7 +21,6 @@ from pipeline.models.modeling_inpainter import (
     SpectralTransform,
     TracedInpainter,
     encode_node_image,
-    load_big_lama_generator,
     read_checkpoint,
 )
 

@@ -41,15 +41,10 @@ import torch
 import torch.nn.functional as F
 
 from pipeline.common.config import config_dataclass, flag, fraction, maybe, positive, real, text, validate, whole
+from pipeline.models.big_lama import load_big_lama_generator
 from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.models.exports import export_kind
-from pipeline.models.modeling_inpainter import (
-    PIXEL_FREE_MIN,
-    InpainterModel,
-    export_inpainter,
-    is_inpainter_export,
-    load_big_lama_generator,
-)
+from pipeline.models.modeling_inpainter import PIXEL_FREE_MIN, InpainterModel, export_inpainter, is_inpainter_export
 from pipeline.training.inpainter_data import SPLITS, InpainterDataModule, maze_count, pair_count
 from pipeline.training.inpainter_losses import (
     PatchDiscriminator,

@@ -13,12 +13,12 @@ from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
-    DEFAULT_BASELINE,
     BenchmarkRun,
     raise_planner_errors,
     run_benchmark,
     with_policy_checkpoint,
 )
+from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.planners.specs import parse_planner_spec
 from pipeline.reporting.benchmark_figures import distance_bar_chart, planner_paths_figure

@@ -12,8 +12,8 @@ from pipeline.cli import app
 from pipeline.reporting.team_figures import ROBOT_RGB
 from pipeline.world.maps import load_map
 from pipeline.world.protocol import Protocol
-from pipeline.world.team import replay_team
 from pipeline.world.team_files import read_team_csv
+from pipeline.world.team_replay import replay_team
 
 runner = CliRunner()
 

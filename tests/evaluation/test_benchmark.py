@@ -48,7 +48,7 @@ def metrics_frame_of(distances: dict[str, list[float]]) -> pd.DataFrame:
 
 
 def test_summary_compares_with_the_baseline_map_by_map():
-    from pipeline.evaluation.benchmark import summary_markdown
+    from pipeline.evaluation.benchmark_summary import summary_markdown
 
     frame = metrics_frame_of({"greedy_utility": [100, 200, 300], "nf": [110, 220, 330]})
     text = summary_markdown(frame, Protocol())
@@ -64,7 +64,7 @@ def test_summary_compares_with_the_baseline_map_by_map():
 
 
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
-    from pipeline.evaluation.benchmark import summary_markdown
+    from pipeline.evaluation.benchmark_summary import summary_markdown
     from pipeline.evaluation.statistics import summarise
 
     frame = metrics_frame_of({"optimal": [80, 160, 240], "nf": [110, 220, 330]})

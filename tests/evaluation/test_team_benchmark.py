@@ -18,8 +18,8 @@ from pipeline.evaluation.team_benchmark import (
 from pipeline.reporting.team_figures import ROBOT_RGB, team_coverage_figure, team_paths_figure
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
-from pipeline.world.team import replay_team
 from pipeline.world.team_files import merges_path, read_team_csv
+from pipeline.world.team_replay import replay_team
 
 PLANNERS = ["uncoordinated_greedy_utility", "nf=uncoordinated_nearest_frontier"]
 

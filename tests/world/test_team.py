@@ -13,8 +13,9 @@ from pipeline.planners.team.registry import make_team_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE
 from pipeline.world.simulator import run_episode
-from pipeline.world.team import TeamEpisode, TeamObservation, TeamPlanner, replay_team, run_team_episode
+from pipeline.world.team import TeamEpisode, TeamObservation, TeamPlanner, run_team_episode
 from pipeline.world.team_files import merges_path, read_team_csv, write_merges_csv, write_team_csv
+from pipeline.world.team_replay import replay_team
 
 
 class Scripted(TeamPlanner):

@@ -72,7 +72,7 @@ def visible_frontier_cells(
 ) -> list[np.ndarray]:
     """For each origin cell (col, row), the sorted flat indices of the `frontier` cells it sees.
 
-    The ray fan is the graph utility's (`pipeline.lattice.graph.visible_counts`): a ray walks from
+    The ray fan is the graph utility's (`pipeline.lattice.visibility.visible_counts`): a ray walks from
     the origin and stops at the first cell that is not free (or outside the grid); the
     cells before that are visible. So `len(result[k])` equals `visible_counts(...)[k]`.
     """

@@ -12,8 +12,9 @@ from pipeline.planners.team.registry import is_coordinated, make_team_planner
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol
-from pipeline.world.team import TeamObservation, TeamPlanner, replay_team, run_team_episode
+from pipeline.world.team import TeamObservation, TeamPlanner, run_team_episode
 from pipeline.world.team_files import read_team_csv, write_team_csv
+from pipeline.world.team_replay import replay_team
 
 PROTOCOL = Protocol()
 FAST_GUIDE = {"num_inference_steps": 2}  # the shipped policy with few denoising steps: a quick test, same machinery

@@ -19,8 +19,9 @@ from pipeline.planners.team.team_optimal import (
 )
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
-from pipeline.world.team import replay_team, run_team_episode
+from pipeline.world.team import run_team_episode
 from pipeline.world.team_files import read_team_csv, write_team_csv
+from pipeline.world.team_replay import replay_team
 
 PROTOCOL = Protocol()
 SINGLE_TOLERANCE = 0.03  # one robot's makespan against the single optimal's distance
