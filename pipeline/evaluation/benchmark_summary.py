@@ -1,4 +1,7 @@
-"""summary.md beside a benchmark's metrics.csv: distance and completion per planner, the paired difference to the baseline, and the whole-building figures where the protocol explores until done."""
+"""summary.md beside a benchmark's metrics.csv: distance and completion per planner, the paired
+difference to the baseline, and the whole-building figures where the protocol explores until
+done.
+"""
 
 from __future__ import annotations
 

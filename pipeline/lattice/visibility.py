@@ -1,4 +1,6 @@
-"""How many cells of interest a lidar fan sees from each origin through free cells: the node utility's count (paper Sec. IV-A) and the nested count of the sliver gate, compiled with numba."""
+"""How many cells of interest a lidar fan sees from each origin through free cells: the node
+utility's count (paper Sec. IV-A) and the nested count of the sliver gate, compiled with numba.
+"""
 
 from __future__ import annotations
 

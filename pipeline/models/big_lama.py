@@ -1,4 +1,6 @@
-"""Big LaMa's generator weights in our InpainterModel: the state dict read from the published checkpoint, its first and last convolutions adapted to our channels."""
+"""Big LaMa's generator weights in our InpainterModel: the state dict read from the published
+checkpoint, its first and last convolutions adapted to our channels.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""Finished episodes as figures: the final frame, the whole-building marks, the trust strip, and planners side by side on one map."""
+"""Finished episodes as figures: the final frame, the whole-building marks, the trust strip, and
+planners side by side on one map.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""What kind of building floors to draw (BuildingConfig), and the labels and rectangles a drawn floor is made of."""
+"""What kind of building floors to draw (BuildingConfig), and the labels and rectangles a drawn
+floor is made of.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""A building floor's footprint: wings joined into a shape, their corridors and the outer wall, drawn on a Drawing (the state of one floor being drawn)."""
+"""A building floor's footprint: wings joined into a shape, their corridors and the outer wall,
+drawn on a Drawing (the state of one floor being drawn).
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""A building floor's inside: rooms cut from the strips beside the corridors, their doors, and furniture that occludes the lidar."""
+"""A building floor's inside: rooms cut from the strips beside the corridors, their doors, and
+furniture that occludes the lidar.
+"""
 
 from __future__ import annotations
 

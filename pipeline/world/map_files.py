@@ -1,4 +1,6 @@
-"""Reading map files within limits: grey images and .npy arrays, every failure a MapError naming the file and the reason (so the CLI prints one line and exits 2)."""
+"""Reading map files within limits: grey images and .npy arrays, every failure a MapError naming
+the file and the reason (so the CLI prints one line and exits 2).
+"""
 
 from __future__ import annotations
 

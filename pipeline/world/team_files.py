@@ -1,4 +1,6 @@
-"""Team trajectory files: `time_s,robot,x,y` rows (the starts first) and the merges beside them under a range, written atomically and read back with an error naming the file and line."""
+"""Team trajectory files: `time_s,robot,x,y` rows (the starts first) and the merges beside them
+under a range, written atomically and read back with an error naming the file and line.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""A team file replayed under the rule: each robot's segment known-free in the team's belief from all earlier rows (or free in the ground truth for the team oracle), and the team figures it gives."""
+"""A team file replayed under the rule: each robot's segment known-free in the team's belief from
+all earlier rows (or free in the ground truth for the team oracle), and the team figures it
+gives.
+"""
 
 from __future__ import annotations
 
