@@ -28,28 +28,23 @@ import torch
 
 from pipeline.planners import make_planner
 from pipeline.planners.specs import parse_option_value
+from pipeline.planners.wrapper import PlannerWrapper
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import PROTOCOLS
 from pipeline.world.simulator import run_episode
 
 
-class TimedPlanner:
-    """Wraps a planner and records (milliseconds, sampled, rolled out) per plan() call."""
+class TimedPlanner(PlannerWrapper):
+    """A planner, recording (milliseconds, sampled, rolled out) per plan() call."""
 
     def __init__(self, planner):
-        self.planner = planner
+        super().__init__(planner)
         self.calls: list[tuple[float, bool, bool]] = []
-
-    def __getattr__(self, name):
-        return getattr(self.planner, name)
-
-    def reset(self, *args, **kwargs):
-        return self.planner.reset(*args, **kwargs)
 
     def plan(self, observation):
         t0 = time.perf_counter()
-        out = self.planner.plan(observation)
-        decision = self.planner.last_decision
+        out = self.inner.plan(observation)
+        decision = self.inner.last_decision
         self.calls.append(
             (
                 (time.perf_counter() - t0) * 1e3,

@@ -49,6 +49,7 @@ from pipeline.world.resample import resample_map
 from pipeline.world.simulator import final_belief, run_episode
 
 PLAN_PIXEL_M = 0.05
+TEXT_COLUMNS = ("plan", "planner", "loop", "size", "stopped")
 SIZES = ((1000.0, "small"), (3000.0, "medium"), (float("inf"), "big"))  # free area (m^2) under which a plan is each
 
 
@@ -125,6 +126,41 @@ def run_one(folder: str, task: Task) -> dict:
     return row
 
 
+def append_row(path: Path, row: dict) -> None:
+    """One episode's row added to the CSV (its header first): a long run keeps what it has measured."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    new = not path.exists()
+    with path.open("a", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(row))
+        if new:
+            writer.writeheader()
+        writer.writerow(row)
+
+
+def kept_rows(path: Path | None, tasks: list[Task]) -> list[dict]:
+    """The rows of an earlier run's CSV that are episodes of `tasks`, with their numbers as numbers."""
+    if path is None or not path.exists():
+        return []
+    wanted = {(task.plan, task.start, task.planner) for task in tasks}
+    rows = []
+    with path.open(newline="") as handle:
+        for row in csv.DictReader(handle):
+            if (row["plan"], int(row["start"]), row["planner"]) not in wanted:
+                continue
+            for key, value in row.items():
+                if key in TEXT_COLUMNS:
+                    continue
+                if value in ("True", "False"):
+                    row[key] = value == "True"
+                else:
+                    try:
+                        row[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+                    except ValueError:
+                        pass
+            rows.append(row)
+    return rows
+
+
 def draw(folder: Path, plan: str, planner: str, protocol: Protocol, path: Path) -> None:
     """The first start's episode on `plan`, door nodes and fallback waypoints marked."""
     starts = json.loads((folder / "starts.json").read_text())
@@ -158,6 +194,8 @@ def main() -> None:
         "--lattice-only", action="store_true", help="DARE's lattice, no door nodes, no done rule on cells"
     )
     parser.add_argument("--starts", type=int, default=3, help="start poses per plan (starts.json's first)")
+    parser.add_argument("--from-start", type=int, default=0, help="the first start pose run (0: starts.json's first)")
+    parser.add_argument("--resume", action="store_true", help="keep the episodes --csv already holds, run the rest")
     parser.add_argument("--only", action="append", default=None, help="run only these plans")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--max-steps", type=int, default=6000, help="waypoints (simulator) or decisions (session)")
@@ -177,14 +215,22 @@ def main() -> None:
         Task(plan, k, name, args.loop, protocol, args.max_steps)
         for name in planners
         for plan in plans
-        for k in range(min(args.starts, len(starts[plan])))
+        for k in range(args.from_start, min(args.starts, len(starts[plan])))
     ]
+    rows = kept_rows(args.csv, tasks) if args.resume else []
+    done = {(row["plan"], int(row["start"]), row["planner"]) for row in rows}
+    todo = [task for task in tasks if (task.plan, task.start, task.planner) not in done]
+    if args.csv is not None and not args.resume:
+        args.csv.unlink(missing_ok=True)
     started = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(run_one, str(args.plans), task) for task in tasks]
-        for _ in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
-            pass
-        rows = [future.result() for future in futures]
+        futures = [pool.submit(run_one, str(args.plans), task) for task in todo]
+        for future in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
+            rows.append(future.result())
+            if args.csv is not None:
+                append_row(args.csv, rows[-1])
+    if args.resume:
+        print(f"{len(tasks) - len(todo)} episodes kept from {args.csv}")
     print(
         f"{len(tasks)} episodes ({args.loop}, {'lattice only' if args.lattice_only else 'door-aware graph'}) "
         f"in {time.perf_counter() - started:.0f} s"
@@ -211,11 +257,6 @@ def main() -> None:
         f"motion-rule violations: {violations}; episodes under 97 %: {sum(r['reachable_share'] < 0.97 for r in rows)}"
     )
     if args.csv is not None:
-        args.csv.parent.mkdir(parents=True, exist_ok=True)
-        with args.csv.open("w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
         print(f"wrote {args.csv}")
     if args.figure is not None:
         largest = max(plans, key=lambda plan: (args.plans / f"{plan}.png").stat().st_size)

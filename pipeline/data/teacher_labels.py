@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.lattice.graph import LatticeGraph
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
@@ -107,7 +108,7 @@ class TeacherLabelledDriver(Planner):
     def plan(self, observation: Observation) -> list[Waypoint]:
         taught = self.teacher.plan(observation)
         target = teacher_target(self.teacher) if taught else None
-        graph = self.teacher.graph  # type: ignore[attr-defined]  # every teacher is a lattice-graph planner
+        graph = innermost(self.teacher).graph  # type: ignore[attr-defined]  # every teacher is a lattice-graph planner
         label = path_label(graph, observation.position, target, self.horizon)
         waypoints = taught if self.driver is None else self.driver.plan(observation)
         waypoints = list(waypoints[:1])

@@ -11,7 +11,7 @@ simulator, the data collectors, the teachers) lets exceptions through as they ar
 from __future__ import annotations
 
 import traceback
-from typing import Any, ClassVar
+from typing import Any
 
 from pipeline.planners.wrapper import PlannerWrapper
 
@@ -26,8 +26,6 @@ def planner_error(error: BaseException) -> str:
 class ErrorsEndTheEpisode(PlannerWrapper):
     """`inner` (a single-robot or a team planner), whose exception ends the episode: `error` holds
     its failure line and `error_traceback` its traceback ("" while it has not raised)."""
-
-    own: ClassVar[frozenset[str]] = frozenset({"error", "error_traceback"})
 
     def __init__(self, inner: Any):
         super().__init__(inner)

@@ -23,6 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
+import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
@@ -30,6 +31,7 @@ import torch.nn.functional as F
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.ddpm_update import DDPMUpdate
 from pipeline.models.exports import export_kind, read_weights_file, write_weights_file
+from pipeline.prediction.graph_observation import GraphObservation
 
 OBS_KEYS = ("features", "node_mask", "neighbors", "robot")
 
@@ -374,6 +376,17 @@ class DiffusionPolicy(nn.Module):
             raise ValueError(f"expected T_o={self.config.obs_steps} observations, got {steps}")
         z = self.encoder(features.flatten(0, 1), node_mask.flatten(0, 1), neighbors.flatten(0, 1), robot.flatten(0, 1))
         return z.view(batch, steps, -1)
+
+    @torch.inference_mode()
+    def encode(self, observation: GraphObservation) -> torch.Tensor:
+        """(1, d_model): one global graph as the policy sees it, encoded. A receding-horizon
+        planner keeps each graph's encoding for the T_o decisions that condition on it."""
+        return self.encoder(
+            torch.from_numpy(observation.features)[None],
+            torch.from_numpy(observation.node_mask)[None],
+            torch.from_numpy(observation.neighbors.astype(np.int64))[None],
+            torch.tensor([observation.robot]),
+        )
 
     def _encode_obs_dict(self, obs: Mapping[str, torch.Tensor]) -> torch.Tensor:
         missing = [key for key in OBS_KEYS if key not in obs]

@@ -19,7 +19,7 @@ from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
 from pipeline.planners.config import OptionInfo, PlannerConfig, option
 from pipeline.planners.extensions.lookahead import LookaheadConfig
 from pipeline.planners.extensions.prediction_trust import PredictionTrustOptions, with_trust
-from pipeline.planners.extensions.ranked_plans import RankedPlans, SampledPlansConfig
+from pipeline.planners.extensions.ranked_plans import SampledPlansConfig, rank_plans
 from pipeline.planners.extensions.stall_handover import StallHandover, StallHandoverConfig
 from pipeline.planners.extensions.tour_vote import TourVote, TourVoteConfig
 from pipeline.planners.guide.configuration_guide import DareConfig, GuideConfig, GuideNoRegionConfig
@@ -118,10 +118,11 @@ class DareOptions(GuideOptions, DareConfig):
 def build_guide(options: GuideOptions, inpaint: InpaintFn | None = None, policy=None) -> Planner:
     """The planner `options` describe: the tour vote (mode tour) or the ranked, stall-guarded
     policy (mode policy), around the paper's `GuidePlanner`."""
-    paper = GuidePlanner(options, inpaint=inpaint, policy=policy)
+    ranker = rank_plans if options.mode == "policy" else None
+    paper = GuidePlanner(options, inpaint, policy, candidates=options.candidates, plan_ranker=ranker)
     if options.mode == "tour":
-        return with_trust(TourVote(paper, options, options, options, options.candidates, options.description), options)
-    planner = StallHandover(RankedPlans(paper, options.candidates), options.stall_steps)
+        return with_trust(TourVote(paper, options, options, options, options.description), options)
+    planner = StallHandover(paper, options.stall_steps)
     planner.description = (
         f"{options.description} [mode policy; {options.candidates} ranked samples, stall hand-over "
         f"after {options.stall_steps}; policy {paper.policy_source}; {paper.predictor_source}; "

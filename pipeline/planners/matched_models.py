@@ -20,8 +20,9 @@ from typing import Any
 from pipeline.models.defaults import pick_model
 from pipeline.planners.config import PlannerConfig
 from pipeline.planners.protocol_defaults import protocol_name, protocol_options
+from pipeline.planners.wrapper import PlannerWrapper, innermost
 from pipeline.world.maps import MapFrame
-from pipeline.world.planner import Observation, Planner, Waypoint
+from pipeline.world.planner import Planner
 from pipeline.world.protocol import MODEL_INPUT_FIELDS, Protocol
 
 
@@ -30,18 +31,12 @@ def default_slots(config: PlannerConfig) -> dict[str, str]:
     return {name: kind for name, kind in config.model_slots().items() if getattr(config, name) is None}
 
 
-class ProtocolMatchedModels(Planner):
+class ProtocolMatchedModels(PlannerWrapper):
     """`build(config, **objects)`, rebuilt at a reset whose protocol picks other default models or
     options. `explicit` names the options the caller set (never replaced); with Python objects
-    injected (a model in memory) only the options are picked.
-
-    Transparent: reading or setting any other attribute reaches the held planner (an oracle
-    bound swaps its base planner's gate after each reset, for one).
+    injected (a model in memory) only the options are picked. The planner it holds (`inner`)
+    changes at such a reset: ask for its layers (`pipeline.planners.wrapper.layer`) after it.
     """
-
-    OWN = frozenset(
-        {"config", "build", "name", "slots", "explicit", "objects", "inner", "picked", "_picks", "protocol_defaults"}
-    )
 
     def __init__(
         self,
@@ -51,10 +46,10 @@ class ProtocolMatchedModels(Planner):
         explicit: frozenset[str] = frozenset(),
         objects: dict[str, Any] | None = None,
     ):
+        super().__init__(build(config, **dict(objects or {})))
         self.config, self.build, self.name = config, build, name
         self.explicit, self.objects = frozenset(explicit), dict(objects or {})
         self.slots = {} if self.objects else default_slots(config)
-        self.inner = build(config, **self.objects)
         self.inner.name = name
         self.picked: dict[str, Any] = {}  # the options the held planner was built with beyond `config`
         self.protocol_defaults = ""  # the named protocol whose option defaults it holds ("": the config's)
@@ -90,9 +85,6 @@ class ProtocolMatchedModels(Planner):
         self.use_models_for(protocol)
         self.inner.reset(frame, protocol, seed)
 
-    def plan(self, observation: Observation) -> list[Waypoint]:
-        return self.inner.plan(observation)
-
     def check_protocol(self, protocol: Protocol) -> None:
         """Take the models of `protocol` (so that `description` names them), then warn as the planner does."""
         self.use_models_for(protocol)
@@ -107,27 +99,11 @@ class ProtocolMatchedModels(Planner):
         shown = ",".join(f"{k}={'null' if v is None else v}" for k, v in options.items())
         return f"{self.inner.description} [{self.protocol_defaults} defaults: {shown}]"
 
-    # The other Planner attributes with class defaults are the held planner's, not the wrapper's.
-    needs_policy = property(lambda self: self.inner.needs_policy)
-    uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
-    ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)
-    prediction_trust = property(lambda self: self.inner.prediction_trust)
-
-    def __getattr__(self, attribute: str) -> Any:  # last_decision, graph, ...: the planner's own
-        if attribute == "inner":  # not yet built: no recursion
-            raise AttributeError(attribute)
-        return getattr(self.inner, attribute)
-
-    def __setattr__(self, attribute: str, value: Any) -> None:
-        if attribute in self.OWN:
-            object.__setattr__(self, attribute, value)
-        else:
-            setattr(self.inner, attribute, value)
-
 
 def model_files(planner: Planner) -> list[str]:
     """Every trained model file `planner` runs (through any wrapper): its policy and inpainter
     (`trained_models`, as the protocol check sees them), then its sliver gate."""
-    files = [str(path) for path, _ in getattr(planner, "trained_models", [])]
-    gate = getattr(planner, "gate_path", None)
+    base = innermost(planner)
+    files = [str(path) for path, _ in getattr(base, "trained_models", [])]
+    gate = getattr(base, "gate_path", None)
     return files + ([str(gate)] if gate is not None else [])

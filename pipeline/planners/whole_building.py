@@ -37,7 +37,7 @@ from pipeline.lattice.doors import via_waypoints
 from pipeline.lattice.graph import NODE_FREE
 from pipeline.lattice.reachability import open_frontier, path_to_nearest, waypoints_along
 from pipeline.lattice.spec import LatticeSpec
-from pipeline.planners.wrapper import PlannerWrapper
+from pipeline.planners.wrapper import PlannerWrapper, innermost
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
@@ -52,24 +52,6 @@ REACHED_CELLS = 2  # a robot this many cells (Chebyshev) from a waypoint has rea
 
 class WholeBuilding(PlannerWrapper):
     """`inner` on the door-aware graph, with the nearest-frontier fallback and the rejoin (module doc)."""
-
-    own = frozenset(
-        {
-            "plan",
-            "active",
-            "spec",
-            "node_mask",
-            "radius_cells",
-            "decision_kind",
-            "fallbacks",
-            "tries",
-            "leftover_cells",
-            "pending",
-            "pending_kind",
-            "goal",
-            "_unseen",
-        }
-    )
 
     def __init__(self, inner: Planner):
         super().__init__(inner)
@@ -137,8 +119,8 @@ class WholeBuilding(PlannerWrapper):
         """Whether the inner planner's graph has no unvisited known-free node that sees
         `min_utility` frontier cells (False for a planner without a graph, visits or threshold).
         A utility the graph holds as a bound is at least the count, so "dry" is never said early."""
-        graph, visited = getattr(self.inner, "graph", None), getattr(self.inner, "visited", None)
-        least = getattr(self.inner, "min_utility", None)
+        base = innermost(self.inner)
+        graph, visited, least = (getattr(base, name, None) for name in ("graph", "visited", "min_utility"))
         if graph is None or visited is None or least is None:
             return False
         return not np.any((graph.utility >= least) & ~visited & (graph.node_state == NODE_FREE))

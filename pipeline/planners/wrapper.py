@@ -1,32 +1,71 @@
 """A planner that wraps another: what our additions to a planner are built on.
 
-A wrapper holds the planner it wraps (`inner`) and changes what it needs to; everything else
-reaches the inner planner. It is transparent: reading an attribute the wrapper does not have
-reads the inner planner's (`graph`, `last_decision`, ...), and setting one the inner planner has
-sets it there (an oracle bound swaps its base planner's gate, say). Wrappers nest: the
-outermost reaches the innermost through each one.
+A wrapper holds the planner it wraps (`inner`, given to its constructor) and changes what it
+needs to. To the episode loop, the robot session and the recorders it is a `Planner`: each
+attribute of that interface (`REPORTED`) is the wrapper's own once it sets one, else its inner
+planner's, so that the outermost layer reports the decision of whichever layer made it. Nothing
+else passes through: code that needs a layer's own state (the lattice graph of a graph planner,
+the tour of the tour vote) asks for that layer (`innermost`, `layer`).
 """
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, TypeVar
 
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
 from pipeline.world.protocol import Protocol
 
+P = TypeVar("P")
+
+# The `Planner` interface's attributes a wrapper reports as its inner planner's until it sets its own.
+REPORTED = (
+    "name",
+    "description",
+    "needs_policy",
+    "uses_ground_truth",
+    "ignores_motion_rule",
+    "prediction_trust",
+    "trust_state",
+    "decision_kind",
+    "fallbacks",
+    "last_decision",
+)
+
+
+class InnerUnlessSet:
+    """A `Planner` attribute of a wrapper: its own value once set on it, else its inner planner's."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, wrapper: Any, owner: type | None = None) -> Any:
+        if wrapper is None:
+            return self
+        own = wrapper.__dict__
+        return own[self.name] if self.name in own else getattr(own["inner"], self.name)
+
+    def __set__(self, wrapper: Any, value: Any) -> None:
+        wrapper.__dict__[self.name] = value
+
 
 class PlannerWrapper(Planner):
-    """`inner`, with what a subclass overrides; `reset`, `plan` and `check_protocol` pass through.
+    """`inner`, with what a subclass overrides; `reset`, `plan`, `check_protocol` and
+    `restore_trust` go to it unless a subclass says otherwise."""
 
-    A subclass names the attributes that are its own in `own`: those are always set on the
-    wrapper, even where the inner planner has one of the same name.
-    """
-
-    own: ClassVar[frozenset[str]] = frozenset()
+    name = InnerUnlessSet()
+    description = InnerUnlessSet()
+    needs_policy = InnerUnlessSet()
+    uses_ground_truth = InnerUnlessSet()
+    ignores_motion_rule = InnerUnlessSet()
+    prediction_trust = InnerUnlessSet()
+    trust_state = InnerUnlessSet()
+    decision_kind = InnerUnlessSet()
+    fallbacks = InnerUnlessSet()
+    last_decision = InnerUnlessSet()
 
     def __init__(self, inner: Planner):
-        object.__setattr__(self, "inner", inner)
+        self.inner = inner
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         self.inner.reset(frame, protocol, seed)
@@ -37,41 +76,28 @@ class PlannerWrapper(Planner):
     def check_protocol(self, protocol: Protocol) -> None:
         self.inner.check_protocol(protocol)
 
-    # The Planner attributes with class defaults are the inner planner's unless a wrapper sets its own.
-    name = property(
-        lambda self: self.__dict__.get("name", self.inner.name),
-        lambda self, value: self.__dict__.__setitem__("name", value),
-    )
-    description = property(
-        lambda self: self.__dict__.get("description", self.inner.description),
-        lambda self, value: self.__dict__.__setitem__("description", value),
-    )
-    needs_policy = property(lambda self: self.inner.needs_policy)
-    uses_ground_truth = property(lambda self: self.inner.uses_ground_truth)
-    ignores_motion_rule = property(lambda self: self.inner.ignores_motion_rule)
-    prediction_trust = property(lambda self: self.inner.prediction_trust)
+    def restore_trust(self, state: Any) -> None:
+        self.inner.restore_trust(state)
 
-    def __getattr__(self, attribute: str) -> Any:
-        if attribute == "inner":  # not yet set: no recursion
-            raise AttributeError(attribute)
-        return getattr(self.inner, attribute)
 
-    def __setattr__(self, attribute: str, value: Any) -> None:
-        cls_attribute = getattr(type(self), attribute, None)
-        if isinstance(cls_attribute, property):
-            cls_attribute.__set__(self, value)
-        elif attribute not in self.__dict__ and not self.owns(attribute) and hasattr(self.inner, attribute):
-            setattr(self.inner, attribute, value)
-        else:
-            object.__setattr__(self, attribute, value)
-
-    @classmethod
-    def owns(cls, attribute: str) -> bool:
-        return any(attribute in getattr(c, "own", ()) for c in cls.__mro__)
+def layers(planner: Planner) -> list[Planner]:
+    """`planner` and every planner it wraps, outermost first."""
+    chain = [planner]
+    while isinstance(chain[-1], PlannerWrapper):
+        chain.append(chain[-1].inner)
+    return chain
 
 
 def innermost(planner: Planner) -> Planner:
     """The planner every wrapper around `planner` holds in the end."""
-    while isinstance(planner, PlannerWrapper):
-        planner = planner.inner
-    return planner
+    return layers(planner)[-1]
+
+
+def layer(planner: Planner, kind: type[P]) -> P:
+    """The outermost layer of `planner` that is a `kind` (a wrapper or the planner itself); a
+    TypeError naming the layers when there is none."""
+    for part in layers(planner):
+        if isinstance(part, kind):
+            return part
+    names = " > ".join(type(part).__name__ for part in layers(planner))
+    raise TypeError(f"{names}: no layer is a {kind.__name__}")

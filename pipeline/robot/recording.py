@@ -24,7 +24,7 @@ from typing import Any, Callable
 import numpy as np
 
 from pipeline.lattice.graph import NODE_FREE
-from pipeline.planners.wrapper import PlannerWrapper
+from pipeline.planners.wrapper import PlannerWrapper, innermost
 from pipeline.prediction.global_graph import CENTROID, PREDICTED
 from pipeline.robot import ros_messages as ros
 from pipeline.world.sensor import FREE, OCCUPIED, UNKNOWN
@@ -96,7 +96,8 @@ class McapRecording:
 def graph_view(planner: Any, to_map: Callable[[tuple[float, float]], tuple[float, float]]) -> ros.GraphView:
     """The planner's graph in the map frame (`to_map` takes a planner position, metres from its
     start): an empty view for a planner without a lattice graph."""
-    graph = getattr(planner, "graph", None)
+    base = innermost(planner)
+    graph = getattr(base, "graph", None)
     if graph is None or not hasattr(graph, "node_state"):
         return ros.GraphView()
 
@@ -106,7 +107,7 @@ def graph_view(planner: Any, to_map: Callable[[tuple[float, float]], tuple[float
     known = np.flatnonzero(graph.node_state == NODE_FREE)
     frontier = known[np.asarray(graph.utility)[known] > 0]
     edges = np.asarray(graph.edges).reshape(-1, 2)
-    global_graph = getattr(planner, "global_graph", None)
+    global_graph = getattr(base, "global_graph", None)
     predicted = np.zeros((0, 2))
     if global_graph is not None and len(getattr(global_graph, "types", ())):
         predicted = global_graph.positions[np.isin(global_graph.types, (PREDICTED, CENTROID))]
@@ -147,8 +148,6 @@ def record_decision(
 class PlanCapture(PlannerWrapper):
     """A planner as it is, keeping the waypoints of its last decision (`last_waypoints`) for a
     recording of the episode."""
-
-    own = frozenset({"last_waypoints", "decisions"})
 
     def __init__(self, inner: Any) -> None:
         super().__init__(inner)

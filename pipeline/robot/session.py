@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.robot.occupancy_grid import BadMessage, Canvas, Grid, read_grid, write_belief_map
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import MapFrame
@@ -321,7 +322,8 @@ class ExplorationSession:
 
     def _graph_and_visits(self) -> tuple[Any, Any]:
         """The planner's lattice graph and its visited marks (None, None for a planner without them)."""
-        graph, marks = getattr(self.planner, "graph", None), getattr(self.planner, "visited", None)
+        base = innermost(self.planner)
+        graph, marks = getattr(base, "graph", None), getattr(base, "visited", None)
         return (graph, marks) if graph is not None and marks is not None else (None, None)
 
     def _mark_avoided(self) -> None:
@@ -436,7 +438,7 @@ class ExplorationSession:
         return ((col - self.canvas.start_cell[0]) * c, (row - self.canvas.start_cell[1]) * c), (col, row)
 
     def _target(self, node: Any, waypoints: list) -> tuple[float, float] | None:
-        graph = getattr(self.planner, "graph", None)
+        graph = getattr(innermost(self.planner), "graph", None)
         if node is not None and graph is not None:
             try:
                 return self.canvas.to_map(tuple(graph.node_world[int(node)]))

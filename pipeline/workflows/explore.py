@@ -13,6 +13,7 @@ from pipeline.common.atomic import atomic_write_text
 from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
 from pipeline.planners.specs import build_planner, resolve_planner_specs
+from pipeline.planners.wrapper import innermost
 from pipeline.reporting.panels import render_final
 from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.robot.recording import EpisodeRecording
@@ -90,7 +91,9 @@ def run(
     recording = EpisodeRecording(bag, agent) if bag is not None else None
     y_up = is_ros_map(exploration.map_path)
     recorder = (
-        EpisodeRecorder(graph_provider=lambda: getattr(agent, "graph", None), label=exploration.label, y_up=y_up)
+        EpisodeRecorder(
+            graph_provider=lambda: getattr(innermost(agent), "graph", None), label=exploration.label, y_up=y_up
+        )
         if gif
         else None
     )
@@ -132,7 +135,7 @@ def run(
         result,
         ground_truth,
         final_belief(ground_truth, result.trajectory, protocol),
-        graph=getattr(agent, "graph", None),
+        graph=getattr(innermost(agent), "graph", None),
         path=out / f"{ground_truth.name}.png",
         y_up=y_up,
     )

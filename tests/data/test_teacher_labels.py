@@ -5,6 +5,7 @@ import pytest
 
 from pipeline.data.teacher_labels import NoTargetError, TeacherLabelledDriver, path_label, teacher_target, unit_steps
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.prediction.graph_observation import expert_action_deltas
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
@@ -41,7 +42,7 @@ def test_the_teacher_driving_follows_its_own_labels_and_another_driver_does_not_
 
 def test_path_label_is_the_shortest_known_path_padded_by_staying(small_maze):
     planner, _ = labelled_run(small_maze)
-    graph = planner.teacher.graph
+    graph = innermost(planner.teacher).graph
     known = np.flatnonzero(np.isfinite(graph.shortest_paths(0)[0]))
     source, target = int(known[0]), int(known[-1])
     position = tuple(graph.node_world[source])
@@ -64,7 +65,7 @@ def test_a_planner_that_names_no_target_cannot_teach(small_maze):
 
 def test_straight_double_edges_are_split_into_unit_steps(small_maze):
     planner, _ = labelled_run(small_maze)
-    graph = planner.teacher.graph
+    graph = innermost(planner.teacher).graph
     doubles = [
         (a, b)
         for a in range(graph.node_count)

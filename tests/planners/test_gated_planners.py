@@ -8,6 +8,7 @@ import pytest
 from pipeline.models.defaults import SHIPPED_GATE
 from pipeline.models.sliver_gate import SliverGate, save_gate
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
 
@@ -24,8 +25,10 @@ from pipeline.world.simulator import Episode, run_episode
     ],
 )
 def test_which_planners_gate_by_default(name, gated):
-    assert (make_planner(name).gate is not None) == gated
-    assert (make_planner(name, sliver_gate=not gated).gate is not None) == (not gated)  # the option overrides
+    assert (innermost(make_planner(name)).gate is not None) == gated
+    assert (innermost(make_planner(name, sliver_gate=not gated)).gate is not None) == (
+        not gated
+    )  # the option overrides
     assert "sliver gate" in make_planner(name, sliver_gate=True).description  # run.json says which gate ran
 
 
@@ -41,11 +44,11 @@ def test_the_gate_keeps_a_subset_and_falls_back_when_it_passes_nothing(small_maz
     observation = Episode(small_maze, protocol).observe()  # the first scan
     for planner in (plain, gated, nothing):
         planner.reset(small_maze, protocol, 0)
-        planner.update_graph(observation)
-    everything = plain.useful_nodes()
-    kept = gated.useful_nodes()
+        innermost(planner).update_graph(observation)
+    everything = innermost(plain).useful_nodes()
+    kept = innermost(gated).useful_nodes()
     assert everything.size > 0 and kept.size > 0 and set(kept) <= set(everything)
-    assert np.array_equal(nothing.useful_nodes(), everything)  # nothing passes: every useful node stays
+    assert np.array_equal(innermost(nothing).useful_nodes(), everything)  # nothing passes: every useful node stays
 
 
 @pytest.mark.parametrize("name", ["greedy_utility", "guide_tsp"])
@@ -64,16 +67,16 @@ def test_the_gate_falls_back_when_every_node_it_passes_is_unreachable(small_maze
         gate_file=str(save_gate(SliverGate.logistic((0.0, 0.0, 0.0), 50.0), tmp_path / "always.json")),
     )
     always.reset(small_maze, protocol, 0)
-    always.update_graph(Episode(small_maze, protocol).observe())
-    everything = always.useful_nodes()
+    innermost(always).update_graph(Episode(small_maze, protocol).observe())
+    everything = innermost(always).useful_nodes()
     assert everything.size > 1
-    dist = np.zeros(always.graph.node_count)
+    dist = np.zeros(innermost(always).graph.node_count)
     dist[everything[0]] = np.inf  # a known-graph distance in which only one useful node is cut off
-    always._gated = None
-    assert np.array_equal(always.useful_nodes(dist), everything[1:])  # the gate passes the reachable ones
+    innermost(always)._gated = None
+    assert np.array_equal(innermost(always).useful_nodes(dist), everything[1:])  # the gate passes the reachable ones
     dist[everything] = np.inf  # now every node the gate passes is out of reach
-    always._gated = None
-    assert np.array_equal(always.useful_nodes(dist), everything)  # so every useful node stays
+    innermost(always)._gated = None
+    assert np.array_equal(innermost(always).useful_nodes(dist), everything)  # so every useful node stays
 
 
 def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_dir):
@@ -92,14 +95,14 @@ def test_kept_gate_verdicts_match_the_gate_on_the_current_belief(generated_maze_
         def checked_plan(observation, planner=planner, plan=plan, judged_before=judged_before):
             nonlocal checked, kept
             waypoints = plan(observation)
-            known = np.nonzero(planner._gate_known)[0]
-            fresh = planner.gate.passes(
-                observation.belief, planner.graph.node_cells[known], protocol.sensor_range_cells
+            known = np.nonzero(innermost(planner)._gate_known)[0]
+            fresh = innermost(planner).gate.passes(
+                observation.belief, innermost(planner).graph.node_cells[known], protocol.sensor_range_cells
             )
-            assert np.array_equal(planner._gate_big[known], fresh)
-            if judged_before[0].size == planner._gate_known.size:
-                kept += int((judged_before[0] & planner._gate_known).sum())
-            judged_before[0] = planner._gate_known.copy()
+            assert np.array_equal(innermost(planner)._gate_big[known], fresh)
+            if judged_before[0].size == innermost(planner)._gate_known.size:
+                kept += int((judged_before[0] & innermost(planner)._gate_known).sum())
+            judged_before[0] = innermost(planner)._gate_known.copy()
             checked += known.size
             return waypoints
 
@@ -126,23 +129,25 @@ def test_lazy_ranking_chooses_what_the_full_ranking_chooses(small_maze, tmp_path
     episode = Episode(small_maze, protocol)
     planner.reset(small_maze, protocol, 0)
     lazy.reset(small_maze, protocol, 0)
-    lazy.graph.lazy_utilities = lazy_utilities
+    innermost(lazy).graph.lazy_utilities = lazy_utilities
     decisions = bounded = 0
     while not episode.complete and episode.steps < 200:
         observation = episode.observe()
-        pred, ranked = planner.ranked_targets(observation)
-        lazy.update_graph(observation)
-        dist, _ = lazy.graph.shortest_paths(lazy.robot)
-        bounded += int(lazy.graph.stale.sum())
+        pred, ranked = innermost(planner).ranked_targets(observation)
+        innermost(lazy).update_graph(observation)
+        dist, _ = innermost(lazy).graph.shortest_paths(innermost(lazy).robot)
+        bounded += int(innermost(lazy).graph.stale.sum())
         if ranked.size == 0:
-            assert lazy._ranking_prefix(dist, 1).size == 0
+            assert innermost(lazy)._ranking_prefix(dist, 1).size == 0
             break
-        assert lazy._best_gated(dist) == int(ranked[0])
+        assert innermost(lazy)._best_gated(dist) == int(ranked[0])
         targets = set(ranked.tolist())
-        for node in range(planner.graph.node_count):
-            assert lazy._is_gated_target(node, dist) == (node in targets), node
-        assert not (lazy.graph.stale & (lazy.graph.utility == 0)).any()
-        episode.move(planner.waypoints_along(planner.graph.path_from_predecessors(pred, int(ranked[0])))[0])
+        for node in range(innermost(planner).graph.node_count):
+            assert innermost(lazy)._is_gated_target(node, dist) == (node in targets), node
+        assert not (innermost(lazy).graph.stale & (innermost(lazy).graph.utility == 0)).any()
+        episode.move(
+            innermost(planner).waypoints_along(innermost(planner).graph.path_from_predecessors(pred, int(ranked[0])))[0]
+        )
         decisions += 1
     assert decisions > 10 and episode.complete
     assert (bounded > 0) == lazy_utilities  # the lazy graph did keep bounds

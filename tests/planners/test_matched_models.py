@@ -14,6 +14,7 @@ from pipeline.models.defaults import MODEL_FILES, REAL_ROBOT_ASSETS, pick_model
 from pipeline.models.sliver_gate import FEATURES, SliverGate, save_gate
 from pipeline.planners.matched_models import ProtocolMatchedModels
 from pipeline.planners.registry import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.offices import OfficeConfig, draw_office
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol, ProtocolMismatchWarning
@@ -62,13 +63,13 @@ def test_a_gated_planner_switches_to_the_gate_of_the_protocol_at_reset(gate_file
     pipeline, _, real = gate_files
     planner = make_planner("greedy_utility", sliver_gate=True)
     assert isinstance(planner, ProtocolMatchedModels)
-    assert planner.gate.threshold == 0.5  # built before any protocol: the pipeline's
+    assert innermost(planner).gate.threshold == 0.5  # built before any protocol: the pipeline's
     result = run_episode(_floor(), planner, REAL, seed=0)
     assert result.complete
-    assert planner.config.gate_file is None and planner.inner.config.gate_file == str(real)
-    assert planner.gate.threshold == 0.7
+    assert planner.config.gate_file is None and innermost(planner).config.gate_file == str(real)
+    assert innermost(planner).gate.threshold == 0.7
     planner.reset(_floor(), Protocol(cell_size=0.2), 0)  # back at the maze scale's model inputs
-    assert planner.inner.config.gate_file is None and planner.gate.threshold == 0.5
+    assert innermost(planner).config.gate_file is None and innermost(planner).gate.threshold == 0.5
 
 
 def test_a_named_model_is_never_replaced_and_injected_objects_are_not_wrapped(gate_files):
@@ -76,7 +77,7 @@ def test_a_named_model_is_never_replaced_and_injected_objects_are_not_wrapped(ga
     planner = make_planner("greedy_utility", sliver_gate=True, gate_file=str(maze))
     assert not isinstance(planner, ProtocolMatchedModels)
     planner.reset(_floor(), REAL, 0)
-    assert planner.gate.threshold == 0.6
+    assert innermost(planner).gate.threshold == 0.6
     assert not isinstance(make_planner("greedy_utility"), ProtocolMatchedModels)  # no trained model at all
     assert not isinstance(make_planner("guide_tsp", inpaint=lambda image: image / 255.0), ProtocolMatchedModels)
 
@@ -92,15 +93,15 @@ def test_the_shipped_real_robot_models_are_picked_at_that_scale_and_the_maze_one
         warnings.simplefilter("error", ProtocolMismatchWarning)  # the real-robot models match: no warning
         result = run_episode(_floor(), planner, REAL, seed=0)
     assert result.complete
-    assert Path(planner.inner.config.policy_file) == REAL_ROBOT_ASSETS / "planner_guide.pt"
-    assert Path(planner.inner.config.inpainter_file) == REAL_ROBOT_ASSETS / "inpainter.pt"
-    assert {Path(model) for model, _ in planner.trained_models} == {
+    assert Path(innermost(planner).config.policy_file) == REAL_ROBOT_ASSETS / "planner_guide.pt"
+    assert Path(innermost(planner).config.inpainter_file) == REAL_ROBOT_ASSETS / "inpainter.pt"
+    assert {Path(model) for model, _ in innermost(planner).trained_models} == {
         REAL_ROBOT_ASSETS / "planner_guide.pt",
         REAL_ROBOT_ASSETS / "inpainter.pt",
     }
     planner.reset(_floor(), Protocol(cell_size=0.2), 0)
-    assert planner.inner.config.policy_file is None  # the maze benchmark's protocol: the shipped maze models
-    assert {Path(model) for model, _ in planner.trained_models} == {
+    assert innermost(planner).config.policy_file is None  # the maze benchmark's protocol: the shipped maze models
+    assert {Path(model) for model, _ in innermost(planner).trained_models} == {
         defaults.SHIPPED_POLICY["guide"],
         defaults.SHIPPED_INPAINTER,
     }
@@ -111,4 +112,4 @@ def test_a_protocol_no_model_was_trained_at_still_warns(tmp_path, monkeypatch):
     planner = make_planner("guide_tsp")
     with pytest.warns(ProtocolMismatchWarning, match="trained at other protocol values"):
         planner.reset(_floor(), replace(REAL, node_resolution=2.0), 0)
-    assert planner.inner.config.inpainter_file is None  # the first default, as before
+    assert innermost(planner).config.inpainter_file is None  # the first default, as before

@@ -18,6 +18,7 @@ from pipeline.planners.config import PlannerConfig, option_kinds
 from pipeline.planners.guide.configuration_guide import SAMPLERS
 from pipeline.planners.registry import make_config
 from pipeline.planners.specs import build_planner, resolve_planner_specs
+from pipeline.planners.wrapper import innermost
 from pipeline.prediction.global_graph import GlobalGraphConfig
 
 
@@ -114,6 +115,6 @@ def test_option_kinds_of_registered_options():
 
 
 def test_an_injected_object_is_not_an_option():
-    assert make_planner("greedy_utility", min_utility=1).min_utility == 1
+    assert innermost(make_planner("greedy_utility", min_utility=1)).min_utility == 1
     with pytest.raises(ValueError, match="greedy_utility has no option policy"):
         make_config("greedy_utility", policy=object())

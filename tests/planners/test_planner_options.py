@@ -9,6 +9,7 @@ import re
 import pytest
 
 from pipeline.planners import make_planner, planner_names
+from pipeline.planners.wrapper import innermost
 
 NAN, INF = math.nan, math.inf
 LEARNED = ("guide", "guide_noregion", "dare")
@@ -293,9 +294,9 @@ def test_every_planner_builds_with_its_defaults(name):
 def test_diffusion_defaults_come_from_the_policy():
     for name in LEARNED:
         planner = make_planner(name)
-        config = planner.policy.config
-        assert planner.num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
-        assert planner.action_steps == config.action_steps
+        config = innermost(planner).policy.config
+        assert innermost(planner).num_inference_steps == config.num_inference_steps <= config.num_train_timesteps
+        assert innermost(planner).action_steps == config.action_steps
 
 
 @pytest.mark.parametrize("name,options", GOOD, ids=[case_id(c) for c in GOOD])

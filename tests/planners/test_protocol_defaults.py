@@ -9,6 +9,7 @@ import pytest
 from pipeline.planners.matched_models import ProtocolMatchedModels
 from pipeline.planners.protocol_defaults import PROTOCOL_OPTIONS, protocol_name, protocol_options
 from pipeline.planners.registry import make_config, make_planner, planner_config
+from pipeline.planners.wrapper import innermost
 from pipeline.world.protocol import PAPER_REAL_ROBOT, PROTOCOLS, Protocol
 from pipeline.world.simulator import run_episode
 
@@ -38,17 +39,21 @@ def test_a_protocol_takes_the_table_of_its_scale():
 def test_guide_takes_the_maze_defaults_at_the_maze_protocol_except_what_the_caller_set(small_maze):
     planner = make_planner("guide", candidates=2)
     assert isinstance(planner, ProtocolMatchedModels)
-    assert planner.inner.config.spread == 0.0  # built before any protocol: the config's
+    assert innermost(planner).config.spread == 0.0  # built before any protocol: the config's
     result = run_episode(small_maze, planner, Protocol(), seed=0)
     assert result.complete
-    held = planner.inner.config
+    held = innermost(planner).config
     assert (held.spread, held.min_weight, held.beta, held.exact_max, held.max_moves) == (None, 30.0, 1.5, 9, 200)
     assert planner.config.spread == 0.0  # the config as asked is kept: another protocol takes its own
     assert "[maze defaults: spread=null,min_weight=30.0,beta=1.5,exact_max=9,max_moves=200]" in planner.description
     planner.reset(small_maze, replace(PAPER_REAL_ROBOT, cell_size=Protocol().cell_size), 0)
-    assert planner.inner.config.spread == 0.0 and planner.inner.config.beta == 0.0
+    assert innermost(planner).config.spread == 0.0 and innermost(planner).config.beta == 0.0
     assert "defaults:" not in planner.description
 
     chosen = make_planner("guide_noregion", spread=0.0, beta=0.0, candidates=2)
     chosen.reset(small_maze, Protocol(), 0)
-    assert (chosen.inner.config.spread, chosen.inner.config.beta, chosen.inner.config.min_weight) == (0.0, 0.0, 30.0)
+    assert (innermost(chosen).config.spread, innermost(chosen).config.beta, innermost(chosen).config.min_weight) == (
+        0.0,
+        0.0,
+        30.0,
+    )

@@ -8,7 +8,7 @@ from conftest import two_rooms
 
 from pipeline.planners import make_planner
 from pipeline.planners.whole_building import WholeBuilding
-from pipeline.planners.wrapper import innermost
+from pipeline.planners.wrapper import innermost, layer
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import PAPER_REAL_ROBOT, Protocol
 from pipeline.world.simulator import STOPPED, replay, run_episode
@@ -85,13 +85,7 @@ def test_a_robot_standing_on_a_frontier_cell_goes_on_to_the_next_not_done():
     waypoints = planner.plan(Observation(belief=belief, position=(0.0, 0.0), cell=(6, 14), changed=None, step=0))
     assert waypoints and planner.decision_kind == "fallback"  # before: its own cell was the nearest target, so "done"
     assert (0.0, 0.0) not in waypoints
-    assert innermost_whole_building(planner).tries[14, 6] == MAX_TRIES
-
-
-def innermost_whole_building(planner):
-    while not isinstance(planner, WholeBuilding):
-        planner = planner.inner
-    return planner
+    assert layer(planner, WholeBuilding).tries[14, 6] == MAX_TRIES
 
 
 def test_a_node_under_the_threshold_is_no_target_when_only_a_grazed_cell_is_left():

@@ -45,8 +45,6 @@ class PredictionTrustOptions(PlannerConfig):
 class TrustingPlanner(PlannerWrapper):
     """A predicting planner (or a wrapper of one) whose node predictor is a `TrustedPredictor`."""
 
-    own = frozenset({"trusted"})
-
     def __init__(self, inner: Planner, config: PredictionTrustConfig):
         super().__init__(inner)
         base = innermost(inner)

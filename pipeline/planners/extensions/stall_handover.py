@@ -32,9 +32,7 @@ class StallHandover(PlannerWrapper):
     """GUIDE's policy (`GuidePlanner`, or a wrapper of it), handed over to the nearest useful node
     while `stall_steps` or more moves in a row have revealed no free cell."""
 
-    own = frozenset({"stall_steps", "moves_without_news"})
-
-    def __init__(self, inner: GuidePlanner | PlannerWrapper, stall_steps: int):
+    def __init__(self, inner: GuidePlanner, stall_steps: int):
         super().__init__(inner)
         self.stall_steps = int(stall_steps)
         self.moves_without_news = 0

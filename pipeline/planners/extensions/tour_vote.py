@@ -57,38 +57,11 @@ class TourVote(PlannerWrapper):
     """guide_tsp's frontier tour (`FrontierTour`), its first target voted on by the samples of
     GUIDE's policy (`paper`, a `GuidePlanner`, which keeps the graphs and the T_o history)."""
 
-    own = frozenset(
-        {
-            "paper",
-            "tour",
-            "prior_weight",
-            "lookahead",
-            "lookahead_k",
-            "lookahead_targets",
-            "lookahead_commit",
-            "lookahead_rollout",
-            "lookahead_rng",
-            "lookahead_choice",
-            "queue",
-            "decisions",
-            "fallbacks",
-            "last_decision",
-            "description",
-        }
-    )
-
     def __init__(
-        self,
-        paper: GuidePlanner,
-        tour: TourOptions,
-        vote: TourVoteConfig,
-        lookahead: LookaheadConfig,
-        candidates: int,
-        description: str,
+        self, paper: GuidePlanner, tour: TourOptions, vote: TourVoteConfig, lookahead: LookaheadConfig, description: str
     ):
         super().__init__(paper)
         self.paper = paper
-        self.paper.candidates = int(candidates)
         self.tour = FrontierTour(tour)
         self.prior_weight = float(vote.prior_weight)
         self.lookahead: BlockLookahead | None = None

@@ -47,7 +47,8 @@ from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
 
-PlanRanker = Callable[[np.ndarray, np.ndarray], int]  # (C, T_p, 2) steps and directions -> the plan to drive
+# (the planner, (C, T_p, 2) steps, (C, T_p, 2) directions) -> the index of the sampled plan to drive
+PlanRanker = Callable[["GuidePlanner", np.ndarray, np.ndarray], int]
 
 
 def within_policy(name: str, value: int, most: int, what: str) -> None:
@@ -65,7 +66,14 @@ class GuidePlanner(GlobalGraphPlanner):
     per sampling (1, the paper's); with more, `plan_ranker` picks the one driven.
     """
 
-    def __init__(self, config: GuideConfig = GuideConfig(), inpaint: InpaintFn | None = None, policy=None):
+    def __init__(
+        self,
+        config: GuideConfig = GuideConfig(),
+        inpaint: InpaintFn | None = None,
+        policy=None,
+        candidates: int = 1,
+        plan_ranker: PlanRanker | None = None,
+    ):
         super().__init__(config, inpaint)
         self.policy, self.policy_source = self.load_policy(config, policy)
         model = self.policy.config
@@ -76,8 +84,7 @@ class GuidePlanner(GlobalGraphPlanner):
         within_policy("num_inference_steps", steps, model.num_train_timesteps, "the policy's num_train_timesteps")
         self.num_inference_steps = int(steps)  # K
         self.seed = config.seed
-        self.candidates = 1
-        self.plan_ranker: PlanRanker | None = None
+        self.candidates, self.plan_ranker = int(candidates), plan_ranker
         # The global graph as the policy was trained on it: its node count, the variant's region evaluation.
         self.global_config = replace(
             self.global_config, max_nodes=model.max_nodes, use_region_evaluation=config.region_evaluation
@@ -171,7 +178,7 @@ class GuidePlanner(GlobalGraphPlanner):
         """The first T_a (step, soft direction) pairs of the plan to drive: the only sample, or the
         one `plan_ranker` picks."""
         deltas, expected = self.sample_plans()
-        best = self.plan_ranker(deltas, expected) if self.candidates > 1 and self.plan_ranker is not None else 0
+        best = self.plan_ranker(self, deltas, expected) if self.candidates > 1 and self.plan_ranker is not None else 0
         return list(zip(deltas[best, : self.action_steps], expected[best, : self.action_steps]))
 
     def sample_plans(self) -> tuple[np.ndarray, np.ndarray]:
@@ -185,14 +192,7 @@ class GuidePlanner(GlobalGraphPlanner):
     def encoding(self, index: int) -> torch.Tensor:
         """z of history entry `index`, encoded once and kept (a graph is encoded for at most T_o decisions)."""
         if self.encodings[index] is None:
-            o = self.history[index]
-            with torch.inference_mode():
-                self.encodings[index] = self.policy.encoder(
-                    torch.from_numpy(o.features)[None],
-                    torch.from_numpy(o.node_mask)[None],
-                    torch.from_numpy(o.neighbors.astype(np.int64))[None],
-                    torch.tensor([o.robot]),
-                )
+            self.encodings[index] = self.policy.encode(self.history[index])
         return self.encodings[index]
 
 

@@ -34,6 +34,7 @@ from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtil
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, OraclePlanner, Waypoint
 from pipeline.world.protocol import Protocol
@@ -86,7 +87,7 @@ class _OracleWrapper(OraclePlanner):
     def __init__(self, config: OracleWrapperConfig, base_options: dict | None = None):
         self.config = config
         self.base = make_planner(config.base, **(base_options or {}))
-        self.trained_models = getattr(self.base, "trained_models", [])
+        self.trained_models = getattr(innermost(self.base), "trained_models", [])
 
     def check_protocol(self, protocol: Protocol) -> None:
         self.base.check_protocol(protocol)
@@ -144,12 +145,12 @@ class OracleGatePlanner(_OracleWrapper):
             options = {**options, "sliver_gate": True}
         super().__init__(config, options)
         self.min_gain, self.veto = int(min_gain), veto
-        self.learned = self.base.gate if veto else None  # the learned gate the truth vetoes
+        self.learned = innermost(self.base).gate if veto else None  # the learned gate the truth vetoes
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
         self.base.reset(ground_truth.frame, protocol, seed)
-        self.base.gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
+        innermost(self.base).gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.base.plan(observation)

@@ -30,6 +30,7 @@ from pipeline.planners.config import option
 from pipeline.planners.registry import make_planner
 from pipeline.planners.team.heard_goals import HeardGoals
 from pipeline.planners.team.registry import register_team_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Planner, Waypoint
 from pipeline.world.protocol import Protocol
@@ -107,7 +108,7 @@ class CoordinatedGreedyTeam(TeamPlanner):
         self.goals = HeardGoals(robots)
 
     def plan(self, observation: TeamObservation) -> list[Waypoint]:
-        planner = self.planners[observation.robot]
+        planner = innermost(self.planners[observation.robot])
         teammates = [g for g in self.goals.teammates_goals(observation) if g is not None]
         graph = planner.update_graph(observation.observation)
         robot = planner.robot_node(observation.observation)

@@ -47,6 +47,7 @@ from pipeline.planners.team.coordinated_greedy import base_options, burgard_choi
 from pipeline.planners.team.heard_goals import HeardGoals
 from pipeline.planners.team.min_max_routes import EXACT_MAX_LIMIT, METAHEURISTICS, min_max_routes
 from pipeline.planners.team.registry import register_team_planner
+from pipeline.planners.wrapper import innermost, layer
 from pipeline.prediction.global_graph import KNOWN, GlobalGraph
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Planner, Waypoint
@@ -282,7 +283,7 @@ class CoordinatedTourTeam(TeamPlanner):
         return burgard_choice(graph.node_world, graph.utility, candidates, dist, teammates, self.reach)
 
     def plan(self, observation: TeamObservation) -> list[Waypoint]:
-        planner = self.planners[observation.robot]
+        planner = innermost(self.planners[observation.robot])
         own = observation.observation
         goals = self.known_goals(observation, planner.tour)
         graph, robot, dist, pred, candidates = planner.locate(own)
@@ -398,12 +399,10 @@ def chunk_toward(graph: LatticeGraph, paths: list[list[int]], target: int, actio
 
 def tour_vote_of(planner: Planner) -> TourVote:
     """The `TourVote` inside a built `guide` (under its model matching and trust wrappers)."""
-    layer: Any = planner
-    while not isinstance(layer, TourVote):
-        layer = layer.__dict__.get("inner")
-        if layer is None:
-            raise TypeError("the team guide needs guide in mode tour (the tour vote)")
-    return layer
+    try:
+        return layer(planner, TourVote)
+    except TypeError:
+        raise TypeError("the team guide needs guide in mode tour (the tour vote)") from None
 
 
 @register_team_planner("guide_tsp", CoordinatedGuideTspConfig)

@@ -64,7 +64,7 @@ def test_the_planner_decides_as_the_environments_agent(maps, seed, values, proto
     policy = fresh_policy(seed, **values)
     for path in maps:
         planner = make_planner("drl", policy=policy, stall_steps=0)
-        assert isinstance(innermost(planner), DRLPlanner) and planner.source == "injected drl policy"
+        assert isinstance(innermost(planner), DRLPlanner) and innermost(planner).source == "injected drl policy"
         result = run_episode(load_map(path), planner, protocol)
         info = env_episode(path, policy, protocol)
         assert result.motion_violations == 0
@@ -103,7 +103,7 @@ def test_a_checkpoint_is_loaded_and_decides_as_the_policy_saved(tmp_path, maps):
 def test_the_shipped_policy_explores_a_generated_maze(generated_maze_dir, tmp_path, monkeypatch):
     assert defaults.SHIPPED_DRL.is_file()  # (conftest hides any models/ a dvc repro left)
     planner = make_planner("drl")
-    assert planner.source == "drl policy (shipped)"
+    assert innermost(planner).source == "drl policy (shipped)"
     for path in list_maps(generated_maze_dir):
         result = run_episode(load_map(path), planner, Protocol())
         assert result.complete, (path.name, result.failure)
@@ -113,7 +113,7 @@ def test_the_shipped_policy_explores_a_generated_maze(generated_maze_dir, tmp_pa
 def test_the_pipelines_policy_comes_before_the_shipped_one(tmp_path, monkeypatch):
     path = save_drl_policy(fresh_policy(6), tmp_path / "models" / "drl" / "policy.pt")
     monkeypatch.setitem(defaults.MODEL_FILES, "drl", (path, defaults.MODEL_FILES["drl"][1]))
-    assert make_planner("drl").source == f"drl policy {path}"
+    assert innermost(make_planner("drl")).source == f"drl policy {path}"
 
 
 def test_no_policy_anywhere_is_a_one_line_error(tmp_path, monkeypatch):

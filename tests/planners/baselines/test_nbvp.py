@@ -128,7 +128,7 @@ def test_tree_uses_valid_edges_and_first_edge_of_best_branch(maze):
     for _ in range(6):
         observation = episode.observe()
         waypoints = planner.plan(observation)
-        graph = planner.graph
+        graph = innermost(planner).graph
         tree = planner.last_decision["tree"]
         parent = planner.last_decision["parent"]
         robot = graph.nearest_node(observation.position)

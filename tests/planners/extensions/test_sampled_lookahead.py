@@ -11,6 +11,7 @@ from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.models.defaults import SHIPPED_BLOCK_MODEL, resolve_block_model
 from pipeline.models.modeling_block_model import BlockModel, save_block_model
 from pipeline.planners import make_planner, planner_config
+from pipeline.planners.wrapper import innermost
 from pipeline.prediction.block_maps import block_index, true_blocks
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
@@ -78,7 +79,7 @@ def test_model_file_resolution(tmp_path):
         make_planner("sampled_lookahead", block_model_file=str(tmp_path / "missing.pt"))
     path = save_block_model(BlockModel(BlockModelConfig(width=4, dilations=(1,), groups=1)), tmp_path / "b.pt")
     planner = make_planner("sampled_lookahead", block_model_file=str(path))
-    assert planner.model.config.width == 4 and str(path) in planner.model_source
+    assert innermost(planner).model.config.width == 4 and str(path) in innermost(planner).model_source
     assert str(path) in planner.description and "sliver gate (shipped)" in planner.description
     assert resolve_block_model(None) == SHIPPED_BLOCK_MODEL  # no models/ in tests: the shipped one
     with pytest.raises(ValueError, match="samples"):
@@ -99,9 +100,9 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
         planner.reset(small_maze, protocol, 0)
         episode = Episode(small_maze, protocol)
         observation = episode.observe()
-        _, ranked = planner.ranked_targets(observation)
+        _, ranked = innermost(planner).ranked_targets(observation)
         assert ranked.size >= 2
-        planner.last_target = int(ranked[1])
+        innermost(planner).last_target = int(ranked[1])
         monkeypatch.setattr(
             BlockLookahead,
             "rollout",
@@ -109,7 +110,7 @@ def test_switch_margin_keeps_the_last_target_unless_beaten_by_more(small_maze, m
         )
         planner.plan(observation)
         monkeypatch.undo()
-        chosen[margin] = planner.last_target == int(ranked[1])
+        chosen[margin] = innermost(planner).last_target == int(ranked[1])
 
     for margin in (None, 2.0, 0.5):
         decide(margin)
@@ -128,7 +129,7 @@ def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, mo
         planner = make_planner("sampled_lookahead", k=2, samples=2, exit_weight=exit_weight, model=model)
         planner.reset(small_maze, protocol, 0)
         observation = Episode(small_maze, protocol).observe()
-        _, ranked = planner.ranked_targets(observation)
+        _, ranked = innermost(planner).ranked_targets(observation)
         assert ranked.size >= 2
 
         def rollout(trial, episode, target, pred, per_target=False):
@@ -143,7 +144,7 @@ def test_exit_weight_prefers_the_rollout_that_ends_nearer_the_cut(small_maze, mo
         )
         planner.plan(observation)
         monkeypatch.undo()
-        return planner.last_target == int(ranked[1])
+        return innermost(planner).last_target == int(ranked[1])
 
     assert not decide(0.0) and decide(1.0)
 
@@ -180,7 +181,7 @@ def test_guide_lookahead_takes_the_target_whose_rollouts_are_shortest(small_maze
         observation = Episode(small_maze, protocol).observe()
 
         def rollout(trial, episode, target, pred, per_target=False):
-            assert trial is not planner and trial.graph is not planner.graph  # a copy, not guide itself
+            assert trial is not planner and trial.graph is not innermost(planner).graph  # a copy, not guide itself
             seen.append(target)
             return 5.0 if target == cheap else 10.0
 
@@ -274,25 +275,25 @@ def test_per_target_rollouts_choose_only_on_arrival(small_maze):
     base = make_planner("greedy_utility")
     base.reset(small_maze, protocol, 0)
     start = Episode(small_maze, protocol)
-    pred, ranked = base.ranked_targets(start.observe())
+    pred, ranked = innermost(base).ranked_targets(start.observe())
     results, updates = {}, {}
     for per_target in (False, True):
         planner, episode = copy.deepcopy(base), copy.deepcopy(start)
         choices = []  # (robot node when choosing, the target it then walks to)
-        ranked_targets, update_graph = planner.ranked_targets, planner.update_graph
+        ranked_targets, update_graph = innermost(planner).ranked_targets, innermost(planner).update_graph
         count = [0]  # graph updates: one per choice, whichever way the rollout ranks its targets
 
         def counting(observation, ranked_targets=ranked_targets, planner=planner, choices=choices):
             pred, ranked = ranked_targets(observation)
-            choices.append((planner.robot, int(ranked[0]) if ranked.size else None))
+            choices.append((innermost(planner).robot, int(ranked[0]) if ranked.size else None))
             return pred, ranked
 
         def updating(observation, update_graph=update_graph, count=count):
             count[0] += 1
             return update_graph(observation)
 
-        planner.ranked_targets, planner.update_graph = counting, updating
-        distance = GreedyUtilityPlanner.finish_episode(planner, episode, int(ranked[0]), pred, per_target)
+        innermost(planner).ranked_targets, innermost(planner).update_graph = counting, updating
+        distance = GreedyUtilityPlanner.finish_episode(innermost(planner), episode, int(ranked[0]), pred, per_target)
         assert distance is not None and np.isfinite(distance) and episode.complete
         results[per_target], updates[per_target] = choices, count[0]
     walked = [(None, int(ranked[0]))] + results[True]
@@ -319,12 +320,12 @@ def test_guide_lookahead_rollout_kinds(small_maze, monkeypatch, rollout):
         sliver_gate=True,
         **({} if rollout is None else {"lookahead_rollout": rollout}),
     )
-    assert planner.gate is not None
+    assert innermost(planner).gate is not None
     planner.reset(small_maze, Protocol(), 0)
     planner.plan(Episode(small_maze, Protocol()).observe())
     fast = rollout == "fast"
     assert seen and set(seen) == {(fast, fast)}
-    assert planner.gate is not None  # guide's own gate is untouched
+    assert innermost(planner).gate is not None  # guide's own gate is untouched
 
 
 def test_guide_lookahead_rollout_option_is_checked():
@@ -345,12 +346,12 @@ def _lookahead_decision(small_maze, workers: int, steps: int = 6):
     for _ in range(steps):
         episode.move(planner.plan(episode.observe())[0])
     observation = episode.observe()
-    pred, ranked = planner.ranked_targets(observation)
+    pred, ranked = innermost(planner).ranked_targets(observation)
     lookahead = BlockLookahead(
         KnownBlocks(np.where(_truth(small_maze) > 0, 0.8, 0.2).astype(np.float32)), samples=3, workers=workers
     )
     lookahead.reset(small_maze)
-    return lookahead, gated_greedy_like(planner), observation, [int(t) for t in ranked[:4]], pred
+    return lookahead, gated_greedy_like(innermost(planner)), observation, [int(t) for t in ranked[:4]], pred
 
 
 def test_a_second_process_gives_the_same_rollout_costs(small_maze):

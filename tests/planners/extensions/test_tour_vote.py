@@ -7,6 +7,8 @@ from dataclasses import replace
 import numpy as np
 
 from pipeline.planners import make_planner
+from pipeline.planners.extensions.tour_vote import TourVote
+from pipeline.planners.wrapper import layer
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode
@@ -43,7 +45,7 @@ def swinging_guide(favoured: list[int]):
         turn[0] += 1
         return share
 
-    planner.target_votes = votes
+    layer(planner, TourVote).target_votes = votes
     return planner
 
 

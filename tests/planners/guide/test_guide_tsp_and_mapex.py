@@ -11,7 +11,9 @@ from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
 from pipeline.models import defaults
 from pipeline.planners import make_planner, planner_names
+from pipeline.planners.extensions.tour_vote import TourVote
 from pipeline.planners.registry import make_config
+from pipeline.planners.wrapper import innermost, layer
 from pipeline.prediction.node_image import ground_truth_states, node_states_image
 from pipeline.prediction.node_predictor import pad_to_multiple
 from pipeline.world.maps import GroundTruthMap, load_maze_png
@@ -53,7 +55,7 @@ def test_the_shipped_default_inpainter_is_used_when_the_pipeline_has_none(monkey
         pytest.fail("the package ships pipeline/assets/inpainter.pt")
     monkeypatch.setitem(defaults.MODEL_FILES, "inpainter", (defaults.MODEL_FILES["inpainter"][0], (shipped,)))
     planner = make_planner("guide_tsp")
-    assert "shipped default inpainter" in planner.description and planner.predictor is not None
+    assert "shipped default inpainter" in planner.description and innermost(planner).predictor is not None
 
 
 def test_the_shipped_models_record_the_protocol_they_were_trained_at():
@@ -96,8 +98,8 @@ def test_oracle_predictions_are_used_and_steps_follow_known_edges(maze, name):
         observation = episode.observe()
         waypoints = planner.plan(observation)
         assert len(waypoints) == 1
-        graph = planner.graph
-        here, there = planner.robot_node(observation), graph.nearest_node(waypoints[0])
+        graph = innermost(planner).graph
+        here, there = innermost(planner).robot_node(observation), graph.nearest_node(waypoints[0])
         assert np.allclose(graph.node_world[there], waypoints[0])
         assert there in set(graph.neighbours(here).tolist())  # a known-free lattice edge
         predicted_seen += planner.last_decision["predicted"]
@@ -115,7 +117,7 @@ def test_guide_tsp_targets_are_clusters_of_useful_nodes_and_bounded(maze):
     targets = decision["targets"]
     assert 1 <= len(targets) <= 3
     assert len(set(targets.tolist())) == len(targets)
-    useful = set(planner.useful_nodes().tolist())
+    useful = set(innermost(planner).useful_nodes().tolist())
     assert set(targets.tolist()) <= useful
     assert sorted(decision["tour"]) == sorted(targets.tolist())
     assert decision["length"] > 0
@@ -124,19 +126,21 @@ def test_guide_tsp_targets_are_clusters_of_useful_nodes_and_bounded(maze):
 def test_guide_tsp_clusters_join_within_spread_and_keep_the_previous_target(maze):
     planner = make_planner("guide_tsp", spread=10.0, min_weight=5.0)
     planner.reset(maze, PROTOCOL, 0)
-    xy = planner.graph.node_world
-    a = int(planner.graph.nearest_node((0.0, 0.0)))
-    b = int(planner.graph.nearest_node((4.0, 0.0)))  # one lattice step from a: same cluster
-    c = int(planner.graph.nearest_node((20.0, 0.0)))  # far: its own cluster, too light to keep
+    xy = innermost(planner).graph.node_world
+    a = int(innermost(planner).graph.nearest_node((0.0, 0.0)))
+    b = int(innermost(planner).graph.nearest_node((4.0, 0.0)))  # one lattice step from a: same cluster
+    c = int(innermost(planner).graph.nearest_node((20.0, 0.0)))  # far: its own cluster, too light to keep
     assert np.hypot(*(xy[b] - xy[a])) < 10.0 <= np.hypot(*(xy[c] - xy[a]))
     candidates = np.array(sorted([a, b, c]))
-    dist = np.zeros(planner.graph.node_count)
+    dist = np.zeros(innermost(planner).graph.node_count)
     dist[[a, b, c]] = [8.0, 4.0, 20.0]
     utility = np.array([{a: 10.0, b: 3.0, c: 2.0}[n] for n in candidates])
-    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist)
+    targets, weights = innermost(planner).tour.select_targets(innermost(planner).graph, candidates, utility, dist)
     assert targets.tolist() == [b]  # a's cluster {a, b}: weight 13, target = the member nearer the robot
     assert weights.tolist() == [13.0]
-    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist, keep=c)
+    targets, weights = innermost(planner).tour.select_targets(
+        innermost(planner).graph, candidates, utility, dist, keep=c
+    )
     assert targets[0] == c  # the previous first target seeds a cluster and survives the weight filter
 
 
@@ -144,12 +148,14 @@ def test_spread_zero_makes_every_useful_node_its_own_target_as_guide_does_by_def
     """guide's default tour options: one option per useful node, none dropped for its weight."""
     planner = make_planner("guide_tsp", spread=0.0, min_weight=0.0)
     planner.reset(maze, PROTOCOL, 0)
-    a, b, c = (int(planner.graph.nearest_node(p)) for p in ((0.0, 0.0), (4.0, 0.0), (8.0, 0.0)))  # neighbours in a row
+    a, b, c = (
+        int(innermost(planner).graph.nearest_node(p)) for p in ((0.0, 0.0), (4.0, 0.0), (8.0, 0.0))
+    )  # neighbours in a row
     candidates = np.array(sorted([a, b, c]))
-    dist = np.zeros(planner.graph.node_count)
+    dist = np.zeros(innermost(planner).graph.node_count)
     dist[[a, b, c]] = [4.0, 4.0, 8.0]  # a and b: one 4 m step apart, at the same distance
     utility = np.array([{a: 1.0, b: 3.0, c: 2.0}[n] for n in candidates])
-    targets, weights = planner.tour.select_targets(planner.graph, candidates, utility, dist)
+    targets, weights = innermost(planner).tour.select_targets(innermost(planner).graph, candidates, utility, dist)
     assert targets.tolist() == [b, c, a] and weights.tolist() == [3.0, 2.0, 1.0]  # by utility, each on its own
     defaults = make_config("guide")[0]
     assert (defaults.spread, defaults.min_weight, defaults.beta) == (0.0, 0.0, 0.0)
@@ -168,7 +174,7 @@ def test_guide_tsp_keeps_its_target_through_a_cycle_on_an_unchanged_map(maze):
     def decide(robot: int, first: int, news: bool) -> int:
         changed = np.array([5]) if news else np.zeros(0, dtype=np.int64)
         observation = Observation(belief=maze.free, position=(0.0, 0.0), cell=(0, 0), changed=changed, step=0)
-        return planner.tour.keep_through_cycles(observation, robot, candidates, first)
+        return innermost(planner).tour.keep_through_cycles(observation, robot, candidates, first)
 
     assert decide(a, x, news=True) == x
     assert decide(b, y, news=False) == y  # a new node: the fresh choice
@@ -191,17 +197,17 @@ def test_guide_tsp_rejects_bad_options():
 def test_mapex_paints_only_unknown_cells_near_predicted_nodes(maze):
     planner = make_planner("mapex")
     planner.reset(maze, PROTOCOL, 0)
-    graph = planner.graph
+    graph = innermost(planner).graph
     belief = np.full(maze.shape, UNKNOWN, dtype=np.uint8)
     node = graph.node_count // 2
     cx, cy = graph.node_cells[node]
     belief[cy, cx + 1] = FREE
-    painted = planner.predicted_free_cells(belief, np.array([node]))
+    painted = innermost(planner).predicted_free_cells(belief, np.array([node]))
     assert painted[cy, cx] and not painted[cy, cx + 1]
     radius = graph.spec.node_step_cells / 2
     ys, xs = np.nonzero(painted)
     assert (np.hypot(xs - cx, ys - cy) <= radius + 0.5).all()
-    assert not planner.predicted_free_cells(belief, np.zeros(0, dtype=np.int64)).any()
+    assert not innermost(planner).predicted_free_cells(belief, np.zeros(0, dtype=np.int64)).any()
 
 
 def test_a_missing_checkpoint_is_an_error(tmp_path):
@@ -302,10 +308,10 @@ def test_diffusion_planners_keep_a_global_graph_option_but_the_fields_their_poli
     option = GlobalGraphConfig(centroid_links=1, max_nodes=7, use_region_evaluation=not region_evaluation)
     planner = make_planner(name, policy_file=str(SHIPPED_POLICY["guide"]), inpaint=blank, global_graph=option)
     planner.reset(maze, PROTOCOL, 0)
-    config = planner.global_graph.config
+    config = innermost(planner).global_graph.config
     assert config.centroid_links == 1
     assert config.use_region_evaluation is region_evaluation
-    assert config.max_nodes == planner.policy.config.max_nodes
+    assert config.max_nodes == innermost(planner).policy.config.max_nodes
 
 
 def test_without_regret_the_options_are_those_of_the_whole_tour(maze, monkeypatch):
@@ -334,7 +340,7 @@ def test_without_regret_the_options_are_those_of_the_whole_tour(maze, monkeypatc
 
     monkeypatch.setattr(FrontierTour, "first_target_scores", both)
     planner = make_planner("guide", inpaint=oracle_inpainter(maze), candidates=2, num_inference_steps=2, **SINGLE_NODES)
-    assert not planner.tour.tour_scores(2) and not planner.tour.tour_scores(10)
+    assert not layer(planner, TourVote).tour.tour_scores(2) and not layer(planner, TourVote).tour.tour_scores(10)
     result = run_episode(maze, planner, PROTOCOL)
     assert result.complete and len(seen) >= 5 and max(seen) >= 3
-    assert make_planner("guide_tsp").tour.tour_scores(10)  # guide_tsp's regret needs its whole tour
+    assert innermost(make_planner("guide_tsp")).tour.tour_scores(10)  # guide_tsp's regret needs its whole tour

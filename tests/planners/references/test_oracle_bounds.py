@@ -8,6 +8,7 @@ import pytest
 from pipeline.models.sliver_gate import SliverGate, TrueGain
 from pipeline.planners import make_planner, planner_config
 from pipeline.planners.references.oracle_bounds import TrueGainGate
+from pipeline.planners.wrapper import innermost
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, UNKNOWN
 from pipeline.world.simulator import Episode, run_episode
@@ -44,11 +45,11 @@ def test_oracle_gate_replaces_the_base_planners_gate_and_explores(small_maze):
     planner = make_planner("oracle_gate", base="greedy_utility", min_gain=20)
     assert planner_config("oracle_gate").uses_ground_truth
     result = run_episode(small_maze, planner, Protocol(), 0)
-    assert isinstance(planner.base.gate, TrueGainGate) and planner.base.gate.learned is None
+    assert isinstance(innermost(planner.base).gate, TrueGainGate) and innermost(planner.base).gate.learned is None
     assert result.complete and result.motion_violations == 0
     veto = make_planner("oracle_gate", veto=True)
     veto.reset(small_maze, Protocol(), 0)
-    assert isinstance(veto.base.gate.learned, SliverGate)  # the learned gate stays, the truth vetoes
+    assert isinstance(innermost(veto.base).gate.learned, SliverGate)  # the learned gate stays, the truth vetoes
 
 
 def test_oracle_tail_hands_over_to_the_expert_at_the_threshold(small_maze):
