@@ -196,26 +196,14 @@ class EpisodeState:
     def groups(self) -> list[list[int]]:
         """The robots linked by communication now: all of them with full communication; else the
         connected groups of the within-range graph (positions interpolated on the way)."""
-        n = len(self.robots)
         if self.shared:
-            return [list(range(n))]
+            return [list(range(len(self.robots)))]
+        from scipy.sparse.csgraph import connected_components  # only ranges need it
+
         where = np.array([r.location(self.time) for r in self.robots])
         near = np.hypot(*(where[:, None, :] - where[None, :, :]).transpose(2, 0, 1)) <= self.comm_range_m
-        seen, groups = set(), []
-        for k in range(n):
-            if k in seen:
-                continue
-            stack, group = [k], []
-            seen.add(k)
-            while stack:
-                a = stack.pop()
-                group.append(a)
-                for b in np.nonzero(near[a])[0]:
-                    if int(b) not in seen:
-                        seen.add(int(b))
-                        stack.append(int(b))
-            groups.append(sorted(group))
-        return groups
+        count, labels = connected_components(near, directed=False)
+        return [np.flatnonzero(labels == c).tolist() for c in range(count)]  # by their lowest robot
 
     def _communicate(self) -> None:
         """Merge the beliefs of every linked group and pass on positions and targets."""
@@ -252,12 +240,9 @@ class EpisodeState:
         self.coverage.append((self.time, self.explored_ratio))
 
     # -- one robot ----------------------------------------------------------------------------
-    def observe(self, robot: int) -> Any:
-        """What robot `robot`'s planner sees before it decides (each face's own kind)."""
-        raise NotImplementedError
-
-    def own_observation(self, robot: int) -> Observation:
-        """Robot `robot`'s own view before it decides; its pending changes are handed over."""
+    def observe(self, robot: int = 0) -> Observation:
+        """Robot `robot`'s own view before it decides (a team's `TeamEpisode.observe` adds what it
+        knows of its teammates); its pending changes are handed over."""
         r = self.robots[robot]
         if r.first:
             changed, r.first = None, False
@@ -303,8 +288,8 @@ def run_events(
 ) -> tuple[list[list[float]], str]:
     """Run `episode`'s events until the union belief is explored, a move breaks the motion rule,
     every robot waits with nothing to do, or a robot has made `max_steps` moves. A robot whose plan
-    is used up decides: `planner.plan(episode.observe(robot))` (a `Planner` on an `Episode`'s
-    `Observation`, a `TeamPlanner` on a `TeamEpisode`'s `TeamObservation`); [] and it waits.
+    is used up decides: `planner.plan(episode.observe(robot))` (a `Planner` on an `Observation`, a
+    `TeamPlanner` on a `TeamEpisode`'s `TeamObservation`); [] and it waits.
     Returns each robot's decision times (ms) and why the episode ended unexplored: "", IDLE,
     MOVE_LIMIT or "motion rule: ..."."""
     robots = episode.robots

@@ -6,7 +6,8 @@ robot, and `run_episode` runs the team's event loop with a `Planner` deciding.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -16,11 +17,11 @@ from pipeline.world.episode import (
     LATTICE_TOLERANCE_M,
     MOVE_LIMIT,
     EpisodeState,
-    MotionError,
     _Robot,
     run_events,
     waypoint_cell,
 )
+from pipeline.world.episode import MotionError as MotionError  # the simulator's error, for its callers
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
@@ -103,6 +104,13 @@ class EpisodeResult:
         }
 
 
+def _own(name: str, doc: str) -> property:
+    """The robot's own field `name` of a team of one, as the single robot's attribute."""
+    return property(
+        lambda self: getattr(self.robots[0], name), lambda self, v: setattr(self.robots[0], name, v), doc=doc
+    )
+
+
 class Episode(EpisodeState):
     """One robot on one map (a team of one): its belief, position and distance, under the protocol's
     rules; `move` is one whole event, departure and arrival."""
@@ -137,37 +145,13 @@ class Episode(EpisodeState):
     def belief(self) -> Belief:
         return self.beliefs[0]
 
-    @property
-    def cell(self) -> tuple[int, int]:
-        return self.robots[0].cell
-
-    @cell.setter
-    def cell(self, cell: tuple[int, int]) -> None:
-        self.robots[0].cell = cell
-
-    @property
-    def position(self) -> tuple[float, float]:
-        return self.robots[0].position
-
-    @property
-    def trajectory(self) -> list[tuple[float, float]]:
-        return self.robots[0].trajectory
-
-    @property
-    def distance(self) -> float:
-        return self.robots[0].travelled
-
-    @property
-    def distances(self) -> list[float]:
-        return self.robots[0].distances  # per trajectory row
-
-    @property
-    def explored_cells(self) -> list[int]:
-        return self.robots[0].explored  # belief free cells after sensing at each trajectory row
-
-    @property
-    def steps(self) -> int:
-        return self.robots[0].moves
+    cell = _own("cell", "(col, row)")
+    position = _own("position", "metres from the start")
+    trajectory = _own("trajectory", "positions, the start first")
+    distance = _own("travelled", "metres so far")
+    distances = _own("distances", "the distance so far per trajectory row")
+    explored_cells = _own("explored", "belief free cells after sensing at each trajectory row")
+    steps = _own("moves", "moves so far")
 
     @property
     def complete_after_waypoint(self) -> int | None:
@@ -176,10 +160,6 @@ class Episode(EpisodeState):
     @property
     def completion_distance(self) -> float | None:
         return self.distances[self.completed_after[0] - 1] if self.complete else None
-
-    def observe(self, robot: int = 0) -> Observation:
-        """The belief and the cells changed since the last observation."""
-        return self.own_observation(robot)
 
     def waypoint_cell(self, waypoint: Sequence[float]) -> tuple[tuple[int, int], tuple[float, float]]:
         """`waypoint_cell` on this episode's map and protocol."""
@@ -216,9 +196,7 @@ class _Decisions:
     def rows(self, decision_ms: list[float], rows: int) -> tuple[list[float], list, list]:
         """Per trajectory row (the start first, needing no decision): the decision time charged to
         it (a plan's time to its first waypoint, 0 to the rest), the trust and the fallback mark."""
-        ms: list[float] = [0.0]
-        trust: list[float | None] = [None]
-        fallback: list[bool | None] = [False]
+        ms, trust, fallback = [0.0], [None], [False]
         for (count, trusted, fell_back), spent in zip(self.made, decision_ms):
             ms += [spent] + [0.0] * (count - 1) if count else []
             trust += [trusted] * count
@@ -282,21 +260,13 @@ def replay(
         raise ValueError("a trajectory needs at least its start row")
     if abs(points[0][0]) > LATTICE_TOLERANCE_M or abs(points[0][1]) > LATTICE_TOLERANCE_M:
         raise ValueError(f"a trajectory's first row must be the start (0, 0), got {points[0]}")
-    episode = Episode(ground_truth, protocol)
-    failure = ""
-    violations = 0
-    for point in points[1:]:
-        if episode.complete:
-            break
-        try:
-            episode.move(point, oracle=oracle)
-        except MotionError as error:
-            failure = f"motion rule: {error}"
-            violations = 1
-            break
-    if not episode.complete and not failure:
-        failure = "trajectory ended before completion"
-    return _result(episode, planner_name, 0, [], failure, violations)
+    episode = Episode(ground_truth, replace(protocol, max_steps=len(points)))  # every row, however many
+    script = iter([points[1:]])  # one plan: the file's moves
+    _, ending = run_events(episode, SimpleNamespace(plan=lambda _: next(script, [])), oracle)
+    motion = ending.startswith("motion rule")
+    return _result(
+        episode, planner_name, 0, [], ending if motion else "trajectory ended before completion", int(motion)
+    )
 
 
 def _result(

@@ -156,7 +156,7 @@ class TeamEpisode(EpisodeState):
 
     def observe(self, robot: int) -> TeamObservation:
         """Robot `robot`'s view before it decides; its pending changes are handed over."""
-        own = self.own_observation(robot)
+        own = super().observe(robot)
         positions, targets = list(self.heard_positions[robot]), list(self.heard_targets[robot])
         positions[robot], targets[robot] = own.position, self.robots[robot].target
         return TeamObservation(robot, own, tuple(positions), tuple(targets), tuple(self.connected[robot]), self.time)
@@ -174,7 +174,7 @@ class TeamEpisode(EpisodeState):
             complete=self.complete,
             makespan_m=float(end),
             robot_distance_m=[r.travelled for r in self.robots],
-            explored_ratio=self.union.free_count / max(1, self.map.free_cell_count),
+            explored_ratio=self.explored_ratio,
             decision_ms=decision_ms,
             coverage=[c for c in self.coverage if c[0] <= end],
             merges=[m for m in self.merges if m[0] <= end],
