@@ -1,5 +1,5 @@
 """Episodes under the benchmark protocol, for one robot or a team: sensing, the motion rule, the done
-rule, and the event loop that runs them.
+rule, and the event loop that runs them. A single robot is a team of one.
 
 The episode is the referee: planners only propose waypoints, and every waypoint is checked here
 (`waypoint_cell`; its segment known-free in its robot's belief when the robot departs), so no
@@ -7,11 +7,12 @@ planner can claim a distance the protocol would not allow.
 
 Every robot has the protocol's lidar and motion rule and the same speed, so time is counted in
 metres of travel. Events run in time order: the robot that arrives next senses, the beliefs
-update, and that robot decides when its plan is used up. With full communication (`comm_range_m`
-None) the robots hold one belief. With a range, each robot holds its own; robots within
-`comm_range_m` of each other, or linked through a chain of robots that are, merge theirs at every
-event (positions of robots on the way are interpolated along their segment). The done rule
-applies to the union of all beliefs. A single robot is a team of one: the same state and events.
+update, and that robot decides when its plan is used up; one that finds nothing to do waits and
+asks again after the next arrival (a teammate may open new frontier). With full communication
+(`comm_range_m` None) the robots hold one belief. With a range, each robot holds its own; robots
+within `comm_range_m` of each other, or linked through a chain of robots that are, merge theirs at
+every event (positions of robots on the way are interpolated along their segment). The done rule
+applies to the union of all beliefs.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ def waypoint_cell(
     return (col, row), position
 
 
-class _Robot:
+class Robot:
     """One robot's state in the event loop."""
 
     def __init__(self, index: int, position: Waypoint, cell: tuple[int, int]):
@@ -85,8 +86,7 @@ class _Robot:
         self.travelled = 0.0  # finished moves
         self.pending: list[np.ndarray] = []  # cells changed in its belief since its last decision
         self.first = True
-        # Per row of its own trajectory (the start first): where, distance so far, and the free
-        # cells of its belief after sensing there.
+        # Per row of its trajectory (the start first): where, distance so far, its belief's free cells.
         self.trajectory: list[Waypoint] = [position]
         self.distances: list[float] = [0.0]
         self.explored: list[int] = []
@@ -107,11 +107,9 @@ class EpisodeState:
 
     names_robots = False  # whether a motion-rule message names its robot (a team's do)
 
-    @staticmethod
-    def _length(dx: float, dy: float) -> float:
-        """A segment's length. The single robot's is numpy's and a team's `math.hypot` (they can
-        differ in the last bit): each face's distances reproduce bit for bit."""
-        return float(np.hypot(dx, dy))
+    # A segment's length: numpy's for the single robot, `math.hypot` for a team (they can differ in
+    # the last bit), so that each face's distances reproduce bit for bit.
+    _length = staticmethod(lambda dx, dy: float(np.hypot(dx, dy)))
 
     def __init__(
         self,
@@ -133,7 +131,7 @@ class EpisodeState:
             cell, position = waypoint_cell(ground_truth, protocol, point)
             if not ground_truth.free[cell[1], cell[0]]:
                 raise ValueError(f"start of robot {k} ({point[0]:g}, {point[1]:g}) is not a free cell")
-            placed.append(_Robot(k, position, cell))
+            placed.append(Robot(k, position, cell))
         self._setup(ground_truth, protocol, placed, comm_range_m)
         for robot in self.robots:
             self._sense(robot)
@@ -141,7 +139,7 @@ class EpisodeState:
         self._record()
 
     def _setup(
-        self, ground_truth: GroundTruthMap, protocol: Protocol, robots: list[_Robot], comm_range_m: float | None
+        self, ground_truth: GroundTruthMap, protocol: Protocol, robots: list[Robot], comm_range_m: float | None
     ) -> None:
         """Every field of a fresh episode of `robots` before anyone senses."""
         n = len(robots)
@@ -179,17 +177,14 @@ class EpisodeState:
     def explored_ratio(self) -> float:
         return self.union.free_count / max(1, self.map.free_cell_count)
 
-    def _sense(self, robot: _Robot) -> None:
+    def _sense(self, robot: Robot) -> None:
         result = self.lidar.scan(robot.cell)
         belief = self.beliefs[robot.index]
         changed = belief.apply(result)
-        if self.shared:
-            if changed.size:
-                for other in self.robots:
-                    other.pending.append(changed)
-        else:
-            if changed.size:
-                robot.pending.append(changed)
+        if changed.size:
+            for other in self.robots if self.shared else [robot]:
+                other.pending.append(changed)
+        if not self.shared:
             self.union.apply(result)
         robot.explored.append(belief.free_count)
 
@@ -282,16 +277,23 @@ class EpisodeState:
         self.rows.append((self.time, robot, *target))
         self._sense(r)
 
+    def advance(self, robot: int, t: float) -> None:
+        """Robot `robot`'s event at time `t`: it arrives if it was moving, linked robots merge what
+        they know, and the done rule is checked."""
+        self.time = t
+        if self.robots[robot].heading is not None:
+            self.arrive(robot)
+        self._communicate()
+        self._record()
+
 
 def run_events(
     episode: EpisodeState, planner: Any, oracle: bool = False, on_event: Callable[[EpisodeState], None] | None = None
 ) -> tuple[list[list[float]], str]:
-    """Run `episode`'s events until the union belief is explored, a move breaks the motion rule,
-    every robot waits with nothing to do, or a robot has made `max_steps` moves. A robot whose plan
-    is used up decides: `planner.plan(episode.observe(robot))` (a `Planner` on an `Observation`, a
-    `TeamPlanner` on a `TeamEpisode`'s `TeamObservation`); [] and it waits.
-    Returns each robot's decision times (ms) and why the episode ended unexplored: "", IDLE,
-    MOVE_LIMIT or "motion rule: ..."."""
+    """Run `episode`'s events until it is done or fails; a robot whose plan is used up decides with
+    `planner.plan(episode.observe(robot))` (a `Planner` on an `Observation`, a `TeamPlanner` on a
+    `TeamObservation`). Each robot's decision times (ms) and why the episode ended unexplored:
+    "", IDLE (every robot waits), MOVE_LIMIT (a robot made `max_steps` moves) or "motion rule: ..."."""
     robots = episode.robots
     decision_ms: list[list[float]] = [[] for _ in robots]
     # Events: (time, waiting, robot). At one time, arrivals and decisions come before the
@@ -303,11 +305,7 @@ def run_events(
     while queue and not episode.complete:
         t, _, index = heapq.heappop(queue)
         robot = robots[index]
-        episode.time = t
-        if robot.heading is not None:
-            episode.arrive(index)
-        episode._communicate()
-        episode._record()
+        episode.advance(index, t)
         if on_event is not None:
             on_event(episode)
         if episode.complete:
@@ -340,6 +338,4 @@ def run_events(
         for other in robots:  # a robot waiting with nobody moving asks again now that one is
             if other.waiting and not other.stopped and not any(e[2] == other.index for e in queue):
                 heapq.heappush(queue, (robot.clock, 1, other.index))
-    if episode.complete:
-        return decision_ms, ""
-    return decision_ms, MOVE_LIMIT if any(r.stopped for r in robots) else IDLE
+    return decision_ms, "" if episode.complete else MOVE_LIMIT if any(r.stopped for r in robots) else IDLE

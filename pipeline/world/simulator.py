@@ -12,15 +12,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from pipeline.world.episode import (
-    IDLE,
-    LATTICE_TOLERANCE_M,
-    MOVE_LIMIT,
-    EpisodeState,
-    _Robot,
-    run_events,
-    waypoint_cell,
-)
+from pipeline.world.episode import IDLE, LATTICE_TOLERANCE_M, MOVE_LIMIT, EpisodeState, Robot, run_events, waypoint_cell
 from pipeline.world.episode import MotionError as MotionError  # the simulator's error, for its callers
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
@@ -106,9 +98,7 @@ class EpisodeResult:
 
 def _own(name: str, doc: str) -> property:
     """The robot's own field `name` of a team of one, as the single robot's attribute."""
-    return property(
-        lambda self: getattr(self.robots[0], name), lambda self, v: setattr(self.robots[0], name, v), doc=doc
-    )
+    return property(lambda s: getattr(s.robots[0], name), lambda s, v: setattr(s.robots[0], name, v), doc=doc)
 
 
 class Episode(EpisodeState):
@@ -132,13 +122,12 @@ class Episode(EpisodeState):
         if belief.shape != world.shape:
             raise ValueError(f"belief {belief.shape} and world {world.shape} differ in shape")
         episode = cls.__new__(cls)
-        robot = _Robot(0, (float(position[0]), float(position[1])), (int(cell[0]), int(cell[1])))
+        robot = Robot(0, (float(position[0]), float(position[1])), (int(cell[0]), int(cell[1])))
         episode._setup(world, protocol, [robot], None)
         episode.belief.grid[...] = belief
         episode.belief.free_count = int((belief == FREE).sum())
         robot.explored, robot.first = [episode.belief.free_count], False
-        episode._communicate()
-        episode._record()
+        episode.advance(0, 0.0)  # no arrival: the done rule on the given belief
         return episode
 
     @property
@@ -172,10 +161,7 @@ class Episode(EpisodeState):
         the segment need only be free in the ground truth, observed or not.
         """
         self.depart(0, waypoint, oracle)
-        self.time = self.robots[0].clock
-        self.arrive(0)
-        self._communicate()
-        self._record()
+        self.advance(0, self.robots[0].clock)
 
 
 class _Decisions:
@@ -183,14 +169,12 @@ class _Decisions:
     row: how many waypoints, the planner's prediction trust, and whether its own rule decided."""
 
     def __init__(self, planner: Planner):
-        self.planner = planner
-        self.made: list[tuple[int, float | None, bool]] = []
+        self.planner, self.made = planner, []
 
     def plan(self, observation: Observation) -> list:
         waypoints = list(self.planner.plan(observation))
-        trust = getattr(self.planner, "prediction_trust", None)
-        fallback = getattr(self.planner, "decision_kind", PLANNER_DECISION) != PLANNER_DECISION
-        self.made.append((len(waypoints), trust, fallback))
+        kind = getattr(self.planner, "decision_kind", PLANNER_DECISION)
+        self.made.append((len(waypoints), getattr(self.planner, "prediction_trust", None), kind != PLANNER_DECISION))
         return waypoints
 
     def rows(self, decision_ms: list[float], rows: int) -> tuple[list[float], list, list]:
@@ -275,7 +259,6 @@ def _result(
     complete = episode.complete
     reachable = reachable_free(episode.map.free, episode.map.start_cell, episode.protocol.robot_radius_cells)
     seen = int((reachable & (episode.belief.grid == FREE)).sum())
-    unseen = int(reachable.sum()) - seen
     return EpisodeResult(
         map_name=episode.map.name,
         planner=planner,
@@ -293,7 +276,7 @@ def _result(
         explored_cells=list(episode.explored_cells),
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
-        reachable_share=seen / max(1, seen + unseen),
+        reachable_share=seen / max(1, int(reachable.sum())),
         early_stop=failure == STOPPED
         and largest_unseen_region(reachable, episode.belief.grid, episode.protocol.robot_radius_cells)
         * episode.map.cell_size**2

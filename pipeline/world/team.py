@@ -1,9 +1,8 @@
 """Team episodes: N robots on one map under the protocol, in time order (`pipeline.world.episode`,
 whose state and event loop a single robot shares), on DARE's lattice whatever the scale.
 
-A robot whose planner finds nothing to do waits and asks again after the next arrival (a
-teammate may open new frontier); the episode fails when every robot waits, when a move breaks
-the motion rule, or when a robot has made `max_steps` moves.
+The episode fails when every robot waits, when a move breaks the motion rule, or when a robot
+has made `max_steps` moves.
 
 The team trajectory file (`write_team_csv`) has one row per arrival, the starts first;
 `replay_team` checks it: every row's segment from its robot's previous row must be known-free
@@ -165,12 +164,11 @@ class TeamEpisode(EpisodeState):
         self, planner: str, decision_ms: list[list[float]], failure: str, violations: int, seed: int
     ) -> TeamEpisodeResult:
         end = self.completion_time if self.complete else self.time
-        rows = [row for row in self.rows if row[0] <= end]
         return TeamEpisodeResult(
             map_name=self.map.name,
             planner=planner,
             robots=len(self.robots),
-            rows=rows,
+            rows=[row for row in self.rows if row[0] <= end],
             complete=self.complete,
             makespan_m=float(end),
             robot_distance_m=[r.travelled for r in self.robots],
@@ -185,12 +183,6 @@ class TeamEpisode(EpisodeState):
             free_cell_count=self.map.free_cell_count,
             cell_size=self.map.cell_size,
         )
-
-
-def snap(point: Sequence[float], protocol: Protocol) -> Waypoint:
-    """A waypoint put exactly on its lattice node (metres)."""
-    d = protocol.node_resolution
-    return (round(float(point[0]) / d) * d, round(float(point[1]) / d) * d)
 
 
 def lattice_cell(world: GroundTruthMap | MapFrame, protocol: Protocol, point: Sequence[float]) -> tuple[int, int]:
