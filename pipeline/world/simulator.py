@@ -1,32 +1,27 @@
-"""Episodes under the benchmark protocol: sensing, the motion rule, the done rule, metrics.
+"""The single robot's episodes under the benchmark protocol: `run_episode`, `replay` and the metrics.
 
-The simulator is the referee: planners only propose waypoints, and every waypoint is
-checked here (on the lattice, segment known-free in the belief before the move), so no
-planner can claim a distance the protocol would not allow.
+A single robot is a team of one (`pipeline.world.episode`): `Episode` is that state seen as one
+robot, and `run_episode` runs the team's event loop with a `Planner` deciding.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Callable, Sequence
 
 import numpy as np
 
-from pipeline.world.geometry import segment_is_known_free
+from pipeline.world.episode import IDLE, LATTICE_TOLERANCE_M, MOVE_LIMIT, EpisodeState, Robot, run_events, waypoint_cell
+from pipeline.world.episode import MotionError as MotionError  # the simulator's error, for its callers
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
 from pipeline.world.protocol import Protocol
 from pipeline.world.reachability import LEFTOVER_M2, largest_unseen_region, reachable_free
-from pipeline.world.sensor import FREE, Belief, Lidar
+from pipeline.world.sensor import FREE, Belief
 
-LATTICE_TOLERANCE_M = 1e-3
 STOPPED = "no reachable target left"  # the failure of an episode whose planner said it was done
 PLANNER_DECISION = "planner"  # a planner's `decision_kind` when its own rule decided (pipeline.planners.whole_building)
-
-
-class MotionError(Exception):
-    """A waypoint that breaks the motion rule; the planner is in error."""
 
 
 @dataclass
@@ -101,25 +96,17 @@ class EpisodeResult:
         }
 
 
-class Episode:
-    """One robot on one map: belief, position, distance, and the protocol's rules."""
+def _own(name: str, doc: str) -> property:
+    """The robot's own field `name` of a team of one, as the single robot's attribute."""
+    return property(lambda s: getattr(s.robots[0], name), lambda s, v: setattr(s.robots[0], name, v), doc=doc)
+
+
+class Episode(EpisodeState):
+    """One robot on one map (a team of one): its belief, position and distance, under the protocol's
+    rules; `move` is one whole event, departure and arrival."""
 
     def __init__(self, ground_truth: GroundTruthMap, protocol: Protocol):
-        self.map = ground_truth
-        self.protocol = protocol
-        self.belief = Belief(ground_truth.shape)
-        self.lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
-        self.cell = ground_truth.start_cell
-        self.position = (0.0, 0.0)
-        self.trajectory: list[tuple[float, float]] = [(0.0, 0.0)]
-        self.distance = 0.0
-        self.distances: list[float] = [0.0]  # per trajectory row
-        self.explored_cells: list[int] = []  # belief free cells after sensing at each trajectory row
-        self.completion_distance: float | None = None
-        self.complete_after_waypoint: int | None = None
-        self._pending_changes: list[np.ndarray] = []
-        self._first_observation = True
-        self._sense()
+        super().__init__(ground_truth, protocol)
 
     @classmethod
     def resume(
@@ -135,90 +122,37 @@ class Episode:
         if belief.shape != world.shape:
             raise ValueError(f"belief {belief.shape} and world {world.shape} differ in shape")
         episode = cls.__new__(cls)
-        episode.map, episode.protocol = world, protocol
-        episode.belief = Belief(world.shape)
+        robot = Robot(0, (float(position[0]), float(position[1])), (int(cell[0]), int(cell[1])))
+        episode._setup(world, protocol, [robot], None)
         episode.belief.grid[...] = belief
         episode.belief.free_count = int((belief == FREE).sum())
-        episode.lidar = Lidar(world.free, protocol.sensor_range_cells)
-        episode.cell, episode.position = (int(cell[0]), int(cell[1])), (float(position[0]), float(position[1]))
-        episode.trajectory = [episode.position]
-        episode.distance = 0.0
-        episode.distances = [0.0]
-        episode.explored_cells = [episode.belief.free_count]
-        episode.completion_distance = episode.complete_after_waypoint = None
-        if episode.unknown_free_cells <= protocol.done_unknown_cells:
-            episode.completion_distance, episode.complete_after_waypoint = 0.0, 1
-        episode._pending_changes = []
-        episode._first_observation = False
+        robot.explored, robot.first = [episode.belief.free_count], False
+        episode.advance(0, 0.0)  # no arrival: the done rule on the given belief
         return episode
 
     @property
-    def steps(self) -> int:
-        return len(self.trajectory) - 1
+    def belief(self) -> Belief:
+        return self.beliefs[0]
+
+    cell = _own("cell", "(col, row)")
+    position = _own("position", "metres from the start")
+    trajectory = _own("trajectory", "positions, the start first")
+    distance = _own("travelled", "metres so far")
+    distances = _own("distances", "the distance so far per trajectory row")
+    explored_cells = _own("explored", "belief free cells after sensing at each trajectory row")
+    steps = _own("moves", "moves so far")
 
     @property
-    def unknown_free_cells(self) -> int:
-        return self.map.free_cell_count - self.belief.free_count
+    def complete_after_waypoint(self) -> int | None:
+        return self.completed_after[0] if self.complete else None  # 1-based trajectory row, start = 1
 
     @property
-    def complete(self) -> bool:
-        return self.complete_after_waypoint is not None
-
-    @property
-    def explored_ratio(self) -> float:
-        return self.belief.free_count / max(1, self.map.free_cell_count)
-
-    def _sense(self) -> None:
-        result = self.lidar.scan(self.cell)
-        changed = self.belief.apply(result)
-        if changed.size:
-            self._pending_changes.append(changed)
-        self.explored_cells.append(self.belief.free_count)
-        if self.completion_distance is None and self.unknown_free_cells <= self.protocol.done_unknown_cells:
-            self.completion_distance = self.distance
-            self.complete_after_waypoint = len(self.trajectory)
-
-    def observe(self) -> Observation:
-        """The belief and the cells changed since the last observation."""
-        if self._first_observation:
-            changed = None
-            self._first_observation = False
-        elif self._pending_changes:
-            changed = np.unique(np.concatenate(self._pending_changes))
-        else:
-            changed = np.zeros(0, dtype=np.int64)
-        self._pending_changes = []
-        return Observation(self.belief.grid, self.position, self.cell, changed, self.steps)
+    def completion_distance(self) -> float | None:
+        return self.distances[self.completed_after[0] - 1] if self.complete else None
 
     def waypoint_cell(self, waypoint: Sequence[float]) -> tuple[tuple[int, int], tuple[float, float]]:
-        """(the cell, the exact position in metres) of a waypoint: a lattice node inside the grid, or,
-        under the door-aware graph (`Protocol.uses_door_graph`), any cell's centre (a door node, or a
-        cell on the way to a frontier the lattice does not reach)."""
-        x, y = float(waypoint[0]), float(waypoint[1])
-        if not (np.isfinite(x) and np.isfinite(y)):
-            raise MotionError(f"waypoint ({x}, {y}) is not finite")
-        d = self.protocol.node_resolution
-        i, j = round(x / d), round(y / d)
-        size = self.protocol.cell_size
-        if abs(i * d - x) <= LATTICE_TOLERANCE_M and abs(j * d - y) <= LATTICE_TOLERANCE_M:
-            position = (i * d, j * d)
-            col = self.map.start_cell[0] + int(round(i * d / size))
-            row = self.map.start_cell[1] + int(round(j * d / size))
-        else:
-            ci, cj = round(x / size), round(y / size)
-            if (
-                not self.protocol.uses_door_graph
-                or abs(ci * size - x) > LATTICE_TOLERANCE_M
-                or abs(cj * size - y) > LATTICE_TOLERANCE_M
-            ):
-                where = "a cell centre" if self.protocol.uses_door_graph else f"on the {d} m node lattice"
-                raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) is not {where}")
-            position = (ci * size, cj * size)
-            col, row = self.map.start_cell[0] + ci, self.map.start_cell[1] + cj
-        rows, cols = self.map.shape
-        if not (0 <= col < cols and 0 <= row < rows):
-            raise MotionError(f"waypoint ({x:.3f}, {y:.3f}) lies outside the map")
-        return (col, row), position
+        """`waypoint_cell` on this episode's map and protocol."""
+        return waypoint_cell(self.map, self.protocol, waypoint)
 
     def move(self, waypoint: Sequence[float], oracle: bool = False) -> None:
         """Move to a waypoint (`waypoint_cell`) through known-free cells, then sense there.
@@ -226,20 +160,32 @@ class Episode:
         `oracle=True` is the ground-truth planner's rule (docs/protocol.md, "The reference"):
         the segment need only be free in the ground truth, observed or not.
         """
-        cell, target = self.waypoint_cell(waypoint)
-        free = self.map.free if oracle else self.belief.grid == FREE
-        if not segment_is_known_free(free, self.cell, cell):
-            what = "ground-truth free" if oracle else "known to be free"
-            raise MotionError(
-                f"segment ({self.position[0]:.3f}, {self.position[1]:.3f}) -> "
-                f"({float(waypoint[0]):.3f}, {float(waypoint[1]):.3f}) crosses cells not {what}"
-            )
-        self.distance += float(np.hypot(target[0] - self.position[0], target[1] - self.position[1]))
-        self.position = target
-        self.cell = cell
-        self.trajectory.append(target)
-        self.distances.append(self.distance)
-        self._sense()
+        self.depart(0, waypoint, oracle)
+        self.advance(0, self.robots[0].clock)
+
+
+class _Decisions:
+    """A planner as the event loop calls it, keeping per decision what `EpisodeResult` reports per
+    row: how many waypoints, the planner's prediction trust, and whether its own rule decided."""
+
+    def __init__(self, planner: Planner):
+        self.planner, self.made = planner, []
+
+    def plan(self, observation: Observation) -> list:
+        waypoints = list(self.planner.plan(observation))
+        kind = getattr(self.planner, "decision_kind", PLANNER_DECISION)
+        self.made.append((len(waypoints), getattr(self.planner, "prediction_trust", None), kind != PLANNER_DECISION))
+        return waypoints
+
+    def rows(self, decision_ms: list[float], rows: int) -> tuple[list[float], list, list]:
+        """Per trajectory row (the start first, needing no decision): the decision time charged to
+        it (a plan's time to its first waypoint, 0 to the rest), the trust and the fallback mark."""
+        ms, trust, fallback = [0.0], [None], [False]
+        for (count, trusted, fell_back), spent in zip(self.made, decision_ms):
+            ms += [spent] + [0.0] * (count - 1) if count else []
+            trust += [trusted] * count
+            fallback += [fell_back] * count
+        return ms[:rows], trust[:rows], fallback[:rows]
 
 
 def final_belief(ground_truth: GroundTruthMap, trajectory: Sequence[Sequence[float]], protocol: Protocol) -> np.ndarray:
@@ -260,45 +206,22 @@ def run_episode(
     """Run `planner` until the map is explored, it fails, or `protocol.max_steps` waypoints."""
     episode = Episode(ground_truth, protocol)
     reset_planner(planner, ground_truth, protocol, seed)
-    decision_ms: list[float] = []
-    waypoint_ms: list[float] = [0.0]  # per trajectory row: the start needs no decision
-    waypoint_trust: list[float | None] = [None]
-    waypoint_fallback: list[bool | None] = [False]
-    failure = ""
-    violations = 0
+    decisions = _Decisions(planner)
     oracle = bool(getattr(planner, "ignores_motion_rule", False))
-    if on_step is not None:
-        on_step(episode)
-    while not episode.complete and episode.steps < protocol.max_steps:
-        observation = episode.observe()
-        t0 = time.perf_counter()
-        waypoints = planner.plan(observation)
-        decision_ms.append((time.perf_counter() - t0) * 1e3)
-        trust = getattr(planner, "prediction_trust", None)
-        fallback = getattr(planner, "decision_kind", PLANNER_DECISION) != PLANNER_DECISION
-        if not waypoints:
-            failure = STOPPED
-            break
-        try:
-            for k, waypoint in enumerate(waypoints):
-                episode.move(waypoint, oracle=oracle)
-                waypoint_ms.append(decision_ms[-1] if k == 0 else 0.0)
-                waypoint_trust.append(trust)
-                waypoint_fallback.append(fallback)
-                if on_step is not None:
-                    on_step(episode)
-                if episode.complete or episode.steps >= protocol.max_steps:
-                    break
-        except MotionError as error:
-            failure = f"motion rule: {error}"
-            violations += 1
-            break
-    if not episode.complete and not failure:
-        failure = f"step limit ({protocol.max_steps}) reached"
-    result = _result(episode, getattr(planner, "name", type(planner).__name__), seed, decision_ms, failure, violations)
-    result.waypoint_decision_ms = waypoint_ms[: len(result.trajectory)]
-    result.waypoint_trust = waypoint_trust[: len(result.trajectory)]
-    result.waypoint_fallback = waypoint_fallback[: len(result.trajectory)]
+    shown = [0]  # trajectory rows shown to `on_step`: it sees the start and every move
+
+    def on_event(_: EpisodeState) -> None:
+        if len(episode.trajectory) > shown[0]:
+            shown[0] = len(episode.trajectory)
+            on_step(episode)
+
+    decision_ms, ending = run_events(episode, decisions, oracle, on_event if on_step is not None else None)
+    failure = {IDLE: STOPPED, MOVE_LIMIT: f"step limit ({protocol.max_steps}) reached"}.get(ending, ending)
+    name = getattr(planner, "name", type(planner).__name__)
+    result = _result(episode, name, seed, decision_ms[0], failure, int(failure.startswith("motion rule")))
+    result.waypoint_decision_ms, result.waypoint_trust, result.waypoint_fallback = decisions.rows(
+        decision_ms[0], len(result.trajectory)
+    )
     result.fallbacks = int(getattr(planner, "fallbacks", 0))
     return result
 
@@ -321,21 +244,13 @@ def replay(
         raise ValueError("a trajectory needs at least its start row")
     if abs(points[0][0]) > LATTICE_TOLERANCE_M or abs(points[0][1]) > LATTICE_TOLERANCE_M:
         raise ValueError(f"a trajectory's first row must be the start (0, 0), got {points[0]}")
-    episode = Episode(ground_truth, protocol)
-    failure = ""
-    violations = 0
-    for point in points[1:]:
-        if episode.complete:
-            break
-        try:
-            episode.move(point, oracle=oracle)
-        except MotionError as error:
-            failure = f"motion rule: {error}"
-            violations = 1
-            break
-    if not episode.complete and not failure:
-        failure = "trajectory ended before completion"
-    return _result(episode, planner_name, 0, [], failure, violations)
+    episode = Episode(ground_truth, replace(protocol, max_steps=len(points)))  # every row, however many
+    script = iter([points[1:]])  # one plan: the file's moves
+    _, ending = run_events(episode, SimpleNamespace(plan=lambda _: next(script, [])), oracle)
+    motion = ending.startswith("motion rule")
+    return _result(
+        episode, planner_name, 0, [], ending if motion else "trajectory ended before completion", int(motion)
+    )
 
 
 def _result(
@@ -344,7 +259,6 @@ def _result(
     complete = episode.complete
     reachable = reachable_free(episode.map.free, episode.map.start_cell, episode.protocol.robot_radius_cells)
     seen = int((reachable & (episode.belief.grid == FREE)).sum())
-    unseen = int(reachable.sum()) - seen
     return EpisodeResult(
         map_name=episode.map.name,
         planner=planner,
@@ -362,7 +276,7 @@ def _result(
         explored_cells=list(episode.explored_cells),
         free_cell_count=episode.map.free_cell_count,
         cell_size=episode.map.cell_size,
-        reachable_share=seen / max(1, seen + unseen),
+        reachable_share=seen / max(1, int(reachable.sum())),
         early_stop=failure == STOPPED
         and largest_unseen_region(reachable, episode.belief.grid, episode.protocol.robot_radius_cells)
         * episode.map.cell_size**2

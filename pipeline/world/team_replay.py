@@ -9,12 +9,12 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+from pipeline.world.episode import MotionError, waypoint_cell
 from pipeline.world.geometry import segment_is_known_free
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol
 from pipeline.world.sensor import FREE, Belief, Lidar
-from pipeline.world.simulator import MotionError
-from pipeline.world.team import lattice_cell, snap, team_protocol
+from pipeline.world.team import team_protocol
 from pipeline.world.team_files import team_size
 
 
@@ -53,9 +53,9 @@ def replay_team(
     lidar = Lidar(ground_truth.free, protocol.sensor_range_cells)
     cells, where, travelled = [], [], [0.0] * robots
     for t, robot, x, y in rows[:robots]:
-        cell = lattice_cell(ground_truth, protocol, (x, y))
+        cell, point = waypoint_cell(ground_truth, protocol, (x, y))
         cells.append(cell)
-        where.append(snap((x, y), protocol))
+        where.append(point)
         belief.apply(lidar.scan(cell))
 
     def done() -> bool:
@@ -68,7 +68,7 @@ def replay_team(
                 failure = f"robot {robot} has no start row"
                 break
             try:
-                cell = lattice_cell(ground_truth, protocol, (x, y))
+                cell, point = waypoint_cell(ground_truth, protocol, (x, y))
             except MotionError as error:
                 failure, violations = f"motion rule: robot {robot}: {error}", 1
                 break
@@ -81,7 +81,6 @@ def replay_team(
                     1,
                 )
                 break
-            point = snap((x, y), protocol)
             travelled[robot] += math.hypot(point[0] - where[robot][0], point[1] - where[robot][1])
             cells[robot], where[robot], end = cell, point, t
             belief.apply(lidar.scan(cell))
