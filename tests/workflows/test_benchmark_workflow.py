@@ -72,7 +72,7 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     assert list(kept.glob("item_*.pkl"))  # the episodes finished before the kill, for the rerun
 
     monkeypatch.setattr(evaluation, "write_steps_csv", real)
-    workflow.benchmark_test_mazes(two, Protocol())
+    workflow.benchmark_test_mazes(workflow.Settings.model_validate(two), Protocol())
     after = files(out)
     assert not any(name.startswith("retired/") for name in after)
     assert {"greedy_utility/small.csv", "nearest_frontier/small.csv"} <= set(after)
