@@ -26,16 +26,7 @@ from typing import Annotated, Any, Callable, Literal, Mapping, Optional, TypeVar
 
 import annotated_types as at
 import pydantic
-from pydantic import (
-    AllowInfNan,
-    BaseModel,
-    ConfigDict,
-    PrivateAttr,
-    Strict,
-    ValidationError,
-    WrapValidator,
-    model_validator,
-)
+from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError, WrapValidator, model_validator
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
@@ -258,7 +249,7 @@ class Section(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
-    _written: dict[str, Any] = PrivateAttr(default_factory=dict)
+    _written: dict[str, Any] = pydantic.PrivateAttr(default_factory=dict)
 
     def as_written(self, *keys: str) -> dict[str, Any]:
         """The settings `keys` (all when none) the file held, as it held them: no default added, no
