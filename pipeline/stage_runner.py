@@ -11,13 +11,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, TypeVar
 
 from pipeline.common.config import Section, validate
 from pipeline.common.params import load_params, params_section
 from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 
+S = TypeVar("S", bound=Section)
 UPSTREAM_HINT = " (run the upstream stages first: `dvc repro`)"
 
 
@@ -45,18 +46,15 @@ def run_stage_main(main: Callable[..., Any], *args: Any) -> Any:
         raise SystemExit(2) from None
 
 
-def read_stage(params_path: str | Path, section: str, settings: type[Section]) -> dict[str, Any]:
-    """A stage's section of the params file, checked against its `Settings` model before the stage
-    reads, writes or deletes anything: the mapping as the file holds it (the workflows take plain
-    values), or a ValueError `<file>: <section.key>: must be ..., got ...` for the first value refused.
-    A missing file or bad YAML is `load_params`'s one-line error."""
-    params = load_params(params_path)
-    values = params_section(params, section, params_path)
+def read_stage(params_path: str | Path, section: str, settings: type[S]) -> S:
+    """A stage's section of the params file as its `Settings` model, checked before the stage
+    reads, writes or deletes anything; a ValueError `<file>: <section.key>: must be ..., got ...`
+    for the first value refused. A missing file or bad YAML is `load_params`'s one-line error."""
+    values = params_section(load_params(params_path), section, params_path)
     try:
-        validate(settings, values, section)
+        return validate(settings, values, section)
     except ValueError as error:
         raise ValueError(f"{params_path}: {error}") from None
-    return dict(values)
 
 
 def read_protocol(params_path: str | Path) -> Protocol:

@@ -10,35 +10,8 @@ MLflow run per team planner and robot count.
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, list_of, maybe, positive, satisfies, whole
-from pipeline.evaluation.team_benchmark import resolve_team_specs
-from pipeline.planners.specs import resolve_planner_specs
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.benchmark import benchmark_test_mazes
-
-# A planner entry as on the command line, checked by the benchmark's own parser and the registry.
-PLANNER_SPEC = satisfies(
-    lambda spec: resolve_planner_specs([spec]),
-    "a planner spec: a registered planner's name or label=name:option=value,...",
-)
-# A team planner entry: a coordinated team name, uncoordinated_<name>, or a single planner's name.
-TEAM_PLANNER_SPEC = satisfies(
-    lambda spec: resolve_team_specs([spec]),
-    "a team planner spec: a planner's name (its coordinated team version where there is "
-    "one) or uncoordinated_<name>, with label=...:option=value,... as for planners",
-)
-
-
-class Settings(Section):
-    """The `benchmark` section of params.yaml."""
-
-    planners: list_of(PLANNER_SPEC)
-    seed: whole(0)
-    workers: maybe(whole(1), "all cores")
-    speed_mps: positive("metres per second")
-    robots: list_of(whole(1, 8), min_length=0) = []
-    team_planners: list_of(TEAM_PLANNER_SPEC, min_length=0) = []
-    comm_range_m: maybe(positive("metres"), "one shared belief") = None
+from pipeline.workflows.benchmark import Settings, benchmark_test_mazes
 
 
 def main(params_path: str = "params.yaml") -> None:

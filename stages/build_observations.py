@@ -11,21 +11,8 @@ Its own stage, so retraining the planner never re-runs the predictor.
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, fraction, maybe, text, whole
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.build_observations import build_observations
-
-
-class Settings(Section):
-    """The `build_observations` section of params.yaml."""
-
-    max_nodes: whole(1)
-    max_neighbors: whole(1)
-    threshold: fraction("tau of the graph's predicted nodes")
-    count_threshold: fraction("tau of the nodes the utility boost counts")
-    min_component: whole(0, note="0 or 1: keep every predicted node")
-    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
-    workers: whole(0, note="0 or 1: in this process")
+from pipeline.workflows.build_observations import Settings, build_observations
 
 
 def main(params_path: str = "params.yaml") -> dict:

@@ -6,22 +6,8 @@ manifest to data/pairs/ and a picture of a few pairs to reports/pairs_preview.pn
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, list_of, pair, satisfies, whole
-from pipeline.planners import planner_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.collect_pairs import collect_pairs
-
-
-class Settings(Section):
-    """The `collect_pairs` section of params.yaml."""
-
-    seed: whole(0)
-    pairs: whole(1)
-    pairs_per_shard: whole(1)
-    planners: list_of(satisfies(planner_config, "a registered planner name", str))  # each rollout builds one by name
-    snapshot_every: whole(1, note="steps")
-    stop_steps: pair(whole(1, note="steps"))
-    workers: whole(0, note="0 or 1: in this process")
+from pipeline.workflows.collect_pairs import Settings, collect_pairs
 
 
 def main(params_path: str = "params.yaml", backend: str | None = None) -> dict:

@@ -16,7 +16,6 @@ Logs one MLflow run in experiment "table1".
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
@@ -43,29 +42,25 @@ class Settings(Section):
     compare_checkpoint: maybe(text(note="an inpainter export"), "no comparison")
 
 
-def read_params(params_path: str | Path) -> tuple[dict[str, Any], Protocol]:
-    """The section (no sweep: an empty list of thresholds) and the protocol."""
-    section = read_stage(params_path, "eval_predictor", Settings)
-    section["sweep_thresholds"] = section["sweep_thresholds"] or []
-    return section, read_protocol(params_path)
+def read_params(params_path: str | Path) -> tuple[Settings, Protocol]:
+    """The settings and the protocol."""
+    return read_stage(params_path, "eval_predictor", Settings), read_protocol(params_path)
 
 
 def main(params_path: str = "params.yaml") -> pd.DataFrame:
-    section, protocol = read_params(params_path)
-    config = NodePredictorConfig(threshold=float(section["threshold"]), min_component=int(section["min_component"]))
-    graph_config = table1_graph_config(float(section["keep_share"]))
+    settings, protocol = read_params(params_path)
     frame = predictor_folder(
         TEST_MAZES,
         OUT_DIR,
-        section["checkpoint"],
-        section["compare_checkpoint"],
-        section["steps"],
-        config,
+        settings.checkpoint,
+        settings.compare_checkpoint,
+        settings.steps,
+        NodePredictorConfig(threshold=settings.threshold, min_component=settings.min_component),
         protocol,
-        graph_config=graph_config,
-        sweep_thresholds=section["sweep_thresholds"],
+        graph_config=table1_graph_config(settings.keep_share),
+        sweep_thresholds=settings.sweep_thresholds or [],  # null: no sweep
     )
-    log_run(frame, OUT_DIR, section, protocol, str(TEST_MAZES))
+    log_run(frame, OUT_DIR, settings.as_written(), protocol, str(TEST_MAZES))
     print((OUT_DIR / "table1.md").read_text())
     return frame
 

@@ -16,34 +16,8 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from pydantic import model_validator
-
-from pipeline.common.config import Section, fraction, list_of, maybe, whole
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.fit_gate import fit_gate
-
-
-class Settings(Section):
-    """The `fit_gate` section of params.yaml."""
-
-    maps: whole(1)
-    holdout_maps: whole(0)
-    offices: whole(0)
-    office_holdout: whole(0)
-    hidden: list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)")
-    fit_samples: maybe(whole(1)) = None
-    min_gain: whole(0, note="cells")
-    wall_margin: whole(0, note="cells")
-    threshold: fraction("P(big)")
-    workers: whole(1)
-
-    @model_validator(mode="after")
-    def _holdouts_leave_maps_to_fit(self) -> "Settings":
-        if not self.holdout_maps < self.maps:
-            raise ValueError(f"holdout_maps ({self.holdout_maps}) must be below maps ({self.maps})")
-        if self.offices and not self.office_holdout < self.offices:
-            raise ValueError(f"office_holdout ({self.office_holdout}) must be below offices ({self.offices})")
-        return self
+from pipeline.workflows.fit_gate import Settings, fit_gate
 
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:

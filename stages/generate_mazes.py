@@ -88,25 +88,30 @@ class Settings(Section):
 SplitConfig = MazeConfig | OfficeConfig | BuildingConfig
 
 
-def _split_config(mazes: dict, split: str, cell_size: float) -> tuple[SplitConfig, int]:
+def _split_config(mazes: Settings, split: str, cell_size: float) -> tuple[SplitConfig, int]:
     """The MazeConfig (OfficeConfig for `kind: office`, BuildingConfig for `kind: building`) and
     count of one split; shared keys come from the section's top level."""
-    section = mazes[split]
-    shared = {key: mazes[key] for key in ("block_m", "rooms", "room_blocks", "extra_loops") if key in mazes}
-    kind = section.get("kind", "maze")
-    if kind in ("office", "building"):
-        low, high = (float(v) for v in section["side_m"])
+    section: Split = getattr(mazes, split)
+    shared = {key: getattr(mazes, key) for key in ("block_m", "rooms", "room_blocks", "extra_loops")}
+    low, high = section.side_m
+    if section.kind in ("office", "building"):
         if low < 20:
-            raise ValueError(f"params 'mazes.{split}.side_m': {kind} floors need sides of 20 m or more, got {low:g}")
-        if kind == "building":
-            return BuildingConfig(side_m=high, cell_size=cell_size), section["count"]
-        return OfficeConfig.for_scale(mazes.get("office_scale", "maze"), high, cell_size), section["count"]
+            raise ValueError(
+                f"params 'mazes.{split}.side_m': {section.kind} floors need sides of 20 m or more, got {low:g}"
+            )
+        if section.kind == "building":
+            return BuildingConfig(side_m=high, cell_size=cell_size), section.count
+        return OfficeConfig.for_scale(mazes.office_scale, high, cell_size), section.count
     config = MazeConfig(
-        side_m=tuple(section["side_m"]),
+        side_m=(low, high),
         cell_size=cell_size,
-        **{key: tuple(value) if isinstance(value, list) else value for key, value in shared.items()},
+        **{
+            key: tuple(value) if isinstance(value, list) else value
+            for key, value in shared.items()
+            if value is not None
+        },
     )
-    return config, section["count"]
+    return config, section.count
 
 
 def _draw_split(
@@ -182,18 +187,16 @@ def main(params_path: str = "params.yaml") -> None:
     """Write data/mazes/{train,test}/maze_NNNN.png, data/offices/train/office_NNNN.png and the previews in reports/."""
     mazes = read_stage(params_path, "mazes", Settings)
     cell_size = read_protocol(params_path).cell_size
-    seed = mazes["seed"]
     # Build every config first so a bad parameter fails before any file is touched.
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
-    plan_floors = {
-        split: int(round(mazes[split].get("plans_share", 0.0) * count)) for split, (_, count) in splits.items()
-    }
+    plan_floors = {split: int(round(getattr(mazes, split).plans_share * count)) for split, (_, count) in splits.items()}
     splits = {split: (config, count - plan_floors[split]) for split, (config, count) in splits.items()}
     plans = load_plan_grids(PLANS_DIR, cell_size) if any(plan_floors.values()) else None
-    offices = mazes.get("offices", {"count": 0})["count"]
-    office_config = OfficeConfig.for_scale(mazes.get("office_scale", "maze"), cell_size=cell_size)
-    sides = {split: tuple(float(v) for v in mazes[split]["side_m"]) for split in SPLITS}
-    written, office_paths = _write_map_sets(splits, sides, offices, office_config, seed, plan_floors, plans, cell_size)
+    office_config = OfficeConfig.for_scale(mazes.office_scale, cell_size=cell_size)
+    sides = {split: tuple(getattr(mazes, split).side_m) for split in SPLITS}
+    written, office_paths = _write_map_sets(
+        splits, sides, mazes.offices.count, office_config, mazes.seed, plan_floors, plans, cell_size
+    )
     for split, paths in written.items():
         what = {OfficeConfig: "office floors", BuildingConfig: "building floors"}.get(type(splits[split][0]), "mazes")
         from_plans = f" ({plan_floors[split]} of them from the plans in {PLANS_DIR})" if plan_floors[split] else ""

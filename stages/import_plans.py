@@ -29,17 +29,10 @@ class Settings(Section):
     seed: whole(0)
 
 
-def import_plan_folder(plans: dict) -> ImportReport:
+def import_plan_folder(plans: Settings) -> ImportReport:
     """The `plans` settings' source read and written to data/plans/."""
-    sources = find_plan_sources(plans["source"], float(plans["resolution"]))
-    return import_plans(
-        sources,
-        OUT_DIR,
-        float(plans["cell_size"]),
-        float(plans["robot_radius_m"]),
-        int(plans["starts"]),
-        int(plans["seed"]),
-    )
+    sources = find_plan_sources(plans.source, plans.resolution)
+    return import_plans(sources, OUT_DIR, plans.cell_size, plans.robot_radius_m, plans.starts, plans.seed)
 
 
 def main(params_path: str = "params.yaml") -> None:

@@ -20,25 +20,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from pipeline.common.config import Section, identifier, list_of, maybe, satisfies, text, whole
-from pipeline.planners import planner_config
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.report import write_report
-
-LABEL = text(note="a planner's label in the benchmark")  # a label absent from the benchmark shows as "not run"
-
-
-class Settings(Section):
-    """The `report` section of params.yaml."""
-
-    k_values: list_of(whole(1), min_length=0)  # [] (or no k_planners): no sweep, no Table IV
-    k_planners: list_of(satisfies(planner_config, "a registered planner name", str), min_length=0)
-    k_option: identifier("a planner option name")
-    k_maps: whole(1)
-    ablation_planners: list_of(LABEL)
-    figure_planners: list_of(LABEL)
-    workers: maybe(whole(1), "all cores")
-    seed: whole(0)
+from pipeline.workflows.report import Settings, write_report
 
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:

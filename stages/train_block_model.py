@@ -20,55 +20,26 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pydantic import model_validator
-
-from pipeline.common.config import Section, fraction, positive, real, whole
-from pipeline.models.configuration_block_model import BlockModelConfig
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.workflows.train_block_model import maze_config, train_the_block_model
+from pipeline.workflows.train_block_model import Settings, maze_config, train_the_block_model
 from pipeline.world.protocol import Protocol
 
 
-class Settings(Section):
-    """The `train_block_model` section of params.yaml."""
-
-    mazes: whole(1)
-    holdout_mazes: whole(0)
-    side_m: positive("metres")
-    maze_seed: whole(0)
-    snapshot_every: whole(1, note="steps")
-    epochs: whole(1)
-    batch_size: whole(1)
-    lr: real(0.0)
-    reveal_share: fraction()
-    model: BlockModelConfig
-    workers: whole(1)
-    seed: whole(0)
-
-    @model_validator(mode="after")
-    def _holdout_leaves_mazes_to_fit(self) -> "Settings":
-        if not self.holdout_mazes < self.mazes:
-            raise ValueError(f"holdout_mazes ({self.holdout_mazes}) must be below mazes ({self.mazes})")
-        return self
-
-
-def read_params(params_path: str | Path) -> tuple[dict[str, Any], BlockModelConfig, Protocol]:
-    """The section, its model config and the protocol; a maze size the protocol cannot draw is
-    refused by `side_m` before any episode runs."""
-    section = read_stage(params_path, "train_block_model", Settings)
-    config = BlockModelConfig.from_dict(section["model"])
+def read_params(params_path: str | Path) -> tuple[Settings, Protocol]:
+    """The settings and the protocol; a maze size the protocol cannot draw is refused by `side_m`
+    before any episode runs."""
+    settings = read_stage(params_path, "train_block_model", Settings)
     protocol = read_protocol(params_path)
     try:
-        maze_config(section, config, protocol)
+        maze_config(settings, protocol)
     except (TypeError, ValueError) as error:
         raise ValueError(f"{params_path}: train_block_model.side_m: {error}") from None
-    return section, config, protocol
+    return settings, protocol
 
 
 def main(params_path: str = "params.yaml") -> dict[str, Any]:
     """Collect, train, measure and write the block model; returns the metrics written."""
-    section, config, protocol = read_params(params_path)
-    metrics = train_the_block_model(section, config, protocol)
+    metrics = train_the_block_model(*read_params(params_path))
     print(json.dumps({k: v for k, v in metrics.items() if k != "history"}, indent=2))
     return metrics
 

@@ -14,62 +14,39 @@ import json
 from pathlib import Path
 from typing import Any
 
-from pipeline.common.config import Section, check_value, every_key, maybe, positive, text, whole
-from pipeline.models.configuration_drl import DRLPolicyConfig
+from pipeline.common.config import check_value, whole
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.training.drl import PPOSettings, TrainingEnvironment
-from pipeline.training.drl_imitation import ImitationSettings
-from pipeline.workflows.train_drl import train_the_drl_policy
+from pipeline.training.drl import TrainingEnvironment
+from pipeline.workflows.train_drl import Settings, train_the_drl_policy
 from pipeline.world.protocol import Protocol
 
 
-class Settings(Section):
-    """The `train_drl` section of params.yaml."""
-
-    model: DRLPolicyConfig
-    env: every_key(TrainingEnvironment)
-    ppo: every_key(PPOSettings)
-    imitation: every_key(ImitationSettings)
-    init_checkpoint: maybe(text(note="a drl export"), "the warm start")
-    timesteps: whole(1)
-    checkpoint_every: whole(1)
-    eval_mazes: whole(0)
-    eval_side_m: positive("metres")
-    eval_seed: whole(0)
-    seed: whole(0)
-    threads: whole(0, note="0: torch's default")
-    device: text(("cpu", "cuda", "auto"))
-    experiment: text(note="an MLflow experiment")
-
-
-def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[dict[str, Any], Protocol]:
-    """The section (with `timesteps` from the command line when given) and the protocol; an
+def read_params(params_path: str | Path, timesteps: int | None = None) -> tuple[Settings, Protocol]:
+    """The settings (with `timesteps` from the command line when given) and the protocol; an
     environment the protocol cannot make (a maze side, a reward weight) is refused by its key
     before any training."""
-    section = read_stage(params_path, "train_drl", Settings)
+    settings = read_stage(params_path, "train_drl", Settings)
     if timesteps is not None:
-        section["timesteps"] = check_value(whole(1), timesteps, "--timesteps")
+        settings = settings.replaced(timesteps=check_value(whole(1), timesteps, "--timesteps"))
     protocol = read_protocol(params_path)
-    init = section["init_checkpoint"]
+    init = settings.init_checkpoint
     if init is not None and not Path(init).is_file():
         raise ValueError(f"{params_path}: train_drl.init_checkpoint must be null or a drl export file, got {init!r}")
-    env = TrainingEnvironment.from_dict(section["env"])
-    model = DRLPolicyConfig.from_dict(section["model"])
+    env = settings.env
     checks = [("env", {**env.to_dict(), "maze_sides_m": [side]}) for side in env.maze_sides_m]
-    checks += [("eval_side_m", {**env.to_dict(), "maze_sides_m": [section["eval_side_m"]]})]
+    checks += [("eval_side_m", {**env.to_dict(), "maze_sides_m": [settings.eval_side_m]})]
     for what, values in checks:
         try:
-            TrainingEnvironment.from_dict(values).make(0, protocol, model).close()
+            TrainingEnvironment.from_dict(values).make(0, protocol, settings.model).close()
         except (TypeError, ValueError) as error:
             what = "env.maze_sides_m" if what == "env" and str(error).startswith("maze_side_m") else what
             raise ValueError(f"{params_path}: train_drl.{what}: {error}") from None
-    return section, protocol
+    return settings, protocol
 
 
 def main(params_path: str = "params.yaml", timesteps: int | None = None) -> dict[str, Any]:
     """Train (or continue), export and evaluate the drl policy; returns the metrics written."""
-    section, protocol = read_params(params_path, timesteps)
-    metrics = train_the_drl_policy(section, protocol)
+    metrics = train_the_drl_policy(*read_params(params_path, timesteps))
     print(json.dumps({k: v for k, v in metrics.items() if k not in ("history", "evaluation", "host")}, indent=2))
     if metrics["evaluation"]:
         print(json.dumps({k: v for k, v in metrics["evaluation"].items() if k != "episodes"}, indent=2))

@@ -14,32 +14,9 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
-import pydantic
-
-from pipeline.common.config import Section, fields_of, maybe, text, whole
 from pipeline.common.paths import MODELS
-from pipeline.models.configuration_inpainter import InpainterConfig
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
-from pipeline.training.inpainter import TrainConfig
-from pipeline.training.run_setup import DEVICES
-from pipeline.workflows.train_inpainter import train_and_report
-
-# The `train_inpainter` section: TrainConfig's fields and the run's own settings side by side.
-# Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults.
-Settings = pydantic.create_model(
-    "Settings",
-    __base__=Section,
-    __module__=__name__,
-    __doc__="The `train_inpainter` section of params.yaml.",
-    **fields_of(TrainConfig),
-    model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
-    accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
-    devices=(maybe(DEVICES, "1"), None),
-    num_nodes=(maybe(whole(1, note="nodes of a multi-node DDP run"), "1"), None),
-    threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
-    init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
-    experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),
-)
+from pipeline.workflows.train_inpainter import Settings, train_and_report
 
 
 def main(
@@ -52,9 +29,8 @@ def main(
     progress: bool = False,
     artifact_location: Optional[str] = None,
 ) -> dict[str, Any]:
-    section = read_stage(params_path, "train_inpainter", Settings)
     metrics = train_and_report(
-        section,
+        read_stage(params_path, "train_inpainter", Settings),
         read_protocol(params_path),
         accelerator,
         devices,

@@ -8,27 +8,11 @@ and observations are the same), metrics and curves: the paths of `policies` in p
 
 from __future__ import annotations
 
-from pipeline.common.config import Section, every_key, maybe, text, whole
 from pipeline.common.paths import POLICIES
-from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.stage_runner import read_stage, run_stage_main, stage_arguments
-from pipeline.training.policy import PlannerTrainConfig
-from pipeline.training.run_setup import DEVICES
-from pipeline.workflows.train_planner import train_and_report
+from pipeline.workflows.train_planner import Settings, train_and_report
 
 VARIANTS = tuple(POLICIES)  # guide, dare
-
-
-class Settings(Section):
-    """The `train_planner` section of params.yaml."""
-
-    model: DiffusionPolicyConfig
-    train: every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))  # its default unless set
-    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
-    devices: DEVICES
-    num_nodes: whole(1, note="nodes of a multi-node DDP run")
-    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
-    experiment: text(note="an MLflow experiment")
 
 
 def main(
@@ -41,8 +25,8 @@ def main(
 ) -> dict:
     if variant not in VARIANTS:
         raise SystemExit(f"error: unknown planner variant {variant!r}; choose from {', '.join(VARIANTS)}")
-    section = read_stage(params_path, "train_planner", Settings)
-    metrics = train_and_report(section, variant, accelerator, devices, afresh, max_epochs)
+    settings = read_stage(params_path, "train_planner", Settings)
+    metrics = train_and_report(settings, variant, accelerator, devices, afresh, max_epochs)
     if metrics:
         print(
             f"{variant} planner: {metrics['num_parameters']:,} parameters, {metrics['epochs']} epochs in "

@@ -10,7 +10,7 @@ import typer
 from pipeline.cli.options import Checkpoint, check_bag_out, fail, warn
 from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.planners.matched_models import model_files
-from pipeline.planners.specs import build_planner, resolve_planner_specs
+from pipeline.planners.specs import as_specs, build_planner, resolve_planner_specs
 from pipeline.robot.bag_replay import replay_bag
 from pipeline.robot.session import ExplorationSession
 from pipeline.world.protocol import PROTOCOLS
@@ -61,7 +61,7 @@ def bag(
     if out.resolve() == bag_path.resolve():
         fail(f"{out}: is the input bag; give another name")
     try:
-        (spec,) = resolve_planner_specs(with_policy_checkpoint([planner], checkpoint))
+        (spec,) = resolve_planner_specs(with_policy_checkpoint(as_specs([planner]), checkpoint))
         agent = build_planner(spec)
         session = ExplorationSession(agent, PROTOCOLS[protocol], seed=seed)
     except (ValueError, FileNotFoundError, TypeError) as error:

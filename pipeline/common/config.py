@@ -194,19 +194,20 @@ def any_of(*options: Any, description: str = "") -> Any:
     return Annotated[Union[options], pydantic.Field(union_mode="left_to_right"), _refusing(what, deeper=False)]
 
 
-def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any) -> Any:
+def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any, parses: bool = False) -> Any:
     """A value `test` takes without a ValueError, TypeError or KeyError (a registered planner's
-    name, by the registry's own lookup); the refusal carries the test's own message."""
+    name, by the registry's own lookup); the refusal carries the test's own message. With
+    `parses`, the value read is what `test` returns (a planner spec, parsed once)."""
 
     def check(value: Any) -> Any:
         try:
-            test(value)
+            parsed = test(value)
         except (ValueError, TypeError, KeyError) as error:
             reason = str(error.args[0]) if isinstance(error, KeyError) and error.args else str(error)
             raise PydanticCustomError(
                 REFUSED, "must be {what} ({reason})", {"what": description, "reason": reason}
             ) from None
-        return value
+        return parsed if parses else value
 
     return Annotated[kind, pydantic.AfterValidator(check)]
 
@@ -241,12 +242,31 @@ def _what(kind: Any) -> str:
 class Section(BaseModel):
     """A mapping of settings with exactly these keys: a params.yaml section or a part of one.
 
-    A field with a default may be left out (the code that reads it has the same default); any
-    other missing key, and any key the class does not name, is refused by name. The model checks
-    values; the stage still passes its section on as the plain mapping the file holds.
+    A field with a default may be left out (its default is the value read); any other missing
+    key, and any key the class does not name, is refused by name. A stage passes the model on and
+    its code reads typed attributes; `as_written` gives the values as the file held them, for what
+    must not change with the parsing: a resumable run's fingerprint, a file that records them.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=False)
+    _written: dict[str, Any] = pydantic.PrivateAttr(default_factory=dict)
+
+    def as_written(self, *keys: str) -> dict[str, Any]:
+        """The settings `keys` (all when none) the file held, as it held them: no default added, no
+        value converted (a whole number stays one where the model reads a float)."""
+        return {key: self._written[key] for key in keys or self._written if key in self._written}
+
+    def replaced(self, **changes: Any) -> "Section":
+        """The settings with `changes` made, checked again (a command-line override)."""
+        return type(self).model_validate({**self._written, **changes})
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _keep_written(cls, values: Any, handler: Callable[[Any], Any]) -> Any:
+        model = handler(values)
+        if isinstance(values, Mapping) and isinstance(model, Section):
+            model._written = dict(values)
+        return model
 
     @model_validator(mode="before")
     @classmethod

@@ -79,29 +79,28 @@ def check_tracking_uri(uri: str | None = None, timeout_s: float = 5.0) -> str:
     )
 
 
-def dvc_hash(folder: str | Path, lock_path: str | Path = "dvc.lock") -> str | None:
-    """DVC's recorded hash of `folder` when a stage of `lock_path` (dvc.lock) outputs it, else None."""
-    import yaml
+def dvc_hash(folder: str | Path) -> str | None:
+    """DVC's recorded hash of `folder` when a stage of its DVC project outputs it, else None (not
+    in a DVC project, or not a stage's output)."""
+    from dvc.exceptions import DvcException, NotDvcRepoError
+    from dvc.repo import Repo
 
-    lock_path = Path(lock_path)
-    if not lock_path.is_file():
-        return None
+    folder = Path(folder).resolve()
+    existing = next(path for path in (folder, *folder.parents) if path.is_dir())
     try:
-        target = Path(folder).resolve().relative_to(lock_path.resolve().parent).as_posix()
-    except ValueError:
-        return None  # outside the project
-    stages = (yaml.safe_load(lock_path.read_text()) or {}).get("stages", {})
-    for stage in stages.values():
-        for out in stage.get("outs", []):
-            if out.get("path") == target:
-                return out.get("md5")
-    return None
+        with Repo(Repo.find_root(str(existing))) as repo:
+            outs = repo.find_outs_by_path(str(folder))
+    except (NotDvcRepoError, DvcException):  # no project, or no stage outputs it
+        return None
+    return next((out.hash_info.value for out in outs if out.hash_info and out.hash_info.value), None)
 
 
-def maze_set_input(folder: str | Path, context: str = "evaluation") -> tuple[object, dict[str, str]]:
+def maze_set_input(
+    folder: str | Path, context: str = "evaluation", digest: str | None = None
+) -> tuple[object, dict[str, str]]:
     """The MLflow dataset input of the maze set (or data set) `folder`: named by the folder,
-    its digest DVC's hash where a stage made it (else a digest of its files), its source the
-    folder; returns (dataset, tags) for `mlflow.log_input(dataset, context, tags)`."""
+    its digest DVC's hash where a stage made it (else `digest`, else a digest of its files), its
+    source the folder; returns (dataset, tags) for `mlflow.log_input(dataset, context, tags)`."""
     import warnings
 
     import_mlflow()  # telemetry off first
@@ -114,7 +113,7 @@ def maze_set_input(folder: str | Path, context: str = "evaluation") -> tuple[obj
         warnings.simplefilter("ignore", UserWarning)
         source = resolve_dataset_source(str(folder.resolve()))
     name = folder.as_posix() if not folder.is_absolute() else folder.name
-    dataset = MetaDataset(source=source, name=name, digest=recorded or files_digest([folder]))
+    dataset = MetaDataset(source=source, name=name, digest=recorded or digest or files_digest([folder]))
     tags = {"dvc_hash": recorded or "none (not a DVC output here)", "context": context}
     return dataset, tags
 

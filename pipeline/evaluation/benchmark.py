@@ -1,9 +1,10 @@
 """Benchmark many maps x planners on the executor's engines and write docs/protocol.md's outputs.
 
-Data makes one trip: each map is loaded once and each planner built once per benchmark, in the
-main process, before the episodes (the checks need them); they reach the episodes as the run's
-shared inputs (`EpisodeInputs`: forked worker processes take them from their copy, a Ray node
-from its object store), and a planner is reset for each of its episodes. Each finished episode
+Data makes one trip: a benchmark's maps are listed, loaded and hashed once (`MapSet`) and each
+planner built once, in the main process, before the episodes (the checks need them); they reach
+the episodes as one object, the run's shared inputs (`BenchmarkInputs`: forked worker processes
+take it from their copy, a Ray node from its object store), and a planner is reset for each of
+its episodes. Each finished episode
 is kept under OUT/.episodes/ until the run completes, so a killed run, rerun with the same
 command, resumes where it stopped on either engine. The episodes' metrics, per-step records,
 exploration table and summary are computed once, in memory, written once and handed back
@@ -15,7 +16,8 @@ from __future__ import annotations
 import json
 import shutil
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -40,10 +42,10 @@ from pipeline.evaluation.map_checks import before_episodes, step_limit_hint, uno
 from pipeline.evaluation.statistics import summarise
 from pipeline.models.exports import require_file
 from pipeline.planners.config import PlannerConfig
-from pipeline.planners.registry import make_planner, planner_config
-from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
+from pipeline.planners.registry import planner_config
+from pipeline.planners.specs import PlannerSpec, build_planner, resolve_planner_specs
 from pipeline.world.map_files import MapError
-from pipeline.world.maps import GroundTruthMap, load_map
+from pipeline.world.maps import GroundTruthMap, list_maps, load_map
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
@@ -69,25 +71,25 @@ KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run no
 
 
 def with_policy_checkpoint(
-    specs: list[str], checkpoint: str | Path | None, config_of: Callable[[str], type[PlannerConfig]] = planner_config
-) -> list[str]:
+    specs: Sequence[PlannerSpec],
+    checkpoint: str | Path | None,
+    config_of: Callable[[str], type[PlannerConfig]] = planner_config,
+) -> list[PlannerSpec]:
     """`specs` with policy_file=PATH added to each diffusion planner's (the command line's --checkpoint);
     ValueError when a checkpoint is given but no planner uses a policy, or a spec names its own too.
     `config_of` finds a name's config (the team registry's `team_config` for team names)."""
     if checkpoint is None:
-        return specs
+        return list(specs)
     require_file(checkpoint, "a planner checkpoint")
     out, used = [], False
     for spec in specs:
-        parsed = parse_planner_spec(spec)
-        if not config_of(parsed.name).needs_policy:
+        if not config_of(spec.name).needs_policy:
             out.append(spec)
             continue
-        if {"checkpoint", "policy_file"} & set(parsed.options):
-            raise ValueError(f"planner {parsed.label!r} names its own policy_file; drop it or --checkpoint")
+        if {"checkpoint", "policy_file"} & set(spec.options):
+            raise ValueError(f"planner {spec.label!r} names its own policy_file; drop it or --checkpoint")
         used = True
-        options = ",".join(f"{k}={v}" for k, v in {**parsed.options, "policy_file": str(checkpoint)}.items())
-        out.append(f"{parsed.label}={parsed.name}:{options}")
+        out.append(replace(spec, options={**spec.options, "policy_file": str(checkpoint)}))
     if not used:
         raise ValueError(
             "--checkpoint is a diffusion policy for guide, guide_noregion or dare, and no planner given uses one "
@@ -97,127 +99,103 @@ def with_policy_checkpoint(
 
 
 @dataclass(frozen=True)
-class EpisodeTask:
-    """One (map, planner variant) episode, picklable for a worker process.
+class MapSet:
+    """The maps of a benchmark, listed, loaded, checked and hashed once: the episodes read the
+    loaded maps, the run record lists the paths, and the resume identity and MLflow's dataset
+    input carry the one digest. `folder`: the folder they were listed from (None for a list of
+    paths); `start` overrides every map's start (`load_map`)."""
 
-    `planner` is the registered name, `label` the name in metrics.csv and the trajectory
-    folder (the name itself when empty), `options` the keyword options of make_planner.
-    """
+    paths: tuple[str, ...]
+    protocol: Protocol
+    start: tuple[float, float] | None = None
+    folder: str | None = None
+
+    @classmethod
+    def of(
+        cls, maps: "str | Path | Sequence[str | Path] | MapSet", protocol: Protocol, start: tuple[float, float] | None
+    ) -> MapSet:
+        """The maps of a folder (MapError when it holds none) or of a list of paths, as a MapSet."""
+        if isinstance(maps, MapSet):
+            return maps
+        if isinstance(maps, (str, Path)):
+            paths = list_maps(maps)
+            if not paths:
+                raise MapError(maps, "no maps in this folder (maze .png, .npy or ROS .yaml)")
+            return cls(tuple(map(str, paths)), protocol, start, str(maps))
+        return cls(tuple(map(str, maps)), protocol, start)
+
+    @cached_property
+    def _read(self) -> tuple[dict[str, tuple[GroundTruthMap, Protocol, bool]], list[str]]:
+        loaded: dict[str, tuple[GroundTruthMap, Protocol, bool]] = {}
+        problems: list[str] = []
+        for path, name in zip(self.paths, self.names):
+            if name in loaded:
+                raise MapError(
+                    path,
+                    f"has the same name {name!r} as {self.paths[self.names.index(name)]}: their trajectories "
+                    "would overwrite each other in OUT/<label>/<name>.csv; rename one",
+                )
+            ground_truth = load_map(path, start=self.start, cell_size=self.protocol.cell_size)
+            map_protocol = protocol_for_map(self.protocol, ground_truth, path)  # a ROS map brings its cell size
+            found, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
+            loaded[name] = ground_truth, map_protocol, completable
+            problems += found
+        return loaded, problems
+
+    @property
+    def loaded(self) -> dict[str, tuple[GroundTruthMap, Protocol, bool]]:
+        """Map name -> (map, the protocol it runs under, whether the checks found it completable);
+        MapError when two maps share a name (their trajectory files would overwrite each other)."""
+        return self._read[0]
+
+    @property
+    def problems(self) -> list[str]:
+        """A line for each map no planner can complete (`map_checks`)."""
+        return self._read[1]
+
+    @property
+    def names(self) -> list[str]:
+        return [Path(path).stem for path in self.paths]
+
+    @property
+    def cell_sizes(self) -> list[float]:
+        return sorted({map_protocol.cell_size for _, map_protocol, _ in self.loaded.values()})
+
+    @cached_property
+    def digest(self) -> str:
+        """A hash of the maps' files: every file of the folder (a ROS map's image too), else the paths'."""
+        return files_digest([self.folder] if self.folder is not None else self.paths)
+
+    def episode_map(self, path: str) -> tuple[GroundTruthMap, Protocol]:
+        ground_truth, map_protocol, _ = self.loaded[Path(path).stem]
+        return ground_truth, map_protocol
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """One (map, planner variant) episode, picklable for a worker process: the spec's label names
+    metrics.csv's `planner` and the trajectory folder."""
 
     map_path: str
-    planner: str
-    protocol: Protocol
+    spec: PlannerSpec
     seed: int
-    label: str = ""
-    options: dict[str, Any] = field(default_factory=dict, hash=False)
-    start: tuple[float, float] | None = None  # load_map's start override (None: the map's own)
-
-    def __post_init__(self) -> None:
-        if not self.label:
-            object.__setattr__(self, "label", self.planner)
 
 
-def check_unique_map_names(map_paths: Sequence[str | Path], names: Sequence[str]) -> None:
-    """MapError when two maps share a name (a.png and a.yaml): their trajectory files would overwrite each other."""
-    seen: dict[str, str | Path] = {}
-    for path, name in zip(map_paths, names):
-        if name in seen:
-            raise MapError(
-                path,
-                f"has the same name {name!r} as {seen[name]}: their trajectories would overwrite "
-                "each other in OUT/<label>/<name>.csv; rename one",
-            )
-        seen[name] = path
+@dataclass(frozen=True)
+class BenchmarkInputs:
+    """What every episode of a run reads (the executor's shared inputs): the maps and the planners
+    built for the run's specs, each reset by its episodes."""
+
+    maps: MapSet
+    planners: dict[PlannerSpec, Planner]
 
 
-# This process's maps and planners: filled by `run_benchmark` (and by the shared inputs a task
-# arrives with), so that an episode finds them; a task run alone loads or builds what it lacks once.
-_MAPS: dict[tuple, tuple[GroundTruthMap, Protocol]] = {}
-_PLANNERS: dict[tuple[str, str], Planner] = {}
-
-
-def task_map(task: EpisodeTask) -> tuple[GroundTruthMap, Protocol]:
-    """The task's map and the protocol it runs under (a ROS map brings its own cell size)."""
-    key = (task.map_path, task.start, task.protocol)
-    if key not in _MAPS:
-        ground_truth = load_map(task.map_path, start=task.start, cell_size=task.protocol.cell_size)
-        _MAPS[key] = ground_truth, protocol_for_map(task.protocol, ground_truth, task.map_path)
-    return _MAPS[key]
-
-
-@dataclass
-class BenchmarkMaps:
-    """The maps of a run, read and checked before any episode: by path (map, its protocol), by name
-    (map, its protocol, whether the checks found it completable), and the cell sizes they bring."""
-
-    by_path: dict[str, tuple[GroundTruthMap, Protocol]]
-    by_name: dict[str, tuple[GroundTruthMap, Protocol, bool]]
-    cell_sizes: list[float]
-
-
-def check_workers(workers: int | None) -> None:
-    """ValueError unless `workers` is a whole number >= 1 or None (all cores)."""
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be a whole number >= 1 (or null: all cores), got {workers!r}")
-
-
-def read_benchmark_maps(
-    map_paths: Sequence[str | Path],
-    protocol: Protocol,
-    seed: int,
-    start: tuple[float, float] | None,
-    warn: Callable[[str], None] | None,
-) -> BenchmarkMaps:
-    """Every map of a run loaded (`start` overrides each map's) and checked: `warn` hears of each one
-    no planner can complete; MapError when two share a name."""
-    by_path: dict[str, tuple[GroundTruthMap, Protocol]] = {}
-    by_name: dict[str, tuple[GroundTruthMap, Protocol, bool]] = {}
-    names, cell_sizes = [], set()
-    for path in map_paths:
-        ground_truth, map_protocol = task_map(EpisodeTask(str(path), "", protocol, seed, start=start))
-        by_path[str(path)] = ground_truth, map_protocol
-        cell_sizes.add(map_protocol.cell_size)  # a ROS map's own
-        names.append(ground_truth.name)
-        problems, completable = before_episodes(ground_truth, map_protocol, scan_for_unobservable=False)
-        by_name[ground_truth.name] = (ground_truth, map_protocol, completable)
-        for problem in problems if warn is not None else ():
-            warn(problem)
-    check_unique_map_names(map_paths, names)
-    return BenchmarkMaps(by_path, by_name, sorted(cell_sizes))
-
-
-def task_planner(task: EpisodeTask) -> Planner:
-    """The task's planner, built once per process and reset by each episode."""
-    key = (task.planner, json.dumps(task.options, sort_keys=True, default=str))
-    if key not in _PLANNERS:
-        _PLANNERS[key] = make_planner(task.planner, **task.options)
-    return _PLANNERS[key]
-
-
-@dataclass
-class EpisodeInputs:
-    """What every episode of a run reads: the loaded maps and the built planners, by the keys of
-    `task_map` and `task_planner`."""
-
-    maps: dict[tuple, tuple[GroundTruthMap, Protocol]]
-    planners: dict[tuple[str, str], Planner]
-
-
-def run_shared_task(inputs: EpisodeInputs, task: EpisodeTask) -> EpisodeResult:
-    """`run_task` with the run's maps and planners (the executor's shared inputs) taken first."""
-    for key, value in inputs.maps.items():
-        _MAPS.setdefault(key, value)
-    for key, value in inputs.planners.items():
-        _PLANNERS.setdefault(key, value)
-    return run_task(task)
-
-
-def run_task(task: EpisodeTask) -> EpisodeResult:
-    ground_truth, protocol = task_map(task)
+def run_task(inputs: BenchmarkInputs, task: EpisodeTask) -> EpisodeResult:
+    ground_truth, protocol = inputs.maps.episode_map(task.map_path)
     with warnings.catch_warnings():
         # run_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        planner = ErrorsEndTheEpisode(task_planner(task))  # a planner that raises fails this episode only
+        planner = ErrorsEndTheEpisode(inputs.planners[task.spec])  # a planner that raises fails this episode only
         result = run_episode(ground_truth, planner, protocol, seed=task.seed)
     if planner.error:
         result.failure, result.error_traceback, result.complete, result.early_stop = (
@@ -226,7 +204,7 @@ def run_task(task: EpisodeTask) -> EpisodeResult:
             False,
             False,
         )
-    result.planner = task.label
+    result.planner = task.spec.label
     return result
 
 
@@ -234,18 +212,22 @@ def run_task(task: EpisodeTask) -> EpisodeResult:
 class BenchmarkRun:
     """What a benchmark made, in memory: metrics.csv's rows (`frame`), each episode's per-step
     record ({(label, map): record}), exploration.csv's rows, the per-planner summary, and the maps
-    (name -> (map, its protocol, whether the checks before the run found it completable))."""
+    (`maps`: name -> (map, its protocol, whether the checks before the run found it completable))."""
 
     frame: pd.DataFrame
     records: dict[tuple[str, str], dict[str, np.ndarray]]
     exploration: pd.DataFrame
     summary: pd.DataFrame
-    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+    map_set: MapSet
     errors: list[tuple[str, str, str]] = field(default_factory=list)  # (map, planner, failure) where the planner raised
+
+    @property
+    def maps(self) -> dict[str, tuple[GroundTruthMap, Protocol, bool]]:
+        return self.map_set.loaded
 
 
 def run_benchmark(
-    map_paths: Sequence[str | Path],
+    maps: str | Path | Sequence[str | Path] | MapSet,
     planners: Sequence[str | PlannerSpec],
     protocol: Protocol,
     out_dir: str | Path,
@@ -262,6 +244,7 @@ def run_benchmark(
     """Run every map with every planner; write trajectories, their per-step files, metrics.csv,
     exploration.csv and summary.md; return them in memory (`BenchmarkRun`).
 
+    `maps`: a folder, a list of map paths or a MapSet (which brings its own protocol and start).
     A planner entry is a registered name or a labelled variant "label=name:key=value,..."
     (see `parse_planner_spec`), or a PlannerSpec; the label is the `planner` column of
     metrics.csv and the trajectory folder OUT/label/.
@@ -279,11 +262,12 @@ def run_benchmark(
     missing. A stage that builds OUT in a temporary folder keeps them outside it, where a rerun finds them.
     """
     backend = resolve_backend(backend)
-    check_workers(workers)
     specs = resolve_planner_specs(planners, OUTPUT_FILES)
-    built = [build_planner(spec) for spec in specs]  # a refused value fails before any map is read
-    maps = read_benchmark_maps(map_paths, protocol, seed, start, warn)
-    loaded = maps.by_name
+    built = {spec: build_planner(spec) for spec in specs}  # a refused value fails before any map is read
+    map_set = MapSet.of(maps, protocol, start)
+    protocol, start, loaded = map_set.protocol, map_set.start, map_set.loaded
+    for problem in map_set.problems if warn is not None else ():
+        warn(problem)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     labels = {spec.label for spec in specs}
@@ -294,41 +278,27 @@ def run_benchmark(
             "its metrics.csv and summary.md list only this run's",
             stacklevel=2,
         )
-    protocol_record = recorded_protocol(protocol, maps.cell_sizes)
-    for planner in built:  # models trained at other protocol values: said once here, not by every worker
+    protocol_record = recorded_protocol(protocol, map_set.cell_sizes)
+    for planner in built.values():  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)  # (a learned planner takes the protocol's models first: the record names them)
-    write_run_record(
-        out_dir / RUN_RECORD,
-        specs,
-        [planner.description for planner in built],
-        seed,
-        start,
-        protocol_record,
-        [str(path) for path in map_paths],
-        speed,
-    )
-    tasks = [
-        EpisodeTask(str(p), spec.name, protocol, seed, label=spec.label, options=dict(spec.options), start=start)
-        for spec in specs
-        for p in map_paths
-    ]
-    for spec, planner in zip(specs, built):  # the episodes take these planners
-        _PLANNERS[spec.name, json.dumps(dict(spec.options), sort_keys=True, default=str)] = planner
-    inputs = EpisodeInputs(
-        {task_key: _MAPS[task_key] for task_key in {(t.map_path, t.start, t.protocol) for t in tasks}},
-        {
-            key: _PLANNERS[key]
-            for key in {(t.planner, json.dumps(t.options, sort_keys=True, default=str)) for t in tasks}
-        },
-    )
+    descriptions = [planner.description for planner in built.values()]
+    write_run_record(out_dir / RUN_RECORD, specs, descriptions, seed, start, protocol_record, map_set.paths, speed)
+    tasks = [EpisodeTask(path, spec, seed) for spec in specs for path in map_set.paths]
     identity = {
         "tasks": [
-            [t.map_path, t.planner, t.label, json.dumps(t.options, sort_keys=True, default=str), t.seed, t.start]
+            [
+                t.map_path,
+                t.spec.name,
+                t.spec.label,
+                json.dumps(t.spec.options, sort_keys=True, default=str),
+                t.seed,
+                start,
+            ]
             for t in tasks
         ],
         "protocol": protocol.to_dict(),
-        "maps": files_digest(map_paths),
-        "planners": [planner.description for planner in built],
+        "maps": map_set.digest,
+        "planners": descriptions,
         "source": source_digest(),
     }
     keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / KEPT_EPISODES, identity)
@@ -340,7 +310,7 @@ def run_benchmark(
     workers = default_workers() if workers is None else workers
     try:
         run_tasks(
-            run_shared_task,
+            run_task,
             tasks,
             min(workers, len(tasks)),
             "episodes",
@@ -350,14 +320,14 @@ def run_benchmark(
             progress=progress,
             on_result=finished,
             collect=False,
-            shared=inputs,
+            shared=BenchmarkInputs(map_set, built),
         )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         if results:
-            _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
+            _write_tables(results, out_dir, protocol_record, baseline, speed, map_set)
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
-    run = _write_tables(results, out_dir, protocol_record, baseline, speed, loaded)
+    run = _write_tables(results, out_dir, protocol_record, baseline, speed, map_set)
     record_fallbacks(out_dir / RUN_RECORD, run.frame)
     if warn is not None:
         for hint in failure_hints(run.frame, loaded):
@@ -436,7 +406,7 @@ def _write_tables(
     protocol_record: dict[str, Any],
     baseline: str | None,
     speed: SpeedModel,
-    maps: dict,
+    maps: MapSet,
 ) -> BenchmarkRun:
     """metrics.csv, exploration.csv and summary.md from the episodes, each computed once."""
     frame = metrics_frame(results)
@@ -506,8 +476,8 @@ def record_fallbacks(path: Path, frame: pd.DataFrame) -> None:
 
 def _write_result(result: EpisodeResult, task: EpisodeTask, out_dir: Path) -> EpisodeResult:
     result.map_name = Path(task.map_path).stem
-    result.planner = task.label
-    trajectory = write_trajectory_csv(out_dir / task.label / f"{result.map_name}.csv", result.trajectory)
+    result.planner = task.spec.label
+    trajectory = write_trajectory_csv(out_dir / task.spec.label / f"{result.map_name}.csv", result.trajectory)
     write_steps_csv(steps_path(trajectory), result.step_rows())
     return result
 

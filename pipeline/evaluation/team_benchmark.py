@@ -35,19 +35,18 @@ import pandas as pd
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.common.executor import default_workers, resolve_backend, run_tasks
-from pipeline.common.fingerprints import files_digest, source_digest
+from pipeline.common.fingerprints import source_digest
 from pipeline.common.kept_results import KeptResults
 from pipeline.evaluation.benchmark import (
     BenchmarkInterrupted,
-    check_workers,
-    read_benchmark_maps,
+    MapSet,
     recorded_protocol,
     write_planner_errors,
     write_run_record,
 )
 from pipeline.evaluation.episode_errors import ErrorsEndTheEpisode
 from pipeline.evaluation.exploration_curves import SpeedModel
-from pipeline.planners.specs import PlannerSpec, parse_planner_spec
+from pipeline.planners.specs import PlannerSpec, check_reserved, parse_planner_spec
 from pipeline.planners.team.registry import make_team_planner
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning
@@ -117,7 +116,11 @@ def resolve_team_specs(planners: Sequence[str | PlannerSpec]) -> list[tuple[Plan
     resolved: list[tuple[PlannerSpec, TeamPlanner]] = []
     seen: set[str] = set()
     for entry in planners:
-        spec = entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry, TEAM_OUTPUT_FILES)
+        spec = (
+            check_reserved(entry, TEAM_OUTPUT_FILES)
+            if isinstance(entry, PlannerSpec)
+            else parse_planner_spec(entry, TEAM_OUTPUT_FILES)
+        )
         if spec.label in seen:
             raise ValueError(f"planner label {spec.label!r} is used twice; give each variant its own label")
         seen.add(spec.label)
@@ -132,49 +135,41 @@ def resolve_team_specs(planners: Sequence[str | PlannerSpec]) -> list[tuple[Plan
     return resolved
 
 
-def options_key(options: dict[str, Any]) -> str:
-    return json.dumps(options, sort_keys=True, default=str)
-
-
 @dataclass(frozen=True)
 class TeamEpisodeTask:
     """One (map, planner spec, robot count) team episode, picklable for a worker."""
 
     map_path: str
-    planner: str  # the name `make_team_planner` takes
-    label: str  # the spec's label; the run is `label@robots`
+    spec: PlannerSpec  # its name is the one `make_team_planner` takes; the run is `label@robots`
     robots: int
     seed: int
-    options: dict[str, Any] = field(default_factory=dict, hash=False)
     comm_range_m: float | None = None
 
     @property
-    def run_label(self) -> str:
-        return team_run_label(self.label, self.robots)
+    def label(self) -> str:
+        return self.spec.label
 
     @property
-    def planner_key(self) -> tuple[str, str]:
-        return self.planner, options_key(self.options)
+    def run_label(self) -> str:
+        return team_run_label(self.spec.label, self.robots)
 
 
-@dataclass
+@dataclass(frozen=True)
 class TeamEpisodeInputs:
-    """What every team episode of a run reads: the maps (path -> (map, its protocol)) and the
-    built team planners (by `TeamEpisodeTask.planner_key`; each episode resets its planner)."""
+    """What every team episode of a run reads: the maps and the team planners built for the
+    run's specs (each episode resets its planner)."""
 
-    maps: dict[str, tuple[GroundTruthMap, Protocol]]
-    planners: dict[tuple[str, str], TeamPlanner]
+    maps: MapSet
+    planners: dict[PlannerSpec, TeamPlanner]
 
 
 def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpisodeResult:
     """One team episode with the run's map and planner (the executor's shared inputs)."""
-    ground_truth, protocol = inputs.maps[task.map_path]
+    ground_truth, protocol = inputs.maps.episode_map(task.map_path)
     with warnings.catch_warnings():
         # run_team_benchmark has said it once, before the episodes; each worker would repeat it.
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        planner = ErrorsEndTheEpisode(
-            inputs.planners[task.planner_key]
-        )  # a planner that raises fails this episode only
+        planner = ErrorsEndTheEpisode(inputs.planners[task.spec])  # a planner that raises fails this episode only
         result = run_team_episode(
             ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m, seed=task.seed
         )
@@ -196,14 +191,18 @@ class TeamBenchmarkRun:
     summary: dict[str, dict[str, Any]]
     episodes: list[tuple[TeamEpisodeTask, TeamEpisodeResult]]
     record: dict[str, Any]
-    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]]
+    map_set: MapSet
     errors: list[tuple[str, str, str]] = field(
         default_factory=list
     )  # (map, run label, failure) where the planner raised
 
+    @property
+    def maps(self) -> dict[str, tuple[GroundTruthMap, Protocol, bool]]:
+        return self.map_set.loaded
+
 
 def run_team_benchmark(
-    map_paths: Sequence[str | Path],
+    maps: str | Path | Sequence[str | Path] | MapSet,
     planners: Sequence[str | PlannerSpec],
     protocol: Protocol,
     out_dir: str | Path,
@@ -229,12 +228,13 @@ def run_team_benchmark(
     the single-robot benchmark's (`run_benchmark`), `keep_dir` too.
     """
     backend = resolve_backend(backend)
-    check_workers(workers)
     counts = check_robot_counts(robots)
     comm_range_m = check_comm_range(comm_range_m)
     resolved = resolve_team_specs(planners)  # a refused name or value fails before any map is read
-    read = read_benchmark_maps(map_paths, protocol, seed, start, warn)
-    maps, loaded = read.by_path, read.by_name
+    map_set = MapSet.of(maps, protocol, start)
+    protocol, start = map_set.protocol, map_set.start
+    for problem in map_set.problems if warn is not None else ():
+        warn(problem)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     run_labels = {team_run_label(spec.label, count) for spec, _ in resolved for count in counts}
@@ -259,27 +259,27 @@ def run_team_benchmark(
         descriptions,
         seed,
         start,
-        recorded_protocol(protocol, read.cell_sizes),
-        [str(p) for p in map_paths],
+        recorded_protocol(protocol, map_set.cell_sizes),
+        map_set.paths,
         speed,
         extra={"robots": counts, "comm_range_m": comm_range_m},
     )
     tasks = [
-        TeamEpisodeTask(str(path), spec.name, spec.label, count, seed, dict(spec.options), comm_range_m)
+        TeamEpisodeTask(path, spec, count, seed, comm_range_m)
         for spec in specs
         for count in counts
-        for path in map_paths
+        for path in map_set.paths
     ]
-    inputs = TeamEpisodeInputs(
-        maps, {(spec.name, options_key(dict(spec.options))): planner for spec, planner in resolved}
-    )
+    inputs = TeamEpisodeInputs(map_set, dict(resolved))
     identity = {
         "tasks": [
-            [t.map_path, t.planner, t.label, t.robots, options_key(t.options), t.seed, t.comm_range_m] for t in tasks
+            [t.map_path, t.spec.name, t.spec.label, t.robots, json.dumps(t.spec.options, sort_keys=True, default=str)]
+            + [t.seed, t.comm_range_m]
+            for t in tasks
         ],
         "start": list(start) if start is not None else None,
         "protocol": protocol.to_dict(),
-        "maps": files_digest(map_paths),
+        "maps": map_set.digest,
         "planners": descriptions,
         "source": source_digest(),
     }
@@ -307,11 +307,11 @@ def run_team_benchmark(
         )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         if finished:
-            write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, loaded)
+            write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, map_set)
         raise BenchmarkInterrupted(len(finished), len(tasks), out_dir) from None
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     episodes = [(tasks[i], finished[i]) for i in sorted(finished)]
-    run = write_team_tables(episodes, out_dir, record, loaded)
+    run = write_team_tables(episodes, out_dir, record, map_set)
     run.errors = write_planner_errors(
         [(result.map_name, task.run_label, result.failure, "") for task, result in episodes], out_dir
     )
@@ -373,10 +373,7 @@ def coverage_rows(task: TeamEpisodeTask, result: TeamEpisodeResult) -> list[dict
 
 
 def write_team_tables(
-    episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]],
-    out_dir: Path,
-    record: dict[str, Any],
-    maps: dict[str, tuple[GroundTruthMap, Protocol, bool]],
+    episodes: Sequence[tuple[TeamEpisodeTask, TeamEpisodeResult]], out_dir: Path, record: dict[str, Any], maps: MapSet
 ) -> TeamBenchmarkRun:
     """team_metrics.csv, team_coverage.csv and team_summary.json from the episodes (in task order)."""
     frame = pd.DataFrame(

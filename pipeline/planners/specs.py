@@ -73,8 +73,7 @@ def parse_planner_spec(text: str, reserved: Sequence[str] = ()) -> PlannerSpec:
         raise ValueError(
             f"planner spec {raw!r}: label {label!r} must be letters, digits, '_', '-' or '.' (it names a folder)"
         )
-    if label.lower() in reserved or label.lower().endswith(".tmp"):
-        raise ValueError(f"planner spec {raw!r}: label {label!r} is the name of a benchmark output file; pick another")
+    _check_label(raw, label, reserved)
     if not name or not name.isidentifier() or name != name.lower():
         raise ValueError(f"planner spec {raw!r}: planner name {name!r} must be a lower-case identifier")
     options: dict[str, Any] = {}
@@ -91,6 +90,23 @@ def parse_planner_spec(text: str, reserved: Sequence[str] = ()) -> PlannerSpec:
                 raise ValueError(f"planner spec {raw!r}: option {key!r} is given twice")
             options[key] = parse_option_value(value)
     return PlannerSpec(label, name, options)
+
+
+def _check_label(raw: str, label: str, reserved: Sequence[str]) -> None:
+    if label.lower() in reserved or label.lower().endswith(".tmp"):
+        raise ValueError(f"planner spec {raw!r}: label {label!r} is the name of a benchmark output file; pick another")
+
+
+def check_reserved(spec: PlannerSpec, reserved: Sequence[str]) -> PlannerSpec:
+    """`spec`, or the parser's ValueError when its label is one of the `reserved` output file names."""
+    _check_label(str(spec), spec.label, reserved)
+    return spec
+
+
+def as_specs(planners: Sequence[str | PlannerSpec]) -> list[PlannerSpec]:
+    """Each entry as a PlannerSpec, a string parsed (`parse_planner_spec`): where a command line or a
+    params file's planners enter, so that the spec is parsed once and carried from there."""
+    return [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry) for entry in planners]
 
 
 def check_option_value(key: str, value: Any, info: OptionInfo) -> None:
@@ -114,7 +130,10 @@ def resolve_planner_specs(planners: Sequence[str | PlannerSpec], reserved: Seque
     """Parse every entry, check the names are registered (KeyError listing the known ones),
     the options are the planner's config's with values of the right kind, and the labels are
     unique (ValueError). The values themselves are checked by the configs: `build_planner`."""
-    specs = [entry if isinstance(entry, PlannerSpec) else parse_planner_spec(entry, reserved) for entry in planners]
+    specs = [
+        check_reserved(entry, reserved) if isinstance(entry, PlannerSpec) else parse_planner_spec(entry, reserved)
+        for entry in planners
+    ]
     seen: set[str] = set()
     for spec in specs:
         planner_config(spec.name)  # unknown names fail here, with the list of known ones

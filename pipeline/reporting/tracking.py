@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from pipeline.common.mlflow_store import import_mlflow, log_maze_set, resolve_tracking_uri
-from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, BenchmarkRun
+from pipeline.common.mlflow_store import import_mlflow, maze_set_input, resolve_tracking_uri
+from pipeline.evaluation.benchmark import COVERAGE_FIGURE, RUN_RECORD, BenchmarkRun, MapSet
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV
 from pipeline.evaluation.team_benchmark import (
     TEAM_COVERAGE_FIGURE,
@@ -20,19 +20,28 @@ from pipeline.evaluation.team_benchmark import (
 from pipeline.world.protocol import Protocol
 
 
+def maze_set_logger(map_set: MapSet):
+    """A function that records the run's maze set as a dataset input of the active MLflow run, its
+    dataset made once (from the folder the maps were listed from; a list of paths is not logged)."""
+    mlflow = import_mlflow()
+    if map_set.folder is None:
+        return lambda: None
+    dataset, tags = maze_set_input(map_set.folder, "evaluation", map_set.digest)
+    return lambda: mlflow.log_input(dataset, context="evaluation", tags=tags)
+
+
 def log_benchmark(
     run: BenchmarkRun,
     out_dir: str | Path,
     protocol: Protocol,
-    maps: str,
     tracking_uri: str | None = None,
     experiment: str = "benchmark",
 ) -> list[str]:
     """One MLflow run per planner of a benchmark `run` written to `out_dir`: protocol params, the
     planner's name, options and description (from its run.json), summary metrics, the exploration metrics (exploration.csv:
     distance to 50 / 90 / 99 %, coverage AUC, Table V efficiency), and as artifacts summary.md,
-    metrics.csv, exploration.csv and the coverage figure; `maps` (the maze folder) is each run's
-    dataset input, with its DVC hash when a stage made it.
+    metrics.csv, exploration.csv and the coverage figure; the run's maze set is each run's dataset
+    input, with its DVC hash when a stage made it.
 
     Returns the run ids.
     """
@@ -44,6 +53,7 @@ def log_benchmark(
     record_path = out_dir / RUN_RECORD
     record = json.loads(record_path.read_text()) if record_path.is_file() else {}
     exploration = run.exploration.set_index("planner")
+    log_maze_set, maps = maze_set_logger(run.map_set), run.map_set.folder
     run_ids = []
     for planner, row in summary.iterrows():
         with mlflow.start_run(run_name=str(planner)) as run:
@@ -58,7 +68,7 @@ def log_benchmark(
                 if ran
                 else {}
             )
-            log_maze_set(maps, "evaluation")
+            log_maze_set()
             mlflow.log_params(
                 {
                     **record.get("protocol", protocol.to_dict()),
@@ -119,7 +129,6 @@ def log_team_benchmark(
     run: TeamBenchmarkRun,
     out_dir: str | Path,
     protocol: Protocol,
-    maps: str,
     tracking_uri: str | None = None,
     experiment: str = "benchmark",
 ) -> list[str]:
@@ -127,7 +136,7 @@ def log_team_benchmark(
     `log_benchmark` logs one per planner: protocol params, the planner's name, options and
     description, the robot count and range, team_summary.json's figures as metrics (those no
     episode reached left out), and as artifacts team_summary.json, team_metrics.csv and the
-    team coverage figure; `maps` is each run's dataset input.
+    team coverage figure; the run's maze set is each run's dataset input.
 
     Returns the run ids.
     """
@@ -136,11 +145,12 @@ def log_team_benchmark(
     mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
     mlflow.set_experiment(experiment)
     record = run.record
+    log_maze_set, maps = maze_set_logger(run.map_set), run.map_set.folder
     run_ids = []
     for run_label, row in run.summary.items():
         with mlflow.start_run(run_name=run_label) as active:
             ran = record.get("planners", {}).get(row["label"], {})
-            log_maze_set(maps, "evaluation")
+            log_maze_set()
             mlflow.log_params(
                 {
                     **record.get("protocol", protocol.to_dict()),

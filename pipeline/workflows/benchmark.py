@@ -6,34 +6,35 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
+from pipeline.common.config import Section, list_of, maybe, positive, satisfies, whole
 from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
     BenchmarkRun,
+    MapSet,
     raise_planner_errors,
     run_benchmark,
     with_policy_checkpoint,
 )
 from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE
 from pipeline.evaluation.exploration_curves import SpeedModel
-from pipeline.planners.specs import parse_planner_spec
+from pipeline.evaluation.team_benchmark import resolve_team_specs
+from pipeline.planners.specs import PlannerSpec, as_specs, resolve_planner_specs
 from pipeline.reporting.benchmark_figures import distance_bar_chart, planner_paths_figure
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
-from pipeline.world.map_files import MapError
-from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
 
 
 def benchmark_folder(
     maps: Path,
-    planners: list[str],
+    planners: Sequence[str | PlannerSpec],
     protocol: Protocol,
     out: Path,
     *,
@@ -60,31 +61,28 @@ def benchmark_folder(
     """
     if mlflow:
         check_tracking_uri(tracking_uri)
-    map_paths = list_maps(maps)
-    if not map_paths:
-        raise MapError(maps, "no maps in this folder (maze .png, .npy or ROS .yaml)")
-    specs = with_policy_checkpoint(list(planners), checkpoint)
-    labels = [parse_planner_spec(spec).label for spec in specs]
+    map_set = MapSet.of(maps, protocol, start)
+    specs = with_policy_checkpoint(as_specs(planners), checkpoint)
+    labels = [spec.label for spec in specs]
     if baseline is None:
         baseline = DEFAULT_BASELINE if DEFAULT_BASELINE in labels else ""
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
     run = run_benchmark(
-        map_paths,
+        map_set,
         specs,
         protocol,
         out,
         workers=workers,
         seed=seed,
         baseline=baseline or None,
-        start=start,
         warn=warn,
         speed=speed,
         backend=backend,
     )
     draw_coverage(run, out, speed)
     if mlflow:
-        log_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
+        log_benchmark(run, out, protocol, tracking_uri=tracking_uri, experiment=experiment)
     return run
 
 
@@ -98,6 +96,33 @@ def draw_coverage(run: BenchmarkRun, out: Path, speed: SpeedModel) -> Path:
     )
 
 
+# A planner entry as on the command line, parsed once and checked by the registry.
+PLANNER_SPEC = satisfies(
+    lambda spec: resolve_planner_specs([spec])[0],
+    "a planner spec: a registered planner's name or label=name:option=value,...",
+    parses=True,
+)
+# A team planner entry: a coordinated team name, uncoordinated_<name>, or a single planner's name.
+TEAM_PLANNER_SPEC = satisfies(
+    lambda spec: resolve_team_specs([spec])[0][0],
+    "a team planner spec: a planner's name (its coordinated team version where there is "
+    "one) or uncoordinated_<name>, with label=...:option=value,... as for planners",
+    parses=True,
+)
+
+
+class Settings(Section):
+    """The `benchmark` section of params.yaml."""
+
+    planners: list_of(PLANNER_SPEC)
+    seed: whole(0)
+    workers: maybe(whole(1), "all cores")
+    speed_mps: positive("metres per second")
+    robots: list_of(whole(1, 8), min_length=0) = []
+    team_planners: list_of(TEAM_PLANNER_SPEC, min_length=0) = []
+    comm_range_m: maybe(positive("metres"), "one shared belief") = None
+
+
 TEST_MAZES = DATA.mazes_test
 OUT_DIR = REPORTS.benchmark
 METRICS_PATH = REPORTS.benchmark_metrics
@@ -109,23 +134,23 @@ KEPT_TEAM_EPISODES = CHECKPOINTS.teams
 TEAMS_METRICS_PATH = REPORTS.teams_metrics
 
 
-def benchmark_test_mazes(section: dict, protocol: Protocol):
+def benchmark_test_mazes(settings: Settings, protocol: Protocol):
     """Every planner of the `benchmark` settings on the test mazes: run, tabulated, charted, logged.
 
     reports/benchmark/ is built in a temporary folder that replaces it as a whole once every file
     in it is written: a stage killed halfway leaves the previous folder, never a mix of two runs.
     Its finished episodes are kept in checkpoints/ meanwhile, so that the rerun makes only the rest.
     """
-    maps = generated_maps(TEST_MAZES, "test mazes")
-    speed = SpeedModel(section["speed_mps"])
+    maps = MapSet(tuple(map(str, generated_maps(TEST_MAZES, "test mazes"))), protocol, folder=str(TEST_MAZES))
+    speed = SpeedModel(settings.speed_mps)
     with atomic_folder(OUT_DIR) as out_dir:
         run = run_benchmark(
             maps,
-            section["planners"],
+            settings.planners,
             protocol,
             out_dir,
-            workers=section["workers"],
-            seed=int(section["seed"]),
+            workers=settings.workers,
+            seed=settings.seed,
             speed=speed,
             keep_dir=KEPT_EPISODES,
         )
@@ -152,35 +177,34 @@ def benchmark_test_mazes(section: dict, protocol: Protocol):
         + "\n",
     )
     distance_bar_chart(summary, CHART_PATH)
-    first, _, _ = run.maps[Path(maps[0]).stem]
+    first, _, _ = run.maps[maps.names[0]]
     planner_paths_figure(first, run.frame, OUT_DIR, FIGURE_PATH)
-    log_benchmark(run, OUT_DIR, protocol, maps=str(TEST_MAZES), experiment="benchmark")
+    log_benchmark(run, OUT_DIR, protocol, experiment="benchmark")
     print((OUT_DIR / "summary.md").read_text())
-    team_errors = benchmark_teams(section, protocol)
+    team_errors = benchmark_teams(settings, maps)
     raise_planner_errors(run.errors, OUT_DIR)  # the stage fails, after every file is written, with the list
     raise_planner_errors(team_errors, TEAMS_DIR)
 
 
-def benchmark_teams(section: dict, protocol: Protocol) -> list[tuple[str, str, str]]:
+def benchmark_teams(settings: Settings, maps: MapSet) -> list[tuple[str, str, str]]:
     """The `team_planners` at each of the `robots` counts on the test mazes (`comm_range_m`:
     None, one shared belief): reports/teams/ (built whole, as reports/benchmark/) and the metrics
     DVC tracks, reports/teams.json. No robots or no team planners: both written empty. Returns
     the episodes whose planner raised (`TeamBenchmarkRun.errors`)."""
-    robots, planners = list(section.get("robots") or []), list(section.get("team_planners") or [])
     summary: dict = {}
     errors: list[tuple[str, str, str]] = []
     with atomic_folder(TEAMS_DIR) as out_dir:
-        if robots and planners:
+        if settings.robots and settings.team_planners:
             run = team_benchmark_folder(
-                TEST_MAZES,
-                planners,
-                protocol,
+                maps,
+                settings.team_planners,
+                maps.protocol,
                 out_dir,
-                robots,
-                comm_range_m=section.get("comm_range_m"),
-                workers=section["workers"],
-                seed=int(section["seed"]),
-                speed=SpeedModel(section["speed_mps"]),
+                settings.robots,
+                comm_range_m=settings.comm_range_m,
+                workers=settings.workers,
+                seed=settings.seed,
+                speed=SpeedModel(settings.speed_mps),
                 experiment="benchmark_teams",
                 keep_dir=KEPT_TEAM_EPISODES,
             )

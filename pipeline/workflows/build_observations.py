@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, fraction, maybe, text, whole
 from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
@@ -23,6 +24,18 @@ from pipeline.world.protocol import Protocol
 
 EXPERT_DIR = DATA.expert
 SUMMARY = REPORTS.observations
+
+
+class Settings(Section):
+    """The `build_observations` section of params.yaml."""
+
+    max_nodes: whole(1)
+    max_neighbors: whole(1)
+    threshold: fraction("tau of the graph's predicted nodes")
+    count_threshold: fraction("tau of the nodes the utility boost counts")
+    min_component: whole(0, note="0 or 1: keep every predicted node")
+    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
+    workers: whole(0, note="0 or 1: in this process")
 
 
 def _shard_observations(task: tuple) -> dict:
@@ -48,9 +61,9 @@ def _shard_observations(task: tuple) -> dict:
     return shard_observations(shard, first_episode_id, Protocol.from_dict(protocol_dict), inpainter, settings)
 
 
-def build_observations(section: dict, protocol: Protocol):
+def build_observations(settings: Settings, protocol: Protocol):
     """Both variants' graph observations from the `build_observations` settings; the summary."""
-    inpainter = Path(section["inpainter"] or PIPELINE_INPAINTER)
+    inpainter = Path(settings.inpainter or PIPELINE_INPAINTER)
     if not inpainter.is_file():
         raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
     # The manifest, not a folder listing: it is written last, so a collection that never
@@ -65,23 +78,22 @@ def build_observations(section: dict, protocol: Protocol):
         raise SystemExit(f"error: {EXPERT_DIR}: no expert shards; run the collect_expert stage first")
     counts = [int(entry["episodes"]) for entry in entries]
     firsts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
-    count_threshold = float(section["count_threshold"])
     tasks = [
         (
             str(s),
             int(f),
             protocol.to_dict(),
             str(inpainter),
-            float(section["threshold"]),
-            count_threshold,
-            int(section["min_component"]),
-            int(section["max_nodes"]),
-            int(section["max_neighbors"]),
+            settings.threshold,
+            settings.count_threshold,
+            settings.min_component,
+            settings.max_nodes,
+            settings.max_neighbors,
         )
         for s, f in zip(shards, firsts)
     ]
     started = time.perf_counter()
-    workers = max(1, int(section["workers"]))
+    workers = max(1, settings.workers)
     identity = {
         "tasks": tasks,
         "expert": files_digest([EXPERT_DIR]),
@@ -102,8 +114,8 @@ def build_observations(section: dict, protocol: Protocol):
         arrays = concatenate(r[variant] for r in results)
         meta = {
             "variant": variant,
-            **{k: section[k] for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
-            "count_threshold": count_threshold,
+            **{k: getattr(settings, k) for k in ("max_nodes", "max_neighbors", "threshold", "min_component")},
+            "count_threshold": settings.count_threshold,
             "protocol": protocol.to_dict(),
         }
         save_observations(POLICIES[variant].observations, arrays, meta)

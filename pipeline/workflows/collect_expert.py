@@ -6,12 +6,19 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationInfo, field_validator
+from pydantic_core import PydanticCustomError
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, flag, satisfies, whole
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import EXPERT_SOURCES, ExpertConfig, collect_expert_shard
 from pipeline.data.expert_episodes import load_expert_episodes
 from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.planners import planner_config
+from pipeline.planners.registry import accepted_options, make_config
 from pipeline.reporting.render import render_frame, save_png
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.maps import GroundTruthMap
@@ -21,6 +28,37 @@ TRAIN_MAZES = DATA.mazes_train
 OUT_DIR = DATA.expert
 SUMMARY = REPORTS.expert
 PREVIEW = REPORTS.expert_preview
+
+
+class Settings(Section):
+    """The `collect_expert` section of params.yaml."""
+
+    seed: whole(0)
+    episodes: whole(1)
+    episodes_per_shard: whole(1)
+    planner: satisfies(planner_config, "a registered planner name", str)
+    planner_options: dict[str, Any]
+    horizon: whole(1, note="future waypoints per step")
+    random_starts: flag()
+    workers: whole(0, note="0 or 1: in this process")
+
+    @field_validator("planner_options")
+    @classmethod
+    def _options_the_planner_takes(cls, options: dict[str, Any], info: ValidationInfo) -> dict[str, Any]:
+        """An option the planner does not take fails here, by its key, not in the first worker."""
+        planner = info.data.get("planner")
+        if planner is None:  # the planner itself was refused
+            return options
+        accepted = accepted_options(planner, options)
+        for key in options:
+            if key not in accepted:
+                raise PydanticCustomError(
+                    "unknown_key",
+                    "{planner} has no option {key}",
+                    {"key": key, "known": ", ".join(accepted), "planner": planner},
+                )
+        make_config(planner, **options)
+        return options
 
 
 def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
@@ -42,20 +80,19 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     save_png(image, path)
 
 
-def collect_expert(section: dict, protocol: Protocol, backend: str | None = None):
+def collect_expert(settings: Settings, protocol: Protocol, backend: str | None = None):
     """The expert episode shards from the `collect_expert` settings, a summary and a preview; the summary."""
     maps = tuple(str(p) for p in generated_maps(TRAIN_MAZES, "training mazes"))
-    per_shard = int(section["episodes_per_shard"])
-    shard_count = shard_count_for(int(section["episodes"]), per_shard, "episodes")
+    shard_count = shard_count_for(settings.episodes, settings.episodes_per_shard, "episodes")
     config = ExpertConfig(
         maps=maps,
-        episodes_per_shard=per_shard,
-        planner=str(section["planner"]),
-        planner_options=tuple(sorted((section.get("planner_options") or {}).items())),
-        horizon=int(section["horizon"]),
-        seed=int(section["seed"]),
+        episodes_per_shard=settings.episodes_per_shard,
+        planner=settings.planner,
+        planner_options=tuple(sorted(settings.planner_options.items())),
+        horizon=settings.horizon,
+        seed=settings.seed,
         protocol=protocol,
-        random_starts=bool(section["random_starts"]),
+        random_starts=settings.random_starts,
     )
     started = time.perf_counter()
     manifest = run_shards(
@@ -63,7 +100,7 @@ def collect_expert(section: dict, protocol: Protocol, backend: str | None = None
         shard_count,
         OUT_DIR,
         {"config": config},
-        workers=int(section["workers"]),
+        workers=settings.workers,
         backend=backend,
         description="expert shards",
         sources=EXPERT_SOURCES,

@@ -11,10 +11,12 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_file, atomic_write_json
+from pipeline.common.config import Section, list_of, pair, satisfies, whole
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.data.collect import PAIRS_SOURCES, PairsConfig, collect_pairs_shard
 from pipeline.data.pairs import load_pairs
 from pipeline.data.shards import rate_per_minute, run_shards, shard_count_for, shard_path
+from pipeline.planners import planner_config
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.protocol import Protocol
 
@@ -22,6 +24,18 @@ TRAIN_MAZES = DATA.mazes_train
 OUT_DIR = DATA.pairs
 SUMMARY = REPORTS.pairs
 PREVIEW = REPORTS.pairs_preview
+
+
+class Settings(Section):
+    """The `collect_pairs` section of params.yaml."""
+
+    seed: whole(0)
+    pairs: whole(1)
+    pairs_per_shard: whole(1)
+    planners: list_of(satisfies(planner_config, "a registered planner name", str))  # each rollout builds one by name
+    snapshot_every: whole(1, note="steps")
+    stop_steps: pair(whole(1, note="steps"))
+    workers: whole(0, note="0 or 1: in this process")
 
 
 def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, scale: int = 6) -> None:
@@ -51,18 +65,17 @@ def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, s
         cv2.imwrite(str(tmp), np.concatenate(rows, axis=0))
 
 
-def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None):
+def collect_pairs(settings: Settings, protocol: Protocol, backend: str | None = None):
     """The Stage I pair shards from the `collect_pairs` settings, a summary and a preview; the summary."""
     maps = tuple(str(p) for p in generated_maps(TRAIN_MAZES, "training mazes"))
-    per_shard = int(section["pairs_per_shard"])
-    shard_count = shard_count_for(int(section["pairs"]), per_shard, "pairs")
+    shard_count = shard_count_for(settings.pairs, settings.pairs_per_shard, "pairs")
     config = PairsConfig(
         maps=maps,
-        pairs_per_shard=per_shard,
-        planners=tuple(section["planners"]),
-        snapshot_every=int(section["snapshot_every"]),
-        stop_steps=tuple(section["stop_steps"]),
-        seed=int(section["seed"]),
+        pairs_per_shard=settings.pairs_per_shard,
+        planners=tuple(settings.planners),
+        snapshot_every=settings.snapshot_every,
+        stop_steps=tuple(settings.stop_steps),
+        seed=settings.seed,
         protocol=protocol,
     )
     started = time.perf_counter()
@@ -71,7 +84,7 @@ def collect_pairs(section: dict, protocol: Protocol, backend: str | None = None)
         shard_count,
         OUT_DIR,
         {"config": config},
-        workers=int(section["workers"]),
+        workers=settings.workers,
         backend=backend,
         description="pair shards",
         sources=PAIRS_SOURCES,

@@ -29,8 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import field_validator
 
 from pipeline.common.atomic import atomic_file, atomic_folder, atomic_write_json
+from pipeline.common.config import Section, every_key, flag, maybe, positive, text, whole
 from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
@@ -44,10 +46,12 @@ from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
+from pipeline.planners.registry import make_config
+from pipeline.planners.specs import PlannerSpec
 from pipeline.reporting.training_figures import dagger_rounds_figure
-from pipeline.training.policy import train_planner
+from pipeline.training.policy import PlannerTrainConfig, train_planner
 from pipeline.training.policy_launch import train_in_subprocess
-from pipeline.training.run_setup import resume_point, start_afresh
+from pipeline.training.run_setup import DEVICES, resume_point, start_afresh
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.mazes import MazeConfig, generate_maze_set
 from pipeline.world.protocol import Protocol
@@ -57,12 +61,50 @@ STUDENT_LABEL = "guide_policy"  # the policy driving as the paper's planner: gui
 TEACHER_MODELS = (MODELS.inpainter, MODELS.block_model, MODELS.sliver_gate, POLICIES["guide"].model)
 
 
+class Teacher(Section):
+    """The planner DAgger imitates: a registered planner and options it accepts (it must report its
+    target: the run says so when it does not)."""
+
+    planner: text(note="a registered planner name")
+    options: dict[str, Any] = {}
+
+    @field_validator("options")
+    @classmethod
+    def _options_the_planner_takes(cls, options: dict[str, Any], info: Any) -> dict[str, Any]:
+        if info.data.get("planner") is not None:
+            make_config(info.data["planner"], **options)
+        return options
+
+
+class Settings(Section):
+    """The `distil_policy` section of params.yaml."""
+
+    teacher: Teacher
+    start_policy: maybe(text(note="a guide policy export"), "models/planner_guide/policy.pt")
+    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
+    rounds: whole(0, note="DAgger rounds after round 0")
+    teacher_episodes: whole(1)
+    episodes: whole(1)
+    episodes_per_shard: whole(1)
+    random_starts: flag()
+    seed: whole(0)
+    train: every_key(PlannerTrainConfig)
+    eval_mazes: whole(2, note="paired comparison needs at least 2")
+    eval_side_m: positive("metres")
+    eval_seed: whole(0)
+    workers: whole(0, note="0 or 1: in this process")
+    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
+    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
+    devices: DEVICES = 1
+    experiment: text(note="an MLflow experiment")
+
+
 def round_folder(r: int) -> Path:
     return CHECKPOINTS.distil / f"round_{r}"
 
 
-def start_policy_path(section: dict) -> Path:
-    path = Path(section["start_policy"] or PIPELINE_POLICY["guide"])
+def start_policy_path(settings: Settings) -> Path:
+    path = Path(settings.start_policy or PIPELINE_POLICY["guide"])
     if not path.is_file():
         raise SystemExit(f"error: {path}: no start policy; run the train_planner@guide stage first")
     return path
@@ -87,21 +129,21 @@ def observation_settings(start_meta: dict) -> dict:
 
 
 # ----------------------------------------------------------------------------- one round's data
-def collect_round(section: dict, protocol: Protocol, r: int, student: Path | None, horizon: int) -> dict:
+def collect_round(settings: Settings, protocol: Protocol, r: int, student: Path | None, horizon: int) -> dict:
     """Round r's labelled episodes: made in checkpoints/, published at data/dagger/round_<r>; its manifest."""
-    episodes = int(section["teacher_episodes"] if student is None else section["episodes"])
-    per_shard = int(section["episodes_per_shard"])
+    episodes = settings.teacher_episodes if student is None else settings.episodes
+    per_shard = settings.episodes_per_shard
     config = DaggerConfig(
         maps=tuple(str(p) for p in generated_maps(DATA.mazes_train, "training mazes")),
         episodes_per_shard=per_shard,
-        teacher=str(section["teacher"]["planner"]),
-        teacher_options=dict(section["teacher"].get("options") or {}),
+        teacher=settings.teacher.planner,
+        teacher_options=dict(settings.teacher.options),
         student=None if student is None else str(student),
         horizon=horizon,
-        seed=int(section["seed"]),
+        seed=settings.seed,
         round=r,
         protocol=protocol,
-        random_starts=bool(section["random_starts"]),
+        random_starts=settings.random_starts,
     )
     # The labels depend on the teacher's models and the driver's weights, not only on their paths.
     models = {
@@ -114,7 +156,7 @@ def collect_round(section: dict, protocol: Protocol, r: int, student: Path | Non
         shard_count_for(episodes, per_shard, "episodes"),
         DATA.dagger / f"round_{r}",
         {"config": config},
-        workers=int(section["workers"]),
+        workers=settings.workers,
         description=f"round {r} ({who})",
         sources=COLLECTION_SOURCES,
         work_dir=round_folder(r) / "shards",
@@ -160,17 +202,17 @@ def round_observations(
 
 
 # ----------------------------------------------------------------------------- one round's policy
-def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict) -> tuple[Path, dict]:
+def train_round(settings: Settings, r: int, aggregate: Path, init: Path, model: dict) -> tuple[Path, dict]:
     """Fine-tune from `init` on the aggregate; the export and its metadata. A killed training
     resumes from its checkpoint when its settings, data and starting weights are the same.
 
     On one device the training runs in this process. On several (`devices`, DDP), it runs in a
     child process that only trains (`train_in_subprocess`), because DDP starts its other processes
     by running the script again, and a rerun of this stage would collect the round again."""
-    train = dict(section["train"])
+    train = dict(settings.as_written()["train"])  # as the file names it: the fingerprint and the export record it
     folder = round_folder(r)
-    devices = section.get("devices", 1)
-    layout = {"accelerator": section["accelerator"], **({"devices": devices} if devices != 1 else {})}
+    devices = settings.devices
+    layout = {"accelerator": settings.accelerator, **({"devices": devices} if devices != 1 else {})}
     fingerprint = settings_digest(
         {"model": model, "train": train, **layout, "data": files_digest([aggregate]), "init": files_digest([init])}
     )
@@ -183,13 +225,13 @@ def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict)
         out_dir=folder / "policy",
         model_config=model,
         train_config=train,
-        accelerator=str(section["accelerator"]),
+        accelerator=settings.accelerator,
         devices=devices,
         resume=resume_from is not None,
         checkpoint_dir=checkpoints,
-        experiment_name=str(section["experiment"]),
+        experiment_name=settings.experiment,
         run_name=f"distil round {r}",
-        num_threads=section["threads"],
+        num_threads=settings.threads,
         init_policy=init,
     )
     export = train_planner(**arguments) if devices == 1 else train_in_subprocess(**arguments)
@@ -199,20 +241,20 @@ def train_round(section: dict, r: int, aggregate: Path, init: Path, model: dict)
 
 
 # ----------------------------------------------------------------------------- closed loop
-def eval_mazes(section: dict, protocol: Protocol) -> list[Path]:
+def eval_mazes(settings: Settings, protocol: Protocol) -> list[Path]:
     """The fresh evaluation mazes (seed `eval_seed`), drawn once into checkpoints/distil/eval_mazes."""
-    count, side = int(section["eval_mazes"]), float(section["eval_side_m"])
-    folder = CHECKPOINTS.distil / f"eval_mazes_{count}_{side:g}m_seed{int(section['eval_seed'])}"
+    count, side = settings.eval_mazes, settings.eval_side_m
+    folder = CHECKPOINTS.distil / f"eval_mazes_{count}_{side:g}m_seed{settings.eval_seed}"
     paths = sorted(folder.glob("maze_*.png"))
     if len(paths) != count:  # none yet, or another count: drawn afresh (the folder replaced whole)
         config = MazeConfig(side_m=(side, side), cell_size=protocol.cell_size)
         with atomic_folder(folder) as tmp:
-            generate_maze_set(config, count, tmp, seed=int(section["eval_seed"]), progress=False)
+            generate_maze_set(config, count, tmp, seed=settings.eval_seed, progress=False)
         paths = sorted(folder.glob("maze_*.png"))
     return paths
 
 
-def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, mazes: list[Path]) -> dict:
+def closed_loop(settings: Settings, protocol: Protocol, policy: Path, name: str, mazes: list[Path]) -> dict:
     """`guide:mode=policy` with `policy` and `greedy_utility` on the evaluation mazes, paired; kept
     in checkpoints/distil/ under `name` (a rerun with the same policy and mazes reads it back)."""
     folder = CHECKPOINTS.distil / f"eval_{name}"
@@ -230,8 +272,8 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
         if kept.get("identity") == identity:
             return kept["result"]
     shutil.rmtree(folder, ignore_errors=True)
-    specs = [BASELINE, f"{STUDENT_LABEL}=guide:mode=policy,policy_file={policy}"]
-    frame = run_benchmark(mazes, specs, protocol, folder, workers=int(section["workers"]), progress=True).frame
+    specs = [BASELINE, PlannerSpec(STUDENT_LABEL, "guide", {"mode": "policy", "policy_file": str(policy)})]
+    frame = run_benchmark(mazes, specs, protocol, folder, workers=settings.workers, progress=True).frame
     mean, half, maps = paired_difference(frame, STUDENT_LABEL, BASELINE)
     ours = frame[frame.planner == STUDENT_LABEL]
     result = {
@@ -250,35 +292,36 @@ def closed_loop(section: dict, protocol: Protocol, policy: Path, name: str, maze
 
 
 # ----------------------------------------------------------------------------- the rounds
-def distil_policy(section: dict, protocol: Protocol) -> dict:
+def distil_policy(settings: Settings, protocol: Protocol) -> dict:
     """Round 0 and `rounds` DAgger rounds from the `distil_policy` settings; the summary."""
     started = time.perf_counter()
-    start = start_policy_path(section)
+    start = start_policy_path(settings)
     _, start_meta = load_policy(start)
-    settings = observation_settings(start_meta)
+    observed = observation_settings(start_meta)
     model = dict(start_meta["config"])
     horizon = int(model["horizon"])
-    inpainter = Path(section["inpainter"] or PIPELINE_INPAINTER)
+    inpainter = Path(settings.inpainter or PIPELINE_INPAINTER)
     if not inpainter.is_file():
         raise SystemExit(f"error: {inpainter}: no inpainter export; run the train_inpainter stage first")
-    workers = max(1, int(section["workers"]))
-    mazes = eval_mazes(section, protocol)
+    workers = max(1, settings.workers)
+    mazes = eval_mazes(settings, protocol)
     rows: list[dict[str, Any]] = [
-        {"round": "start", "policy": str(start), **closed_loop(section, protocol, start, "start", mazes)}
+        {"round": "start", "policy": str(start), **closed_loop(settings, protocol, start, "start", mazes)}
     ]
     parts: list[dict[str, np.ndarray]] = []
     policy, episodes_so_far = start, 0
-    meta_for_file = {"variant": "guide", **settings, "protocol": protocol.to_dict(), "teacher": section["teacher"]}
-    for r in range(int(section["rounds"]) + 1):
-        manifest = collect_round(section, protocol, r, None if r == 0 else policy, horizon)
+    teacher = settings.as_written()["teacher"]  # as the file names it: the data and the summary record it
+    meta_for_file = {"variant": "guide", **observed, "protocol": protocol.to_dict(), "teacher": teacher}
+    for r in range(settings.rounds + 1):
+        manifest = collect_round(settings, protocol, r, None if r == 0 else policy, horizon)
         totals = manifest["totals"]
-        parts.append(round_observations(protocol, r, episodes_so_far, settings, inpainter, workers))
+        parts.append(round_observations(protocol, r, episodes_so_far, observed, inpainter, workers))
         episodes_so_far += int(totals["episodes"])
         aggregate = round_folder(r) / "aggregate.npz"
         arrays = concatenate(parts)
         if not aggregate.is_file() or not _same_arrays(aggregate, arrays):
             save_observations(aggregate, arrays, {**meta_for_file, "rounds": r + 1})
-        policy, meta = train_round(section, r, aggregate, policy, model)
+        policy, meta = train_round(settings, r, aggregate, policy, model)
         last = (meta.get("history") or [{}])[-1]
         row = {
             "round": r,
@@ -292,7 +335,7 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
             "heldout_agreement": last.get("val_first_step_accuracy"),
             "train_seconds": meta.get("train_seconds"),
             "policy": str(policy),
-            **closed_loop(section, protocol, policy, f"round_{r}", mazes),
+            **closed_loop(settings, protocol, policy, f"round_{r}", mazes),
         }
         rows.append(row)
         print(
@@ -305,15 +348,15 @@ def distil_policy(section: dict, protocol: Protocol) -> dict:
     with atomic_file(MODELS.planner_distilled / "policy.pt") as tmp:
         shutil.copyfile(policy, tmp)
     summary = {
-        "teacher": section["teacher"],
+        "teacher": teacher,
         "start_policy": str(start),
-        "eval": {"mazes": len(mazes), "side_m": float(section["eval_side_m"]), "seed": int(section["eval_seed"])},
+        "eval": {"mazes": len(mazes), "side_m": settings.eval_side_m, "seed": settings.eval_seed},
         "rounds": rows,
         "seconds": round(time.perf_counter() - started, 1),
     }
     atomic_write_json(REPORTS.distil, summary)
     dagger_rounds_figure(rows, REPORTS.distil_figure)
-    log_rounds(section, rows)
+    log_rounds(settings, rows)
     return summary
 
 
@@ -322,33 +365,24 @@ def _same_arrays(path: Path, arrays: dict[str, np.ndarray]) -> bool:
     return all(np.array_equal(kept[k], arrays[k]) for k in arrays)
 
 
-def log_rounds(section: dict, rows: list[dict]) -> None:
+def log_rounds(settings: Settings, rows: list[dict]) -> None:
     """One MLflow run with each round's figures as a step (the MLflow curves of the rounds)."""
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
-    mlflow.set_experiment(str(section["experiment"]))
+    mlflow.set_experiment(settings.experiment)
+    s, teacher = settings, settings.teacher
     with mlflow.start_run(run_name="distil rounds"):
         log_maze_set(DATA.mazes_train, "training")
         log_generated_maze_set(
-            f"evaluation mazes ({section['eval_mazes']} of {float(section['eval_side_m']):g} m)",
-            {
-                "generator": "guide mazes",
-                "count": section["eval_mazes"],
-                "side_m": section["eval_side_m"],
-                "seed": section["eval_seed"],
-            },
+            f"evaluation mazes ({s.eval_mazes} of {s.eval_side_m:g} m)",
+            {"generator": "guide mazes", "count": s.eval_mazes, "side_m": s.as_written()["eval_side_m"]}
+            | {"seed": s.eval_seed},  # the side as the file names it: the set's digest
             "evaluation",
         )
-        teacher = section["teacher"]
         mlflow.log_params(
-            {
-                "teacher": teacher["planner"],
-                **{f"teacher.{k}": v for k, v in (teacher.get("options") or {}).items()},
-                "rounds": section["rounds"],
-                "episodes": section["episodes"],
-                "teacher_episodes": section["teacher_episodes"],
-                "eval_mazes": section["eval_mazes"],
-            }
+            {"teacher": teacher.planner, **{f"teacher.{k}": v for k, v in teacher.options.items()}}
+            | {"rounds": s.rounds, "episodes": s.episodes, "teacher_episodes": s.teacher_episodes}
+            | {"eval_mazes": s.eval_mazes}
         )
         for step, row in enumerate(rows):
             metrics = {

@@ -12,7 +12,7 @@ from tqdm import tqdm
 from pipeline.common.atomic import atomic_write_text
 from pipeline.evaluation.benchmark import with_policy_checkpoint
 from pipeline.evaluation.map_checks import before_episodes, step_limit_hint
-from pipeline.planners.specs import build_planner, resolve_planner_specs
+from pipeline.planners.specs import as_specs, build_planner, resolve_planner_specs
 from pipeline.planners.wrapper import innermost
 from pipeline.reporting.panels import render_final
 from pipeline.reporting.recorder import EpisodeRecorder
@@ -52,7 +52,7 @@ def prepare(
     FileNotFoundError in one line)."""
     ground_truth = load_map(map_path, start=start, cell_size=protocol.cell_size)
     protocol = protocol_for_map(protocol, ground_truth, map_path)
-    (spec,) = resolve_planner_specs(with_policy_checkpoint([planner], checkpoint))
+    (spec,) = resolve_planner_specs(with_policy_checkpoint(as_specs([planner]), checkpoint))
     agent = build_planner(spec)
     problems, _ = before_episodes(ground_truth, protocol, scan_for_unobservable=True)
     return Exploration(

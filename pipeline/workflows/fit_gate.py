@@ -11,8 +11,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import model_validator
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, fraction, list_of, maybe, whole
 from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
@@ -32,6 +34,29 @@ METRICS_PATH = REPORTS.sliver_gate
 FIGURE_PATH = REPORTS.sliver_gate_figure
 EXPERIMENT = "sliver_gate"
 KEPT_SAMPLES = CHECKPOINTS.gate_samples
+
+
+class Settings(Section):
+    """The `fit_gate` section of params.yaml."""
+
+    maps: whole(1)
+    holdout_maps: whole(0)
+    offices: whole(0)
+    office_holdout: whole(0)
+    hidden: list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)")
+    fit_samples: maybe(whole(1)) = None
+    min_gain: whole(0, note="cells")
+    wall_margin: whole(0, note="cells")
+    threshold: fraction("P(big)")
+    workers: whole(1)
+
+    @model_validator(mode="after")
+    def _holdouts_leave_maps_to_fit(self) -> "Settings":
+        if not self.holdout_maps < self.maps:
+            raise ValueError(f"holdout_maps ({self.holdout_maps}) must be below maps ({self.maps})")
+        if self.offices and not self.office_holdout < self.offices:
+            raise ValueError(f"office_holdout ({self.office_holdout}) must be below offices ({self.offices})")
+        return self
 
 
 def _samples(task: tuple[str, dict, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -59,26 +84,20 @@ def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path
     return maps
 
 
-def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
+def fit_gate(settings: Settings, protocol: Protocol) -> dict[str, Any]:
     """Fit, measure and write the gate from the `fit_gate` settings; the metrics written to
     reports/sliver_gate.json."""
     from sklearn.metrics import roc_curve
 
-    office_holdout = section["office_holdout"] if section["offices"] else 0
+    s = settings
+    office_holdout = s.office_holdout if s.offices else 0
     families = {  # family -> (maps, how many of the last are held out)
-        "mazes": (
-            _family_maps(TRAIN_MAZES, section["maps"], section["holdout_maps"], "holdout_maps"),
-            section["holdout_maps"],
-        ),
-        "offices": (_family_maps(TRAIN_OFFICES, section["offices"], office_holdout, "office_holdout"), office_holdout),
+        "mazes": (_family_maps(TRAIN_MAZES, s.maps, s.holdout_maps, "holdout_maps"), s.holdout_maps),
+        "offices": (_family_maps(TRAIN_OFFICES, s.offices, office_holdout, "office_holdout"), office_holdout),
     }
     started = time.perf_counter()
     samples = collect(
-        [m for maps, _ in families.values() for m in maps],
-        protocol,
-        section["wall_margin"],
-        section["workers"],
-        keep_in=KEPT_SAMPLES,
+        [m for maps, _ in families.values() for m in maps], protocol, s.wall_margin, s.workers, keep_in=KEPT_SAMPLES
     )
     fit, held = [], {}  # (counts, gains) per fitted map; per family, those of its held-out maps
     for family, (maps, holdout) in families.items():
@@ -90,21 +109,21 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
     gate = fit_sliver_gate(
         np.concatenate([c for c, _ in fit]),
         fit_gains,
-        section["min_gain"],
-        section["wall_margin"],
+        s.min_gain,
+        s.wall_margin,
         protocol.sensor_range_cells,
-        section["threshold"],
-        tuple(section["hidden"]),
-        max_samples=section.get("fit_samples"),
+        s.threshold,
+        tuple(s.hidden),
+        max_samples=s.fit_samples,
     )
     metrics: dict[str, Any] = {
-        "maps_fit": len(families["mazes"][0]) - section["holdout_maps"],
-        "maps_holdout": section["holdout_maps"],
+        "maps_fit": len(families["mazes"][0]) - s.holdout_maps,
+        "maps_holdout": s.holdout_maps,
         "offices_fit": len(families["offices"][0]) - office_holdout,
         "offices_holdout": office_holdout,
-        "hidden": list(section["hidden"]),
+        "hidden": list(s.hidden),
         "samples_fit": int(len(fit_gains)),
-        "samples_drawn": int(min(len(fit_gains), section.get("fit_samples") or len(fit_gains))),
+        "samples_drawn": int(min(len(fit_gains), s.fit_samples or len(fit_gains))),
         "big_share_fit": round(float((fit_gains >= gate.min_gain).mean()), 4),
     }
     curves = {}
@@ -137,18 +156,18 @@ def fit_gate(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
     atomic_write_json(METRICS_PATH, metrics)
     if curves:
         gate_roc_curves(curves, FIGURE_PATH)
-    log_run(section, protocol, metrics)
+    log_run(settings, protocol, metrics)
     return metrics
 
 
-def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
+def log_run(settings: Settings, protocol: Protocol, metrics: dict[str, Any]) -> None:
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="fit_gate"):
-        mlflow.log_params({**protocol.to_dict(), **{f"fit_gate.{k}": v for k, v in section.items()}})
+        mlflow.log_params({**protocol.to_dict(), **{f"fit_gate.{k}": v for k, v in settings.as_written().items()}})
         log_maze_set(TRAIN_MAZES, "training")
-        if section["offices"]:
+        if settings.offices:
             log_maze_set(TRAIN_OFFICES, "training")
         mlflow.log_metrics({k: float(v) for k, v in metrics.items() if isinstance(v, (int, float))})
         for path in (GATE_PATH, METRICS_PATH, FIGURE_PATH):

@@ -6,14 +6,15 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
+from pipeline.common.config import Section, identifier, list_of, maybe, satisfies, text, whole
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
+from pipeline.planners import planner_config
 from pipeline.planners.specs import PlannerSpec
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.mlflow_tables import log_tables_to_mlflow, metrics_json
@@ -49,15 +50,31 @@ TEAMS_JSON = REPORTS.teams_metrics  # the benchmark stage's team runs (empty whe
 TEAM_COVERAGE = REPORTS.teams / "team_coverage.png"
 
 
+LABEL = text(note="a planner's label in the benchmark")  # a label absent from the benchmark shows as "not run"
+
+
+class Settings(Section):
+    """The `report` section of params.yaml."""
+
+    k_values: list_of(whole(1), min_length=0)  # [] (or no k_planners): no sweep, no Table IV
+    k_planners: list_of(satisfies(planner_config, "a registered planner name", str), min_length=0)
+    k_option: identifier("a planner option name")
+    k_maps: whole(1)
+    ablation_planners: list_of(LABEL)
+    figure_planners: list_of(LABEL)
+    workers: maybe(whole(1), "all cores")
+    seed: whole(0)
+
+
 def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:
     """One labelled variant per (planner, K): label planner_kK, option {option: K}."""
-    return [PlannerSpec(sweep_label(name, k), name, {option: int(k)}) for name in planners for k in k_values]
+    return [PlannerSpec(sweep_label(name, k), name, {option: k}) for name in planners for k in k_values]
 
 
-def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
+def run_sweep(maps, settings: Settings, protocol: Protocol):
     """The denoising-steps sweep into reports/denoising_steps/ (None when no K or no planner), built
     in a temporary folder that replaces the folder as a whole when the sweep is done."""
-    specs = sweep_specs(section["k_planners"], section["k_values"], section["k_option"])
+    specs = sweep_specs(settings.k_planners, settings.k_values, settings.k_option)
     if not specs:
         return None
     try:
@@ -67,8 +84,8 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
                 specs,
                 protocol,
                 folder,
-                workers=section["workers"],
-                seed=int(section["seed"]),
+                workers=settings.workers,
+                seed=settings.seed,
                 keep_dir=CHECKPOINTS.denoising_steps,
             ).frame
     except KeyError as error:  # an unregistered planner name
@@ -77,7 +94,7 @@ def run_sweep(maps, section: dict[str, Any], protocol: Protocol):
         raise SystemExit(f"error: report.k_option: {error}") from None
 
 
-def write_report(section: dict, protocol: Protocol):
+def write_report(settings: Settings, protocol: Protocol):
     """The denoising-steps sweep, Tables I-V, the figures, reports/report.md and its metrics from the `report` settings."""
     if not METRICS_CSV.is_file():
         raise SystemExit(
@@ -90,8 +107,8 @@ def write_report(section: dict, protocol: Protocol):
         raise SystemExit(f"error: {error}; run the generate_mazes stage first") from None
 
     frame = read_metrics(METRICS_CSV)
-    sweep_maps = maps[: section["k_maps"]]
-    sweep = run_sweep(sweep_maps, section, protocol)
+    sweep_maps = maps[: settings.k_maps]
+    sweep = run_sweep(sweep_maps, settings, protocol)
     precision = read_precision(PRECISION_DETAIL_CSV)
     if precision is None:
         precision = read_precision(PRECISION_CSV)
@@ -101,8 +118,8 @@ def write_report(section: dict, protocol: Protocol):
     tables = {
         "table1": precision,
         "table2": table2(frame),
-        "table3": table3(frame, section["ablation_planners"]),
-        "table4": table4(sweep, section["k_values"], section["k_planners"]) if sweep is not None else None,
+        "table3": table3(frame, settings.ablation_planners),
+        "table4": table4(sweep, settings.k_values, settings.k_planners) if sweep is not None else None,
         "table5": table5(exploration),
     }
     precision_compare = read_precision(PRECISION_COMPARE_CSV)
@@ -128,7 +145,7 @@ def write_report(section: dict, protocol: Protocol):
     map_order = {Path(p).stem: p for p in maps}
     figure_maps = [map_order[name] for name in benchmark_maps if name in map_order]
     try:
-        trajectory_figure(figure_maps, frame, BENCHMARK_DIR, section["figure_planners"], FIGURE_PATH, protocol)
+        trajectory_figure(figure_maps, frame, BENCHMARK_DIR, settings.figure_planners, FIGURE_PATH, protocol)
         figure = FIGURE_PATH.name
     except ValueError as error:
         raise SystemExit(f"error: report.figure_planners: {error}") from None
@@ -143,7 +160,7 @@ def write_report(section: dict, protocol: Protocol):
             maps=benchmark_maps,
             sweep_maps=[Path(p).stem for p in sweep_maps] if sweep is not None else (),
             protocol=protocol,
-            params=section,
+            params=settings.as_written(),  # as the file holds them
             figure=figure,
             precision_compare=precision_compare,
             table5_frame=tables["table5"],

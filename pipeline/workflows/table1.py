@@ -133,16 +133,16 @@ def run(
     return frame
 
 
-def log_run(frame: pd.DataFrame, out_dir: Path, section: dict[str, Any], protocol: Protocol, maps: str) -> str:
+def log_run(frame: pd.DataFrame, out_dir: Path, params: dict[str, Any], protocol: Protocol, maps: str) -> str:
+    """One MLflow run of Table I: `params` (the `eval_predictor` settings as the file names them),
+    the protocol, the figures per step and the tables; its id."""
     mlflow = import_mlflow()
 
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="structural_inference") as active:
         log_maze_set(maps, "evaluation")
-        mlflow.log_params(
-            {**protocol.to_dict(), **{f"eval_predictor.{k}": v for k, v in section.items()}, "maps": maps}
-        )
+        mlflow.log_params({**protocol.to_dict(), **{f"eval_predictor.{k}": v for k, v in params.items()}, "maps": maps})
         metrics = {}
         for row in frame.itertuples(index=False):
             for name in (

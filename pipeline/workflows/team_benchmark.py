@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from pipeline.common.mlflow_store import check_tracking_uri
-from pipeline.evaluation.benchmark import with_policy_checkpoint
+from pipeline.evaluation.benchmark import MapSet, with_policy_checkpoint
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.evaluation.team_benchmark import (
     TEAM_COVERAGE_FIGURE,
@@ -16,11 +16,10 @@ from pipeline.evaluation.team_benchmark import (
     check_robot_counts,
     run_team_benchmark,
 )
+from pipeline.planners.specs import PlannerSpec, as_specs
 from pipeline.planners.team.registry import team_config
 from pipeline.reporting.team_figures import team_coverage_figure, team_paths_figure
 from pipeline.reporting.tracking import log_team_benchmark
-from pipeline.world.map_files import MapError
-from pipeline.world.maps import list_maps
 from pipeline.world.protocol import Protocol
 
 
@@ -33,8 +32,8 @@ PATHS_SUFFIX = ".team.png"  # beside the first map's team file of each run: its 
 
 
 def team_benchmark_folder(
-    maps: Path,
-    planners: list[str],
+    maps: Path | MapSet,
+    planners: Sequence[str | PlannerSpec],
     protocol: Protocol,
     out: Path,
     robots: Sequence[int],
@@ -64,12 +63,10 @@ def team_benchmark_folder(
     check_comm_range(comm_range_m)
     if mlflow:
         check_tracking_uri(tracking_uri)
-    map_paths = list_maps(maps)
-    if not map_paths:
-        raise MapError(maps, "no maps in this folder (maze .png, .npy or ROS .yaml)")
-    specs = with_policy_checkpoint(list(planners), checkpoint, config_of=team_config)
+    map_set = MapSet.of(maps, protocol, start)
+    specs = with_policy_checkpoint(as_specs(planners), checkpoint, config_of=team_config)
     run = run_team_benchmark(
-        map_paths,
+        map_set,
         specs,
         protocol,
         out,
@@ -77,7 +74,6 @@ def team_benchmark_folder(
         comm_range_m,
         workers=workers,
         seed=seed,
-        start=start,
         warn=warn,
         speed=speed,
         backend=backend,
@@ -85,7 +81,7 @@ def team_benchmark_folder(
     )
     draw_team_figures(run, Path(out))
     if mlflow:
-        log_team_benchmark(run, out, protocol, maps=str(maps), tracking_uri=tracking_uri, experiment=experiment)
+        log_team_benchmark(run, out, protocol, tracking_uri=tracking_uri, experiment=experiment)
     return run
 
 

@@ -27,6 +27,7 @@ from pipeline.evaluation.team_benchmark import (
     team_run_label,
     write_team_files,
 )
+from pipeline.planners.specs import as_specs
 from pipeline.planners.team.registry import team_config
 from pipeline.reporting.team_figures import team_animation, team_paths_figure
 from pipeline.world.maps import GroundTruthMap, load_map
@@ -71,7 +72,9 @@ def prepare_team(
     comm_range_m = check_comm_range(comm_range_m)
     ground_truth = load_map(map_path, start=start, cell_size=protocol.cell_size)
     protocol = protocol_for_map(protocol, ground_truth, map_path)
-    ((spec, agent),) = resolve_team_specs(with_policy_checkpoint([planner], checkpoint, config_of=team_config))
+    ((spec, agent),) = resolve_team_specs(
+        with_policy_checkpoint(as_specs([planner]), checkpoint, config_of=team_config)
+    )
     problems, _ = before_episodes(ground_truth, protocol, scan_for_unobservable=True)
     label = team_run_label(spec.label, robots)
     return TeamExploration(

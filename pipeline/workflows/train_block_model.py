@@ -16,8 +16,10 @@ import time
 from typing import Any
 
 import numpy as np
+from pydantic import model_validator
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, fraction, positive, real, whole
 from pipeline.common.executor import run_tasks
 from pipeline.common.fingerprints import settings_digest, source_digest
 from pipeline.common.kept_results import KeptResults
@@ -46,12 +48,33 @@ KEPT_SNAPSHOTS = CHECKPOINTS.block_snapshots
 CHECKPOINT_DIR = CHECKPOINTS.block_model
 
 
-def maze_config(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol):
+class Settings(Section):
+    """The `train_block_model` section of params.yaml."""
+
+    mazes: whole(1)
+    holdout_mazes: whole(0)
+    side_m: positive("metres")
+    maze_seed: whole(0)
+    snapshot_every: whole(1, note="steps")
+    epochs: whole(1)
+    batch_size: whole(1)
+    lr: real(0.0)
+    reveal_share: fraction()
+    model: BlockModelConfig
+    workers: whole(1)
+    seed: whole(0)
+
+    @model_validator(mode="after")
+    def _holdout_leaves_mazes_to_fit(self) -> "Settings":
+        if not self.holdout_mazes < self.mazes:
+            raise ValueError(f"holdout_mazes ({self.holdout_mazes}) must be below mazes ({self.mazes})")
+        return self
+
+
+def maze_config(settings: Settings, protocol: Protocol):
     """The mazes the model learns from: the benchmark's family at `side_m`, in the model's blocks."""
-    side = section["side_m"]
-    if isinstance(side, bool) or not isinstance(side, (int, float)):
-        raise ValueError(f"must be a number of metres, got {side!r}")
-    return MazeConfig(side_m=(float(side), float(side)), block_m=config.block_m, cell_size=protocol.cell_size)
+    side = settings.side_m
+    return MazeConfig(side_m=(side, side), block_m=settings.model.block_m, cell_size=protocol.cell_size)
 
 
 def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -59,50 +82,48 @@ def _snapshots(task: tuple[str, dict, float, int]) -> tuple[np.ndarray, np.ndarr
     return block_snapshots(load_map(path), Protocol.from_dict(protocol), block_m, every)
 
 
-def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, protocol: Protocol) -> dict[str, Any]:
+def train_the_block_model(settings: Settings, protocol: Protocol) -> dict[str, Any]:
     """Collect, train, measure and write the block model from the `train_block_model` settings;
     the metrics written."""
-    started = time.perf_counter()
+    started, config = time.perf_counter(), settings.model
     with tempfile.TemporaryDirectory() as folder:
-        maps = generate_maze_set(
-            maze_config(section, config, protocol), section["mazes"], folder, seed=section["maze_seed"]
-        )
-        tasks = [(str(m), protocol.to_dict(), config.block_m, section["snapshot_every"]) for m in maps]
+        maps = generate_maze_set(maze_config(settings, protocol), settings.mazes, folder, seed=settings.maze_seed)
+        tasks = [(str(m), protocol.to_dict(), config.block_m, settings.snapshot_every) for m in maps]
         # The mazes are drawn from these settings alone (their folder is a fresh temporary one each run).
         identity = {
-            "mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed", "snapshot_every")},
+            "mazes": settings.as_written("mazes", "side_m", "maze_seed", "snapshot_every"),
             "block_m": config.block_m,
             "protocol": protocol.to_dict(),
             "source": source_digest(),
         }
         collected = run_tasks(
-            _snapshots, tasks, section["workers"], "block snapshots", "maze", keep=KeptResults(KEPT_SNAPSHOTS, identity)
+            _snapshots, tasks, settings.workers, "block snapshots", "maze", keep=KeptResults(KEPT_SNAPSHOTS, identity)
         )
-    fit_count = len(maps) - section["holdout_mazes"]
+    fit_count = len(maps) - settings.holdout_mazes
     train = BlockSamples([s for s, _ in collected[:fit_count]], [t for _, t in collected[:fit_count]])
     held_out = BlockSamples([s for s, _ in collected[fit_count:]], [t for _, t in collected[fit_count:]])
     collect_seconds = time.perf_counter() - started
     fit_identity = {
         **identity,
-        "fit": {k: section[k] for k in ("holdout_mazes", "epochs", "batch_size", "lr", "reveal_share", "seed")},
+        "fit": settings.as_written("holdout_mazes", "epochs", "batch_size", "lr", "reveal_share", "seed"),
         "model": config.to_dict(),
     }
     model, history = train_block_model(
         train,
         held_out,
         config,
-        section["epochs"],
-        section["batch_size"],
-        section["lr"],
-        section["reveal_share"],
-        section["seed"],
+        settings.epochs,
+        settings.batch_size,
+        settings.lr,
+        settings.reveal_share,
+        settings.seed,
         checkpoint=TrainingCheckpoint(CHECKPOINT_DIR, settings_digest(fit_identity)),
         log=lambda row: print(json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True),
     )
     error, all_wall_error = block_error(model, held_out) if len(held_out) else (float("nan"), float("nan"))
     metrics: dict[str, Any] = {
         "mazes_fit": fit_count,
-        "mazes_holdout": section["holdout_mazes"],
+        "mazes_holdout": settings.holdout_mazes,
         "snapshots_fit": len(train),
         "snapshots_holdout": len(held_out),
         "held_out_error": round(error, 4)
@@ -116,7 +137,7 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
         model,
         MODEL_PATH,
         {
-            "mazes": {k: section[k] for k in ("mazes", "side_m", "maze_seed")},
+            "mazes": settings.as_written("mazes", "side_m", "maze_seed"),  # as the file names them
             "protocol": protocol.to_dict(),
             **{k: v for k, v in metrics.items() if k != "history"},
         },
@@ -129,36 +150,26 @@ def train_the_block_model(section: dict[str, Any], config: BlockModelConfig, pro
         shares = held_out.shares[0][len(held_out.shares[0]) // 3]
         example = (shares, model.free_probability(shares), held_out.truth[0])
     block_model_training_figure(history, example, FIGURE_PATH)
-    log_run(section, config, protocol, metrics, history)
+    log_run(settings, protocol, metrics, history)
     return metrics
 
 
-def log_run(
-    section: dict[str, Any],
-    config: BlockModelConfig,
-    protocol: Protocol,
-    metrics: dict[str, Any],
-    history: list[dict[str, float]],
-) -> None:
+def log_run(settings: Settings, protocol: Protocol, metrics: dict[str, Any], history: list[dict[str, float]]) -> None:
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
     mlflow.set_experiment(EXPERIMENT)
     with mlflow.start_run(run_name="train_block_model"):
+        drawn = settings.as_written("mazes", "side_m", "maze_seed")
         log_generated_maze_set(
-            f"block model mazes ({section['mazes']} of {section['side_m']:g} m, seed {section['maze_seed']})",
-            {
-                "generator": "guide mazes",
-                "count": section["mazes"],
-                "side_m": section["side_m"],
-                "seed": section["maze_seed"],
-                "block_m": config.block_m,
-            },
+            f"block model mazes ({settings.mazes} of {settings.side_m:g} m, seed {settings.maze_seed})",
+            {"generator": "guide mazes", "count": drawn["mazes"], "side_m": drawn["side_m"]}
+            | {"seed": drawn["maze_seed"], "block_m": settings.model.block_m},
         )
         mlflow.log_params(
             {
                 **protocol.to_dict(),
-                **{f"train_block_model.{k}": v for k, v in section.items() if k != "model"},
-                **{f"model.{k}": v for k, v in config.to_dict().items()},
+                **{f"train_block_model.{k}": v for k, v in settings.as_written().items() if k != "model"},
+                **{f"model.{k}": v for k, v in settings.model.to_dict().items()},
             }
         )
         mlflow.log_metrics(

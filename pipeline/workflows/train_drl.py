@@ -26,6 +26,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm.auto import tqdm
 
+from pipeline.common.config import Section, every_key, maybe, positive, text, whole
 from pipeline.common.mlflow_store import import_mlflow, log_generated_maze_set, resolve_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, REPORTS
 from pipeline.models.configuration_drl import DRLPolicyConfig
@@ -52,17 +53,37 @@ MODEL_PATH = PIPELINE_DRL
 CHECKPOINT_DIR = CHECKPOINTS.drl
 METRICS_PATH = REPORTS.drl
 FIGURE_PATH = REPORTS.drl_curves
+
+
+class Settings(Section):
+    """The `train_drl` section of params.yaml."""
+
+    model: DRLPolicyConfig
+    env: every_key(TrainingEnvironment)
+    ppo: every_key(PPOSettings)
+    imitation: every_key(ImitationSettings)
+    init_checkpoint: maybe(text(note="a drl export"), "the warm start")
+    timesteps: whole(1)
+    checkpoint_every: whole(1)
+    eval_mazes: whole(0)
+    eval_side_m: positive("metres")
+    eval_seed: whole(0)
+    seed: whole(0)
+    threads: whole(0, note="0: torch's default")
+    device: text(("cpu", "cuda", "auto"))
+    experiment: text(note="an MLflow experiment")
+
+
 # What a checkpoint must share to be continued: not `timesteps`, so a run can be trained on for
 # longer (the learning rate is constant, so a continued run is a longer one).
 TRAINING_KEYS = ("model", "env", "ppo", "imitation", "init_checkpoint", "seed")
 
 
-def settings_fingerprint(section: dict[str, Any], protocol: Protocol) -> str:
-    """A hash of everything the trained weights depend on (the training keys and the protocol)."""
+def settings_fingerprint(settings: Settings, protocol: Protocol) -> str:
+    """A hash of everything the trained weights depend on (the training keys, as the file names
+    them, and the protocol)."""
     payload = json.dumps(
-        {"train_drl": {k: section[k] for k in TRAINING_KEYS}, "protocol": protocol.to_dict()},
-        sort_keys=True,
-        default=str,
+        {"train_drl": settings.as_written(*TRAINING_KEYS), "protocol": protocol.to_dict()}, sort_keys=True, default=str
     )
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
@@ -151,28 +172,26 @@ def previous_checkpoint(fingerprint: str, total: int, folder: Path = CHECKPOINT_
     return record
 
 
-def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[str, Any]:
+def train_the_drl_policy(settings: Settings, protocol: Protocol) -> dict[str, Any]:
     """Train (or continue), export, evaluate and report the drl policy from the `train_drl` settings."""
-    policy_config = DRLPolicyConfig.from_dict(section["model"], "train_drl.model")
-    environment = TrainingEnvironment.from_dict(section["env"], "train_drl.env")
-    settings = PPOSettings.from_dict(section["ppo"], "train_drl.ppo")
-    total, seed = section["timesteps"], section["seed"]
-    fingerprint = settings_fingerprint(section, protocol)
+    policy_config, environment, ppo = settings.model, settings.env, settings.ppo
+    total, seed = settings.timesteps, settings.seed
+    fingerprint = settings_fingerprint(settings, protocol)
     started = time.perf_counter()
-    with torch_threads(section["threads"]):
+    with torch_threads(settings.threads):
         record = previous_checkpoint(fingerprint, total)
         done = int(record["timesteps"]) if record else 0
-        envs = vector_env(environment, protocol, policy_config, settings, seed + done)
+        envs = vector_env(environment, protocol, policy_config, ppo, seed + done)
         if record:
             print(f"train_drl: continuing from the checkpoint at {done} of {total} steps", flush=True)
-            agent = load_agent(CHECKPOINT_DIR / "last.zip", envs, section["device"])
+            agent = load_agent(CHECKPOINT_DIR / "last.zip", envs, settings.device)
             warm = record.get("warm_start")  # what the killed run started from
         else:
-            agent = new_agent(envs, policy_config, settings, seed, section["device"])
-            warm = start_policy(policy_of(agent), section, environment, policy_config, protocol, settings.gamma, seed)
+            agent = new_agent(envs, policy_config, ppo, seed, settings.device)
+            warm = start_policy(policy_of(agent), settings, protocol, ppo.gamma)
         log = EpisodeLog(_print_row)
         log.rows = list(record["history"]) if record else []
-        checkpointer = Checkpointer(section["checkpoint_every"], fingerprint, log, extra={"warm_start": warm})
+        checkpointer = Checkpointer(settings.checkpoint_every, fingerprint, log, extra={"warm_start": warm})
         if total > done:
             agent.learn(
                 total - done,
@@ -183,11 +202,11 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
         envs.close()
         train_seconds = time.perf_counter() - started
         policy = policy_of(agent).cpu().eval()
-        host = training_host(section["device"])
+        host = training_host(settings.device)
         trained_on = {
             "protocol": protocol.to_dict(),
             "env": environment.to_dict(),
-            "ppo": settings.to_dict(),
+            "ppo": ppo.to_dict(),
             "timesteps": int(agent.num_timesteps),
             "seed": seed,
             "host": host,
@@ -198,9 +217,9 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
             environment,
             policy_config,
             protocol,
-            section["eval_mazes"],
-            section["eval_side_m"],
-            section["eval_seed"],
+            settings.eval_mazes,
+            settings.as_written()["eval_side_m"],  # as the file names it: the metrics record it
+            settings.eval_seed,
         )
     metrics = {
         "timesteps": int(agent.num_timesteps),
@@ -214,34 +233,28 @@ def train_the_drl_policy(section: dict[str, Any], protocol: Protocol) -> dict[st
     }
     write_json(METRICS_PATH, metrics)
     drl_training_curves(log.rows, evaluation, FIGURE_PATH)
-    log_run(section, protocol, metrics)
+    log_run(settings, protocol, metrics)
     return metrics
 
 
-def start_policy(
-    policy,
-    section: dict[str, Any],
-    environment: TrainingEnvironment,
-    policy_config: DRLPolicyConfig,
-    protocol: Protocol,
-    gamma: float,
-    seed: int,
-) -> dict[str, Any] | None:
+def start_policy(policy, settings: Settings, protocol: Protocol, gamma: float) -> dict[str, Any] | None:
     """Set the fresh agent's policy before PPO: the weights of `init_checkpoint`, else the imitation
     warm start when it has episodes, else nothing (PPO from the initial weights). What it did."""
-    if section["init_checkpoint"]:
-        initial, trained_on = load_drl_policy(section["init_checkpoint"])
+    init, policy_config = settings.init_checkpoint, settings.model
+    if init:
+        initial, trained_on = load_drl_policy(init)
         if initial.config != policy_config:
             raise ValueError(
-                f"train_drl.init_checkpoint {section['init_checkpoint']}: its model {initial.config.to_dict()} "
+                f"train_drl.init_checkpoint {init}: its model {initial.config.to_dict()} "
                 f"differs from train_drl.model {policy_config.to_dict()}"
             )
         policy.load_state_dict(initial.state_dict())
-        return {"init_checkpoint": str(section["init_checkpoint"]), "its_training": trained_on.get("warm_start")}
-    imitation = ImitationSettings.from_dict(section["imitation"], "train_drl.imitation")
+        return {"init_checkpoint": str(init), "its_training": trained_on.get("warm_start")}
+    imitation = settings.imitation
     if imitation.episodes == 0:
         return None
-    result = warm_start(policy, lambda i: environment.make(i, protocol, policy_config), imitation, gamma, seed + 10_000)
+    make = lambda i: settings.env.make(i, protocol, policy_config)  # noqa: E731
+    result = warm_start(policy, make, imitation, gamma, settings.seed + 10_000)
     policy.train()
     for phase in result["phases"]:
         last = phase["epochs"][-1]
@@ -305,24 +318,21 @@ def evaluate_on_fresh_mazes(
     }
 
 
-def log_run(section: dict[str, Any], protocol: Protocol, metrics: dict[str, Any]) -> None:
+def log_run(settings: Settings, protocol: Protocol, metrics: dict[str, Any]) -> None:
     mlflow = import_mlflow()
     mlflow.set_tracking_uri(resolve_tracking_uri(None))
-    mlflow.set_experiment(section["experiment"])
+    mlflow.set_experiment(settings.experiment)
+    section = settings.as_written()  # the params as the file names them
     flat = {f"{group}.{k}": v for group in ("model", "env", "ppo") for k, v in section[group].items()}
     with mlflow.start_run(run_name="train_drl"):
         log_generated_maze_set(
             "training environments' mazes (a fresh one at every reset)",
-            {"generator": "guide/Explore-v0", "maze_sides_m": section["env"]["maze_sides_m"], "seed": section["seed"]},
+            {"generator": "guide/Explore-v0", "maze_sides_m": section["env"]["maze_sides_m"], "seed": settings.seed},
         )
         log_generated_maze_set(
-            f"evaluation mazes ({section['eval_mazes']} of {section['eval_side_m']:g} m)",
-            {
-                "generator": "guide/Explore-v0",
-                "count": section["eval_mazes"],
-                "side_m": section["eval_side_m"],
-                "seed": section["eval_seed"],
-            },
+            f"evaluation mazes ({settings.eval_mazes} of {settings.eval_side_m:g} m)",
+            {"generator": "guide/Explore-v0", "count": settings.eval_mazes, "side_m": section["eval_side_m"]}
+            | {"seed": settings.eval_seed},
             "evaluation",
         )
         mlflow.log_params(

@@ -9,8 +9,10 @@ import warnings
 from typing import Any, Optional
 
 import numpy as np
+import pydantic
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, fields_of, maybe, text, whole
 from pipeline.common.fingerprints import files_digest, settings_digest
 from pipeline.common.paths import CHECKPOINTS, DATA, MODELS, REPORTS
 from pipeline.data.shards import read_manifest
@@ -20,7 +22,7 @@ from pipeline.reporting.training_figures import inpainter_sample_predictions, in
 from pipeline.training.inpainter import TrainConfig, train_inpainter
 from pipeline.training.inpainter_data import split_pairs
 from pipeline.training.inpainter_losses import evaluate_inpainter
-from pipeline.training.run_setup import resume_point, start_afresh
+from pipeline.training.run_setup import DEVICES, resume_point, start_afresh
 from pipeline.world.protocol import Protocol
 
 DATA_DIR = DATA.pairs
@@ -30,7 +32,24 @@ METRICS = REPORTS.inpainter
 CURVES = REPORTS.inpainter_curves
 SAMPLES = REPORTS.inpainter_samples
 REPORT_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
-RUN_KEYS = ("model", "accelerator", "devices", "num_nodes", "init_checkpoint", "experiment", "threads")
+
+
+# The `train_inpainter` section: TrainConfig's fields and the run's own settings side by side.
+# Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults.
+Settings = pydantic.create_model(
+    "Settings",
+    __base__=Section,
+    __module__=__name__,
+    __doc__="The `train_inpainter` section of params.yaml.",
+    **fields_of(TrainConfig),
+    model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
+    accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
+    devices=(maybe(DEVICES, "1"), None),
+    num_nodes=(maybe(whole(1, note="nodes of a multi-node DDP run"), "1"), None),
+    threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
+    init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
+    experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),
+)
 
 
 def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
@@ -52,18 +71,15 @@ def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
 
 
 def training_fingerprint(
-    section: dict[str, Any], protocol: Protocol, accelerator: Any, devices: Any, init_checkpoint: Optional[str]
+    settings: Settings, protocol: Protocol, accelerator: Any, devices: Any, init_checkpoint: Optional[str]
 ) -> str:
-    """What the inpainter's weights depend on: its settings (not the MLflow experiment or the
-    thread count), the device layout, the protocol, the pairs and the init checkpoint's bytes."""
-    settings = {
-        k: v
-        for k, v in section.items()
-        if k not in ("experiment", "threads", "init_checkpoint", "accelerator", "devices")
-    }
+    """What the inpainter's weights depend on: its settings as the file names them (not the MLflow
+    experiment or the thread count), the device layout, the protocol, the pairs and the init
+    checkpoint's bytes."""
+    ignored = ("experiment", "threads", "init_checkpoint", "accelerator", "devices")
     return settings_digest(
         {
-            "settings": settings,
+            "settings": {k: v for k, v in settings.as_written().items() if k not in ignored},
             "accelerator": accelerator,
             "devices": devices,
             "protocol": protocol.to_dict(),
@@ -74,7 +90,7 @@ def training_fingerprint(
 
 
 def train_and_report(
-    section: dict[str, Any],
+    settings: Settings,
     protocol: Protocol,
     accelerator: Optional[str] = None,
     devices: Optional[int | str] = None,
@@ -90,33 +106,30 @@ def train_and_report(
 
     A run killed part-way continues from its last epoch's checkpoint in checkpoints/inpainter
     when the settings and data are the same (`afresh` starts over regardless)."""
-    section = dict(section)
-    accelerator = accelerator or section.get("accelerator") or "cpu"
-    devices = devices if devices is not None else (section.get("devices") or 1)
-    init_checkpoint = init_checkpoint or section.get("init_checkpoint")
+    accelerator = accelerator or settings.accelerator or "cpu"
+    devices = devices if devices is not None else (settings.devices or 1)
+    init_checkpoint = init_checkpoint or settings.init_checkpoint
     read_manifest(DATA_DIR)  # a finished data set, before any checkpoint is decided on
-    fingerprint = training_fingerprint(section, protocol, accelerator, devices, init_checkpoint)
-    run = {key: section.pop(key, None) for key in RUN_KEYS}
-    train_config = TrainConfig.from_dict(section, "train_inpainter")
-    model_config = InpainterConfig.from_dict(run["model"] or {}, "train_inpainter.model")
+    fingerprint = training_fingerprint(settings, protocol, accelerator, devices, init_checkpoint)
+    train_config = TrainConfig(**{name: getattr(settings, name) for name in fields_of(TrainConfig)})
     resume_from = None if afresh else resume_point(CHECKPOINT_DIR, fingerprint, "train_inpainter")
     if resume_from is None:
         start_afresh(CHECKPOINT_DIR, fingerprint)
     export_path = train_inpainter(
-        model_config,
+        settings.model,
         DATA_DIR,
         OUT_DIR,
         train_config=train_config,
         accelerator=accelerator,
         devices=devices,
-        num_nodes=int(run["num_nodes"] or 1),
+        num_nodes=settings.num_nodes or 1,
         resume=resume_from is not None,
         checkpoint_dir=CHECKPOINT_DIR,
         tracking_uri=tracking_uri,
         init_checkpoint=init_checkpoint,
-        experiment_name=run["experiment"] or "inpainter",
+        experiment_name=settings.experiment or "inpainter",
         progress=progress,
-        num_threads=run["threads"],
+        num_threads=settings.threads,
         artifact_location=artifact_location,
         protocol=protocol.to_dict(),
     )
@@ -124,10 +137,10 @@ def train_and_report(
         return {}
     export = read_inpainter_export(export_path)
     model, config = load_inpainter(export_path)
-    if run["threads"]:
+    if settings.threads:
         import torch
 
-        torch.set_num_threads(int(run["threads"]))
+        torch.set_num_threads(settings.threads)
     with warnings.catch_warnings():  # the split training made: its warnings were shown then
         warnings.simplefilter("ignore")
         _, val_pairs = split_pairs(DATA_DIR, train_config.val_fraction, train_config.split, train_config.seed)

@@ -6,15 +6,28 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline.common.atomic import atomic_write_json
+from pipeline.common.config import Section, every_key, maybe, text, whole
 from pipeline.common.fingerprints import files_digest, settings_digest
 from pipeline.common.paths import CHECKPOINTS, POLICIES
 from pipeline.models.configuration_diffusion import DiffusionPolicyConfig
 from pipeline.models.modeling_diffusion import load_policy
 from pipeline.reporting.training_figures import planner_training_curves
 from pipeline.training.policy import PlannerTrainConfig, train_planner
-from pipeline.training.run_setup import resume_point, start_afresh
+from pipeline.training.run_setup import DEVICES, resume_point, start_afresh
 
 CHECKPOINTS_OF = {variant: getattr(CHECKPOINTS, f"planner_{variant}") for variant in POLICIES}
+
+
+class Settings(Section):
+    """The `train_planner` section of params.yaml."""
+
+    model: DiffusionPolicyConfig
+    train: every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))  # its default unless set
+    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
+    devices: DEVICES
+    num_nodes: whole(1, note="nodes of a multi-node DDP run")
+    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
+    experiment: text(note="an MLflow experiment")
 
 
 def training_fingerprint(
@@ -28,7 +41,7 @@ def training_fingerprint(
 
 
 def train_and_report(
-    section: dict,
+    settings: Settings,
     variant: str,
     accelerator: str | None = None,
     devices: str | None = None,
@@ -41,21 +54,17 @@ def train_and_report(
     A run killed part-way continues from its last epoch's checkpoint in checkpoints/planner_<variant>
     when the settings and observations are the same (`afresh` starts over regardless)."""
     paths = POLICIES[variant]
-    model = dict(section["model"] or {})
-    train = dict(section["train"] or {})
-    if max_epochs is not None:
-        train["max_epochs"] = int(max_epochs)
-    accelerator = accelerator or section["accelerator"]
-    devices = devices or section["devices"]
+    # As the file names them: the fingerprint and the export record them.
+    model, train = (dict(settings.as_written()[key] or {}) for key in ("model", "train"))
+    if max_epochs is not None:  # checked as the file's values are, as a one-line error
+        train["max_epochs"] = max_epochs
+        PlannerTrainConfig.from_dict(train, "train_planner.train")
+    accelerator = accelerator or settings.accelerator
+    devices = devices or settings.devices
     checkpoint_dir = CHECKPOINTS_OF[variant]
-    # The settings first, as one-line errors (a --max-epochs override included).
-    PlannerTrainConfig.from_dict(train, "train_planner.train")
-    DiffusionPolicyConfig.from_dict(model, "train_planner.model")
     if not Path(paths.observations).is_file():  # before any checkpoint is decided on
         raise FileNotFoundError(f"{paths.observations}: no observations; run the build_observations stage first")
-    fingerprint = training_fingerprint(
-        model, train, accelerator, devices, paths.observations, int(section["num_nodes"])
-    )
+    fingerprint = training_fingerprint(model, train, accelerator, devices, paths.observations, settings.num_nodes)
     resume_from = None if afresh else resume_point(checkpoint_dir, fingerprint, f"train_planner {variant}")
     if resume_from is None:
         start_afresh(checkpoint_dir, fingerprint)
@@ -66,12 +75,12 @@ def train_and_report(
         train,
         accelerator=accelerator,
         devices=devices,
-        num_nodes=int(section["num_nodes"]),
+        num_nodes=settings.num_nodes,
         resume=resume_from is not None,
         checkpoint_dir=checkpoint_dir,
-        experiment_name=str(section["experiment"]),
+        experiment_name=settings.experiment,
         run_name=variant,
-        num_threads=section["threads"],
+        num_threads=settings.threads,
     )
     if export is None:  # another process of a multi-device run: rank zero exports and reports
         return {}

@@ -168,7 +168,8 @@ def test_read_stage_names_the_file_and_read_protocol_checks_the_protocol(tmp_pat
 
     path = tmp_path / "p.yaml"
     path.write_text("s: {n: 2}\nprotocol: {max_steps: 0}\n")
-    assert read_stage(path, "s", Settings) == {"n": 2}
+    settings = read_stage(path, "s", Settings)
+    assert settings.n == 2 and settings.as_written() == {"n": 2}
     with pytest.raises(
         ValueError, match=r"^.*p.yaml: protocol.max_steps: must be a whole number >= 1 \(waypoints\), got 0$"
     ):

@@ -92,16 +92,14 @@ def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
     assert "step limit" in (tmp_path / "summary.md").read_text()
 
 
-def test_episode_task_labels_default_to_the_planner_and_carry_options(small_maze_path):
-    from pipeline.evaluation.benchmark import EpisodeTask, run_task
-    from pipeline.planners.specs import PlannerSpec, resolve_planner_specs
+def test_an_episode_runs_its_spec_on_the_inputs_and_is_labelled_by_it(small_maze_path):
+    from pipeline.evaluation.benchmark import BenchmarkInputs, EpisodeTask, MapSet, run_task
+    from pipeline.planners.specs import PlannerSpec, build_planner, parse_planner_spec, resolve_planner_specs
 
-    plain = EpisodeTask(str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0)
-    assert plain.label == "nearest_frontier" and plain.options == {}
-    variant = EpisodeTask(
-        str(small_maze_path), "nearest_frontier", Protocol(max_steps=2), 0, label="nf_u1", options={"min_utility": 1}
-    )
-    assert run_task(variant).planner == "nf_u1"
+    variant = parse_planner_spec("nf_u1=nearest_frontier:min_utility=1")
+    inputs = BenchmarkInputs(MapSet((str(small_maze_path),), Protocol(max_steps=2)), {variant: build_planner(variant)})
+    assert run_task(inputs, EpisodeTask(str(small_maze_path), variant, 0)).planner == "nf_u1"
+    assert {variant: 1}[PlannerSpec("nf_u1", "nearest_frontier", {"min_utility": 1})] == 1  # a spec keys its planner
     specs = resolve_planner_specs(["greedy_utility", PlannerSpec("nf_u1", "nearest_frontier", {"min_utility": 1})])
     assert [(s.label, s.name, s.options) for s in specs] == [
         ("greedy_utility", "greedy_utility", {}),
@@ -217,11 +215,11 @@ def test_an_interrupted_benchmark_keeps_the_finished_episodes(generated_maze_dir
 
     finished = benchmark.run_task
 
-    def interrupt_after_the_first(task):
+    def interrupt_after_the_first(inputs, task):
         if interrupt_after_the_first.calls:
             raise KeyboardInterrupt
         interrupt_after_the_first.calls += 1
-        return finished(task)
+        return finished(inputs, task)
 
     interrupt_after_the_first.calls = 0
     monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
@@ -266,11 +264,11 @@ def test_episodes_kept_outside_the_output_folder_carry_over_to_a_new_one(generat
 
     finished, calls = benchmark.run_task, []
 
-    def interrupt_after_the_first(task):
+    def interrupt_after_the_first(inputs, task):
         if calls:
             raise KeyboardInterrupt
         calls.append(task)
-        return finished(task)
+        return finished(inputs, task)
 
     monkeypatch.setattr(benchmark, "run_task", interrupt_after_the_first)
     maps, keep = list_maps(generated_maze_dir), tmp_path / "checkpoints" / "benchmark"
@@ -281,7 +279,7 @@ def test_episodes_kept_outside_the_output_folder_carry_over_to_a_new_one(generat
     assert len(list(keep.glob("item_*.pkl"))) == 1 and not (tmp_path / "first" / ".episodes").exists()
 
     ran = []
-    monkeypatch.setattr(benchmark, "run_task", lambda task: ran.append(task) or finished(task))
+    monkeypatch.setattr(benchmark, "run_task", lambda inputs, task: ran.append(task) or finished(inputs, task))
     run = run_benchmark(
         maps, ["nearest_frontier"], Protocol(), tmp_path / "second", workers=1, progress=False, keep_dir=keep
     )

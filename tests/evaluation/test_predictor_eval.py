@@ -304,7 +304,7 @@ def test_stage_refuses_a_bad_sweep(tmp_path):
     with pytest.raises(ValueError, match=r"eval_predictor\.sweep_thresholds\[1\]: must be a number in \[0, 1\], got 2"):
         stage.read_params(tmp_path / "p.yaml")
     (tmp_path / "q.yaml").write_text(yaml.safe_dump({"eval_predictor": {**STAGE, "sweep_thresholds": None}}))
-    assert stage.read_params(tmp_path / "q.yaml")[0]["sweep_thresholds"] == []
+    assert stage.read_params(tmp_path / "q.yaml")[0].sweep_thresholds is None  # no sweep
 
 
 def test_evaluate_with_sweep_is_table1_and_the_sweep_from_one_exploration(maze_paths):

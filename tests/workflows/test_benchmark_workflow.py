@@ -35,7 +35,7 @@ def workspace(small_maze_path, tmp_path, monkeypatch):
 
 def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, monkeypatch):
     out = workspace / "reports/benchmark"
-    workflow.benchmark_test_mazes(SECTION, Protocol())
+    workflow.benchmark_test_mazes(workflow.Settings.model_validate(SECTION), Protocol())
     first = files(out)
     assert {
         "metrics.csv",
@@ -63,7 +63,7 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     monkeypatch.setattr(evaluation, "write_steps_csv", dies_on_the_second_episode)
     two = {**SECTION, "planners": ["nearest_frontier", "greedy_utility"]}
     with pytest.raises(OSError, match="killed"):
-        workflow.benchmark_test_mazes(two, Protocol())
+        workflow.benchmark_test_mazes(workflow.Settings.model_validate(two), Protocol())
     assert written and written[0].parent.parent != out  # the first episode went to the temporary folder
     assert files(out) == before
     assert (workspace / "reports/benchmark.json").read_bytes() == metrics
@@ -72,7 +72,7 @@ def test_the_benchmark_folder_is_replaced_as_a_whole_or_not_at_all(workspace, mo
     assert list(kept.glob("item_*.pkl"))  # the episodes finished before the kill, for the rerun
 
     monkeypatch.setattr(evaluation, "write_steps_csv", real)
-    workflow.benchmark_test_mazes(two, Protocol())
+    workflow.benchmark_test_mazes(workflow.Settings.model_validate(two), Protocol())
     after = files(out)
     assert not any(name.startswith("retired/") for name in after)
     assert {"greedy_utility/small.csv", "nearest_frontier/small.csv"} <= set(after)
