@@ -25,12 +25,8 @@ from pipeline.cli.options import (
 )
 from pipeline.evaluation.benchmark import BenchmarkInterrupted, EpisodeErrors
 from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
-from pipeline.evaluation.team_benchmark import (
-    TEAM_METRICS_CSV,
-    check_comm_range,
-    check_robot_counts,
-    team_summary_markdown,
-)
+from pipeline.evaluation.team_benchmark import TEAM_METRICS_CSV, check_comm_range, check_robot_counts
+from pipeline.reporting.benchmark_markdown import team_summary_markdown
 from pipeline.workflows.benchmark import benchmark_folder
 from pipeline.workflows.team_benchmark import team_benchmark_folder
 from pipeline.world.map_files import MapError

@@ -28,13 +28,11 @@ from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.common.executor import default_workers, resolve_backend, run_tasks
 from pipeline.common.fingerprints import files_digest, source_digest
 from pipeline.common.kept_results import KeptResults
-from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE, summary_markdown
 from pipeline.evaluation.episode_errors import PLANNER_ERROR, ErrorsEndTheEpisode
 from pipeline.evaluation.exploration_curves import (
     EXPLORATION_CSV,
     SpeedModel,
     episode_table,
-    exploration_markdown,
     planner_table,
     records_from_results,
 )
@@ -57,6 +55,7 @@ from pipeline.world.trajectories import (
     write_trajectory_csv,
 )
 
+DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
 RUN_RECORD = "run.json"  # beside metrics.csv: which planners, options and models ran
 COVERAGE_FIGURE = "coverage.png"  # the coverage curves `guide benchmark` draws beside metrics.csv
 OUTPUT_FILES = (
@@ -219,6 +218,8 @@ class BenchmarkRun:
     exploration: pd.DataFrame
     summary: pd.DataFrame
     map_set: MapSet
+    protocol_record: dict[str, Any] = field(default_factory=dict)  # the protocol as the episodes ran it (run.json's)
+    baseline: str | None = None  # summary.md's paired comparison
     errors: list[tuple[str, str, str]] = field(default_factory=list)  # (map, planner, failure) where the planner raised
 
     @property
@@ -323,9 +324,8 @@ def run_benchmark(
             shared=BenchmarkInputs(map_set, built),
         )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
-        if results:
-            _write_tables(results, out_dir, protocol_record, baseline, speed, map_set)
-        raise BenchmarkInterrupted(len(results), len(tasks), out_dir) from None
+        partial = _write_tables(results, out_dir, protocol_record, baseline, speed, map_set) if results else None
+        raise BenchmarkInterrupted(len(results), len(tasks), out_dir, partial) from None
     shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     run = _write_tables(results, out_dir, protocol_record, baseline, speed, map_set)
     record_fallbacks(out_dir / RUN_RECORD, run.frame)
@@ -392,12 +392,12 @@ def failure_hints(frame: pd.DataFrame, loaded: dict[str, tuple[GroundTruthMap, P
 
 
 class BenchmarkInterrupted(KeyboardInterrupt):
-    """Ctrl-C during a benchmark, after `done` of `total` episodes (their metrics.csv and summary.md
-    are written; they stay kept in OUT/.episodes/, so the same command resumes the run)."""
+    """Ctrl-C during a benchmark, after `done` of `total` episodes (their metrics.csv is written and
+    `run` holds their tables; they stay kept in OUT/.episodes/, so the same command resumes the run)."""
 
-    def __init__(self, done: int, total: int, out_dir: Path):
+    def __init__(self, done: int, total: int, out_dir: Path, run: "BenchmarkRun | None" = None):
         super().__init__(f"interrupted after {done} of {total} episodes")
-        self.done, self.total, self.out_dir = done, total, out_dir
+        self.done, self.total, self.out_dir, self.run = done, total, out_dir, run
 
 
 def _write_tables(
@@ -408,19 +408,15 @@ def _write_tables(
     speed: SpeedModel,
     maps: MapSet,
 ) -> BenchmarkRun:
-    """metrics.csv, exploration.csv and summary.md from the episodes, each computed once."""
+    """metrics.csv and exploration.csv from the episodes, and the run they make (summary.md is
+    reporting's: `pipeline.reporting.benchmark_markdown.write_summary`)."""
     frame = metrics_frame(results)
     write_metrics_csv(out_dir / "metrics.csv", frame.to_dict("records"))
     records = records_from_results(results)
     exploration = planner_table(episode_table(records, speed), speed)
     with atomic_file(out_dir / EXPLORATION_CSV) as tmp:
         exploration.to_csv(tmp, index=False, float_format="%.6g")
-    summary = summarise(frame)
-    atomic_write_text(
-        out_dir / "summary.md",
-        summary_markdown(frame, protocol_record, baseline, summary) + "\n" + exploration_markdown(exploration),
-    )
-    return BenchmarkRun(frame, records, exploration, summary, maps)
+    return BenchmarkRun(frame, records, exploration, summarise(frame), maps, protocol_record, baseline)
 
 
 def recorded_protocol(protocol: Protocol, cell_sizes: Sequence[float]) -> dict[str, Any]:

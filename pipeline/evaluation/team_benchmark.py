@@ -436,25 +436,3 @@ def team_summary(
             "makespan_over_single_distance": _finite(np.mean(ratios), 4) if ratios else None,
         }
     return summary
-
-
-def team_summary_markdown(summary: dict[str, dict[str, Any]]) -> str:
-    """team_summary.json as a markdown table, for the command line."""
-
-    def cell(value: Any, fmt: str = "{:.1f}") -> str:
-        return "—" if value is None else fmt.format(value)
-
-    lines = [
-        "| run | robots | episodes | makespan (m) | total distance (m) | to 90 % (m) | complete "
-        "| decision ms (median) | makespan / 1-robot distance |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for run_label, row in summary.items():
-        spread = f" +- {row['makespan_std_m']:.1f}" if row["episodes"] > 1 and row["makespan_std_m"] is not None else ""
-        lines.append(
-            f"| {run_label} | {row['robots']} | {row['episodes']} | {cell(row['makespan_mean_m'])}{spread} "
-            f"| {cell(row['total_distance_mean_m'])} | {cell(row['time_to_90_mean_m'])} "
-            f"| {row['completion_rate'] * 100:.0f} % | {cell(row['decision_ms_median'], '{:.2f}')} "
-            f"| {cell(row['makespan_over_single_distance'], '{:.2f}')} |"
-        )
-    return "\n".join(lines) + "\n"

@@ -21,7 +21,7 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 # The planners the report stage measures against (pipeline.reporting.tables.REFERENCE_PLANNER and
-# pipeline.evaluation.benchmark_summary.DEFAULT_BASELINE, named again here so that this module stays light;
+# pipeline.evaluation.benchmark.DEFAULT_BASELINE, named again here so that this module stays light;
 # tests/reporting/test_headline.py checks they agree). Their comparisons with themselves are left out.
 REFERENCE_PLANNER = "optimal"
 PAIRED_BASELINE = "greedy_utility"

@@ -19,7 +19,7 @@ class EpisodeRecorder:
     At most `max_frames` frames are kept: when there would be more, every other frame is
     dropped and the stride doubles, so the kept frames stay evenly spaced. The episode's
     final state is always the last frame (rendered when `frames`/`save_gif` is asked for).
-    `graph_provider` (e.g. `lambda: planner.graph`) supplies the planner's graph, if any;
+    `graph_provider` (e.g. `lambda: innermost(planner).graph`) supplies the planner's graph, if any;
     frontier cells are recomputed from the current belief, since the planner's graph is
     only brought up to date at its next decision.
     """

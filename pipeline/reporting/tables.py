@@ -17,7 +17,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
-from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE as PAIRED_BASELINE
+from pipeline.evaluation.benchmark import DEFAULT_BASELINE as PAIRED_BASELINE
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.reporting.paper_numbers import PAPER_TABLE4, paper_row, paper_table2_or_3
 

@@ -14,22 +14,36 @@ from pipeline.common.mlflow_store import check_tracking_uri
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
 from pipeline.evaluation.benchmark import (
     COVERAGE_FIGURE,
+    DEFAULT_BASELINE,
+    BenchmarkInterrupted,
     BenchmarkRun,
     MapSet,
     raise_planner_errors,
     run_benchmark,
     with_policy_checkpoint,
 )
-from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.evaluation.team_benchmark import resolve_team_specs
 from pipeline.planners.specs import PlannerSpec, as_specs, resolve_planner_specs
 from pipeline.reporting.benchmark_figures import distance_bar_chart, planner_paths_figure
+from pipeline.reporting.benchmark_markdown import write_summary
 from pipeline.reporting.coverage_figure import coverage_figure
 from pipeline.reporting.tracking import exploration_metrics, log_benchmark
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
 from pipeline.world.protocol import Protocol
+
+
+def benchmark_with_summary(maps: MapSet, specs, protocol, out_dir: Path, **options) -> BenchmarkRun:
+    """`run_benchmark`, then summary.md beside its tables: also for the episodes a Ctrl-C left."""
+    try:
+        run = run_benchmark(maps, specs, protocol, out_dir, **options)
+    except BenchmarkInterrupted as stop:
+        if stop.run is not None:
+            write_summary(stop.run, out_dir)
+        raise
+    write_summary(run, out_dir)
+    return run
 
 
 def benchmark_folder(
@@ -68,7 +82,7 @@ def benchmark_folder(
         baseline = DEFAULT_BASELINE if DEFAULT_BASELINE in labels else ""
     elif baseline and baseline not in labels:
         raise ValueError(f"--baseline {baseline!r} is not among the planners' labels: {', '.join(labels)}")
-    run = run_benchmark(
+    run = benchmark_with_summary(
         map_set,
         specs,
         protocol,
@@ -144,7 +158,7 @@ def benchmark_test_mazes(settings: Settings, protocol: Protocol):
     maps = MapSet(tuple(map(str, generated_maps(TEST_MAZES, "test mazes"))), protocol, folder=str(TEST_MAZES))
     speed = SpeedModel(settings.speed_mps)
     with atomic_folder(OUT_DIR) as out_dir:
-        run = run_benchmark(
+        run = benchmark_with_summary(
             maps,
             settings.planners,
             protocol,

@@ -42,7 +42,6 @@ from pipeline.data.collect import COLLECTION_SOURCES
 from pipeline.data.dagger import DaggerConfig, collect_dagger_shard
 from pipeline.data.observations import concatenate, load_observations, save_observations, shard_observations
 from pipeline.data.shards import read_manifest, run_shards, shard_count_for
-from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.models.defaults import PIPELINE_INPAINTER, PIPELINE_POLICY
 from pipeline.models.modeling_diffusion import load_policy
@@ -52,6 +51,7 @@ from pipeline.reporting.training_figures import dagger_rounds_figure
 from pipeline.training.policy import PlannerTrainConfig, train_planner
 from pipeline.training.policy_launch import train_in_subprocess
 from pipeline.training.run_setup import DEVICES, resume_point, start_afresh
+from pipeline.workflows.benchmark import benchmark_with_summary
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.mazes import MazeConfig, generate_maze_set
 from pipeline.world.protocol import Protocol
@@ -273,7 +273,7 @@ def closed_loop(settings: Settings, protocol: Protocol, policy: Path, name: str,
             return kept["result"]
     shutil.rmtree(folder, ignore_errors=True)
     specs = [BASELINE, PlannerSpec(STUDENT_LABEL, "guide", {"mode": "policy", "policy_file": str(policy)})]
-    frame = run_benchmark(mazes, specs, protocol, folder, workers=settings.workers, progress=True).frame
+    frame = benchmark_with_summary(mazes, specs, protocol, folder, workers=settings.workers, progress=True).frame
     mean, half, maps = paired_difference(frame, STUDENT_LABEL, BASELINE)
     ours = frame[frame.planner == STUDENT_LABEL]
     result = {

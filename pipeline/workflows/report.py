@@ -12,7 +12,6 @@ import pandas as pd
 from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.config import Section, identifier, list_of, maybe, satisfies, text, whole
 from pipeline.common.paths import CHECKPOINTS, DATA, REPORTS
-from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import EXPLORATION_CSV, SpeedModel, read_step_records
 from pipeline.planners import planner_config
 from pipeline.planners.specs import PlannerSpec
@@ -29,6 +28,7 @@ from pipeline.reporting.table_markdown import (
 from pipeline.reporting.tables import read_metrics, read_precision, sweep_label, table2, table3, table4, table5
 from pipeline.reporting.trajectory_figure import trajectory_figure
 from pipeline.workflows import table1
+from pipeline.workflows.benchmark import benchmark_with_summary
 from pipeline.workflows.stage_inputs import generated_maps
 from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
@@ -79,7 +79,7 @@ def run_sweep(maps, settings: Settings, protocol: Protocol):
         return None
     try:
         with atomic_folder(SWEEP_DIR) as folder:
-            return run_benchmark(
+            return benchmark_with_summary(
                 maps,
                 specs,
                 protocol,

@@ -589,13 +589,19 @@ def test_explore_at_the_real_robots_lattice_and_lidar_runs_the_real_robot_models
     assert "assets/real_robot/" in record["planner"]["description"]
 
 
-def test_maps_with_one_name_are_refused(tmp_path):
-    from pipeline.evaluation.benchmark import check_unique_map_names
-    from pipeline.world.map_files import MapError
+def test_maps_with_one_name_are_refused(small_maze_path, tmp_path):
+    import shutil
 
-    check_unique_map_names([tmp_path / "a.png", tmp_path / "b.png"], ["a", "b"])
+    from pipeline.evaluation.benchmark import MapSet
+    from pipeline.world.map_files import MapError
+    from pipeline.world.protocol import Protocol
+
+    for name in ("a.png", "b.png", "c/a.png"):
+        (tmp_path / name).parent.mkdir(exist_ok=True)
+        shutil.copy(small_maze_path, tmp_path / name)
+    assert set(MapSet.of([tmp_path / "a.png", tmp_path / "b.png"], Protocol(), None).loaded) == {"a", "b"}
     with pytest.raises(MapError, match="same name 'a'.*overwrite"):
-        check_unique_map_names([tmp_path / "a.png", tmp_path / "a.yaml"], ["a", "a"])
+        MapSet.of([tmp_path / "a.png", tmp_path / "c" / "a.png"], Protocol(), None).loaded
 
 
 def test_tracking_store_check():

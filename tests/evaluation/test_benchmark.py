@@ -2,6 +2,7 @@ import pandas as pd
 import pytest
 
 from pipeline.evaluation.benchmark import run_benchmark
+from pipeline.workflows.benchmark import benchmark_with_summary
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
@@ -11,7 +12,7 @@ from pipeline.world.trajectories import METRICS_COLUMNS, read_trajectory_csv
 
 def test_benchmark_writes_protocol_outputs_that_replay(generated_maze_dir, tmp_path):
     maps = list_maps(generated_maze_dir)[:2]
-    frame = run_benchmark(
+    frame = benchmark_with_summary(
         maps, ["nearest_frontier", "greedy_utility"], Protocol(), tmp_path, workers=2, progress=False
     ).frame
     metrics = pd.read_csv(tmp_path / "metrics.csv")
@@ -48,7 +49,7 @@ def metrics_frame_of(distances: dict[str, list[float]]) -> pd.DataFrame:
 
 
 def test_summary_compares_with_the_baseline_map_by_map():
-    from pipeline.evaluation.benchmark_summary import summary_markdown
+    from pipeline.reporting.benchmark_markdown import summary_markdown
 
     frame = metrics_frame_of({"greedy_utility": [100, 200, 300], "nf": [110, 220, 330]})
     text = summary_markdown(frame, Protocol())
@@ -64,8 +65,8 @@ def test_summary_compares_with_the_baseline_map_by_map():
 
 
 def test_gap_to_optimal_is_the_mean_over_the_references_mean_minus_one():
-    from pipeline.evaluation.benchmark_summary import summary_markdown
     from pipeline.evaluation.statistics import summarise
+    from pipeline.reporting.benchmark_markdown import summary_markdown
 
     frame = metrics_frame_of({"optimal": [80, 160, 240], "nf": [110, 220, 330]})
     summary = summarise(frame)
@@ -87,7 +88,9 @@ def test_benchmark_rejects_unknown_planner_and_bad_maps(generated_maze_dir, tmp_
 
 def test_failures_are_reported_not_dropped(small_maze_path, tmp_path):
     maps = [small_maze_path]
-    frame = run_benchmark(maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False).frame
+    frame = benchmark_with_summary(
+        maps, ["nearest_frontier"], Protocol(max_steps=2), tmp_path, workers=1, progress=False
+    ).frame
     assert len(frame) == 1 and not frame["complete"].any()
     assert "step limit" in (tmp_path / "summary.md").read_text()
 
@@ -183,7 +186,7 @@ def test_a_ros_map_is_recorded_and_summarised_at_its_own_cell_size(tmp_path):
     free, start = office_grid()
     write_ros_map(maps, free, 0.2, start)
     protocol = replace(PAPER_REAL_ROBOT, cell_size=0.4, done_unknown_cells=50)
-    run_benchmark(list_maps(maps), ["nearest_frontier"], protocol, tmp_path / "b", workers=1, progress=False)
+    benchmark_with_summary(list_maps(maps), ["nearest_frontier"], protocol, tmp_path / "b", workers=1, progress=False)
     record = json.loads((tmp_path / "b" / "run.json").read_text())
     assert record["protocol"]["cell_size"] == 0.2 and record["protocol"]["node_resolution"] == 1.0
     summary = (tmp_path / "b" / "summary.md").read_text()

@@ -16,12 +16,12 @@ from pipeline.evaluation.exploration_curves import (
     coverage_auc,
     distance_to_share,
     episode_table,
-    exploration_markdown,
     mean_curve,
     planner_table,
     share_at,
     step_record,
 )
+from pipeline.reporting.benchmark_markdown import exploration_markdown
 
 
 def record(distances, shares, decisions=None, area=100.0):

@@ -94,7 +94,7 @@ def test_a_planner_label_that_clashes_with_a_group_is_refused():
 
 
 def test_the_reference_and_baseline_names_match_the_report_stages():
-    from pipeline.evaluation.benchmark_summary import DEFAULT_BASELINE
+    from pipeline.evaluation.benchmark import DEFAULT_BASELINE
     from pipeline.reporting.tables import PAIRED_BASELINE, REFERENCE_PLANNER
 
     assert hl.PAIRED_BASELINE == DEFAULT_BASELINE == PAIRED_BASELINE

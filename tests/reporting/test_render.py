@@ -11,6 +11,7 @@ import pytest
 from PIL import Image
 
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.reporting import panels, render
 from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.world.maps import GroundTruthMap
@@ -37,7 +38,11 @@ def run_recorded(max_frames: int = 50, every: int = 1, scale: int = 3):
     ground_truth = small_map()
     planner = make_planner("nearest_frontier")
     recorder = EpisodeRecorder(
-        every=every, max_frames=max_frames, graph_provider=lambda: planner.graph, scale=scale, label=planner.name
+        every=every,
+        max_frames=max_frames,
+        graph_provider=lambda: innermost(planner).graph,
+        scale=scale,
+        label=planner.name,
     )
     seen = []
 
@@ -227,7 +232,9 @@ def test_save_png_round_trips_through_cv2(recorded, tmp_path):
 def test_render_final_writes_the_png(recorded, tmp_path):
     ground_truth, planner, _, result, seen = recorded
     belief = seen[-1][2]
-    image = panels.render_final(result, ground_truth, belief, planner.graph, scale=2, path=tmp_path / "final.png")
+    image = panels.render_final(
+        result, ground_truth, belief, innermost(planner).graph, scale=2, path=tmp_path / "final.png"
+    )
     assert image.shape == (header_height(COLS * 2) + ROWS * 2, COLS * 2, 3)
     loaded = cv2.imread(str(tmp_path / "final.png"))
     assert loaded is not None and loaded.shape == image.shape

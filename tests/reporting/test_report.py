@@ -15,6 +15,7 @@ from pipeline.evaluation.benchmark import run_benchmark
 from pipeline.evaluation.exploration_curves import SpeedModel, episode_table, planner_table, step_record
 from pipeline.evaluation.statistics import paired_difference
 from pipeline.planners.specs import PlannerSpec, parse_planner_spec
+from pipeline.planners.wrapper import innermost
 from pipeline.reporting.mlflow_tables import log_tables_to_mlflow, metrics_json
 from pipeline.reporting.table_markdown import (
     COMPARE_LABEL,
@@ -27,6 +28,7 @@ from pipeline.reporting.table_markdown import (
 )
 from pipeline.reporting.tables import table2, table3, table4
 from pipeline.reporting.trajectory_figure import trajectory_figure
+from pipeline.workflows.benchmark import benchmark_with_summary
 from pipeline.world.maps import load_maze_png
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import replay
@@ -145,11 +147,11 @@ def test_oracle_bound_specs_reach_their_base_planner():
 
     (spec,) = resolve_planner_specs(["t=oracle_tail:base=greedy_utility,sliver_gate=true,handover_cells=10"])
     planner = build_planner(spec)
-    assert planner.handover_cells == 10 and planner.base.gate is not None  # sliver_gate went to the base
+    assert planner.handover_cells == 10 and innermost(planner.base).gate is not None  # sliver_gate went to the base
 
 
 def test_run_benchmark_with_labelled_variant(small_maze_path, tmp_path):
-    frame = run_benchmark(
+    frame = benchmark_with_summary(
         [small_maze_path],
         ["nearest_frontier", "nf_u1=nearest_frontier:min_utility=1"],
         Protocol(),

@@ -14,6 +14,8 @@ from pipeline.data.observations import ObservationConfig, concatenate, episode_o
 from pipeline.data.shards import shard_path
 from pipeline.models.modeling_diffusion import load_policy, read_policy_export
 from pipeline.planners import make_planner
+from pipeline.planners.extensions.tour_vote import TourVote
+from pipeline.planners.wrapper import innermost, layer
 from pipeline.prediction.node_predictor import NodePredictor
 from pipeline.training.policy import PlannerTrainConfig, split_episodes, train_planner
 from pipeline.world.maps import list_maps, load_map
@@ -222,7 +224,7 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
         decision = planner.last_decision
         if not decision.get("sampled") or len(checked) >= 5:
             return
-        graph = planner.graph
+        graph = innermost(planner).graph
         position = np.asarray(episode.trajectory[-1])
         previous = graph.nearest_node(np.asarray(episode.trajectory[-2]))
         moved_to = graph.nearest_node(position)
@@ -240,19 +242,20 @@ def test_tour_mode_votes_follow_the_sampled_plans_and_moves_shorten_the_way_to_t
     planner.reset(ground_truth, Protocol(), 0)
     episode = Episode(ground_truth, Protocol())
     observation = episode.observe()
-    graph = planner.update_graph(observation)
-    robot = planner.robot_node(observation)
+    paper, vote = innermost(planner), layer(planner, TourVote)
+    graph = paper.update_graph(observation)
+    robot = paper.robot_node(observation)
     dist, pred = graph.shortest_paths(robot)
-    useful = planner.reachable_useful(robot, dist)
-    planner.update_global_graph(observation)
-    planner.observe(observation.position)
-    options = planner.tour.first_target_scores(planner.graph, planner.global_graph, robot, dist, useful)
+    useful = paper.reachable_useful(robot, dist)
+    paper.update_global_graph(observation)
+    paper.observe(observation.position)
+    options = vote.tour.first_target_scores(paper.graph, paper.global_graph, robot, dist, useful)
     target = int(options["targets"][options["firsts"][0]])
     straight = graph.path_from_predecessors(pred, target)[:4]
-    votes = planner.target_votes(robot, [straight, [robot]], options)
+    votes = vote.target_votes(robot, [straight, [robot]], options)
     assert votes[0] == pytest.approx(0.5)  # one plan of two heads straight at it, the other does not move
     unreachable = dict(options, option_distance=np.full_like(options["option_distance"], np.inf))
-    assert np.all(planner.target_votes(robot, [straight], unreachable) == 0.0)  # no vote, no NaN
+    assert np.all(vote.target_votes(robot, [straight], unreachable) == 0.0)  # no vote, no NaN
 
 
 def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated_maze_dir):
@@ -264,7 +267,7 @@ def test_tour_mode_with_no_prior_follows_the_guide_tsp_scores(trained, generated
     planner.reset(ground_truth, Protocol(), 0)
     observation = Episode(ground_truth, Protocol()).observe()
     planner.plan(observation)
-    reference = make_planner("guide_tsp", inpaint=wall_aware_inpaint, global_graph=planner.global_config)
+    reference = make_planner("guide_tsp", inpaint=wall_aware_inpaint, global_graph=innermost(planner).global_config)
     reference.reset(ground_truth, Protocol(), 0)
     reference.plan(observation)
     assert planner.last_decision["target"] == reference.last_decision["tour"][0]

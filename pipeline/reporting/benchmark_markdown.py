@@ -1,19 +1,31 @@
-"""summary.md beside a benchmark's metrics.csv: distance and completion per planner, the paired
-difference to the baseline, and the whole-building figures where the protocol explores until
-done.
+"""The markdown a benchmark run is read by: summary.md beside metrics.csv (distance and completion
+per planner, the paired difference to the baseline, the whole-building figures where the protocol
+explores until done, and how fast each planner uncovers the maps) and the team summary the
+command line prints.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from pipeline.common.atomic import atomic_write_text
+from pipeline.evaluation.benchmark import DEFAULT_BASELINE, BenchmarkRun
 from pipeline.evaluation.statistics import paired_difference, summarise
 from pipeline.world.protocol import Protocol
 
-DEFAULT_BASELINE = "greedy_utility"  # summary.md's paired comparison, when it ran
+SUMMARY_MD = "summary.md"
+
+
+def write_summary(run: BenchmarkRun, out_dir: Path) -> Path:
+    """summary.md of `run` in `out_dir`: its summary table, then its exploration table."""
+    path = Path(out_dir) / SUMMARY_MD
+    text = summary_markdown(run.frame, run.protocol_record, run.baseline, run.summary)
+    atomic_write_text(path, text + "\n" + exploration_markdown(run.exploration))
+    return path
 
 
 def whole_building_markdown(frame: pd.DataFrame, protocol: dict[str, Any]) -> list[str]:
@@ -101,3 +113,66 @@ def summary_markdown(
     else:
         notes.append("Every episode completed.")
     return "\n".join(lines + notes) + "\n"
+
+
+def _cell(value: float, fmt: str) -> str:
+    return fmt.format(value) if np.isfinite(value) else "—"
+
+
+def exploration_markdown(table: pd.DataFrame) -> str:
+    """The per-planner table of summary.md: how fast each planner uncovers the maps, best AUC first."""
+    if table.empty:
+        return ""
+    levels = [c for c in table.columns if c.startswith("distance_to_")]
+    heads = [f"to {c.split('_')[2]} % (m)" for c in levels]
+    speed = float(table["speed_mps"].iloc[0])
+    lines = [
+        f"| planner | {' | '.join(heads)} | coverage AUC | m^2 / m | m^2 / s |",
+        "|---|" + "---:|" * (len(levels) + 3),
+    ]
+    for row in table.sort_values("coverage_auc", ascending=False).itertuples(index=False):
+        row = row._asdict()
+        cells = []
+        for column in levels:
+            reached = row[f"reached_{column.split('_')[2]}"]
+            text = _cell(row[column], "{:.1f}")
+            cells.append(text if reached == row["maps"] else f"{text} ({reached}/{row['maps']} maps)")
+        lines.append(
+            f"| {row['planner']} | {' | '.join(cells)} | {_cell(row['coverage_auc'], '{:.3f}')} | "
+            f"{_cell(row['efficiency_m2_per_m'], '{:.2f}')} | {_cell(row['efficiency_m2_per_s'], '{:.2f}')} |"
+        )
+    return (
+        "\n".join(
+            lines
+            + [
+                "",
+                "To N %: the distance at the first waypoint where the known free area reaches N % of the map's "
+                "(mean over the maps that reach it). Coverage AUC: the mean explored share over each map's longest "
+                "episode in this comparison. m^2 / m and m^2 / s: the paper's Table V efficiency, explored area per "
+                f"metre and per second of a robot at {speed:g} m/s that waits while its planner decides.",
+            ]
+        )
+        + "\n"
+    )
+
+
+def team_summary_markdown(summary: dict[str, dict[str, Any]]) -> str:
+    """team_summary.json as a markdown table, for the command line."""
+
+    def cell(value: Any, fmt: str = "{:.1f}") -> str:
+        return "—" if value is None else fmt.format(value)
+
+    lines = [
+        "| run | robots | episodes | makespan (m) | total distance (m) | to 90 % (m) | complete "
+        "| decision ms (median) | makespan / 1-robot distance |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for run_label, row in summary.items():
+        spread = f" +- {row['makespan_std_m']:.1f}" if row["episodes"] > 1 and row["makespan_std_m"] is not None else ""
+        lines.append(
+            f"| {run_label} | {row['robots']} | {row['episodes']} | {cell(row['makespan_mean_m'])}{spread} "
+            f"| {cell(row['total_distance_mean_m'])} | {cell(row['time_to_90_mean_m'])} "
+            f"| {row['completion_rate'] * 100:.0f} % | {cell(row['decision_ms_median'], '{:.2f}')} "
+            f"| {cell(row['makespan_over_single_distance'], '{:.2f}')} |"
+        )
+    return "\n".join(lines) + "\n"
