@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.world.maps import load_maze_png
 from pipeline.world.mazes import MazeConfig, generate_maze, write_maze_png
 from pipeline.world.protocol import Protocol
@@ -67,7 +68,7 @@ def main() -> None:
             f"sampled_lookahead k={k} samples={samples}: {result.distance_m:.1f} m "
             f"({'complete' if result.complete else result.failure}), {np.median(ms):.0f} ms median, "
             f"{np.percentile(ms, 95):.0f} ms p95 a decision over {ms.size} ({time.perf_counter() - started:.0f} s; "
-            f"{planner.model_source}; {args.workers} process{'es' if args.workers > 1 else ''})"
+            f"{innermost(planner).model_source}; {args.workers} process{'es' if args.workers > 1 else ''})"
         )
 
 

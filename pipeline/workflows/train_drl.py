@@ -33,6 +33,7 @@ from pipeline.models.configuration_drl import DRLPolicyConfig
 from pipeline.models.defaults import PIPELINE_DRL
 from pipeline.models.modeling_drl import load_drl_policy, save_drl_policy
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.reporting.training_figures import drl_training_curves
 from pipeline.training.drl import (
     EpisodeLog,
@@ -299,7 +300,7 @@ def evaluate_on_fresh_mazes(
                 "distance": result.distance_m,
                 "complete": result.complete,
                 "steps": result.steps,
-                "handovers": planner.handovers,
+                "handovers": innermost(planner).handovers,
                 "nearest_frontier_distance": baseline.distance_m,
                 "nearest_frontier_complete": baseline.complete,
             }

@@ -4,6 +4,7 @@ from scipy.sparse.csgraph import connected_components
 
 from pipeline.lattice.graph import NODE_UNKNOWN, REGION_BOUNDARY, REGION_EXPLORED, REGION_UNOBSERVED
 from pipeline.planners import make_planner
+from pipeline.planners.wrapper import innermost
 from pipeline.prediction.global_graph import (
     CENTROID,
     KNOWN,
@@ -28,7 +29,7 @@ from pipeline.world.simulator import Episode
 
 @pytest.fixture(scope="module")
 def partial(small_maze):
-    planner = make_planner("nearest_frontier")
+    planner = innermost(make_planner("nearest_frontier"))
     episode = Episode(small_maze, Protocol())
     planner.reset(small_maze, Protocol(), 0)
     for _ in range(4):
