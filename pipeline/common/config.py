@@ -13,6 +13,10 @@ the stage runner and the command line print as one `error:` line with exit statu
 
 Two rules hold for every type here: a bool is never a number (YAML's `true` is a typo, not a
 count), and NaN and infinities are never real numbers.
+
+A field is annotated with its plain type, the rule beside it: `horizon: Annotated[int, whole(1)] = 8`.
+The plain type is what a type checker reads; the rule (`Rule`) is what pydantic validates, and
+it refuses, when the class is made, a plain type that is not its own.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from pydantic import AllowInfNan, BaseModel, ConfigDict, Strict, ValidationError
 from pydantic_core import ArgsKwargs, PydanticCustomError
 
 __all__ = [
+    "Rule",
     "Section",
     "ValidationError",
     "any_of",
@@ -54,6 +59,56 @@ __all__ = [
 
 T = TypeVar("T")
 REFUSED = "refused"
+
+
+class Rule:
+    """A setting's constraints: the constrained type pydantic validates (`type`), written beside
+    the field's plain type (`Annotated[int, whole(1)]`). Rules compose (`maybe(whole())`,
+    `list_of(positive())`); `check_value` and the helpers take a rule where they take a type."""
+
+    def __init__(self, constrained: Any):
+        self.type = constrained
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: pydantic.GetCoreSchemaHandler) -> Any:
+        if not _fits(_plain(source), _plain(self.type)):
+            raise TypeError(f"a field annotated {source!r} has the rule of {_plain(self.type)!r}")
+        return handler.generate_schema(self.type)
+
+    def __repr__(self) -> str:
+        return f"Rule({_what(self.type)!r})"
+
+
+def _type(kind: Any) -> Any:
+    """The constrained type of a rule; any other type as it is."""
+    return kind.type if isinstance(kind, Rule) else kind
+
+
+def _fits(plain: Any, rule: Any) -> bool:
+    """Whether a field's plain type is its rule's: `Any` in a rule (a value a test parses into an
+    object) takes any plain type there."""
+    if rule is Any or plain == rule:
+        return True
+    if isinstance(plain, tuple) and isinstance(rule, tuple) and len(plain) == len(rule):
+        return all(_fits(a, b) for a, b in zip(plain, rule))
+    return False
+
+
+def _plain(kind: Any) -> Any:
+    """The plain type of a constrained one, as a type checker reads it: constraints dropped, a
+    `Literal` of strings read as `str`, unions as sets of their members."""
+    kind = _type(kind)
+    origin = typing.get_origin(kind)
+    if origin is Annotated:
+        return _plain(typing.get_args(kind)[0])
+    if origin is Union or origin is types.UnionType:
+        members = frozenset(_plain(member) for member in typing.get_args(kind))
+        return next(iter(members)) if len(members) == 1 else members
+    if origin is Literal:
+        kinds = {type(value) for value in typing.get_args(kind)}
+        return kinds.pop() if len(kinds) == 1 else frozenset(kinds)
+    if origin is not None:
+        return (origin, *(_plain(arg) for arg in typing.get_args(kind)))
+    return kind
 
 
 def _refusing(what: str, deeper: bool = True) -> WrapValidator:
@@ -81,25 +136,27 @@ def _noted(rule: str, note: str) -> str:
     return rule + (f" ({note})" if note else "")
 
 
-def whole(minimum: int | None = 0, maximum: int | None = None, note: str = "") -> Any:
+def whole(minimum: int | None = 0, maximum: int | None = None, note: str = "") -> Rule:
     """A whole number (an int, not a bool, not 3.0) in minimum..maximum (None: no bound on that side)."""
     if minimum is None:
         rule = "" if maximum is None else f"<= {maximum}"
     else:
         rule = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
     bounds = ([at.Ge(minimum)] if minimum is not None else []) + ([at.Le(maximum)] if maximum is not None else [])
-    return Annotated[
-        (
-            int,
-            Strict(),
-            *bounds,
-            _refusing(_noted(f"a whole number {rule}".rstrip(), note)),
-            pydantic.BeforeValidator(_plain_int),
-        )
-    ]
+    return Rule(
+        Annotated[
+            (
+                int,
+                Strict(),
+                *bounds,
+                _refusing(_noted(f"a whole number {rule}".rstrip(), note)),
+                pydantic.BeforeValidator(_plain_int),
+            )
+        ]
+    )
 
 
-def _plain_int(value: Any) -> Any:
+def _plain_int(value: Any) -> Rule:
     """numpy's integers as Python ints (a count computed with numpy is still a count)."""
     return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
 
@@ -111,7 +168,7 @@ def real(
     low_open: bool = False,
     high_open: bool = False,
     note: str = "",
-) -> Any:
+) -> Rule:
     """A finite number (an int or a float, never a bool, NaN or +-inf) between `low` and `high`
     (closed ends unless `low_open` / `high_open`; None: unbounded on that side). Kept as a float."""
     if low is not None and high is not None:
@@ -127,79 +184,95 @@ def real(
         bounds.append(at.Gt(low) if low_open else at.Ge(low))
     if high is not None:
         bounds.append(at.Lt(high) if high_open else at.Le(high))
-    return Annotated[(float, Strict(), AllowInfNan(False), *bounds, _refusing(_noted(rule, note)))]
+    return Rule(Annotated[(float, Strict(), AllowInfNan(False), *bounds, _refusing(_noted(rule, note)))])
 
 
-def positive(note: str = "") -> Any:
+def positive(note: str = "") -> Rule:
     """A finite number > 0 (a length, a rate, a learning rate)."""
     return real(0.0, low_open=True, note=note)
 
 
-def fraction(note: str = "") -> Any:
+def fraction(note: str = "") -> Rule:
     """A finite number in [0, 1] (a share, a probability threshold)."""
     return real(0.0, 1.0, note=note)
 
 
-def flag() -> Any:
+def flag() -> Rule:
     """true or false (not 0 / 1, not "yes")."""
-    return Annotated[bool, Strict(), _refusing("true or false")]
+    return Rule(Annotated[bool, Strict(), _refusing("true or false")])
 
 
-def text(choices: tuple[str, ...] = (), note: str = "") -> Any:
+def text(choices: tuple[str, ...] = (), note: str = "") -> Rule:
     """A non-empty string; with `choices`, one of them."""
     if choices:
-        return Annotated[Literal[choices], _refusing(_noted("one of " + ", ".join(map(repr, choices)), note))]
-    return Annotated[
-        str, Strict(), at.Predicate(lambda value: bool(value.strip())), _refusing(_noted("a non-empty string", note))
-    ]
+        return Rule(Annotated[Literal[choices], _refusing(_noted("one of " + ", ".join(map(repr, choices)), note))])
+    return Rule(
+        Annotated[
+            str,
+            Strict(),
+            at.Predicate(lambda value: bool(value.strip())),
+            _refusing(_noted("a non-empty string", note)),
+        ]
+    )
 
 
-def identifier(note: str = "") -> Any:
+def identifier(note: str = "") -> Rule:
     """A Python identifier (letters, digits, '_'): a name that becomes a key or a file name."""
-    return Annotated[
-        str, Strict(), at.Predicate(str.isidentifier), _refusing(_noted("an identifier (letters, digits, '_')", note))
-    ]
+    return Rule(
+        Annotated[
+            str,
+            Strict(),
+            at.Predicate(str.isidentifier),
+            _refusing(_noted("an identifier (letters, digits, '_')", note)),
+        ]
+    )
 
 
-def maybe(inner: Any, meaning: str = "") -> Any:
+def maybe(inner: Any, meaning: str = "") -> Rule:
     """null (None), meaning `meaning`, or a value of type `inner`."""
-    return Annotated[Optional[inner], _refusing(_noted(f"{_what(inner)}, or null", meaning))]
+    return Rule(Annotated[Optional[_type(inner)], _refusing(_noted(f"{_what(inner)}, or null", meaning))])
 
 
-def list_of(item: Any, min_length: int = 1, description: str = "") -> Any:
+def list_of(item: Any, min_length: int = 1, description: str = "") -> Rule:
     """A list (a tuple from Python) of at least `min_length` items of type `item` (paths key[i])."""
     if not description:
         size = {0: "a list (maybe empty)", 1: "a non-empty list"}.get(
             min_length, f"a list of at least {min_length} items"
         )
         description = f"{size} of {_what(item)}"
-    return Annotated[list[item], at.MinLen(min_length), _refusing(description)]
+    return Rule(Annotated[list[_type(item)], at.MinLen(min_length), _refusing(description)])
 
 
-def pair(item: Any) -> Any:
+def pair(item: Any) -> Rule:
     """An inclusive range [low, high]: two values of type `item`, low <= high."""
-    return Annotated[
-        list[item],
-        at.Len(2, 2),
-        at.Predicate(lambda value: value[0] <= value[1]),
-        _refusing(f"a range [low, high] of {_what(item)}, low <= high"),
-    ]
+    return Rule(
+        Annotated[
+            list[_type(item)],
+            at.Len(2, 2),
+            at.Predicate(lambda value: value[0] <= value[1]),
+            _refusing(f"a range [low, high] of {_what(item)}, low <= high"),
+        ]
+    )
 
 
-def any_of(*options: Any, description: str = "") -> Any:
+def any_of(*options: Any, description: str = "") -> Rule:
     """A value one of `options` takes (e.g. a number of devices or "auto"), tried left to right."""
     what = description or " or ".join(_what(option) for option in options)
     if len(options) == 1:
-        return Annotated[options[0], _refusing(what, deeper=False)]
-    return Annotated[Union[options], pydantic.Field(union_mode="left_to_right"), _refusing(what, deeper=False)]
+        return Rule(Annotated[_type(options[0]), _refusing(what, deeper=False)])
+    return Rule(
+        Annotated[
+            Union[tuple(map(_type, options))], pydantic.Field(union_mode="left_to_right"), _refusing(what, deeper=False)
+        ]
+    )
 
 
-def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any, parses: bool = False) -> Any:
+def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any, parses: bool = False) -> Rule:
     """A value `test` takes without a ValueError, TypeError or KeyError (a registered planner's
     name, by the registry's own lookup); the refusal carries the test's own message. With
     `parses`, the value read is what `test` returns (a planner spec, parsed once)."""
 
-    def check(value: Any) -> Any:
+    def check(value: Any) -> Rule:
         try:
             parsed = test(value)
         except (ValueError, TypeError, KeyError) as error:
@@ -209,27 +282,28 @@ def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any, par
             ) from None
         return parsed if parses else value
 
-    return Annotated[kind, pydantic.AfterValidator(check)]
+    return Rule(Annotated[_type(kind), pydantic.AfterValidator(check)])
 
 
-def every_key(kind: Any, optional: tuple[str, ...] = ()) -> Any:
+def every_key(kind: Any, optional: tuple[str, ...] = ()) -> Rule:
     """A config (a config dataclass or Section model) whose mapping must name every field but
     `optional`: a params section names every setting, so a default cannot drift from the file."""
     names = list(_field_types(kind))
 
-    def complete(values: Any) -> Any:
+    def complete(values: Any) -> Rule:
         if isinstance(values, Mapping):
             for name in names:
                 if name not in values and name not in optional:
                     raise PydanticCustomError("missing_key", "missing {key}", {"key": name})
         return values
 
-    return Annotated[kind, pydantic.BeforeValidator(complete)]
+    return Rule(Annotated[kind, pydantic.BeforeValidator(complete)])
 
 
 def _what(kind: Any) -> str:
     """The words a constrained type says it must be ("a whole number >= 1"), for the types that
     hold others (a list of them, a null or one)."""
+    kind = _type(kind)
     if typing.get_origin(kind) is Annotated:
         for meta in reversed(kind.__metadata__):
             if isinstance(meta, WrapValidator) and hasattr(meta.func, "what"):
@@ -391,9 +465,9 @@ def check_value(kind: Any, value: Any, path: str) -> Any:
     """`value` as type `kind` takes it (a command-line override of one setting), or a ValueError
     `path: must be ..., got ...`."""
     try:
-        return _adapter(kind).validate_python(value)
+        return _adapter(_type(kind)).validate_python(value)
     except ValidationError as error:
-        raise ValueError(explain(error, path, kind)) from None
+        raise ValueError(explain(error, path, _type(kind))) from None
 
 
 def _adapter(kind: Any) -> pydantic.TypeAdapter:

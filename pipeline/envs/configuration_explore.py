@@ -16,6 +16,7 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, BeforeValidator
 
 from pipeline.common.config import (
+    Rule,
     config_dataclass,
     flag,
     list_of,
@@ -55,14 +56,13 @@ def _two(values: list) -> None:
         raise ValueError(f"{len(values)} values")
 
 
-def _pair_of(item: Any, what: str) -> Any:
+def _pair_of(item: Any, what: str) -> Rule:
     """Two values of type `item` (a tuple, a list or an array of them), kept as a tuple."""
-    return Annotated[
-        satisfies(_two, what, list_of(item, 2, description=what)), BeforeValidator(_as_tuple), AfterValidator(tuple)
-    ]
+    two = satisfies(_two, what, list_of(item, 2, description=what))
+    return Rule(Annotated[two.type, BeforeValidator(_as_tuple), AfterValidator(tuple)])
 
 
-MapName = Annotated[text(note=f"a map file, a folder of maps or {GENERATED_MAZE!r}"), BeforeValidator(_path_text)]
+MapName = Annotated[str, text(note=f"a map file, a folder of maps or {GENERATED_MAZE!r}"), BeforeValidator(_path_text)]
 
 
 @config_dataclass
@@ -75,38 +75,48 @@ class ExploreEnvConfig:
         GENERATED_MAZE  # a map file (maze .png, ROS .yaml, .npy), a folder of maps, or "maze": a new maze each reset
     )
     # start override as load_map takes it: (col, row) for .png/.npy, (x, y) m for ROS
-    start: maybe(_pair_of(real(), "a pair of finite numbers"), "the map's") = None
-    maze_side_m: positive("metres") = 100.0  # side of the generated mazes (map="maze"), a whole number of 5 m blocks
+    start: Annotated[list[float] | None, maybe(_pair_of(real(), "a pair of finite numbers"), "the map's")] = None
+    maze_side_m: Annotated[float, positive("metres")] = (
+        100.0  # side of the generated mazes (map="maze"), a whole number of 5 m blocks
+    )
     # --- the protocol (docs/protocol.md); max_steps also bounds the environment's steps
-    cell_size: positive("metres") = 0.4  # side of a grid cell (a ROS map brings its own)
-    node_resolution: positive("metres") = 4.0  # spacing of the waypoint lattice
-    sensor_range: positive("metres") = 20.0  # lidar range
-    utility_range: positive("metres") = 10.0  # a node's frontier utility counts frontier cells this close
-    region_size: positive("metres") = (
+    cell_size: Annotated[float, positive("metres")] = 0.4  # side of a grid cell (a ROS map brings its own)
+    node_resolution: Annotated[float, positive("metres")] = 4.0  # spacing of the waypoint lattice
+    sensor_range: Annotated[float, positive("metres")] = 20.0  # lidar range
+    utility_range: Annotated[float, positive("metres")] = (
+        10.0  # a node's frontier utility counts frontier cells this close
+    )
+    region_size: Annotated[float, positive("metres")] = (
         20.0  # side of the fixed regions (kept for the protocol; the observed graph ignores it)
     )
-    done_unknown_cells: whole(0, note="cells") = (
+    done_unknown_cells: Annotated[int, whole(0, note="cells")] = (
         250  # the episode is complete when at most this many free cells are unseen
     )
-    max_steps: whole(1) = 500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
-    robot_radius_m: real(0.0) = 0.2  # metres: what fits through a door (the protocol's; unused on the lattice)
+    max_steps: Annotated[int, whole(1)] = (
+        500  # steps (actions, invalid ones too) and waypoints: the episode is truncated at either
+    )
+    robot_radius_m: Annotated[float, real(0.0)] = (
+        0.2  # metres: what fits through a door (the protocol's; unused on the lattice)
+    )
     # --- actions and observations
-    action: text(ACTION_MODES) = (
+    action: Annotated[str, text(ACTION_MODES)] = (
         "neighbour"  # "neighbour": Discrete(25), a lattice offset in the 5x5 window; "node": a known node's row
     )
-    max_nodes: whole(1, MAX_PADDED_NODES) = (
+    max_nodes: Annotated[int, whole(1, MAX_PADDED_NODES)] = (
         320  # rows of the padded node arrays (nearest nodes first): the trained policies' size
     )
-    max_neighbors: whole(1) = 25  # neighbour slots per row (-1 padded); a lattice node has at most 24
-    belief_image: flag() = False  # add the belief as a uint8 image ("belief") and the robot's cell ("robot_cell")
-    belief_shape: maybe(_pair_of(whole(1), "two cell counts (rows, cols)"), "the largest map's") = (
-        None  # cells (rows, cols) of the padded belief
+    max_neighbors: Annotated[int, whole(1)] = 25  # neighbour slots per row (-1 padded); a lattice node has at most 24
+    belief_image: Annotated[bool, flag()] = (
+        False  # add the belief as a uint8 image ("belief") and the robot's cell ("robot_cell")
     )
+    belief_shape: Annotated[
+        list[int] | None, maybe(_pair_of(whole(1), "two cell counts (rows, cols)"), "the largest map's")
+    ] = None  # cells (rows, cols) of the padded belief
     # --- reward (ARiADNE-style): area_weight * new free area - distance_weight * distance + completion_bonus
-    area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area (50 m^2 -> 1)
-    distance_weight: real(0.0) = 0.1  # penalty per metre travelled (one 4 m lattice step -> 0.4)
-    completion_bonus: real(0.0) = 20.0  # reward once, on the step that completes the episode
-    invalid_action_penalty: real(0.0) = 1.0  # penalty for a masked action (the robot stays)
+    area_weight: Annotated[float, real(0.0)] = 0.02  # reward per m^2 of newly observed free area (50 m^2 -> 1)
+    distance_weight: Annotated[float, real(0.0)] = 0.1  # penalty per metre travelled (one 4 m lattice step -> 0.4)
+    completion_bonus: Annotated[float, real(0.0)] = 20.0  # reward once, on the step that completes the episode
+    invalid_action_penalty: Annotated[float, real(0.0)] = 1.0  # penalty for a masked action (the robot stays)
 
     def __post_init__(self) -> None:
         # Each value alone is checked by its type; these are the rules between values.

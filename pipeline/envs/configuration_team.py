@@ -9,6 +9,7 @@ may take. A bad value fails when the environment is made, with the same one-line
 from __future__ import annotations
 
 from dataclasses import fields
+from typing import Annotated
 
 from pipeline.common.config import config_dataclass, list_of, maybe, positive, real, whole
 from pipeline.envs.configuration_explore import ExploreEnvConfig
@@ -24,13 +25,16 @@ class TeamExploreEnvConfig(ExploreEnvConfig):
     The belief image of `guide/Explore-v0` is not offered: each robot's observation is its graph.
     """
 
-    robots: whole(1, MAX_ROBOTS) = 2  # agents robot_0 .. robot_{robots-1}
+    robots: Annotated[int, whole(1, MAX_ROBOTS)] = 2  # agents robot_0 .. robot_{robots-1}
     # each robot's start in metres from the map's start, on the node lattice (None: all at the map's start)
-    starts: maybe(list_of(list_of(real(), 2, "an (x, y) pair of finite numbers")), "every robot at the map's start") = (
-        None
+    starts: Annotated[
+        list[list[float]] | None,
+        maybe(list_of(list_of(real(), 2, "an (x, y) pair of finite numbers")), "every robot at the map's start"),
+    ] = None
+    comm_range_m: Annotated[float | None, maybe(positive("metres"), "full communication: one shared belief")] = None
+    step_limit: Annotated[int | None, maybe(whole(1), "robots * max_steps")] = (
+        None  # environment steps before the episode is truncated
     )
-    comm_range_m: maybe(positive("metres"), "full communication: one shared belief") = None
-    step_limit: maybe(whole(1), "robots * max_steps") = None  # environment steps before the episode is truncated
 
     def __post_init__(self) -> None:
         super().__post_init__()

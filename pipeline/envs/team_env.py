@@ -28,7 +28,6 @@ the penalty for a masked action to the robot that chose it (which then waits).
 from __future__ import annotations
 
 import copy
-import heapq
 import warnings
 from typing import Any
 
@@ -50,10 +49,10 @@ from pipeline.prediction.observed_graph import (
     slot_of_offset,
     window_moves,
 )
+from pipeline.world.episode import IDLE, MOVE_LIMIT, EventLoop
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol, protocol_for_map
-from pipeline.world.simulator import MotionError
 from pipeline.world.team import MAX_ROBOTS, TeamEpisode, TeamEpisodeResult
 
 #: Per teammate row of the `teammates` observation (robot-number order, this robot left out, zero padded).
@@ -230,9 +229,8 @@ class TeamExploreEnv(ParallelEnv):
         for k in range(cfg.robots):
             self._stand(k)
         self._share_visits()
-        # run_team_episode's queue: (time, waiting, robot); every robot decides at time 0, in number order.
-        self._queue = [(0.0, 0, k) for k in range(cfg.robots)]
-        heapq.heapify(self._queue)
+        self._loop = EventLoop(episode)  # run_team_episode's: every robot decides at time 0, in number order
+        self._known = episode.union.free_count  # the team's known free cells after the last event
         self._steps, self._acting = 0, None
         self._ended, self._failure = False, ""  # whether no event is left to run, and why (unless complete)
         self._move_limit, self._violations = False, 0  # ended on the robots' move limit; motion rule broken
@@ -283,9 +281,8 @@ class TeamExploreEnv(ParallelEnv):
         if acting is not None:
             invalid[acting] = not self._masks[acting][action]
             stay = invalid[acting] or action == self.stay_action(agent)
-            self._decide(acting, [] if stay else self._waypoints(acting, action))
-            if not self._ended:
-                self._advance()
+            self._loop.decide(acting, [] if stay else self._waypoints(acting, action))
+            self._advance()
         terminated = self._ended and not self._move_limit  # a move limit truncates; any other end is terminal
         truncated = not terminated and (self._ended or self._steps >= cfg.steps_allowed)
         if truncated and not self._ended:
@@ -325,74 +322,29 @@ class TeamExploreEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ the event loop (run_team_episode's)
     def _advance(self) -> None:
-        """Run the team's events in time order until a robot must decide (it becomes the acting one)
-        or the episode ends: the loop of `run_team_episode` with the planner's call cut out."""
-        episode, queue = self._episode, self._queue
-        self._acting = None
-        while queue and not episode.complete:
-            t, _, index = heapq.heappop(queue)
-            robot = episode.robots[index]
-            episode.time = t
-            if robot.heading is not None:
-                known_before = episode.union.free_count
-                episode.arrive(index)
-                self._scanned[index] += episode.union.free_count - known_before
-                self._stand(index)
-            episode._communicate()
-            self._share_visits()
-            episode._record()
-            if episode.complete:
-                break
-            if robot.moves >= self._protocol.max_steps:
-                robot.stopped, robot.target = True, None  # it stays where it is for the rest of the episode
-                continue
-            if not robot.plan:
-                self._acting = index
-                return
-            self._depart(index)
-            if self._ended:
-                return
-        self._ended = True
-        if not episode.complete and not self._failure:
-            self._move_limit = any(r.stopped for r in episode.robots)
-            self._failure = (
-                f"step limit ({self._protocol.max_steps} moves of a robot) reached"
-                if self._move_limit
-                else "no reachable target left for any robot"
-            )
-
-    def _decide(self, index: int, waypoints: list[tuple[float, float]]) -> None:
-        """Robot `index`'s decision: its plan, or waiting when it is empty (as in `run_team_episode`)."""
-        episode = self._episode
-        robot = episode.robots[index]
-        robot.plan = list(waypoints)
-        robot.target = robot.plan[-1] if robot.plan else None
-        episode.heard_targets[index][index] = robot.target
-        if robot.plan:
-            self._depart(index)
+        """Run the team's events until a robot must decide (it becomes the acting one) or the
+        episode ends: `run_team_episode`'s loop, with this environment's agents as the planner."""
+        self._acting = self._loop.next_decision(self._on_event)
+        if self._acting is not None:
             return
-        robot.waiting = True
-        moving = [r.clock for r in episode.robots if r.heading is not None]
-        if moving:
-            heapq.heappush(self._queue, (min(moving), 1, index))
-        elif all(r.waiting or r.stopped for r in episode.robots):
-            self._ended, self._failure = True, "no reachable target left for any robot"
-        # else another robot decides at this time: this one asks again after it departs
+        self._ended, ending = True, self._loop.ending
+        self._move_limit = ending == MOVE_LIMIT
+        if ending and not self._failure:
+            self._violations = int(ending.startswith("motion rule"))
+            self._failure = {
+                MOVE_LIMIT: f"step limit ({self._protocol.max_steps} moves of a robot) reached",
+                IDLE: "no reachable target left for any robot",
+            }.get(ending, ending)
 
-    def _depart(self, index: int) -> None:
-        """Robot `index` starts the next move of its plan; waiting robots with nobody moving ask again."""
+    def _on_event(self, index: int) -> None:
+        """After robot `index`'s event: what its scan added to the team's belief, the node it stands
+        on, and the visits shared within each linked group."""
         episode = self._episode
-        robot = episode.robots[index]
-        robot.waiting = False
-        try:
-            episode.depart(index, robot.plan.pop(0))
-        except MotionError as error:  # a mask and the episode's rule disagree: end, as run_team_episode does
-            self._ended, self._failure, self._violations = True, f"motion rule: {error}", 1
-            return
-        heapq.heappush(self._queue, (robot.clock, 0, index))
-        for other in episode.robots:
-            if other.waiting and not other.stopped and not any(e[2] == other.index for e in self._queue):
-                heapq.heappush(self._queue, (robot.clock, 1, other.index))
+        known = episode.union.free_count
+        self._scanned[index] += known - self._known
+        self._known = known
+        self._stand(index)
+        self._share_visits()
 
     def _stand(self, index: int) -> None:
         """Mark robot `index`'s node as stood on (the `visited` feature)."""

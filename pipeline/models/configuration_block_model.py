@@ -8,7 +8,7 @@ dilations, enough for a 100 m maze in one pass; 4 epochs on 10,000 snapshots tak
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any
+from typing import Annotated, Any
 
 from pipeline.common.config import config_dataclass, list_of, positive, validate, whole
 
@@ -19,10 +19,19 @@ INPUT_CHANNELS = 4  # known-free share, known-wall share, unknown share, outer r
 class BlockModelConfig:
     """Widths of the block model and the block size it was trained at (a prior of the maps)."""
 
-    width: whole(1) = 48
-    dilations: list_of(whole(1)) = (1, 2, 4, 8, 1, 2, 4, 1)  # a tuple once made: YAML and JSON give lists
-    groups: whole(1) = 8  # GroupNorm groups; must divide width
-    block_m: positive("metres") = 5.0
+    width: Annotated[int, whole(1)] = 48
+    dilations: Annotated[list[int], list_of(whole(1))] = (
+        1,
+        2,
+        4,
+        8,
+        1,
+        2,
+        4,
+        1,
+    )  # a tuple once made: YAML and JSON give lists
+    groups: Annotated[int, whole(1)] = 8  # GroupNorm groups; must divide width
+    block_m: Annotated[float, positive("metres")] = 5.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "dilations", tuple(self.dilations))  # hashable and comparable

@@ -9,7 +9,7 @@ paper's {-8, -4, 0, 4, 8} m at a node spacing d_n = 4 m is `step_values=(-2, -1,
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any
+from typing import Annotated, Any
 
 from pipeline.common.config import config_dataclass, flag, list_of, positive, real, text, validate, whole
 
@@ -27,34 +27,34 @@ class DiffusionPolicyConfig:
     """
 
     # Observation graph
-    feature_dim: whole(1, note="features per node") = 7  # F
-    max_nodes: whole(1, note="nodes per padded graph") = 320  # N
-    max_neighbors: whole(1, note="neighbour slots per node") = 25  # M (-1 padded)
+    feature_dim: Annotated[int, whole(1, note="features per node")] = 7  # F
+    max_nodes: Annotated[int, whole(1, note="nodes per padded graph")] = 320  # N
+    max_neighbors: Annotated[int, whole(1, note="neighbour slots per node")] = 25  # M (-1 padded)
     # Network widths and depths
-    d_model: whole(1) = 64
-    heads: whole(1) = 4
-    encoder_layers: whole(1) = 3
-    denoiser_layers: whole(1) = 4
-    dropout: real(0.0, 1.0, high_open=True) = 0.0
+    d_model: Annotated[int, whole(1)] = 64
+    heads: Annotated[int, whole(1)] = 4
+    encoder_layers: Annotated[int, whole(1)] = 3
+    denoiser_layers: Annotated[int, whole(1)] = 4
+    dropout: Annotated[float, real(0.0, 1.0, high_open=True)] = 0.0
     # Horizons (Diffusion Policy's T_p, T_o, T_a)
-    horizon: whole(1, note="predicted action steps") = 8  # T_p
-    obs_steps: whole(1, note="conditioning observations") = 2  # T_o
-    action_steps: whole(1, note="executed action steps before replanning") = 2  # T_a
+    horizon: Annotated[int, whole(1, note="predicted action steps")] = 8  # T_p
+    obs_steps: Annotated[int, whole(1, note="conditioning observations")] = 2  # T_o
+    action_steps: Annotated[int, whole(1, note="executed action steps before replanning")] = 2  # T_a
     # Action lattice: the step per axis, in node units (a tuple once made: YAML and JSON give lists)
-    step_values: list_of(whole(None, note="lattice steps"), min_length=2) = (-2, -1, 0, 1, 2)
+    step_values: Annotated[list[int], list_of(whole(None, note="lattice steps"), min_length=2)] = (-2, -1, 0, 1, 2)
     # The robot's 5 x 5 lattice window as slots of z (see GraphEncoder): feature units (dx, dy)
     # per lattice step: GlobalGraphConfig.position_scale_nodes (dx, dy are in units of 10 node spacings).
-    window_scale: positive() = 10.0
-    slot_width: whole(1) = 8  # width of each window slot in z
+    window_scale: Annotated[float, positive()] = 10.0
+    slot_width: Annotated[int, whole(1)] = 8  # width of each window slot in z
     # Noise schedule (diffusers scheduler arguments)
-    num_train_timesteps: whole(1) = 100
-    beta_schedule: text(BETA_SCHEDULES) = "squaredcos_cap_v2"
+    num_train_timesteps: Annotated[int, whole(1)] = 100
+    beta_schedule: Annotated[str, text(BETA_SCHEDULES)] = "squaredcos_cap_v2"
     # x0: makes the net use the observation
-    prediction_type: text(PREDICTION_TYPES) = "sample"
-    clip_sample: flag() = True
+    prediction_type: Annotated[str, text(PREDICTION_TYPES)] = "sample"
+    clip_sample: Annotated[bool, flag()] = True
     # Sampling
-    num_inference_steps: whole(1) = 30  # K
-    sampler: text(SAMPLERS) = "ddpm"
+    num_inference_steps: Annotated[int, whole(1)] = 30  # K
+    sampler: Annotated[str, text(SAMPLERS)] = "ddpm"
 
     def __post_init__(self) -> None:
         # A tuple, so that the config stays hashable and comparable.

@@ -10,7 +10,7 @@ mapping of params.yaml's `train_drl` section.
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any
+from typing import Annotated, Any
 
 from pipeline.common.config import config_dataclass, positive, real, validate, whole
 
@@ -19,17 +19,23 @@ from pipeline.common.config import config_dataclass, positive, real, validate, w
 class DRLPolicyConfig:
     """Sizes of the attention-pointer policy and the observation it reads."""
 
-    feature_dim: whole(1) = 7  # features per node (FEATURE_NAMES)
-    max_nodes: whole(1) = 128  # nodes per observation, nearest the robot first (the environment's max_nodes)
-    max_neighbors: whole(1) = 25  # neighbour list width (the 5 x 5 window)
-    d_model: whole(1) = 64  # width of the node embeddings
-    heads: whole(1) = 4  # attention heads; must divide d_model
-    encoder_layers: whole(1) = 4  # edge-masked self-attention layers: each widens a node's view by one graph hop
+    feature_dim: Annotated[int, whole(1)] = 7  # features per node (FEATURE_NAMES)
+    max_nodes: Annotated[int, whole(1)] = (
+        128  # nodes per observation, nearest the robot first (the environment's max_nodes)
+    )
+    max_neighbors: Annotated[int, whole(1)] = 25  # neighbour list width (the 5 x 5 window)
+    d_model: Annotated[int, whole(1)] = 64  # width of the node embeddings
+    heads: Annotated[int, whole(1)] = 4  # attention heads; must divide d_model
+    encoder_layers: Annotated[int, whole(1)] = (
+        4  # edge-masked self-attention layers: each widens a node's view by one graph hop
+    )
     # Node spacings per unit of the dx, dy features (GlobalGraphConfig.position_scale_nodes).
-    window_scale: positive() = 10.0
-    logit_clip: positive() = 10.0  # pointer logits are logit_clip * tanh(score), as in the attention-model pointers
+    window_scale: Annotated[float, positive()] = 10.0
+    logit_clip: Annotated[float, positive()] = (
+        10.0  # pointer logits are logit_clip * tanh(score), as in the attention-model pointers
+    )
     # Initial weight of the guidepost feature added to a slot's logit (learned; 0: none).
-    guidepost_prior: real(0.0) = 3.0
+    guidepost_prior: Annotated[float, real(0.0)] = 3.0
 
     def __post_init__(self) -> None:
         if self.d_model % self.heads:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict
-from typing import Any
+from typing import Annotated, Any
 
 from pydantic import model_validator
 
@@ -41,25 +41,25 @@ KERNEL = satisfies(_odd, "an odd kernel size", kind=whole(1))
 class InpainterConfig:
     """Layout of an FFC ResNet generator (LaMa's `ffc_resnet`), with LaMa's argument names."""
 
-    in_channels: whole(1) = 2
-    out_channels: whole(1) = 1
-    ngf: whole(1) = 16  # width of the first convolution; doubled by every downsampling
-    n_downsampling: whole(0) = 3  # stride-2 convolutions (image side must be a multiple of 2**n)
-    n_blocks: whole(0) = 3  # FFC residual blocks at the bottleneck
-    max_features: whole(1) = 1024  # channel cap (LaMa's default; Big-LaMa never reaches it)
-    init_ratio_g: fraction() = 0.0  # global share of the first 7x7 convolution (in and out)
-    downsample_ratio_g: fraction() = 0.0  # global share inside the downsamplings
-    ratio_gin: fraction() = 0.75  # global share of the residual blocks' input channels
-    ratio_gout: fraction() = 0.75  # ... and of their output channels
-    enable_lfu: flag() = False  # LaMa's local Fourier unit (off in Big-LaMa)
-    init_kernel_size: KERNEL = 7
-    downsample_kernel_size: KERNEL = 3
-    block_kernel_size: KERNEL = 3
-    upsample_kernel_size: KERNEL = 3
-    out_kernel_size: KERNEL = 7
-    padding_type: text(PADDING_TYPES) = "reflect"
-    fft_norm: text(FFT_NORMS) = "ortho"
-    input_encoding: text(tuple(INPUT_ENCODINGS)) = "signed"
+    in_channels: Annotated[int, whole(1)] = 2
+    out_channels: Annotated[int, whole(1)] = 1
+    ngf: Annotated[int, whole(1)] = 16  # width of the first convolution; doubled by every downsampling
+    n_downsampling: Annotated[int, whole(0)] = 3  # stride-2 convolutions (image side must be a multiple of 2**n)
+    n_blocks: Annotated[int, whole(0)] = 3  # FFC residual blocks at the bottleneck
+    max_features: Annotated[int, whole(1)] = 1024  # channel cap (LaMa's default; Big-LaMa never reaches it)
+    init_ratio_g: Annotated[float, fraction()] = 0.0  # global share of the first 7x7 convolution (in and out)
+    downsample_ratio_g: Annotated[float, fraction()] = 0.0  # global share inside the downsamplings
+    ratio_gin: Annotated[float, fraction()] = 0.75  # global share of the residual blocks' input channels
+    ratio_gout: Annotated[float, fraction()] = 0.75  # ... and of their output channels
+    enable_lfu: Annotated[bool, flag()] = False  # LaMa's local Fourier unit (off in Big-LaMa)
+    init_kernel_size: Annotated[int, KERNEL] = 7
+    downsample_kernel_size: Annotated[int, KERNEL] = 3
+    block_kernel_size: Annotated[int, KERNEL] = 3
+    upsample_kernel_size: Annotated[int, KERNEL] = 3
+    out_kernel_size: Annotated[int, KERNEL] = 7
+    padding_type: Annotated[str, text(PADDING_TYPES)] = "reflect"
+    fft_norm: Annotated[str, text(FFT_NORMS)] = "ortho"
+    input_encoding: Annotated[str, text(tuple(INPUT_ENCODINGS))] = "signed"
 
     @model_validator(mode="before")
     @classmethod

@@ -14,6 +14,8 @@ here comes wrapped in the trust in its predictions (`extensions/prediction_trust
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pipeline.common.config import config_dataclass, flag, maybe, real, text, whole
 from pipeline.planners.baselines.mapex import MapExConfig, MapExPlanner
 from pipeline.planners.config import OptionInfo, PlannerConfig, option
@@ -57,7 +59,7 @@ class TourVoteOptions(
     )
     renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file", "block_model": "block_model_file"}
 
-    mode: text(MODES) = option(
+    mode: Annotated[str, text(MODES)] = option(
         "tour",
         "tour: the policy's samples vote on the global graph's frontier tour (ours); "
         "policy: the sampled plans are driven (the paper's)",
@@ -86,15 +88,17 @@ class SingleNodeTargets(PlannerConfig):
     distance on building floors and gained nothing on mazes or office floors. With no regret the tour only adds its own first target to the options, so it is
     solved cheaply."""
 
-    spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(
+    spread: Annotated[
+        float | None, maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings")
+    ] = option(
         0.0,
         "metres: a useful node this close to a cluster's seed joins it (0: each useful node its own target; "
         f"null: {SPREAD_NODES:g} node spacings, guide_tsp's clusters)",
     )
-    min_weight: real(0.0, note="0 = keep every cluster") = option(0.0, tour_help("min_weight"))
-    beta: real(0.0) = option(0.0, tour_help("beta"))
-    exact_max: whole(1, 14) = option(2, tour_help("exact_max"))
-    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(0, tour_help("max_moves"))
+    min_weight: Annotated[float, real(0.0, note="0 = keep every cluster")] = option(0.0, tour_help("min_weight"))
+    beta: Annotated[float, real(0.0)] = option(0.0, tour_help("beta"))
+    exact_max: Annotated[int, whole(1, 14)] = option(2, tour_help("exact_max"))
+    max_moves: Annotated[int, whole(0, note="0 = no 2-opt / Or-opt moves")] = option(0, tour_help("max_moves"))
 
 
 @config_dataclass
@@ -110,7 +114,7 @@ class GuideNoRegionOptions(GuideOptions, GuideNoRegionConfig):
 
 @config_dataclass
 class DareOptions(GuideOptions, DareConfig):
-    sliver_gate: flag() = option(
+    sliver_gate: Annotated[bool, flag()] = option(
         False, "consider first only the targets the sliver gate calls big (off: DARE as published)"
     )
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
@@ -23,7 +24,7 @@ from pipeline.world.protocol import Protocol
 class LatticePlannerConfig(PlannerConfig):
     """The options every lattice-graph planner has."""
 
-    min_utility: whole(1) = option(
+    min_utility: Annotated[int, whole(1)] = option(
         2,
         "a node is a target when it sees at least this many frontier cells (below 1, "
         "nodes that see nothing would be targets too and the robot would tour every node)",
@@ -34,12 +35,12 @@ class LatticePlannerConfig(PlannerConfig):
 class GatedPlannerConfig(LatticePlannerConfig):
     """A lattice-graph planner that can leave slivers for later (`pipeline.models.sliver_gate`)."""
 
-    sliver_gate: flag() = option(
+    sliver_gate: Annotated[bool, flag()] = option(
         False,
         "consider first only the targets the sliver gate calls big (their scan would "
         "reveal much); the rest only when none is",
     )
-    gate_file: maybe(text()) = option(
+    gate_file: Annotated[str | None, maybe(text())] = option(
         None, "the fitted sliver gate [default: models/sliver_gate/sliver_gate.json, else the shipped one]"
     )
 

@@ -9,6 +9,7 @@ its frontier-only version (the instance's `description` says which predictor is 
 from __future__ import annotations
 
 import warnings
+from typing import Annotated
 
 import numpy as np
 from pydantic import InstanceOf
@@ -38,11 +39,13 @@ class PredictorOptions(LatticePlannerConfig):
     objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
     renamed = {"checkpoint": "inpainter_file"}
 
-    inpainter_file: maybe(text()) = option(
+    inpainter_file: Annotated[str | None, maybe(text())] = option(
         None, "the inpainter export [default: models/inpainter/inpainter.pt, else the shipped one]"
     )
-    threshold: fraction() = option(DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau")
-    min_component: whole(0, note="0 or 1 = keep every prediction") = option(
+    threshold: Annotated[float, fraction()] = option(
+        DEFAULT_THRESHOLD, "tau: an unknown node is predicted free at P(free) >= tau"
+    )
+    min_component: Annotated[int, whole(0, note="0 or 1 = keep every prediction")] = option(
         3, "predicted nodes in smaller 8-connected components are dropped (0 or 1: keep all)"
     )
 
@@ -55,10 +58,10 @@ class PredictorOptions(LatticePlannerConfig):
 class GlobalGraphOptions(PredictorOptions):
     """The options of a planner that builds the global graph of Sec. IV-B from its predictions."""
 
-    count_threshold: maybe(fraction(), "threshold") = option(
+    count_threshold: Annotated[float | None, maybe(fraction(), "threshold")] = option(
         DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost counts [None: threshold]"
     )
-    global_graph: InstanceOf[GlobalGraphConfig] = option(
+    global_graph: Annotated[GlobalGraphConfig, InstanceOf[GlobalGraphConfig]] = option(
         GlobalGraphConfig(), "the global graph's settings: region size and score (r(g)), node window (a Python object)"
     )
 

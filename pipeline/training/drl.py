@@ -14,7 +14,7 @@ import json
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Callable
+from typing import Annotated, Any, Callable
 
 import numpy as np
 import torch
@@ -97,18 +97,20 @@ class DRLActorCritic(MaskableActorCriticPolicy):
 class PPOSettings:
     """MaskablePPO's settings (stable-baselines3's names and meanings)."""
 
-    n_envs: whole(1) = 4  # environments stepped together; their maze sides cycle through maze_sides_m
-    n_steps: whole(1) = 256  # steps per environment between updates
-    batch_size: whole(1) = 128
-    n_epochs: whole(1) = 4  # passes over each rollout
-    learning_rate: positive() = 3e-4
-    gamma: fraction() = 0.99
-    gae_lambda: fraction() = 0.95
-    clip_range: positive() = 0.2
-    ent_coef: real() = 0.01
-    vf_coef: real() = 0.5
-    max_grad_norm: positive() = 0.5
-    subprocess: flag() = False  # step the environments in worker processes (machines with cores to spare)
+    n_envs: Annotated[int, whole(1)] = 4  # environments stepped together; their maze sides cycle through maze_sides_m
+    n_steps: Annotated[int, whole(1)] = 256  # steps per environment between updates
+    batch_size: Annotated[int, whole(1)] = 128
+    n_epochs: Annotated[int, whole(1)] = 4  # passes over each rollout
+    learning_rate: Annotated[float, positive()] = 3e-4
+    gamma: Annotated[float, fraction()] = 0.99
+    gae_lambda: Annotated[float, fraction()] = 0.95
+    clip_range: Annotated[float, positive()] = 0.2
+    ent_coef: Annotated[float, real()] = 0.01
+    vf_coef: Annotated[float, real()] = 0.5
+    max_grad_norm: Annotated[float, positive()] = 0.5
+    subprocess: Annotated[bool, flag()] = (
+        False  # step the environments in worker processes (machines with cores to spare)
+    )
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None, root: str = "ppo") -> "PPOSettings":
@@ -132,13 +134,16 @@ class TrainingEnvironment:
     Whether the protocol can make a maze of a side is the environment's (`ExploreEnv`) question."""
 
     # One per environment, round robin; one side alone may be given as a number. A tuple once made.
-    maze_sides_m: any_of(
-        list_of(positive("metres")), positive("metres"), description="a non-empty list of maze sides (m), each > 0"
-    ) = (60.0, 80.0, 100.0)
-    max_steps: whole(1) = 200  # actions before an episode is truncated
-    area_weight: real(0.0) = 0.02  # reward per m^2 of newly observed free area
-    distance_weight: real(0.0) = 0.1  # penalty per metre travelled
-    completion_bonus: real(0.0) = 20.0  # reward on the step that completes the episode
+    maze_sides_m: Annotated[
+        list[float] | float,
+        any_of(
+            list_of(positive("metres")), positive("metres"), description="a non-empty list of maze sides (m), each > 0"
+        ),
+    ] = (60.0, 80.0, 100.0)
+    max_steps: Annotated[int, whole(1)] = 200  # actions before an episode is truncated
+    area_weight: Annotated[float, real(0.0)] = 0.02  # reward per m^2 of newly observed free area
+    distance_weight: Annotated[float, real(0.0)] = 0.1  # penalty per metre travelled
+    completion_bonus: Annotated[float, real(0.0)] = 20.0  # reward on the step that completes the episode
 
     def __post_init__(self) -> None:
         sides = self.maze_sides_m if isinstance(self.maze_sides_m, (list, tuple)) else (self.maze_sides_m,)

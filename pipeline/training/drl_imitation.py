@@ -12,7 +12,7 @@ random would make PPO's first advantages noise and undo the actor. `episodes: 0`
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import Any, Callable
+from typing import Annotated, Any, Callable
 
 import numpy as np
 import torch
@@ -32,16 +32,20 @@ class ImitationSettings:
     """The warm start's teacher and its training."""
 
     # The teacher: a registered planner that moves one window step per decision.
-    planner: satisfies(planner_config, "a registered planner", kind=text()) = "greedy_utility"
-    episodes: whole(0) = 0  # teacher episodes to learn from (0: no warm start, PPO from the guidepost prior)
-    epochs: whole(1) = 4  # passes over the teacher's decisions
-    batch_size: whole(1) = 128
-    learning_rate: positive() = 0.001  # Adam
-    dagger_rounds: whole(0) = 2  # rounds in which the policy drives and the teacher labels every state it visits
-    dagger_episodes: whole(1) = 100  # episodes per round
-    dagger_epochs: whole(1) = 4  # passes over all decisions gathered so far after each round
+    planner: Annotated[str, satisfies(planner_config, "a registered planner", kind=text())] = "greedy_utility"
+    episodes: Annotated[int, whole(0)] = (
+        0  # teacher episodes to learn from (0: no warm start, PPO from the guidepost prior)
+    )
+    epochs: Annotated[int, whole(1)] = 4  # passes over the teacher's decisions
+    batch_size: Annotated[int, whole(1)] = 128
+    learning_rate: Annotated[float, positive()] = 0.001  # Adam
+    dagger_rounds: Annotated[int, whole(0)] = (
+        2  # rounds in which the policy drives and the teacher labels every state it visits
+    )
+    dagger_episodes: Annotated[int, whole(1)] = 100  # episodes per round
+    dagger_epochs: Annotated[int, whole(1)] = 4  # passes over all decisions gathered so far after each round
     # Weight of the value regression (squared error of returns of tens) beside the cross-entropy.
-    value_weight: real(0.0) = 0.02
+    value_weight: Annotated[float, real(0.0)] = 0.02
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None, root: str = "imitation") -> "ImitationSettings":

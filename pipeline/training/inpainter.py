@@ -34,7 +34,7 @@ import warnings
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import lightning as L
 import torch
@@ -64,25 +64,31 @@ class TrainConfig:
     """Training hyperparameters (the `train_inpainter` section of params.yaml, minus the model and
     the run's settings)."""
 
-    max_epochs: whole(1) = 40  # >= 1: 0 epochs would export an untrained model over a trained one
-    batch_size: whole(1) = 16
-    lr: positive() = 1e-3  # Adam (LaMa's generator learning rate)
-    weight_decay: real(0.0) = 0.0
-    lr_min_factor: fraction() = 0.05  # cosine decay to lr * this at the last epoch
-    known_weight: real(0.0) = 0.1  # weight of the BCE on known pixels, relative to the hole BCE
-    hole_pos_weight: real(0.0) = 1.0  # BCE weight of free hole pixels (>1 favours recall, <1 precision)
-    adversarial_weight: real(0.0) = 0.0  # > 0 trains a PatchGAN discriminator alongside
-    discriminator_lr: positive() = 1e-4
-    discriminator_width: whole(1) = 32
-    r1_weight: real(0.0) = 0.001  # R1 gradient penalty on real images (LaMa's gp_coef)
-    threshold: fraction("P(free)") = 0.5  # tau: probability at or above which a node is predicted free
-    val_fraction: real(0.0, 1.0, low_open=True, high_open=True) = 0.2
-    split: text(SPLITS) = "maze"  # hold out whole mazes ("maze") or the last pairs of each rollout group ("rollout")
-    augment: flag() = True  # random flips and 90-degree rotations (the lattice is symmetric)
-    hide_prob: fraction() = 0.0  # chance per training pair of hiding the observations in a random box
-    seed: whole(0) = 0
+    max_epochs: Annotated[int, whole(1)] = 40  # >= 1: 0 epochs would export an untrained model over a trained one
+    batch_size: Annotated[int, whole(1)] = 16
+    lr: Annotated[float, positive()] = 1e-3  # Adam (LaMa's generator learning rate)
+    weight_decay: Annotated[float, real(0.0)] = 0.0
+    lr_min_factor: Annotated[float, fraction()] = 0.05  # cosine decay to lr * this at the last epoch
+    known_weight: Annotated[float, real(0.0)] = 0.1  # weight of the BCE on known pixels, relative to the hole BCE
+    hole_pos_weight: Annotated[float, real(0.0)] = (
+        1.0  # BCE weight of free hole pixels (>1 favours recall, <1 precision)
+    )
+    adversarial_weight: Annotated[float, real(0.0)] = 0.0  # > 0 trains a PatchGAN discriminator alongside
+    discriminator_lr: Annotated[float, positive()] = 1e-4
+    discriminator_width: Annotated[int, whole(1)] = 32
+    r1_weight: Annotated[float, real(0.0)] = 0.001  # R1 gradient penalty on real images (LaMa's gp_coef)
+    threshold: Annotated[float, fraction("P(free)")] = (
+        0.5  # tau: probability at or above which a node is predicted free
+    )
+    val_fraction: Annotated[float, real(0.0, 1.0, low_open=True, high_open=True)] = 0.2
+    split: Annotated[str, text(SPLITS)] = (
+        "maze"  # hold out whole mazes ("maze") or the last pairs of each rollout group ("rollout")
+    )
+    augment: Annotated[bool, flag()] = True  # random flips and 90-degree rotations (the lattice is symmetric)
+    hide_prob: Annotated[float, fraction()] = 0.0  # chance per training pair of hiding the observations in a random box
+    seed: Annotated[int, whole(0)] = 0
     # Wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs.
-    max_minutes: maybe(positive("minutes"), "no cap") = None
+    max_minutes: Annotated[float | None, maybe(positive("minutes"), "no cap")] = None
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None, root: str = "train_inpainter") -> "TrainConfig":

@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
@@ -60,16 +60,16 @@ class RunOptions:
 
     out_dir: Path
     checkpoint_dir: Optional[Path] = None
-    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto") = "cpu"
-    devices: DEVICES = 1
-    num_nodes: whole(1) = 1
-    resume: flag() = False
-    mlflow: flag() = True
+    accelerator: Annotated[str, text(note="Lightning's accelerator: cpu, gpu, auto")] = "cpu"
+    devices: Annotated[int | list[int] | str, DEVICES] = 1
+    num_nodes: Annotated[int, whole(1)] = 1
+    resume: Annotated[bool, flag()] = False
+    mlflow: Annotated[bool, flag()] = True
     tracking_uri: Optional[str] = None
-    experiment: text(note="an MLflow experiment") = "training"
+    experiment: Annotated[str, text(note="an MLflow experiment")] = "training"
     run_name: Optional[str] = None
     artifact_location: Optional[str] = None
-    progress: flag() = False
+    progress: Annotated[bool, flag()] = False
 
     def __post_init__(self) -> None:
         if self.checkpoint_dir is None:

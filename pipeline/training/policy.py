@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Optional
+from typing import Annotated, Any, Optional
 
 import lightning as L
 import numpy as np
@@ -33,18 +33,22 @@ EXPORT_NAME = "policy.pt"
 class PlannerTrainConfig:
     """Training hyperparameters (the `train` mapping of params.yaml's `train_planner` section)."""
 
-    max_epochs: whole(1) = 30  # >= 1: 0 epochs would export an untrained model over a trained one
-    batch_size: whole(1) = 64
-    lr: positive() = 3e-4  # AdamW (DARE: 1e-4 at 256 wide; the small default model takes a larger step)
-    weight_decay: real(0.0) = 1e-4
-    warmup_steps: whole(0) = 100
-    ema_decay: fraction() = 0.995
-    val_fraction: real(0.0, 1.0, high_open=True) = 0.15  # share of episodes held out
-    augment: flag() = True  # random dihedral transforms of positions and actions
-    seed: whole(0) = 0
-    val_accuracy_samples: whole(0) = 64  # validation samples whose first step is sampled (K from the model config)
+    max_epochs: Annotated[int, whole(1)] = 30  # >= 1: 0 epochs would export an untrained model over a trained one
+    batch_size: Annotated[int, whole(1)] = 64
+    lr: Annotated[float, positive()] = (
+        3e-4  # AdamW (DARE: 1e-4 at 256 wide; the small default model takes a larger step)
+    )
+    weight_decay: Annotated[float, real(0.0)] = 1e-4
+    warmup_steps: Annotated[int, whole(0)] = 100
+    ema_decay: Annotated[float, fraction()] = 0.995
+    val_fraction: Annotated[float, real(0.0, 1.0, high_open=True)] = 0.15  # share of episodes held out
+    augment: Annotated[bool, flag()] = True  # random dihedral transforms of positions and actions
+    seed: Annotated[int, whole(0)] = 0
+    val_accuracy_samples: Annotated[int, whole(0)] = (
+        64  # validation samples whose first step is sampled (K from the model config)
+    )
     # Wall-clock cap on training (a timed GPU lease); the LR schedule still follows max_epochs.
-    max_minutes: maybe(positive("minutes"), "no cap") = None
+    max_minutes: Annotated[float | None, maybe(positive("minutes"), "no cap")] = None
 
     @classmethod
     def from_dict(cls, values: dict[str, Any] | None, root: str = "train") -> "PlannerTrainConfig":

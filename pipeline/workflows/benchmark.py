@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Annotated, Callable, Sequence
 
 from pipeline.common.atomic import atomic_folder, atomic_write_text
 from pipeline.common.config import Section, list_of, maybe, positive, satisfies, whole
@@ -128,13 +128,13 @@ TEAM_PLANNER_SPEC = satisfies(
 class Settings(Section):
     """The `benchmark` section of params.yaml."""
 
-    planners: list_of(PLANNER_SPEC)
-    seed: whole(0)
-    workers: maybe(whole(1), "all cores")
-    speed_mps: positive("metres per second")
-    robots: list_of(whole(1, 8), min_length=0) = []
-    team_planners: list_of(TEAM_PLANNER_SPEC, min_length=0) = []
-    comm_range_m: maybe(positive("metres"), "one shared belief") = None
+    planners: Annotated[list[PlannerSpec], list_of(PLANNER_SPEC)]
+    seed: Annotated[int, whole(0)]
+    workers: Annotated[int | None, maybe(whole(1), "all cores")]
+    speed_mps: Annotated[float, positive("metres per second")]
+    robots: Annotated[list[int], list_of(whole(1, 8), min_length=0)] = []
+    team_planners: Annotated[list[PlannerSpec], list_of(TEAM_PLANNER_SPEC, min_length=0)] = []
+    comm_range_m: Annotated[float | None, maybe(positive("metres"), "one shared belief")] = None
 
 
 TEST_MAZES = DATA.mazes_test

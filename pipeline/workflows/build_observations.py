@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 
@@ -29,13 +30,13 @@ SUMMARY = REPORTS.observations
 class Settings(Section):
     """The `build_observations` section of params.yaml."""
 
-    max_nodes: whole(1)
-    max_neighbors: whole(1)
-    threshold: fraction("tau of the graph's predicted nodes")
-    count_threshold: fraction("tau of the nodes the utility boost counts")
-    min_component: whole(0, note="0 or 1: keep every predicted node")
-    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
-    workers: whole(0, note="0 or 1: in this process")
+    max_nodes: Annotated[int, whole(1)]
+    max_neighbors: Annotated[int, whole(1)]
+    threshold: Annotated[float, fraction("tau of the graph's predicted nodes")]
+    count_threshold: Annotated[float, fraction("tau of the nodes the utility boost counts")]
+    min_component: Annotated[int, whole(0, note="0 or 1: keep every predicted node")]
+    inpainter: Annotated[str | None, maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")]
+    workers: Annotated[int, whole(0, note="0 or 1: in this process")]
 
 
 def _shard_observations(task: tuple) -> dict:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 from pydantic import ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
@@ -33,14 +33,14 @@ PREVIEW = REPORTS.expert_preview
 class Settings(Section):
     """The `collect_expert` section of params.yaml."""
 
-    seed: whole(0)
-    episodes: whole(1)
-    episodes_per_shard: whole(1)
-    planner: satisfies(planner_config, "a registered planner name", str)
+    seed: Annotated[int, whole(0)]
+    episodes: Annotated[int, whole(1)]
+    episodes_per_shard: Annotated[int, whole(1)]
+    planner: Annotated[str, satisfies(planner_config, "a registered planner name", str)]
     planner_options: dict[str, Any]
-    horizon: whole(1, note="future waypoints per step")
-    random_starts: flag()
-    workers: whole(0, note="0 or 1: in this process")
+    horizon: Annotated[int, whole(1, note="future waypoints per step")]
+    random_starts: Annotated[bool, flag()]
+    workers: Annotated[int, whole(0, note="0 or 1: in this process")]
 
     @field_validator("planner_options")
     @classmethod

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
@@ -29,13 +30,15 @@ PREVIEW = REPORTS.pairs_preview
 class Settings(Section):
     """The `collect_pairs` section of params.yaml."""
 
-    seed: whole(0)
-    pairs: whole(1)
-    pairs_per_shard: whole(1)
-    planners: list_of(satisfies(planner_config, "a registered planner name", str))  # each rollout builds one by name
-    snapshot_every: whole(1, note="steps")
-    stop_steps: pair(whole(1, note="steps"))
-    workers: whole(0, note="0 or 1: in this process")
+    seed: Annotated[int, whole(0)]
+    pairs: Annotated[int, whole(1)]
+    pairs_per_shard: Annotated[int, whole(1)]
+    planners: Annotated[
+        list[str], list_of(satisfies(planner_config, "a registered planner name", str))
+    ]  # each rollout builds one by name
+    snapshot_every: Annotated[int, whole(1, note="steps")]
+    stop_steps: Annotated[list[int], pair(whole(1, note="steps"))]
+    workers: Annotated[int, whole(0, note="0 or 1: in this process")]
 
 
 def pairs_preview(out_dir: Path, shard_count: int, path: Path, count: int = 6, scale: int = 6) -> None:

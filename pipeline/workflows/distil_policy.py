@@ -26,7 +26,7 @@ import math
 import shutil
 import time
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from pydantic import field_validator
@@ -65,7 +65,7 @@ class Teacher(Section):
     """The planner DAgger imitates: a registered planner and options it accepts (it must report its
     target: the run says so when it does not)."""
 
-    planner: text(note="a registered planner name")
+    planner: Annotated[str, text(note="a registered planner name")]
     options: dict[str, Any] = {}
 
     @field_validator("options")
@@ -80,23 +80,23 @@ class Settings(Section):
     """The `distil_policy` section of params.yaml."""
 
     teacher: Teacher
-    start_policy: maybe(text(note="a guide policy export"), "models/planner_guide/policy.pt")
-    inpainter: maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")
-    rounds: whole(0, note="DAgger rounds after round 0")
-    teacher_episodes: whole(1)
-    episodes: whole(1)
-    episodes_per_shard: whole(1)
-    random_starts: flag()
-    seed: whole(0)
-    train: every_key(PlannerTrainConfig)
-    eval_mazes: whole(2, note="paired comparison needs at least 2")
-    eval_side_m: positive("metres")
-    eval_seed: whole(0)
-    workers: whole(0, note="0 or 1: in this process")
-    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
-    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
-    devices: DEVICES = 1
-    experiment: text(note="an MLflow experiment")
+    start_policy: Annotated[str | None, maybe(text(note="a guide policy export"), "models/planner_guide/policy.pt")]
+    inpainter: Annotated[str | None, maybe(text(note="an inpainter export"), "models/inpainter/inpainter.pt")]
+    rounds: Annotated[int, whole(0, note="DAgger rounds after round 0")]
+    teacher_episodes: Annotated[int, whole(1)]
+    episodes: Annotated[int, whole(1)]
+    episodes_per_shard: Annotated[int, whole(1)]
+    random_starts: Annotated[bool, flag()]
+    seed: Annotated[int, whole(0)]
+    train: Annotated[PlannerTrainConfig, every_key(PlannerTrainConfig)]
+    eval_mazes: Annotated[int, whole(2, note="paired comparison needs at least 2")]
+    eval_side_m: Annotated[float, positive("metres")]
+    eval_seed: Annotated[int, whole(0)]
+    workers: Annotated[int, whole(0, note="0 or 1: in this process")]
+    threads: Annotated[int | None, maybe(whole(0, note="0: torch's default"), "torch's default")]
+    accelerator: Annotated[str, text(note="Lightning's accelerator: cpu, gpu, auto")]
+    devices: Annotated[int | list[int] | str, DEVICES] = 1
+    experiment: Annotated[str, text(note="an MLflow experiment")]
 
 
 def round_folder(r: int) -> Path:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from pydantic import model_validator
@@ -39,16 +39,19 @@ KEPT_SAMPLES = CHECKPOINTS.gate_samples
 class Settings(Section):
     """The `fit_gate` section of params.yaml."""
 
-    maps: whole(1)
-    holdout_maps: whole(0)
-    offices: whole(0)
-    office_holdout: whole(0)
-    hidden: list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)")
-    fit_samples: maybe(whole(1)) = None
-    min_gain: whole(0, note="cells")
-    wall_margin: whole(0, note="cells")
-    threshold: fraction("P(big)")
-    workers: whole(1)
+    maps: Annotated[int, whole(1)]
+    holdout_maps: Annotated[int, whole(0)]
+    offices: Annotated[int, whole(0)]
+    office_holdout: Annotated[int, whole(0)]
+    hidden: Annotated[
+        list[int],
+        list_of(whole(1), min_length=0, description="a list of layer widths (whole numbers >= 1; []: logistic)"),
+    ]
+    fit_samples: Annotated[int | None, maybe(whole(1))] = None
+    min_gain: Annotated[int, whole(0, note="cells")]
+    wall_margin: Annotated[int, whole(0, note="cells")]
+    threshold: Annotated[float, fraction("P(big)")]
+    workers: Annotated[int, whole(1)]
 
     @model_validator(mode="after")
     def _holdouts_leave_maps_to_fit(self) -> "Settings":

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Annotated
 
 import pandas as pd
 
@@ -56,14 +57,14 @@ LABEL = text(note="a planner's label in the benchmark")  # a label absent from t
 class Settings(Section):
     """The `report` section of params.yaml."""
 
-    k_values: list_of(whole(1), min_length=0)  # [] (or no k_planners): no sweep, no Table IV
-    k_planners: list_of(satisfies(planner_config, "a registered planner name", str), min_length=0)
-    k_option: identifier("a planner option name")
-    k_maps: whole(1)
-    ablation_planners: list_of(LABEL)
-    figure_planners: list_of(LABEL)
-    workers: maybe(whole(1), "all cores")
-    seed: whole(0)
+    k_values: Annotated[list[int], list_of(whole(1), min_length=0)]  # [] (or no k_planners): no sweep, no Table IV
+    k_planners: Annotated[list[str], list_of(satisfies(planner_config, "a registered planner name", str), min_length=0)]
+    k_option: Annotated[str, identifier("a planner option name")]
+    k_maps: Annotated[int, whole(1)]
+    ablation_planners: Annotated[list[str], list_of(LABEL)]
+    figure_planners: Annotated[list[str], list_of(LABEL)]
+    workers: Annotated[int | None, maybe(whole(1), "all cores")]
+    seed: Annotated[int, whole(0)]
 
 
 def sweep_specs(planners, k_values, option: str) -> list[PlannerSpec]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import tempfile
 import time
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from pydantic import model_validator
@@ -51,18 +51,18 @@ CHECKPOINT_DIR = CHECKPOINTS.block_model
 class Settings(Section):
     """The `train_block_model` section of params.yaml."""
 
-    mazes: whole(1)
-    holdout_mazes: whole(0)
-    side_m: positive("metres")
-    maze_seed: whole(0)
-    snapshot_every: whole(1, note="steps")
-    epochs: whole(1)
-    batch_size: whole(1)
-    lr: real(0.0)
-    reveal_share: fraction()
+    mazes: Annotated[int, whole(1)]
+    holdout_mazes: Annotated[int, whole(0)]
+    side_m: Annotated[float, positive("metres")]
+    maze_seed: Annotated[int, whole(0)]
+    snapshot_every: Annotated[int, whole(1, note="steps")]
+    epochs: Annotated[int, whole(1)]
+    batch_size: Annotated[int, whole(1)]
+    lr: Annotated[float, real(0.0)]
+    reveal_share: Annotated[float, fraction()]
     model: BlockModelConfig
-    workers: whole(1)
-    seed: whole(0)
+    workers: Annotated[int, whole(1)]
+    seed: Annotated[int, whole(0)]
 
     @model_validator(mode="after")
     def _holdout_leaves_mazes_to_fit(self) -> "Settings":

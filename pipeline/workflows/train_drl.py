@@ -20,7 +20,7 @@ import json
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
@@ -60,19 +60,19 @@ class Settings(Section):
     """The `train_drl` section of params.yaml."""
 
     model: DRLPolicyConfig
-    env: every_key(TrainingEnvironment)
-    ppo: every_key(PPOSettings)
-    imitation: every_key(ImitationSettings)
-    init_checkpoint: maybe(text(note="a drl export"), "the warm start")
-    timesteps: whole(1)
-    checkpoint_every: whole(1)
-    eval_mazes: whole(0)
-    eval_side_m: positive("metres")
-    eval_seed: whole(0)
-    seed: whole(0)
-    threads: whole(0, note="0: torch's default")
-    device: text(("cpu", "cuda", "auto"))
-    experiment: text(note="an MLflow experiment")
+    env: Annotated[TrainingEnvironment, every_key(TrainingEnvironment)]
+    ppo: Annotated[PPOSettings, every_key(PPOSettings)]
+    imitation: Annotated[ImitationSettings, every_key(ImitationSettings)]
+    init_checkpoint: Annotated[str | None, maybe(text(note="a drl export"), "the warm start")]
+    timesteps: Annotated[int, whole(1)]
+    checkpoint_every: Annotated[int, whole(1)]
+    eval_mazes: Annotated[int, whole(0)]
+    eval_side_m: Annotated[float, positive("metres")]
+    eval_seed: Annotated[int, whole(0)]
+    seed: Annotated[int, whole(0)]
+    threads: Annotated[int, whole(0, note="0: torch's default")]
+    device: Annotated[str, text(("cpu", "cuda", "auto"))]
+    experiment: Annotated[str, text(note="an MLflow experiment")]
 
 
 # What a checkpoint must share to be continued: not `timesteps`, so a run can be trained on for

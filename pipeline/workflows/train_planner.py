@@ -4,6 +4,7 @@ variant trained on its observations, then its metrics and training curves."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 from pipeline.common.atomic import atomic_write_json
 from pipeline.common.config import Section, every_key, maybe, text, whole
@@ -22,12 +23,14 @@ class Settings(Section):
     """The `train_planner` section of params.yaml."""
 
     model: DiffusionPolicyConfig
-    train: every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))  # its default unless set
-    accelerator: text(note="Lightning's accelerator: cpu, gpu, auto")
-    devices: DEVICES
-    num_nodes: whole(1, note="nodes of a multi-node DDP run")
-    threads: maybe(whole(0, note="0: torch's default"), "torch's default")
-    experiment: text(note="an MLflow experiment")
+    train: Annotated[
+        PlannerTrainConfig, every_key(PlannerTrainConfig, optional=("val_accuracy_samples",))
+    ]  # its default unless set
+    accelerator: Annotated[str, text(note="Lightning's accelerator: cpu, gpu, auto")]
+    devices: Annotated[int | list[int] | str, DEVICES]
+    num_nodes: Annotated[int, whole(1, note="nodes of a multi-node DDP run")]
+    threads: Annotated[int | None, maybe(whole(0, note="0: torch's default"), "torch's default")]
+    experiment: Annotated[str, text(note="an MLflow experiment")]
 
 
 def training_fingerprint(

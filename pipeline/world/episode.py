@@ -287,6 +287,77 @@ class EpisodeState:
         self._record()
 
 
+class EventLoop:
+    """An episode's events in time order, between its decisions: `next_decision` runs them until a
+    robot's plan is used up and returns that robot; `decide` hands it its plan. `run_events` puts a
+    planner between the two; an environment puts its agents' actions there.
+
+    Events are (time, waiting, robot): at one time, arrivals and decisions come before the retries
+    of waiting robots, and lower robot numbers first."""
+
+    def __init__(self, episode: EpisodeState, oracle: bool = False):
+        self.episode, self.oracle = episode, oracle
+        self.queue = [(0.0, 0, r.index) for r in episode.robots]
+        heapq.heapify(self.queue)
+        self.ending: str | None = None  # once over: "" (done), IDLE, MOVE_LIMIT or "motion rule: ..."
+
+    def next_decision(self, on_event: Callable[[int], None] | None = None) -> int | None:
+        """Run events until a robot must decide (its number) or the episode is over (None, with
+        `ending` set). `on_event` receives the robot of each event, after the beliefs update."""
+        episode, queue = self.episode, self.queue
+        while self.ending is None and queue and not episode.complete:
+            t, _, index = heapq.heappop(queue)
+            robot = episode.robots[index]
+            episode.advance(index, t)
+            if on_event is not None:
+                on_event(index)
+            if episode.complete:
+                break
+            if robot.moves >= episode.protocol.max_steps:
+                robot.stopped, robot.target = True, None  # it stays where it is for the rest of the episode
+                continue
+            if not robot.plan:
+                return index
+            self._depart(index)
+        if self.ending is None:
+            stopped = any(r.stopped for r in episode.robots)
+            self.ending = "" if episode.complete else MOVE_LIMIT if stopped else IDLE
+        return None
+
+    def decide(self, index: int, plan: Sequence[Sequence[float]]) -> None:
+        """Robot `index`'s plan: it departs on its first waypoint, or, with none, waits and asks
+        again after the next arrival (the episode ends IDLE when nobody moves or is left to decide)."""
+        episode = self.episode
+        robot = episode.robots[index]
+        robot.plan = list(plan)
+        robot.target = tuple(map(float, robot.plan[-1])) if robot.plan else None
+        episode.heard_targets[index][index] = robot.target
+        if robot.plan:
+            self._depart(index)
+            return
+        robot.waiting = True
+        moving = [r.clock for r in episode.robots if r.heading is not None]
+        if moving:
+            heapq.heappush(self.queue, (min(moving), 1, index))
+        elif not self.queue:  # nobody moves and nobody is left to decide
+            self.ending = IDLE
+        # else another robot decides at this time: if it moves, this one asks again
+
+    def _depart(self, index: int) -> None:
+        """Robot `index` starts the next move of its plan; waiting robots with nobody moving ask again."""
+        robot = self.episode.robots[index]
+        robot.waiting = False
+        try:
+            self.episode.depart(index, robot.plan.pop(0), self.oracle)
+        except MotionError as error:
+            self.ending = f"motion rule: {error}"
+            return
+        heapq.heappush(self.queue, (robot.clock, 0, index))
+        for other in self.episode.robots:  # a robot waiting with nobody moving asks again now that one is
+            if other.waiting and not other.stopped and not any(e[2] == other.index for e in self.queue):
+                heapq.heappush(self.queue, (robot.clock, 1, other.index))
+
+
 def run_events(
     episode: EpisodeState, planner: Any, oracle: bool = False, on_event: Callable[[EpisodeState], None] | None = None
 ) -> tuple[list[list[float]], str]:
@@ -294,48 +365,14 @@ def run_events(
     `planner.plan(episode.observe(robot))` (a `Planner` on an `Observation`, a `TeamPlanner` on a
     `TeamObservation`). Each robot's decision times (ms) and why the episode ended unexplored:
     "", IDLE (every robot waits), MOVE_LIMIT (a robot made `max_steps` moves) or "motion rule: ..."."""
-    robots = episode.robots
-    decision_ms: list[list[float]] = [[] for _ in robots]
-    # Events: (time, waiting, robot). At one time, arrivals and decisions come before the
-    # retries of waiting robots, and lower robot numbers first.
-    queue = [(0.0, 0, r.index) for r in robots]
-    heapq.heapify(queue)
+    decision_ms: list[list[float]] = [[] for _ in episode.robots]
+    loop = EventLoop(episode, oracle)
     if on_event is not None:
         on_event(episode)
-    while queue and not episode.complete:
-        t, _, index = heapq.heappop(queue)
-        robot = robots[index]
-        episode.advance(index, t)
-        if on_event is not None:
-            on_event(episode)
-        if episode.complete:
-            break
-        if robot.moves >= episode.protocol.max_steps:
-            robot.stopped, robot.target = True, None  # it stays where it is for the rest of the episode
-            continue
-        if not robot.plan:
-            observation = episode.observe(index)
-            started = time.perf_counter()
-            robot.plan = list(planner.plan(observation))
-            decision_ms[index].append((time.perf_counter() - started) * 1e3)
-            robot.target = tuple(map(float, robot.plan[-1])) if robot.plan else None
-            episode.heard_targets[index][index] = robot.target
-        if not robot.plan:
-            robot.waiting = True
-            moving = [r.clock for r in robots if r.heading is not None]
-            if not moving:
-                if not queue:  # nobody moves and nobody is left to decide
-                    return decision_ms, IDLE
-                continue  # another robot decides at this time: if it moves, this one asks again
-            heapq.heappush(queue, (min(moving), 1, index))
-            continue
-        robot.waiting = False
-        try:
-            episode.depart(index, robot.plan.pop(0), oracle)
-        except MotionError as error:
-            return decision_ms, f"motion rule: {error}"
-        heapq.heappush(queue, (robot.clock, 0, index))
-        for other in robots:  # a robot waiting with nobody moving asks again now that one is
-            if other.waiting and not other.stopped and not any(e[2] == other.index for e in queue):
-                heapq.heappush(queue, (robot.clock, 1, other.index))
-    return decision_ms, "" if episode.complete else MOVE_LIMIT if any(r.stopped for r in robots) else IDLE
+    while (index := loop.next_decision(None if on_event is None else lambda _: on_event(episode))) is not None:
+        observation = episode.observe(index)
+        started = time.perf_counter()
+        plan = list(planner.plan(observation))
+        decision_ms[index].append((time.perf_counter() - started) * 1e3)
+        loop.decide(index, plan)
+    return decision_ms, loop.ending or ""

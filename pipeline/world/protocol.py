@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 from pipeline.common.config import config_dataclass, flag, maybe, positive, real, validate, whole
 from pipeline.world.map_files import MapError
@@ -19,15 +19,17 @@ class Protocol:
     """Every protocol value is a parameter; the defaults are the maze benchmark's. NaN and
     infinities are refused here, not deep in a ray table."""
 
-    cell_size: positive("metres per grid cell") = 0.4
-    node_resolution: positive("lattice spacing in metres") = 4.0
-    sensor_range: positive("metres") = 20.0
-    utility_range: positive("metres") = 10.0
-    region_size: positive("metres") = 20.0
-    done_unknown_cells: whole(0, note="cells") = 250
-    max_steps: whole(1, note="waypoints") = 500
-    robot_radius_m: real(0.0, note="metres: what fits through a door, for the door-aware graph and the done rule") = 0.2
-    door_graph: maybe(flag(), "on below a 2 m lattice, the building scale") = None
+    cell_size: Annotated[float, positive("metres per grid cell")] = 0.4
+    node_resolution: Annotated[float, positive("lattice spacing in metres")] = 4.0
+    sensor_range: Annotated[float, positive("metres")] = 20.0
+    utility_range: Annotated[float, positive("metres")] = 10.0
+    region_size: Annotated[float, positive("metres")] = 20.0
+    done_unknown_cells: Annotated[int, whole(0, note="cells")] = 250
+    max_steps: Annotated[int, whole(1, note="waypoints")] = 500
+    robot_radius_m: Annotated[
+        float, real(0.0, note="metres: what fits through a door, for the door-aware graph and the done rule")
+    ] = 0.2
+    door_graph: Annotated[bool | None, maybe(flag(), "on below a 2 m lattice, the building scale")] = None
 
     def __post_init__(self) -> None:
         if self.node_resolution < self.cell_size:

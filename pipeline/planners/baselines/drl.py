@@ -16,6 +16,7 @@ never hands over, and then the planner decides exactly as the environment's agen
 from __future__ import annotations
 
 import warnings
+from typing import Annotated
 
 import numpy as np
 
@@ -42,8 +43,10 @@ class DRLConfig(PlannerConfig):
     objects = ("policy",)
     renamed = {"checkpoint": "policy_file"}
 
-    policy_file: maybe(text()) = option(None, "drl policy export [default: models/drl/policy.pt, else the shipped one]")
-    stall_steps: whole(0, note="0 = never hand over") = option(
+    policy_file: Annotated[str | None, maybe(text())] = option(
+        None, "drl policy export [default: models/drl/policy.pt, else the shipped one]"
+    )
+    stall_steps: Annotated[int, whole(0, note="0 = never hand over")] = option(
         4,
         "decisions in a row that reveal no free cell before the nearest-frontier hand-over breaks a cycle (0: "
         "never; the policy alone, as in the environment)",

@@ -15,6 +15,8 @@ the gain is unweighted.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import cv2
 import numpy as np
 
@@ -35,12 +37,12 @@ class MapExConfig(PredictorOptions):
     )
 
     # Its predicted map is a count of likely-free space, not graph nodes: the utility count's tau.
-    threshold: fraction() = option(
+    threshold: Annotated[float, fraction()] = option(
         DEFAULT_COUNT_THRESHOLD,
         "tau: an unknown node is predicted free at P(free) >= "
         "tau (the broad tau of the utility count, not the graph's)",
     )
-    wall_margin: whole(0, note="0 = off") = option(
+    wall_margin: Annotated[int, whole(0, note="0 = off")] = option(
         2,
         "cells: predicted-free unknown this close to a known obstacle is "
         "the inside of a seen wall, not counted (0 = off)",

@@ -134,26 +134,33 @@ class NBVPConfig(LatticePlannerConfig):
         "best-gain branch; nearest-frontier fallback when the local tree sees nothing"
     )
 
-    tree_size: whole(2, note="the robot's node and at least one more") = option(
+    tree_size: Annotated[int, whole(2, note="the robot's node and at least one more")] = option(
         40, "tree vertices N per decision, the robot's node included"
     )
-    lam: maybe(real(0.0), f"{LAM_TIMES_RANGE:g} / sensor range") = option(
+    lam: Annotated[float | None, maybe(real(0.0), f"{LAM_TIMES_RANGE:g} / sensor range")] = option(
         None,
         f"lambda (1/m) discounting a view by its path length [default: {LAM_TIMES_RANGE:g} / sensor range, so a "
         "view one range away counts exp(-2.5) under any protocol]",
     )
     # Branch values are >= 0, so a negative threshold is 0 (never fall back); +inf always falls back.
-    gain_threshold: any_of(
-        real(0.0),
-        satisfies(_infinite, "inf", Annotated[float, Strict()]),
-        description="a number >= 0 (inf = always the frontier fallback)",
-    ) = option(20.0, "cells: a best branch worth less falls back to the nearest frontier (inf = always)")
-    sample_radius_factor: positive() = option(2.0, "samples are drawn within this many sensor ranges of the robot")
-    ray_stride: whole(1) = option(4, "gains from every n-th of the lidar's 720 rays")
-    max_attempts_factor: whole(1) = option(
+    gain_threshold: Annotated[
+        float,
+        any_of(
+            real(0.0),
+            satisfies(_infinite, "inf", Annotated[float, Strict()]),
+            description="a number >= 0 (inf = always the frontier fallback)",
+        ),
+    ] = option(20.0, "cells: a best branch worth less falls back to the nearest frontier (inf = always)")
+    sample_radius_factor: Annotated[float, positive()] = option(
+        2.0, "samples are drawn within this many sensor ranges of the robot"
+    )
+    ray_stride: Annotated[int, whole(1)] = option(4, "gains from every n-th of the lidar's 720 rays")
+    max_attempts_factor: Annotated[int, whole(1)] = option(
         15, "at most this many x tree_size samples per decision (a small known area holds fewer nodes)"
     )
-    reuse_best_branch: flag() = option(True, "the rest of the executed branch seeds the next tree, as Bircher does")
+    reuse_best_branch: Annotated[bool, flag()] = option(
+        True, "the rest of the executed branch seeds the next tree, as Bircher does"
+    )
 
 
 @register_planner("nbvp", NBVPConfig)

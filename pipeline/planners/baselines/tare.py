@@ -51,6 +51,8 @@ Adaptation to the lattice graph and the protocol:
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
@@ -138,20 +140,26 @@ class TareConfig(LatticePlannerConfig):
         "the 3x3-region local horizon ordered by a TSP path that joins the global tour"
     )
 
-    horizon_radius: whole(0, note="0 = the robot's region only") = option(
+    horizon_radius: Annotated[int, whole(0, note="0 = the robot's region only")] = option(
         1, "regions around the robot's in the local horizon (1: 3 x 3 regions; 0: its own)"
     )
-    min_cover: whole(1) = option(2, "frontier cells a viewpoint (or an exploring region) must add to count")
-    cover_range: maybe(real(0.0, note="0 = off"), "the utility range") = option(
+    min_cover: Annotated[int, whole(1)] = option(
+        2, "frontier cells a viewpoint (or an exploring region) must add to count"
+    )
+    cover_range: Annotated[float | None, maybe(real(0.0, note="0 = off"), "the utility range")] = option(
         None,
         "metres: frontier seen from this close to where the robot was counts as covered (0 = off) [default: the "
         "utility range]",
     )
-    exact_max: whole(1, 14) = option(10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
-    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(
+    exact_max: Annotated[int, whole(1, 14)] = option(
+        10, "TSP paths are exact (Held-Karp) up to this many points, else heuristic"
+    )
+    max_moves: Annotated[int, whole(0, note="0 = no 2-opt / Or-opt moves")] = option(
         200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)"
     )
-    loop_guard: flag() = option(True, "back at a node with nothing new seen, keep the target chosen there")
+    loop_guard: Annotated[bool, flag()] = option(
+        True, "back at a node with nothing new seen, keep the target chosen there"
+    )
 
 
 @register_planner("tare", TareConfig)

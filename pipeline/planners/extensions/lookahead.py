@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import warnings
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 
@@ -39,11 +40,11 @@ class RolloutSettings:
     """How `BlockLookahead` draws its maps and shares its rollouts (its constructor's numbers, from
     Python as well as from a planner's options)."""
 
-    samples: whole(1) = 4
-    horizon_m: real(0.0, note="metres") = 20.0
-    exit_weight: real(0.0) = 0.0
-    temperature: positive() = 1.0
-    workers: whole(1, 2, note=WORKERS_NOTE) = 1
+    samples: Annotated[int, whole(1)] = 4
+    horizon_m: Annotated[float, real(0.0, note="metres")] = 20.0
+    exit_weight: Annotated[float, real(0.0)] = 0.0
+    temperature: Annotated[float, positive()] = 1.0
+    workers: Annotated[int, whole(1, 2, note=WORKERS_NOTE)] = 1
 
 
 @config_dataclass
@@ -52,29 +53,30 @@ class LookaheadConfig(PlannerConfig):
 
     renamed = {"block_model": "block_model_file"}
 
-    lookahead: any_of(
-        whole(0, 0), whole(2), description="0 (off) or a whole number >= 2 (the best tour options rolled out)"
-    ) = option(
+    lookahead: Annotated[
+        int,
+        any_of(whole(0, 0), whole(2), description="0 (off) or a whole number >= 2 (the best tour options rolled out)"),
+    ] = option(
         0,
         "mode tour: roll out this many candidate targets on maps drawn from the block model and head for the "
         "shortest (0 = off)",
     )
-    lookahead_samples: whole(1) = option(4, "maps drawn per lookahead decision")
-    lookahead_targets: text(LOOKAHEAD_TARGETS) = option(
+    lookahead_samples: Annotated[int, whole(1)] = option(4, "maps drawn per lookahead decision")
+    lookahead_targets: Annotated[str, text(LOOKAHEAD_TARGETS)] = option(
         "greedy",
         "greedy: guide's choice and gated greedy's best targets are rolled out; tour: guide's best tour options",
     )
-    lookahead_commit: maybe(flag(), "on") = option(
+    lookahead_commit: Annotated[bool | None, maybe(flag(), "on")] = option(
         None, "keep the lookahead's target until reached or no longer a target, as the rollouts assumed [None: on]"
     )
-    lookahead_rollout: maybe(text(LOOKAHEAD_ROLLOUTS), "full") = option(
+    lookahead_rollout: Annotated[str | None, maybe(text(LOOKAHEAD_ROLLOUTS), "full")] = option(
         None,
         "full (gated greedy, a choice at every node) or fast (greedy walking each target's whole path) [None: full]",
     )
-    lookahead_workers: maybe(whole(1, 2, note=WORKERS_NOTE), "1") = option(
+    lookahead_workers: Annotated[int | None, maybe(whole(1, 2, note=WORKERS_NOTE), "1")] = option(
         None, "2: the rollouts shared with a forked second process, the same routes [None: 1]"
     )
-    block_model_file: maybe(text()) = option(
+    block_model_file: Annotated[str | None, maybe(text())] = option(
         None, "the block model [default: models/block_model/block_model.pt, else the shipped one]"
     )
 

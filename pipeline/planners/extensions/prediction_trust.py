@@ -13,6 +13,8 @@ observed graph only, `dare`'s) when it falls to `trust_none`. It wraps `guide`,
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pipeline.common.config import config_dataclass, flag, real
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.wrapper import PlannerWrapper, innermost
@@ -24,15 +26,15 @@ from pipeline.world.protocol import Protocol
 
 @config_dataclass
 class PredictionTrustOptions(PlannerConfig):
-    trust: flag() = option(
+    trust: Annotated[bool, flag()] = option(
         True,
         "lean on predictions only as far as they have been right: their lift over the base "
         "rate of free nodes among the nodes seen since (off: believe them in full)",
     )
-    trust_full: real(-1.0, 1.0) = option(
+    trust_full: Annotated[float, real(-1.0, 1.0)] = option(
         PredictionTrustConfig.full_at, "lift over the base rate at or above which predictions are used in full"
     )
-    trust_none: real(-1.0, 1.0) = option(
+    trust_none: Annotated[float, real(-1.0, 1.0)] = option(
         PredictionTrustConfig.none_at, "lift at or below which no prediction is used (the observed graph only)"
     )
 

@@ -8,6 +8,8 @@ often heads into explored space; ranking several hides most of that.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
@@ -23,7 +25,7 @@ LATER_STEP_WEIGHT = 0.8  # a plan's k-th step counts 0.8^k of its utility: near 
 class SampledPlansConfig(PlannerConfig):
     """How many plans the policy samples per decision (the ranked plans and the tour vote read it)."""
 
-    candidates: whole(1) = option(
+    candidates: Annotated[int, whole(1)] = option(
         8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's single sample)"
     )
 

@@ -32,6 +32,8 @@ the same maps. Both options stay off.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 
 from pipeline.common.config import config_dataclass, flag, maybe, positive, real, text, whole
@@ -55,23 +57,29 @@ class SampledLookaheadConfig(GreedyUtilityConfig):
     objects = ("model",)  # an injected block model
     renamed = {"checkpoint": "block_model_file"}
 
-    sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
-    k: whole(1) = option(3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself")
-    samples: whole(1) = option(
+    sliver_gate: Annotated[bool, flag()] = option(
+        True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"]
+    )
+    k: Annotated[int, whole(1)] = option(
+        3, "gated greedy's best targets (utility per metre) rolled out; 1 = gated greedy itself"
+    )
+    samples: Annotated[int, whole(1)] = option(
         4, "block maps drawn from the block model per decision; each target is rolled out on each"
     )
-    horizon_m: real(0.0, note="metres") = option(
+    horizon_m: Annotated[float, real(0.0, note="metres")] = option(
         20.0, "metres: the drawn maps are cut this far beyond the known free space"
     )
-    block_model_file: maybe(text()) = option(
+    block_model_file: Annotated[str | None, maybe(text())] = option(
         None, "the block model [default: models/block_model/block_model.pt, else the shipped one]"
     )
-    switch_margin_m: maybe(real(0.0, note="metres"), "off") = option(
+    switch_margin_m: Annotated[float | None, maybe(real(0.0, note="metres"), "off")] = option(
         None, "metres: leave the last target only for one whose mean rollout is shorter by more (None: off)"
     )
-    exit_weight: real(0.0) = option(0.0, "weight of each rollout's way back to the horizon cut (0 = off)")
-    temperature: positive() = option(1.0, "maps are drawn from sigmoid(logit / temperature)")
-    workers: whole(1, 2, note=WORKERS_NOTE) = option(
+    exit_weight: Annotated[float, real(0.0)] = option(
+        0.0, "weight of each rollout's way back to the horizon cut (0 = off)"
+    )
+    temperature: Annotated[float, positive()] = option(1.0, "maps are drawn from sigmoid(logit / temperature)")
+    workers: Annotated[int, whole(1, 2, note=WORKERS_NOTE)] = option(
         1, "2: the rollouts shared with a forked second process (the same costs and routes)"
     )
 

@@ -9,6 +9,8 @@ rule (one step along the shortest known path to the nearest useful node) until n
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 
 from pipeline.common.config import config_dataclass, whole
@@ -23,7 +25,7 @@ from pipeline.world.sensor import FREE
 
 @config_dataclass
 class StallHandoverConfig(PlannerConfig):
-    stall_steps: whole(1) = option(
+    stall_steps: Annotated[int, whole(1)] = option(
         3, "mode policy: after this many moves that reveal nothing, one step toward the nearest useful node instead"
     )
 

@@ -27,6 +27,8 @@ The robot moves only along known-free lattice edges.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 
 from pipeline.common.config import config_dataclass, real
@@ -46,7 +48,7 @@ from pipeline.world.protocol import Protocol
 
 @config_dataclass
 class TourVoteConfig(PlannerConfig):
-    prior_weight: real(0.0, note="0 = the policy does not vote") = option(
+    prior_weight: Annotated[float, real(0.0, note="0 = the policy does not vote")] = option(
         1.0,
         "mode tour: an option's score is multiplied by 1 + prior_weight x the share of samples heading for it "
         "(0: the policy does not vote)",

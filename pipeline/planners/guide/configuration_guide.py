@@ -10,7 +10,7 @@ the stall hand-over, the tour vote, the lookahead, the sliver gate) has its own 
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Annotated, ClassVar
 
 from pipeline.common.config import config_dataclass, maybe, text, whole
 from pipeline.planners.config import option
@@ -31,19 +31,23 @@ class GuideConfig(GlobalGraphOptions):
 
     # action_steps and num_inference_steps are bounded above by the policy (its T_p, its training
     # timesteps): `GuidePlanner` checks those bounds when it loads it.
-    policy_file: maybe(text()) = option(
+    policy_file: Annotated[str | None, maybe(text())] = option(
         None,
         "the policy export [default: models/planner_guide/policy.pt "
         "(models/planner_dare/ for dare), else the shipped one]",
     )
-    action_steps: maybe(whole(1), "the policy's own") = option(
+    action_steps: Annotated[int | None, maybe(whole(1), "the policy's own")] = option(
         None, "T_a of the T_p sampled steps executed before sampling again [default: the policy's own]"
     )
-    num_inference_steps: maybe(whole(1), "the policy's own") = option(
+    num_inference_steps: Annotated[int | None, maybe(whole(1), "the policy's own")] = option(
         None, "K denoising steps per sample [default: the policy's own]"
     )
-    sampler: maybe(text(SAMPLERS), "the policy's own") = option(None, "ddpm or ddim [default: the policy's own]")
-    seed: maybe(whole(0), "the episode's seed") = option(None, "the sampling seed [default: the episode's seed]")
+    sampler: Annotated[str | None, maybe(text(SAMPLERS), "the policy's own")] = option(
+        None, "ddpm or ddim [default: the policy's own]"
+    )
+    seed: Annotated[int | None, maybe(whole(0), "the episode's seed")] = option(
+        None, "the sampling seed [default: the episode's seed]"
+    )
 
     def model_slots(self) -> dict[str, str]:
         return {**super().model_slots(), "policy_file": f"policy_{self.variant}"}

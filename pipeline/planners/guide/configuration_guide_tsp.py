@@ -4,6 +4,8 @@ targets, so its config takes these options too."""
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pipeline.common.config import config_dataclass, flag, maybe, real, whole
 from pipeline.planners.config import option
 from pipeline.planners.graph_planner import GatedPlannerConfig
@@ -20,27 +22,39 @@ class TourOptions(GlobalGraphOptions, GatedPlannerConfig):
     """The frontier tour over the global graph: how useful nodes cluster, how the tour is solved,
     how its first target is scored."""
 
-    sliver_gate: flag() = option(True, GatedPlannerConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
-    top_k: whole(0, note="0 = every cluster") = option(0, "keep only the heaviest clusters (0 = every cluster)")
-    spread: maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings") = option(
+    sliver_gate: Annotated[bool, flag()] = option(
+        True, GatedPlannerConfig.__dataclass_fields__["sliver_gate"].metadata["help"]
+    )
+    top_k: Annotated[int, whole(0, note="0 = every cluster")] = option(
+        0, "keep only the heaviest clusters (0 = every cluster)"
+    )
+    spread: Annotated[
+        float | None, maybe(real(0.0, note="0 = each useful node its own target"), f"{SPREAD_NODES:g} node spacings")
+    ] = option(
         None,
         f"metres: a useful node this close to a cluster's seed joins it [default: {SPREAD_NODES:g} node spacings; "
         "0 = each useful node its own target]",
     )
-    min_weight: real(0.0, note="0 = keep every cluster") = option(
+    min_weight: Annotated[float, real(0.0, note="0 = keep every cluster")] = option(
         30.0,
         "clusters of less summed boosted utility are dropped (the robot clears such slivers on the way; "
         "0 = keep every cluster)",
     )
-    beta: real(0.0) = option(1.5, "weight of the tour regret in a first target's score")
-    first_k: whole(1) = option(5, "first-target options: the best by weight per metre, and the TSP's own first")
-    hysteresis: maybe(real(0.0, note="0 = none"), f"{HYSTERESIS_NODES:g} node spacings") = option(
-        None,
-        f"metres of tour length the previous first target is forgiven, through the regret (none at beta 0) "
-        f"[default: {HYSTERESIS_NODES:g} node spacings; 0 = none]",
+    beta: Annotated[float, real(0.0)] = option(1.5, "weight of the tour regret in a first target's score")
+    first_k: Annotated[int, whole(1)] = option(
+        5, "first-target options: the best by weight per metre, and the TSP's own first"
     )
-    exact_max: whole(1, 14) = option(9, "TSP paths are exact (Held-Karp) up to this many points, else heuristic")
-    max_moves: whole(0, note="0 = no 2-opt / Or-opt moves") = option(
+    hysteresis: Annotated[float | None, maybe(real(0.0, note="0 = none"), f"{HYSTERESIS_NODES:g} node spacings")] = (
+        option(
+            None,
+            f"metres of tour length the previous first target is forgiven, through the regret (none at beta 0) "
+            f"[default: {HYSTERESIS_NODES:g} node spacings; 0 = none]",
+        )
+    )
+    exact_max: Annotated[int, whole(1, 14)] = option(
+        9, "TSP paths are exact (Held-Karp) up to this many points, else heuristic"
+    )
+    max_moves: Annotated[int, whole(0, note="0 = no 2-opt / Or-opt moves")] = option(
         200, "at most this many 2-opt / Or-opt moves per heuristic TSP path (0 = none)"
     )
 

@@ -16,6 +16,8 @@ Both are oracles (`uses_ground_truth = True`) built on `pipeline.planners.refere
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 
 from pipeline.common.config import config_dataclass, flag, maybe, positive, whole
@@ -50,9 +52,9 @@ class OptimalConfig(PlannerConfig):
     lattice_planner = False
 
     # With no warm start, 0 restarts would construct no plan at all: the episode would end at once.
-    restarts: whole(1) = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
-    lns_iterations: whole(0, note=_NO_LNS) = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
-    time_limit_s: maybe(positive(), "no limit") = option(60.0, _TIME_HELP)
+    restarts: Annotated[int, whole(1)] = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: Annotated[int, whole(0, note=_NO_LNS)] = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    time_limit_s: Annotated[float | None, maybe(positive(), "no limit")] = option(60.0, _TIME_HELP)
 
 
 @register_planner("optimal", OptimalConfig)
@@ -96,15 +98,21 @@ class ExpertConfig(LatticePlannerConfig):
 
     # The first plan has no warm start, so it needs a fresh construction; replans refine the
     # previous tour, so 0 fresh ones (and 0 LNS rounds, the default) make sense there.
-    restarts: whole(1) = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
-    lns_iterations: whole(0, note=_NO_LNS) = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
-    replan_restarts: whole(0, note="0 = only refine the previous tour") = option(
+    restarts: Annotated[int, whole(1)] = option(DEFAULT_RESTARTS, _RESTARTS_HELP)
+    lns_iterations: Annotated[int, whole(0, note=_NO_LNS)] = option(DEFAULT_LNS_ITERATIONS, _LNS_HELP)
+    replan_restarts: Annotated[int, whole(0, note="0 = only refine the previous tour")] = option(
         2, "fresh constructions that compete with the refined previous tour at a replan (0 = only refine it)"
     )
-    replan_lns_iterations: whole(0, note=_NO_LNS) = option(0, "ruin-and-recreate rounds at a replan (0 = none)")
-    time_limit_s: maybe(positive(), "no limit") = option(60.0, _TIME_HELP)
-    replan_time_limit_s: maybe(positive(), "no limit") = option(5.0, "seconds a replan may take (None: no limit)")
-    replan_on_change: flag() = option(True, "replan whenever the belief changed (false: only the first plan)")
+    replan_lns_iterations: Annotated[int, whole(0, note=_NO_LNS)] = option(
+        0, "ruin-and-recreate rounds at a replan (0 = none)"
+    )
+    time_limit_s: Annotated[float | None, maybe(positive(), "no limit")] = option(60.0, _TIME_HELP)
+    replan_time_limit_s: Annotated[float | None, maybe(positive(), "no limit")] = option(
+        5.0, "seconds a replan may take (None: no limit)"
+    )
+    replan_on_change: Annotated[bool, flag()] = option(
+        True, "replan whenever the belief changed (false: only the first plan)"
+    )
 
 
 @register_planner("expert", ExpertConfig)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import Annotated
 
 import numpy as np
 
@@ -62,8 +63,8 @@ class OracleWrapperConfig(PlannerConfig):
     lattice_planner = False
     objects = ("base_options",)  # the base planner's options, as given beside this config's
 
-    base: satisfies(_lattice_base, "a lattice planner that does not see the ground truth", text()) = option(
-        DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)"
+    base: Annotated[str, satisfies(_lattice_base, "a lattice planner that does not see the ground truth", text())] = (
+        option(DEFAULT_BASE, "the lattice planner the ground truth helps (any that does not see the ground truth)")
     )
 
     @classmethod
@@ -122,13 +123,15 @@ class OracleGateConfig(OracleWrapperConfig):
         "veto=true: vetoes the learned gate's slivers)"
     )
 
-    min_gain: whole(1, note="cells") = option(
+    min_gain: Annotated[int, whole(1, note="cells")] = option(
         50,
         "cells: a target passes when its scan on the ground truth would "
         "reveal this many the belief lacks (the label the learned gate is "
         "fitted to)",
     )
-    veto: flag() = option(False, "the learned gate still decides, and the truth only vetoes the slivers it passes")
+    veto: Annotated[bool, flag()] = option(
+        False, "the learned gate still decides, and the truth only vetoes the slivers it passes"
+    )
 
 
 @register_planner("oracle_gate", OracleGateConfig)
@@ -163,7 +166,9 @@ class OracleTailConfig(OracleWrapperConfig):
         "then the ground-truth expert"
     )
 
-    handover_cells: whole(0) = option(8000, "ground-truth free cells still unknown when the expert takes over")
+    handover_cells: Annotated[int, whole(0)] = option(
+        8000, "ground-truth free cells still unknown when the expert takes over"
+    )
 
 
 @register_planner("oracle_tail", OracleTailConfig)
@@ -203,8 +208,12 @@ class OracleLookaheadConfig(GreedyUtilityConfig):
     )
     uses_ground_truth = True
 
-    sliver_gate: flag() = option(True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"])
-    k: whole(1) = option(3, "gated greedy's best targets tried on the ground truth; 1 = gated greedy itself")
+    sliver_gate: Annotated[bool, flag()] = option(
+        True, GreedyUtilityConfig.__dataclass_fields__["sliver_gate"].metadata["help"]
+    )
+    k: Annotated[int, whole(1)] = option(
+        3, "gated greedy's best targets tried on the ground truth; 1 = gated greedy itself"
+    )
 
 
 @register_planner("oracle_lookahead", OracleLookaheadConfig)

@@ -20,7 +20,7 @@ knows of its teammates' goals comes through `HeardGoals`.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
@@ -44,7 +44,7 @@ class CoordinatedGreedyConfig(GreedyUtilityConfig):
         "no two robots chase the same frontier"
     )
 
-    reduction_range: maybe(positive(), "the sensor range") = option(
+    reduction_range: Annotated[float | None, maybe(positive(), "the sensor range")] = option(
         None,
         "metres: a teammate's goal reduces the utility of nodes this near it, by 1 - distance / range "
         "[default: the protocol's sensor range]",

@@ -29,7 +29,7 @@ block-model lookahead is single-robot: the team version refuses it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
@@ -59,11 +59,13 @@ from pipeline.world.team import TeamObservation, TeamPlanner
 class TeamRouteOptions(PlannerConfig):
     """How a coordinated tour team splits the frontier into min-max routes."""
 
-    routes_exact_max: whole(0, EXACT_MAX_LIMIT) = option(
+    routes_exact_max: Annotated[int, whole(0, EXACT_MAX_LIMIT)] = option(
         8, "min-max splits of up to this many targets are solved exactly; larger ones by OR-Tools"
     )
-    routes_time_ms: whole(1) = option(30, "milliseconds OR-Tools may search a min-max split of more targets")
-    routes_search: text(METAHEURISTICS) = option(
+    routes_time_ms: Annotated[int, whole(1)] = option(
+        30, "milliseconds OR-Tools may search a min-max split of more targets"
+    )
+    routes_search: Annotated[str, text(METAHEURISTICS)] = option(
         "greedy_descent",
         "OR-Tools' local search: greedy_descent (stops at its first local optimum) or "
         "guided_local_search (searches the whole time limit)",

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
@@ -56,8 +57,10 @@ class TeamOptimalConfig(OptimalConfig, TeamRouteOptions):
     )
 
     # A one-off split at reset, not one per decision: OR-Tools may take longer than a tour team's.
-    routes_time_ms: whole(1) = option(1000, "milliseconds OR-Tools may search a min-max split of more targets")
-    top_up_rounds: whole(0) = option(
+    routes_time_ms: Annotated[int, whole(1)] = option(
+        1000, "milliseconds OR-Tools may search a min-max split of more targets"
+    )
+    top_up_rounds: Annotated[int, whole(0)] = option(
         3,
         "times a split that leaves too much unseen gets a greedy cover of the rest before the viewpoints of a "
         "full cover are added",
