@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import typing
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, cast
 
 import cv2
 import numpy as np
@@ -13,7 +14,7 @@ from pipeline.lattice.frontier import FRONTIER_MIN_UNKNOWN_NEIGHBOURS
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
 from pipeline.models.defaults import SHIPPED_GATE, resolve_gate_path
-from pipeline.models.sliver_gate import SliverGate, load_gate
+from pipeline.models.sliver_gate import load_gate
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.world.maps import MapFrame, map_frame
 from pipeline.world.planner import Observation, Planner, Waypoint
@@ -53,6 +54,16 @@ class GatedPlannerConfig(LatticePlannerConfig):
         return {**super().model_slots(), **({"gate_file": "gate"} if self.sliver_gate else {})}
 
 
+class Gate(typing.Protocol):
+    """A sliver gate: a fitted `SliverGate`, or one that knows the ground truth (an oracle bound's)."""
+
+    def reach_cells(self, range_cells: float) -> int: ...
+
+    def passes(
+        self, belief: np.ndarray, cells: np.ndarray, range_cells: float, frontier: np.ndarray | None = None
+    ) -> np.ndarray: ...
+
+
 class GraphPlanner(Planner):
     """A planner that keeps the lattice graph of Sec. IV-A up to date from each observation.
 
@@ -66,11 +77,11 @@ class GraphPlanner(Planner):
         self.min_utility = config.min_utility
         self.graph: LatticeGraph | None = None
         self.rng = np.random.default_rng(0)
-        self.gate: SliverGate | None = None
+        self.gate: Gate | None = None
         self.gate_path: Path | None = None
         self.gate_source = "no sliver gate"
         if getattr(config, "sliver_gate", False):
-            path = resolve_gate_path(config.gate_file)
+            path = resolve_gate_path(cast(GatedPlannerConfig, config).gate_file)
             self.gate, self.gate_path = load_gate(path)[0], path
             self.gate_source = f"sliver gate {path if path != SHIPPED_GATE else '(shipped)'}"
             # Which gate a run used belongs in its run.json: gated routes move with the gate's fit.
@@ -105,6 +116,7 @@ class GraphPlanner(Planner):
     def _forget_gate_verdicts(self, shape: tuple[int, int], changed: np.ndarray | None) -> None:
         """Drop the gate verdicts of the nodes within the gate's reach of a changed cell (all on
         the first observation, whose changes are not listed)."""
+        assert self.graph is not None
         if changed is None or self._gate_known.size != self.graph.node_count:
             self._gate_known = np.zeros(self.graph.node_count, dtype=bool)
             self._gate_big = np.zeros(self.graph.node_count, dtype=bool)
@@ -115,6 +127,7 @@ class GraphPlanner(Planner):
         touched = np.zeros(shape, dtype=np.uint8)
         touched.flat[changed] = 1
         total = cv2.integral(touched)  # (rows + 1, cols + 1) running sums: one box sum per node
+        assert self.gate is not None
         reach = self.gate.reach_cells(self.protocol.sensor_range_cells)
         cols, rows = self.graph.node_cells[known, 0], self.graph.node_cells[known, 1]
         top, bottom = np.clip(rows - reach, 0, shape[0]), np.clip(rows + reach + 1, 0, shape[0])
@@ -138,6 +151,7 @@ class GraphPlanner(Planner):
         useful = self.ungated_useful_nodes()
         if self.gate is None or useful.size == 0:
             return useful
+        assert self.graph is not None
         if self._gated is None or not np.array_equal(self._gated[0], useful):
             big = self.gate_verdicts(useful)
             if big.any():
@@ -159,6 +173,7 @@ class GraphPlanner(Planner):
         """Whether the gate calls each of `nodes` big, judged now for those without a kept verdict."""
         unjudged = nodes[~self._gate_known[nodes]]
         if unjudged.size:
+            assert self.graph is not None and self.gate is not None
             self._gate_big[unjudged] = self.gate.passes(
                 self.belief, self.graph.node_cells[unjudged], self.protocol.sensor_range_cells, self._gate_frontier()
             )
@@ -167,6 +182,7 @@ class GraphPlanner(Planner):
 
     def _gate_frontier(self) -> np.ndarray | None:
         """The graph's frontier when it is the one the gate reads (`frontier_mask`'s default), else None."""
+        assert self.graph is not None
         same_rule = self.graph.spec.frontier_min_unknown_neighbours == FRONTIER_MIN_UNKNOWN_NEIGHBOURS
         return self.graph.frontier if same_rule else None
 
@@ -192,4 +208,4 @@ class GraphPlanner(Planner):
     def waypoints_along(self, path: list[int], max_waypoints: int = 1) -> list[Waypoint]:
         """The first `max_waypoints` nodes of a path after the robot's own node, in metres."""
         assert self.graph is not None
-        return [tuple(map(float, self.graph.node_world[n])) for n in path[1 : 1 + max_waypoints]]
+        return [cast(Waypoint, tuple(map(float, self.graph.node_world[n]))) for n in path[1 : 1 + max_waypoints]]

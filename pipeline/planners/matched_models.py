@@ -91,7 +91,7 @@ class ProtocolMatchedModels(PlannerWrapper):
         self.inner.check_protocol(protocol)
 
     @property
-    def description(self) -> str:
+    def description(self) -> str:  # type: ignore[override]  # read-only: the held planner's, with the picks
         """The held planner's, naming the protocol's option defaults it was built with."""
         options = {k: v for k, v in self.picked.items() if k not in self.slots}
         if not options:

@@ -9,7 +9,7 @@ its frontier-only version (the instance's `description` says which predictor is 
 from __future__ import annotations
 
 import warnings
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, ClassVar
 
 import numpy as np
 from pydantic import InstanceOf
@@ -31,12 +31,16 @@ from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, model_input_differences
 
+if TYPE_CHECKING:
+    from pipeline.prediction.prediction_trust import TrustedPredictor
+
 
 @config_dataclass
 class PredictorOptions(LatticePlannerConfig):
     """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
 
-    objects = ("inpaint",)  # an injected inpainter (node image -> free probability): tests pass an oracle
+    # an injected inpainter (node image -> free probability): tests pass an oracle
+    objects: ClassVar[tuple[str, ...]] = ("inpaint",)
     renamed = {"checkpoint": "inpainter_file"}
 
     inpainter_file: Annotated[str | None, maybe(text())] = option(
@@ -80,7 +84,10 @@ class PredictingPlanner(GraphPlanner):
         else:  # the observed graph only (dare): no inpainter is loaded
             fn, source, path = None, "no prediction (observed graph only)", None
         predictor_config = NodePredictorConfig(threshold, int(min_component), count_threshold=count_threshold)
-        self.predictor = None if fn is None else NodePredictor(fn, predictor_config)
+        # The node predictor; a `TrustedPredictor` around it once the trust wrapper holds this planner.
+        self.predictor: NodePredictor | TrustedPredictor | None = (
+            None if fn is None else NodePredictor(fn, predictor_config)
+        )
         self.predictor_source = source
         # (model, protocol recorded with it) for every trained model this planner runs; checked at reset.
         self.trained_models: list[tuple[str, dict | None]] = (
@@ -137,6 +144,7 @@ class GlobalGraphPlanner(PredictingPlanner):
 
     def reset(self, frame: MapFrame, protocol: Protocol, seed: int) -> None:
         super().reset(frame, protocol, seed)
+        assert self.graph is not None
         self.global_graph = GlobalGraph(self.graph, self.global_config)
 
     def update_global_graph(self, observation: Observation) -> np.ndarray:

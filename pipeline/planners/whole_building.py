@@ -31,6 +31,8 @@ maze scale (DARE's lattice) the wrapper passes every call through unchanged.
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from pipeline.lattice.doors import via_waypoints
@@ -177,7 +179,11 @@ class WholeBuilding(PlannerWrapper):
 
     def _remember(self, waypoints: list[Waypoint], kind: str, goal: tuple[int, int] | None) -> None:
         cells = self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64).reshape(-1, 2))
-        self.pending, self.pending_kind, self.goal = [tuple(map(int, c)) for c in cells], kind, goal
+        self.pending, self.pending_kind, self.goal = (
+            [cast("tuple[int, int]", tuple(map(int, c))) for c in cells],
+            kind,
+            goal,
+        )
 
     def _on_lattice(self, position: tuple[float, float]) -> bool:
         d = self.spec.node_resolution
@@ -186,7 +192,10 @@ class WholeBuilding(PlannerWrapper):
     def _through_doors(
         self, observation: Observation, passable: np.ndarray, waypoints: list[Waypoint]
     ) -> list[Waypoint]:
-        cells = [tuple(map(int, c)) for c in self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64))]
+        cells = [
+            cast("tuple[int, int]", tuple(map(int, c)))
+            for c in self.spec.world_to_cell(np.asarray(waypoints, dtype=np.float64))
+        ]
         if all(segment_is_known_free(passable, a, b) for a, b in zip([observation.cell, *cells[:-1]], cells)):
             return waypoints  # every segment straight: no door node to look for
         route = via_waypoints(passable, clearance_cells(observation.belief), observation.cell, cells)

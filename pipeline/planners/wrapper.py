@@ -10,7 +10,8 @@ the tour of the tour vote) asks for that layer (`innermost`, `layer`).
 
 from __future__ import annotations
 
-from typing import Any, TypeVar
+import typing
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Planner, Waypoint
@@ -49,20 +50,27 @@ class InnerUnlessSet:
         wrapper.__dict__[self.name] = value
 
 
+class TrustKeeping(typing.Protocol):
+    """A planner that keeps a record of its checked predictions (`restore_trust`)."""
+
+    def restore_trust(self, state: Any) -> None: ...
+
+
 class PlannerWrapper(Planner):
     """`inner`, with what a subclass overrides; `reset`, `plan`, `check_protocol` and
     `restore_trust` go to it unless a subclass says otherwise."""
 
-    name = InnerUnlessSet()
-    description = InnerUnlessSet()
-    needs_policy = InnerUnlessSet()
-    uses_ground_truth = InnerUnlessSet()
-    ignores_motion_rule = InnerUnlessSet()
-    prediction_trust = InnerUnlessSet()
-    trust_state = InnerUnlessSet()
-    decision_kind = InnerUnlessSet()
-    fallbacks = InnerUnlessSet()
-    last_decision = InnerUnlessSet()
+    if not TYPE_CHECKING:  # to a type checker each reads as the `Planner` attribute it reports
+        name = InnerUnlessSet()
+        description = InnerUnlessSet()
+        needs_policy = InnerUnlessSet()
+        uses_ground_truth = InnerUnlessSet()
+        ignores_motion_rule = InnerUnlessSet()
+        prediction_trust = InnerUnlessSet()
+        trust_state = InnerUnlessSet()
+        decision_kind = InnerUnlessSet()
+        fallbacks = InnerUnlessSet()
+        last_decision = InnerUnlessSet()
 
     def __init__(self, inner: Planner):
         self.inner = inner
@@ -77,7 +85,7 @@ class PlannerWrapper(Planner):
         self.inner.check_protocol(protocol)
 
     def restore_trust(self, state: Any) -> None:
-        self.inner.restore_trust(state)
+        cast(TrustKeeping, self.inner).restore_trust(state)
 
 
 def layers(planner: Planner) -> list[Planner]:

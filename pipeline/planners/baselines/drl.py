@@ -16,7 +16,7 @@ never hands over, and then the planner decides exactly as the environment's agen
 from __future__ import annotations
 
 import warnings
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 
@@ -63,6 +63,7 @@ class DRLPlanner(Planner):
     description = DRLConfig.description
 
     def __init__(self, config: DRLConfig = DRLConfig(), policy: DRLPolicy | None = None):
+        self.trained_on: dict  # what the policy was trained on ({} for an injected one)
         if policy is not None:
             self.policy, self.trained_on, source = policy.eval(), {}, "injected drl policy"
         else:
@@ -131,7 +132,7 @@ class DRLPlanner(Planner):
             node = self.nearest_useful_step(view, reachable)
         else:
             node = int(self.table.neighbour[view.robot_node, self.policy.predict_action(arrays, moves)])
-        return [tuple(map(float, self.graph.node_world[node]))]
+        return [cast(Waypoint, tuple(map(float, self.graph.node_world[node])))]
 
     def nearest_useful_step(self, view, reachable: np.ndarray) -> int:
         """The first node on the shortest known path to the nearest reachable unvisited node that

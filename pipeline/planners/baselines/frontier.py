@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from pipeline.common.config import config_dataclass
@@ -56,6 +58,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         pred, ranked = self.ranked_targets(observation)
         if ranked.size == 0:
             return []
+        assert self.graph is not None
         return self.waypoints_along(self.graph.path_from_predecessors(pred, int(ranked[0])))
 
     def finish_episode(self, episode: Episode, target: int, pred: np.ndarray, per_target: bool = False) -> float | None:
@@ -69,6 +72,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         if per_target:
             return self._finish_per_target(episode, target, pred)
         committed = True
+        assert self.graph is not None
         while True:
             ended = self._move_to(episode, self.graph.path_from_predecessors(pred, target)[1])
             if ended is not None:
@@ -92,6 +96,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         """The first `count` nodes of the ungated ranking: the reachable useful nodes by utility per
         metre, best first (ties by node id), with every utility in it counted exactly."""
         graph = self.graph
+        assert graph is not None
         while True:
             kept = getattr(self, "_ranking", None)  # (utilities' version, dist, order): sorted once per change
             if kept is None or kept[0] != graph.utility_version or kept[1] is not dist:
@@ -133,6 +138,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         graph = self.graph
         if self.visited[node] or node == self.robot or not np.isfinite(dist[node]):
             return False
+        assert graph is not None
         graph.exact_utilities(np.array([node]))
         if graph.utility[node] < self.min_utility:
             if graph.utility[node] == 0:
@@ -145,6 +151,7 @@ class GreedyUtilityPlanner(GraphPlanner):
         return self._first_big(dist) is None
 
     def _finish_per_target(self, episode: Episode, target: int, pred: np.ndarray) -> float | None:
+        assert self.graph is not None
         while True:
             for node in self.graph.path_from_predecessors(pred, target)[1:]:
                 ended = self._move_to(episode, node)
@@ -158,10 +165,11 @@ class GreedyUtilityPlanner(GraphPlanner):
     def _move_to(self, episode: Episode, node: int) -> float | None:
         """One rollout move to a neighbouring `node`; the rollout's result if it ends there
         (the distance at completion, inf at the step limit), else None."""
+        assert self.graph is not None
         for waypoint in self.graph.route_between(self.graph.nearest_node(episode.position), node):
             episode.move(waypoint)  # through the edge's door node first, where it has one
         if episode.complete:
-            return float(episode.completion_distance)
+            return float(cast(float, episode.completion_distance))
         if episode.steps >= self.protocol.max_steps:
             return np.inf
         return None

@@ -279,11 +279,11 @@ class TarePlanner(GraphPlanner):
             if pair.size:
                 node_k, key_k = np.divmod(pair, base)
                 node_k = useful[node_k]
-                order = np.lexsort((node_k, dist_robot[node_k], key_k))  # per region, nearest first
-                key_sorted = key_k[order]
-                first = np.ones(len(order), dtype=bool)
+                by_region = np.lexsort((node_k, dist_robot[node_k], key_k))  # per region, nearest first
+                key_sorted = key_k[by_region]
+                first = np.ones(len(by_region), dtype=bool)
                 first[1:] = key_sorted[1:] != key_sorted[:-1]
-                reps = np.unique(node_k[order[first]])
+                reps = np.unique(node_k[by_region[first]])
 
         # Local level: greedy set cover of the uncovered frontier cells in the horizon.
         viewpoints = np.zeros(0, dtype=np.int64)

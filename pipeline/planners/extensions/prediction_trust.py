@@ -13,7 +13,7 @@ observed graph only, `dare`'s) when it falls to `trust_none`. It wraps `guide`,
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, cast
 
 from pipeline.common.config import config_dataclass, flag, real
 from pipeline.planners.config import PlannerConfig, option
@@ -22,6 +22,10 @@ from pipeline.prediction.prediction_trust import PredictionTrustConfig, TrustedP
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol
+
+if TYPE_CHECKING:
+    from pipeline.planners.predicting import PredictingPlanner
+    from pipeline.prediction.node_predictor import NodePredictor
 
 
 @config_dataclass
@@ -49,8 +53,8 @@ class TrustingPlanner(PlannerWrapper):
 
     def __init__(self, inner: Planner, config: PredictionTrustConfig):
         super().__init__(inner)
-        base = innermost(inner)
-        self.trusted = TrustedPredictor(base.predictor, config)
+        base = cast("PredictingPlanner", innermost(inner))  # `with_trust` wraps only a planner that predicts
+        self.trusted = TrustedPredictor(cast("NodePredictor", base.predictor), config)
         base.predictor = self.trusted
         self.description = (
             f"{inner.description} [trust in predictions: in full at a lift of {config.full_at:g} over "
@@ -62,7 +66,7 @@ class TrustingPlanner(PlannerWrapper):
         self.trusted.reset()
 
     @property
-    def prediction_trust(self) -> float:
+    def prediction_trust(self) -> float:  # type: ignore[override]  # read-only: the record's trust
         return self.trusted.record.trust
 
     @property

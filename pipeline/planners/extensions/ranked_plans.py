@@ -42,6 +42,7 @@ def rank_plans(paper: GuidePlanner, deltas: np.ndarray, expected: np.ndarray) ->
     Ties keep the first sample.
     """
     graph, robot = paper.graph, paper.robot
+    assert graph is not None
     useful = paper.useful_nodes()
     to_useful = (
         dijkstra(graph.adjacency(), directed=False, indices=useful, min_only=True)

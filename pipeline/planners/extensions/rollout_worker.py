@@ -22,13 +22,16 @@ import multiprocessing
 import os
 import traceback
 from multiprocessing.connection import Connection, Pipe
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.planners.baselines.frontier import GreedyUtilityPlanner
 from pipeline.world.planner import Observation
+
+if TYPE_CHECKING:
+    from pipeline.world.simulator import Episode
 
 #: (a job's context, the job's index in its batch) -> the job's rollout cost
 RunJob = Callable[["JobContext", list[int], int], float]
@@ -40,12 +43,13 @@ class JobContext:
 
     def __init__(self, planner, observation: Observation, pred: np.ndarray, drawn: list[np.ndarray]):
         self.planner, self.observation, self.pred, self.drawn = planner, observation, pred, drawn
-        self.worlds: dict[int, object] = {}  # map index -> that map's start (per process)
+        # map index -> that map's start and its exit distances (per process)
+        self.worlds: dict[int, tuple[Episode, np.ndarray | None]] = {}
 
 
 def take_jobs(counter, count: int, run: Callable[[int], float]) -> dict[int, float]:
     """Run jobs 0..count-1 that no other process has taken (one shared counter); {job: cost}."""
-    done = {}
+    done: dict[int, float] = {}
     while True:
         with counter.get_lock():
             job = counter.value
@@ -88,6 +92,7 @@ class RolloutWorker:
             finally:
                 os._exit(status)
         child_end.close()
+        self.connection: Connection | None  # None once closed
         self.pid, self.connection = pid, parent_end
 
     def start(self, context: JobContext, candidates: list[int]) -> None:
@@ -115,6 +120,7 @@ class RolloutWorker:
         if self.pending:  # a decision that failed before collecting its rollouts: drop the stale answer
             self.receive()
         self.counter.value = 0  # the worker is idle between batches: nothing races this reset
+        assert self.connection is not None
         self.connection.send(message)
         self.pending = True
 
@@ -124,6 +130,7 @@ class RolloutWorker:
 
     def receive(self) -> dict[int, float]:
         """The worker's share of the current batch (RuntimeError on its failure, EOFError when gone)."""
+        assert self.connection is not None
         kind, payload = self.connection.recv()
         self.pending = False
         if kind == "error":
@@ -171,8 +178,12 @@ def _serve(
                 context = JobContext(planner, observation, pred, drawn)
             else:
                 candidates = message[1]
+            assert context is not None  # a decision's "start" comes before its "more"
             count = len(context.drawn) * len(candidates)
-            answer = ("costs", take_jobs(counter, count, lambda job: run_job(context, candidates, job)))
+            answer: tuple[str, dict[int, float] | str] = (
+                "costs",
+                take_jobs(counter, count, lambda job: run_job(context, candidates, job)),
+            )
         except Exception:  # noqa: BLE001 - reported to the parent, which raises it
             answer = ("error", traceback.format_exc())
         connection.send(answer)

@@ -131,4 +131,5 @@ class SampledLookaheadPlanner(GreedyUtilityPlanner):
                 best = incumbent
             choice = candidates[best]
         self.last_target = choice
+        assert self.graph is not None
         return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))

@@ -34,6 +34,8 @@ class StallHandover(PlannerWrapper):
     """GUIDE's policy (`GuidePlanner`, or a wrapper of it), handed over to the nearest useful node
     while `stall_steps` or more moves in a row have revealed no free cell."""
 
+    inner: GuidePlanner
+
     def __init__(self, inner: GuidePlanner, stall_steps: int):
         super().__init__(inner)
         self.stall_steps = int(stall_steps)

@@ -27,7 +27,7 @@ The robot moves only along known-free lattice edges.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 
@@ -133,7 +133,7 @@ class TourVote(PlannerWrapper):
                 "fallback": False,
                 "fallback_share": self.fallbacks / self.decisions,
             }
-            return [tuple(map(float, graph.node_world[queued]))]
+            return [cast(Waypoint, tuple(map(float, graph.node_world[queued])))]
         self.queue = []
         options = self.tour.first_target_scores(graph, paper.global_graph, robot, dist, useful)
         deltas, expected = paper.sample_plans()
@@ -142,10 +142,11 @@ class TourVote(PlannerWrapper):
         scores = options["scores"] * (1.0 + self.prior_weight * votes)
         best = int(np.argmax(scores))
         tour = options["tours"][best]
-        target = tour[0]
+        target = cast(int, tour[0])
         costs = None
         if committed:
-            target = kept  # committed: the rollouts assumed the robot heads there until reached or no longer a target
+            # committed: the rollouts assumed the robot heads there until reached or no longer a target
+            target = cast(int, kept)
             tour = [target] + [t for t in tour if t != target]
         elif self.lookahead is not None:
             # Candidate targets, each rolled out on maps drawn from the block model; the shortest wins.
@@ -159,7 +160,7 @@ class TourVote(PlannerWrapper):
                         self._rollout_planner(), observation, candidates, pred, self.lookahead_rng
                     )
                 costs = self.lookahead.finish(rollouts, candidates)
-                target = candidates[int(np.argmin(costs))]
+                target = cast(int, candidates[int(np.argmin(costs))])
                 tour = [target] + [t for t in tour if t != target]
             self.lookahead_choice = target
         else:  # guide_tsp's cycle guard: back at a node with nothing new seen, the target chosen there is kept
@@ -193,7 +194,7 @@ class TourVote(PlannerWrapper):
             "fallback": not aligned,
             "fallback_share": self.fallbacks / self.decisions,
         }
-        return [tuple(map(float, graph.node_world[chunk[0]]))]
+        return [cast(Waypoint, tuple(map(float, graph.node_world[chunk[0]])))]
 
     def target_votes(self, robot: int, paths: list[list[int]], options: dict) -> np.ndarray:
         """How much the sampled plans head for each first-target option, in [0, 1].
@@ -203,6 +204,7 @@ class TourVote(PlannerWrapper):
         vote of an option is the plans' mean progress toward it.
         """
         graph = self.paper.graph
+        assert graph is not None
         gg = self.paper.global_graph
         known_ids = gg.lattice_ids[gg.types == KNOWN]
         distance = options["option_distance"]  # (options, global-graph rows)

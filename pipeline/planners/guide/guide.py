@@ -33,6 +33,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import torch
@@ -46,6 +47,9 @@ from pipeline.prediction.node_predictor import InpaintFn
 from pipeline.world.maps import MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
+
+if TYPE_CHECKING:
+    from pipeline.models.modeling_diffusion import DiffusionPolicy
 
 # (the planner, (C, T_p, 2) steps, (C, T_p, 2) directions) -> the index of the sampled plan to drive
 PlanRanker = Callable[["GuidePlanner", np.ndarray, np.ndarray], int]
@@ -95,7 +99,7 @@ class GuidePlanner(GlobalGraphPlanner):
             f"K={self.num_inference_steps}]"
         )
 
-    def load_policy(self, config: GuideConfig, policy=None) -> tuple[object, str]:
+    def load_policy(self, config: GuideConfig, policy=None) -> tuple[DiffusionPolicy, str]:
         """(the policy, where it came from): the injected one, else `policy_file`, else the pipeline's
         or the shipped policy of the config's variant; its sampler as the config asks."""
         if policy is None:
@@ -157,13 +161,14 @@ class GuidePlanner(GlobalGraphPlanner):
             self.queue.extend(self.sample_plan())
         step, direction = self.queue.popleft()
         graph, robot = self.graph, self.robot
+        assert graph is not None
         move = feasible_move(graph, robot, step, direction)
         if move is None or not np.array_equal(graph.node_ij[move] - graph.node_ij[robot], step):
             self.queue.clear()  # the rest of the chunk assumed this step: sample again next time
         if move is None:
             return self.hand_over(sampled)
         self.last_decision = {"fallback": False, "sampled": sampled, "fallback_share": self.fallbacks / self.decisions}
-        return [tuple(map(float, graph.node_world[move]))]
+        return [cast(Waypoint, tuple(map(float, graph.node_world[move])))]
 
     def hand_over(self, sampled: bool = False) -> list[Waypoint]:
         """One step toward the nearest useful node instead of the policy's (the queue is dropped)."""

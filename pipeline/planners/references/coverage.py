@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Sequence, cast
 
 import numpy as np
 
@@ -476,7 +476,7 @@ def coverage_tour(
     episode completes (or, if the map cannot be completed, once all it can see is seen).
     """
     model, plan = coverage_plan(ground_truth, protocol, seed, restarts, lns_iterations, time_limit)
-    return [tuple(map(float, model.world[v])) for v in plan.path]
+    return [cast("tuple[float, float]", tuple(map(float, model.world[v]))) for v in plan.path]
 
 
 # --------------------------------------------------------------------------- oracle runs

@@ -144,7 +144,7 @@ class CoverageModel:
             out.extend(self.path(int(a), int(b))[1:])
         return out
 
-    def path_length(self, path: Sequence[int]) -> float:
+    def path_length(self, path: Sequence[int] | np.ndarray) -> float:
         """Metres along a node path (straight segments between consecutive nodes)."""
         if len(path) < 2:
             return 0.0

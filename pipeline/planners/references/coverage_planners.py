@@ -16,7 +16,7 @@ Both are oracles (`uses_ground_truth = True`) built on `pipeline.planners.refere
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 
@@ -73,7 +73,7 @@ class OptimalPlanner(OraclePlanner):
         self.tour: list[Waypoint] = []
         self._sent = False
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
         self._episode = (ground_truth, protocol, seed)
         self.tour = []
         self._sent = False
@@ -86,7 +86,7 @@ class OptimalPlanner(OraclePlanner):
         model, plan = coverage_plan(ground_truth, protocol, seed, self.restarts, self.lns_iterations, self.time_limit_s)
         self.model: CoverageModel = model
         self.coverage: CoveragePlan = plan
-        self.tour = [tuple(map(float, model.world[v])) for v in plan.path]
+        self.tour = [cast(Waypoint, tuple(map(float, model.world[v]))) for v in plan.path]
         self._sent = True
         return list(self.tour[1:])
 
@@ -152,8 +152,8 @@ class ExpertPlanner(GraphPlanner):
         self.replan_time_limit_s = replan_time_limit_s
         self.replan_on_change = replan_on_change
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
+        super().reset(ground_truth.frame, protocol, seed)
         self.model = coverage_model(ground_truth, protocol)
         self.seed = seed
         self.tour: list[int] = []  # local viewpoints still to visit, next first
@@ -193,7 +193,7 @@ class ExpertPlanner(GraphPlanner):
 
     # ------------------------------------------------------------------ internals
     def _step(self, node: int) -> list[Waypoint]:
-        return [tuple(map(float, self.model.world[node]))]
+        return [cast(Waypoint, tuple(map(float, self.model.world[node])))]
 
     def _replan(self, robot: int, known_free: np.ndarray) -> None:
         """Tour over the cells the belief lacks; the previous tour competes (warm start)."""

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 
@@ -33,6 +33,7 @@ from pipeline.common.config import config_dataclass, flag, satisfies, text, whol
 from pipeline.models.sliver_gate import TrueGain
 from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import PlannerConfig, option
+from pipeline.planners.graph_planner import GraphPlanner
 from pipeline.planners.references.coverage_planners import ExpertPlanner
 from pipeline.planners.registry import make_planner, planner_config, register_planner
 from pipeline.planners.wrapper import innermost
@@ -148,12 +149,15 @@ class OracleGatePlanner(_OracleWrapper):
             options = {**options, "sliver_gate": True}
         super().__init__(config, options)
         self.min_gain, self.veto = int(min_gain), veto
-        self.learned = innermost(self.base).gate if veto else None  # the learned gate the truth vetoes
+        # the learned gate the truth vetoes
+        self.learned = cast(GraphPlanner, innermost(self.base)).gate if veto else None
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
         self.base.reset(ground_truth.frame, protocol, seed)
-        innermost(self.base).gate = TrueGainGate(TrueGain(ground_truth, protocol), self.min_gain, self.learned)
+        cast(GraphPlanner, innermost(self.base)).gate = TrueGainGate(
+            TrueGain(ground_truth, protocol), self.min_gain, self.learned
+        )
 
     def plan(self, observation: Observation) -> list[Waypoint]:
         return self.base.plan(observation)
@@ -184,7 +188,7 @@ class OracleTailPlanner(_OracleWrapper):
         self.expert = ExpertPlanner()
         self.description = f"{self.description} [base {base}: {self.base.description}]"
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
         self.base.reset(ground_truth.frame, protocol, seed)
         self.expert.reset(ground_truth, protocol, seed)
         self.free_cells = int(ground_truth.free.sum())
@@ -234,8 +238,8 @@ class OracleLookaheadPlanner(GreedyUtilityPlanner):
         k = config.k
         self.k = int(k)
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
+        super().reset(ground_truth.frame, protocol, seed)
         self.shadow = Episode(ground_truth, protocol)  # the real episode, mirrored move by move
         self.shadow.observe()
 
@@ -255,6 +259,7 @@ class OracleLookaheadPlanner(GreedyUtilityPlanner):
                 distance = trial.finish_in_copy(int(target), pred)
                 if distance < best:
                     best, choice = distance, int(target)
+        assert self.graph is not None
         return self.waypoints_along(self.graph.path_from_predecessors(pred, choice))
 
     def finish_in_copy(self, target: int, pred: np.ndarray) -> float:

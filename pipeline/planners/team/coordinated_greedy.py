@@ -20,12 +20,12 @@ knows of its teammates' goals comes through `HeardGoals`.
 from __future__ import annotations
 
 import dataclasses
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
 
 import numpy as np
 
 from pipeline.common.config import config_dataclass, maybe, positive
-from pipeline.planners.baselines.frontier import GreedyUtilityConfig
+from pipeline.planners.baselines.frontier import GreedyUtilityConfig, GreedyUtilityPlanner
 from pipeline.planners.config import option
 from pipeline.planners.registry import make_planner
 from pipeline.planners.team.heard_goals import HeardGoals
@@ -108,7 +108,7 @@ class CoordinatedGreedyTeam(TeamPlanner):
         self.goals = HeardGoals(robots)
 
     def plan(self, observation: TeamObservation) -> list[Waypoint]:
-        planner = innermost(self.planners[observation.robot])
+        planner = cast(GreedyUtilityPlanner, innermost(self.planners[observation.robot]))
         teammates = [g for g in self.goals.teammates_goals(observation) if g is not None]
         graph = planner.update_graph(observation.observation)
         robot = planner.robot_node(observation.observation)

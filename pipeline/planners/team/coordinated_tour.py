@@ -29,7 +29,7 @@ block-model lookahead is single-robot: the team version refuses it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
@@ -41,7 +41,7 @@ from pipeline.planners.catalog import GuideOptions, GuideTspOptions, TourVoteOpt
 from pipeline.planners.config import PlannerConfig, option
 from pipeline.planners.extensions.tour_vote import TourVote
 from pipeline.planners.guide.guide import drive
-from pipeline.planners.guide.guide_tsp import FrontierTour
+from pipeline.planners.guide.guide_tsp import FrontierTour, GuideTspPlanner
 from pipeline.planners.registry import make_planner
 from pipeline.planners.team.coordinated_greedy import base_options, burgard_choice
 from pipeline.planners.team.heard_goals import HeardGoals
@@ -203,12 +203,12 @@ def route_options(split: FrontierSplit, tour: FrontierTour, kept: int | None) ->
     options: dict[int, tuple[float, list[int]]] = {1: (np.inf, order)}
     if len(route) > 1:
         per_metre = weight / np.maximum(d[0, 1:], 1e-6)
-        firsts = set((np.argsort(-per_metre, kind="stable")[: tour.first_k] + 1).tolist()) | {1}
+        picked = set((np.argsort(-per_metre, kind="stable")[: tour.first_k] + 1).tolist()) | {1}
         kept_at = next((j + 1 for j, t in enumerate(route) if int(split.targets[t]) == kept), None)
         if kept_at is not None:
-            firsts.add(kept_at)
+            picked.add(kept_at)
         options = {}
-        for j in sorted(firsts):
+        for j in sorted(picked):
             if j == 1:
                 tour_j, length_j = order, length
             else:
@@ -285,7 +285,7 @@ class CoordinatedTourTeam(TeamPlanner):
         return burgard_choice(graph.node_world, graph.utility, candidates, dist, teammates, self.reach)
 
     def plan(self, observation: TeamObservation) -> list[Waypoint]:
-        planner = innermost(self.planners[observation.robot])
+        planner = cast(GuideTspPlanner, innermost(self.planners[observation.robot]))
         own = observation.observation
         goals = self.known_goals(observation, planner.tour)
         graph, robot, dist, pred, candidates = planner.locate(own)
@@ -337,7 +337,7 @@ class CoordinatedTourVoteTeam(CoordinatedTourTeam):
         if queued is not None:  # the rest of the last chunk, still on its way to a target
             vote.queue.pop(0)
             self.goals.decided(observation, target)
-            return [tuple(map(float, graph.node_world[queued]))]
+            return [cast(Waypoint, tuple(map(float, graph.node_world[queued])))]
         vote.queue = []
         split = split_frontier(
             graph, paper.global_graph, vote.tour, robot, dist, useful, observation, goals, self.config
@@ -349,7 +349,7 @@ class CoordinatedTourVoteTeam(CoordinatedTourTeam):
             options = route_options(split, vote.tour, vote.tour.previous)
             votes = vote.target_votes(robot, paths, options)
             scores = options["scores"] * (1.0 + vote.prior_weight * votes)
-            target = options["tours"][int(np.argmax(scores))][0]
+            target = cast(int, options["tours"][int(np.argmax(scores))][0])
         else:  # no route of its own: nothing to vote on
             target = self.next_target(split, graph, dist, useful, goals)
         target = vote.tour.keep_through_cycles(own, robot, useful, target)
@@ -368,7 +368,7 @@ class CoordinatedTourVoteTeam(CoordinatedTourTeam):
             "members": split.members,
             "votes": votes,
         }
-        return [tuple(map(float, graph.node_world[chunk[0]]))]
+        return [cast(Waypoint, tuple(map(float, graph.node_world[chunk[0]])))]
 
     @staticmethod
     def queued_step(

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, cast
 
 import numpy as np
 
@@ -261,7 +261,7 @@ class TeamOptimal(TeamPlanner):
         self.config = config
         self.plan_: TeamCoveragePlan | None = None
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int, robots: int) -> None:
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int, robots: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
         self.ground_truth, self.protocol, self.seed, self.robots = ground_truth, protocol, seed, robots
         self.model = coverage_model(ground_truth, protocol)
         self.plan_ = None
@@ -293,7 +293,7 @@ class TeamOptimal(TeamPlanner):
         for k, route, path in zip(planned, team.routes, team.paths):
             routes[k], paths[k] = route, path
         self.plan_ = TeamCoveragePlan(routes, paths, team.makespan, team.remaining)
-        self.paths = [[tuple(map(float, model.world[v])) for v in path] for path in paths]
+        self.paths = [[cast(Waypoint, tuple(map(float, model.world[v]))) for v in path] for path in paths]
 
     @property
     def makespan_m(self) -> float:
