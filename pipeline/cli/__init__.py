@@ -11,8 +11,8 @@ from __future__ import annotations
 import importlib
 import warnings
 
-import click
 import typer
+from typer import _click
 from typer.core import TyperGroup
 
 # command -> the module of this package that defines it (in a `typer.Typer` named `app`)
@@ -33,10 +33,10 @@ COMMANDS = {
 class LazyCommands(TyperGroup):
     """A command group that imports a command's module only when that command is asked for."""
 
-    def list_commands(self, ctx: click.Context) -> list[str]:
+    def list_commands(self, ctx: _click.Context) -> list[str]:
         return list(COMMANDS)
 
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+    def get_command(self, ctx: _click.Context, cmd_name: str) -> _click.Command | None:
         if cmd_name not in COMMANDS:
             return None
         group = typer.main.get_group(importlib.import_module(COMMANDS[cmd_name]).app)

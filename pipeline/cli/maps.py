@@ -6,7 +6,7 @@ import json
 import math
 import re
 from pathlib import Path
-from typing import Optional
+from typing import Any, Callable, Optional, Sequence, cast
 
 import typer
 
@@ -78,11 +78,14 @@ def mazes(
     if not (math.isfinite(side) and side > 0):
         fail(f"--side must be a positive number of metres, got {side:g}")
     if kind != "maze":
-        config_class, write_set, what = {
-            "office": (OfficeConfig, generate_office_set, "office floor"),
-            "building": (BuildingConfig, generate_building_set, "building floor"),
-            "cave": (CaveConfig, generate_cave_set, "cave"),
-        }[kind]
+        config_class, write_set, what = cast(
+            "dict[str, tuple[Any, Callable[..., list[Path]], str]]",  # (config, its generate_*_set, words)
+            {
+                "office": (OfficeConfig, generate_office_set, "office floor"),
+                "building": (BuildingConfig, generate_building_set, "building floor"),
+                "cave": (CaveConfig, generate_cave_set, "cave"),
+            },
+        )[kind]
         try:
             family = (
                 OfficeConfig.for_scale(scale, side, cell_size)
@@ -226,7 +229,12 @@ def replay(
     try:
         ground_truth = load_map(map_path, start=start, cell_size=cell_size)
         points = read_trajectory_csv(trajectory)
-        result = replay_trajectory(ground_truth, points, protocol_for_map(rules, ground_truth, map_path), oracle=oracle)
+        result = replay_trajectory(
+            ground_truth,
+            cast(Sequence[Sequence[float]], points),
+            protocol_for_map(rules, ground_truth, map_path),
+            oracle=oracle,
+        )
     except (MapError, ValueError) as error:
         fail(str(error))
     if steps_csv is not None:

@@ -21,7 +21,7 @@ from pipeline.data.shards import ShardJob, shard_path, write_shard
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.lattice.spec import LatticeSpec
 from pipeline.planners import make_planner
-from pipeline.prediction.node_image import PAD_SIZES, node_image_pair
+from pipeline.prediction.node_image import PAD_SIZES, NodeImagePair, node_image_pair
 from pipeline.world.maps import GroundTruthMap, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import Episode, run_episode
@@ -66,7 +66,7 @@ def collect_pairs_shard(job: ShardJob) -> dict[str, Any]:
     """Roll out until the shard holds `pairs_per_shard` pairs; write it; return its counts."""
     config: PairsConfig = job.params["config"]
     rng = np.random.default_rng([config.seed, job.index])
-    sizes = {size: [] for size in PAD_SIZES}
+    sizes: dict[int, list[NodeImagePair]] = {size: [] for size in PAD_SIZES}
     count = 0
     episodes = 0
     while count < config.pairs_per_shard:
@@ -149,7 +149,7 @@ def future_waypoints(trajectory: np.ndarray, horizon: int) -> np.ndarray:
 def record_episode(ground_truth: GroundTruthMap, planner, protocol: Protocol, seed: int) -> dict[str, Any]:
     """Run `planner` and keep, per step, the belief diff the step's scan made: the episode's
     result, its (steps, 2) trajectory and the diffs (`change_index`, `change_value`)."""
-    previous = {"grid": None}
+    previous: dict[str, np.ndarray | None] = {"grid": None}
     change_index: list[np.ndarray] = []
     change_value: list[np.ndarray] = []
 

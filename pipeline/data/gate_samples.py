@@ -24,13 +24,15 @@ class _LabellingGreedy(GreedyUtilityPlanner):
         self.counts: list[np.ndarray] = []
         self.gains: list[np.ndarray] = []
 
-    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
-        super().reset(ground_truth, protocol, seed)
+    def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle is reset with the ground truth (reset_planner)
+        super().reset(ground_truth, protocol, seed)  # type: ignore[arg-type]  # GraphPlanner.reset keeps the map's frame only (map_frame)
         self.true_gain = TrueGain(ground_truth, protocol)
 
     def plan(self, observation: Observation):
         waypoints = super().plan(observation)  # updates the graph once and chooses as greedy_utility does
         graph = self.graph
+        if graph is None:
+            raise RuntimeError("reset() must be called before plan()")
         robot = self.robot_node(observation)
         dist, _ = graph.shortest_paths(robot)
         targets = self.reachable_useful(robot, dist)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable, cast
 
 import numpy as np
 
@@ -131,7 +131,7 @@ def save_observations(path: str | Path, arrays: dict[str, np.ndarray], meta: dic
     import json
 
     with atomic_file(path) as tmp:  # the temporary name ends in .npz too, so numpy adds no suffix
-        np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **arrays)
+        np.savez_compressed(tmp, meta=np.array(json.dumps(meta)), **cast(dict[str, Any], arrays))
 
 
 def load_observations(path: str | Path) -> tuple[dict[str, np.ndarray], dict]:

@@ -268,6 +268,8 @@ def run_benchmark(
     map_set = MapSet.of(maps, protocol, start)
     protocol, start, loaded = map_set.protocol, map_set.start, map_set.loaded
     for problem in map_set.problems if warn is not None else ():
+        if warn is None:
+            raise AssertionError("problems are listed only with warn")
         warn(problem)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -311,7 +313,7 @@ def run_benchmark(
     workers = default_workers() if workers is None else workers
     try:
         run_tasks(
-            run_task,
+            run_task,  # type: ignore[arg-type]  # with shared, run_tasks calls run_task(shared, task)
             tasks,
             min(workers, len(tasks)),
             "episodes",

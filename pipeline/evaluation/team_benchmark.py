@@ -28,7 +28,7 @@ import shutil
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 import pandas as pd
@@ -171,7 +171,12 @@ def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpiso
         warnings.simplefilter("ignore", ProtocolMismatchWarning)
         planner = ErrorsEndTheEpisode(inputs.planners[task.spec])  # a planner that raises fails this episode only
         result = run_team_episode(
-            ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m, seed=task.seed
+            ground_truth,
+            cast(TeamPlanner, planner),
+            protocol,
+            task.robots,
+            comm_range_m=task.comm_range_m,
+            seed=task.seed,
         )
     if planner.error:
         result.failure, result.complete = planner.error, False
@@ -234,6 +239,8 @@ def run_team_benchmark(
     map_set = MapSet.of(maps, protocol, start)
     protocol, start = map_set.protocol, map_set.start
     for problem in map_set.problems if warn is not None else ():
+        if warn is None:
+            raise AssertionError("problems are listed only with warn")
         warn(problem)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -293,7 +300,7 @@ def run_team_benchmark(
     workers = default_workers() if workers is None else workers
     try:
         run_tasks(
-            run_team_task,
+            run_team_task,  # type: ignore[arg-type]  # with shared, run_tasks calls run_team_task(shared, task)
             tasks,
             min(workers, len(tasks)),
             "team episodes",
@@ -391,7 +398,7 @@ def write_team_tables(
     return TeamBenchmarkRun(frame, coverage, summary, list(episodes), record, maps)
 
 
-def _finite(value: float, decimals: int = 3) -> float | None:
+def _finite(value: float | np.floating, decimals: int = 3) -> float | None:
     """A number for JSON: rounded, or None for nan (no episode reached it)."""
     return round(float(value), decimals) if np.isfinite(value) else None
 

@@ -20,7 +20,7 @@ class BlockModelConfig:
     """Widths of the block model and the block size it was trained at (a prior of the maps)."""
 
     width: Annotated[int, whole(1)] = 48
-    dilations: Annotated[list[int], list_of(whole(1))] = (
+    dilations: Annotated[list[int], list_of(whole(1))] = (  # type: ignore[assignment]  # a tuple default, as the field is once made
         1,
         2,
         4,

@@ -41,7 +41,7 @@ class DiffusionPolicyConfig:
     obs_steps: Annotated[int, whole(1, note="conditioning observations")] = 2  # T_o
     action_steps: Annotated[int, whole(1, note="executed action steps before replanning")] = 2  # T_a
     # Action lattice: the step per axis, in node units (a tuple once made: YAML and JSON give lists)
-    step_values: Annotated[list[int], list_of(whole(None, note="lattice steps"), min_length=2)] = (-2, -1, 0, 1, 2)
+    step_values: Annotated[list[int], list_of(whole(None, note="lattice steps"), min_length=2)] = (-2, -1, 0, 1, 2)  # type: ignore[assignment]  # a tuple default, as the field is once made
     # The robot's 5 x 5 lattice window as slots of z (see GraphEncoder): feature units (dx, dy)
     # per lattice step: GlobalGraphConfig.position_scale_nodes (dx, dy are in units of 10 node spacings).
     window_scale: Annotated[float, positive()] = 10.0

@@ -126,8 +126,8 @@ def resolve_inpainter(inpaint: InpaintFn | None, checkpoint: str | None) -> tupl
     if inpaint is not None:
         return inpaint, "injected inpainter", None
     if checkpoint is not None:
-        path = require_file(checkpoint, "an inpainter export")
-        return cached_inpainter(path), f"trained inpainter {checkpoint}", path
+        found = require_file(checkpoint, "an inpainter export")
+        return cached_inpainter(found), f"trained inpainter {checkpoint}", found
     path = pick_model("inpainter")
     if path == PIPELINE_INPAINTER:
         return cached_inpainter(path), f"trained inpainter {path}", path

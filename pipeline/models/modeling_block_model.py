@@ -8,7 +8,7 @@ binary cross-entropy on the unknown blocks only (`pipeline.training.block_model`
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -39,7 +39,7 @@ class BlockModel(nn.Module):
         """(B, 3, rows, cols) block shares -> (B, rows, cols) logits of P(free)."""
         if shares.ndim != 4 or shares.shape[1] != INPUT_CHANNELS - 1:
             raise ValueError(f"expected block shares (B, {INPUT_CHANNELS - 1}, rows, cols), got {tuple(shares.shape)}")
-        ring = torch.from_numpy(border_ring(tuple(shares.shape[-2:]))).to(shares)
+        ring = torch.from_numpy(border_ring(cast(tuple[int, int], tuple(shares.shape[-2:])))).to(shares)
         hidden = self.stem(torch.cat([shares, ring.expand(len(shares), 1, *ring.shape)], 1))
         for layer in self.layers:
             hidden = hidden + layer(hidden)

@@ -334,7 +334,8 @@ class DiffusionPolicy(nn.Module):
         self.config = config
         self.encoder = GraphEncoder(config)
         self.noise_net = NoisePredictionNet(config)
-        self.noise_scheduler = DDPMScheduler(
+        # Any: the DDPMScheduler that diffusers' lazy imports show a type checker has no methods
+        self.noise_scheduler: Any = DDPMScheduler(
             num_train_timesteps=config.num_train_timesteps,
             beta_schedule=config.beta_schedule,
             clip_sample=config.clip_sample,

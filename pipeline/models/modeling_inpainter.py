@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Literal, Optional, cast
 
 import numpy as np
 import torch
@@ -128,7 +128,17 @@ class FFC(nn.Module):
         def conv(cin: int, cout: int) -> Optional[nn.Conv2d]:
             if cin == 0 or cout == 0:
                 return None
-            return nn.Conv2d(cin, cout, kernel_size, stride, padding, dilation, groups, bias, padding_mode=padding_type)
+            return nn.Conv2d(
+                cin,
+                cout,
+                kernel_size,
+                stride,
+                padding,
+                dilation,
+                groups,
+                bias,
+                padding_mode=cast('Literal["zeros", "reflect", "replicate", "circular"]', padding_type),
+            )
 
         self.convl2l = conv(in_cl, out_cl)
         self.convl2g = conv(in_cl, out_cg)
@@ -225,7 +235,7 @@ class FFCResnetBlock(nn.Module):
     ) -> None:
         super().__init__()
         padding = dilation * (kernel_size // 2)
-        kwargs = dict(
+        kwargs: dict[str, Any] = dict(
             kernel_size=kernel_size,
             ratio_gin=ratio_gin,
             ratio_gout=ratio_gout,
@@ -439,7 +449,7 @@ class TracedInpainter:
 
     def __init__(self, model: InpainterModel) -> None:
         # A copy: converting the caller's model in place would change the layout of weights it may still train.
-        self.model = copy.deepcopy(model).eval().to(memory_format=torch.channels_last)
+        self.model: InpainterModel = copy.deepcopy(model).eval().to(memory_format=torch.channels_last)  # type: ignore[call-overload]  # Module.to takes memory_format; torch's stub omits it
         self._traces: dict[tuple, torch.jit.ScriptModule] = {}
 
     def _trace(self, node_image: torch.Tensor) -> torch.jit.ScriptModule:

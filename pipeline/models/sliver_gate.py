@@ -32,6 +32,7 @@ import math
 from dataclasses import asdict, dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -128,7 +129,7 @@ class SliverGate:
     @classmethod
     def logistic(cls, coef: tuple[float, ...], intercept: float, **settings) -> "SliverGate":
         """The one-layer gate: P(big) = sigmoid(coef . log(1 + counts) + intercept)."""
-        return cls((([(c,) for c in coef], (intercept,)),), **settings)
+        return cls(cast(tuple[Layer, ...], (([(c,) for c in coef], (intercept,)),)), **settings)  # tuples once made
 
     @cached_property
     def _arrays(self) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
@@ -200,7 +201,7 @@ def fit_sliver_gate(
             f"{'big' if labels.any() else 'a sliver'} at min_gain {min_gain}; draw more maps"
         )
     inputs = gate_inputs(counts)
-    settings = dict(
+    settings: dict[str, Any] = dict(
         threshold=float(threshold), wall_margin=int(wall_margin), min_gain=int(min_gain), range_cells=float(range_cells)
     )
     if not hidden:

@@ -9,6 +9,8 @@ is only a prior's scale. Pure functions, no state.
 
 from __future__ import annotations
 
+from typing import cast
+
 import cv2
 import numpy as np
 
@@ -64,7 +66,7 @@ def grow_within(seed: np.ndarray, allowed: np.ndarray, steps: int) -> np.ndarray
     region = (seed & allowed).astype(np.uint8)
     mask = allowed.astype(np.uint8)
     for _ in range(max(0, int(steps))):
-        grown = cv2.dilate(region, _CROSS) & mask
+        grown = cast(np.ndarray, cv2.dilate(region, _CROSS)) & mask
         if np.array_equal(grown, region):
             break
         region = grown
@@ -89,12 +91,12 @@ def exit_steps(world: np.ndarray, imagined: np.ndarray) -> np.ndarray:
     still unexplored beyond it, a cost the cut map alone does not show."""
     world_u8 = world.astype(np.uint8)
     beyond = (imagined & ~world).astype(np.uint8)
-    reached = cv2.dilate(beyond, _CROSS) & world_u8
+    reached = cast(np.ndarray, cv2.dilate(beyond, _CROSS)) & world_u8
     steps = np.full(world.shape, np.inf, dtype=np.float32)
     count = 0
     while reached.any():
         steps[reached.astype(bool) & np.isinf(steps)] = count
-        grown = cv2.dilate(reached, _CROSS) & world_u8
+        grown = cast(np.ndarray, cv2.dilate(reached, _CROSS)) & world_u8
         if np.array_equal(grown, reached):
             break
         reached, count = grown, count + 1

@@ -265,15 +265,15 @@ class GlobalGraph:
             all_xy = np.concatenate([lattice.node_world[known], lattice.node_world[kept], centroid_xy])
             cells_all = lattice.spec.world_to_cell(all_xy)
             link_range = self.config.centroid_link_nodes * lattice.spec.node_resolution
-            for c, xy in enumerate(centroid_xy):
+            for index, xy in enumerate(centroid_xy):
                 d = np.hypot(*(all_xy - xy).T)
-                d[offset + c] = np.inf
+                d[offset + index] = np.inf
                 links = 0
                 for j in np.argsort(d):
                     if d[j] > link_range or links >= self.config.centroid_links:
                         break
-                    if self._segment_clear(belief, cells_all[offset + c], cells_all[j]):
-                        rows.append(np.array([offset + c]))
+                    if self._segment_clear(belief, cells_all[offset + index], cells_all[j]):
+                        rows.append(np.array([offset + index]))
                         cols.append(np.array([j]))
                         weights.append(np.array([d[j]]))
                         links += 1

@@ -10,6 +10,7 @@ T_p lattice steps in node units, each within the 5 x 5 edge window.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -59,7 +60,7 @@ def expert_action_deltas(position, future_waypoints: np.ndarray, node_resolution
     steps are 0 (stay), as Diffusion Policy pads its action chunks.
     """
     points = np.vstack([np.asarray(position, dtype=np.float64)[None], np.asarray(future_waypoints, dtype=np.float64)])
-    valid = np.isfinite(points).all(axis=1)
+    valid = cast(np.ndarray, np.isfinite(points).all(axis=1))
     for k in range(1, len(points)):  # carry the last valid point forward
         if not valid[k]:
             points[k] = points[k - 1]

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -72,7 +73,7 @@ def _panel(base: np.ndarray, title: str) -> np.ndarray:
 
 def _centre(cells: np.ndarray, scale: int) -> list[tuple[int, int]]:
     pts = np.round((np.asarray(cells, dtype=np.float64).reshape(-1, 2) + 0.5) * scale).astype(int)
-    return [tuple(map(int, p)) for p in pts]
+    return [cast(tuple[int, int], tuple(map(int, p))) for p in pts]
 
 
 def _dots(img: np.ndarray, cells: np.ndarray, scale: int, colour, radius: int, outline: bool = True) -> None:

@@ -56,7 +56,7 @@ def log_benchmark(
     log_maze_set, maps = maze_set_logger(run.map_set), run.map_set.folder
     run_ids = []
     for planner, row in summary.iterrows():
-        with mlflow.start_run(run_name=str(planner)) as run:
+        with mlflow.start_run(run_name=str(planner)) as active:
             ran = record.get("planners", {}).get(str(planner), {})
             variant = (
                 {
@@ -91,7 +91,7 @@ def log_benchmark(
             for name in ("summary.md", "metrics.csv", EXPLORATION_CSV, COVERAGE_FIGURE):
                 if (out_dir / name).is_file():
                     mlflow.log_artifact(str(out_dir / name))
-            run_ids.append(run.info.run_id)
+            run_ids.append(active.info.run_id)
     return run_ids
 
 

@@ -35,7 +35,7 @@ def trajectory_figure(
     protocol = protocol or Protocol()
     out_dir = Path(out_dir)
     frame = check_metrics(frame)
-    rows = []
+    rows: list[np.ndarray] = []
     for map_path in map_paths:
         if len(rows) >= max_maps:
             break

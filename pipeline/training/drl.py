@@ -14,11 +14,11 @@ import json
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated, Any, Callable
+from typing import Annotated, Any, Callable, cast
 
 import numpy as np
 import torch
-from gymnasium import spaces
+from gymnasium import Env, spaces
 from sb3_contrib import MaskablePPO
 from sb3_contrib.common.maskable.policies import MaskableActorCriticPolicy
 from stable_baselines3.common.callbacks import BaseCallback
@@ -82,14 +82,14 @@ class DRLActorCritic(MaskableActorCriticPolicy):
         super().__init__(*args, **kwargs)
 
     def _build(self, lr_schedule: Callable[[float], float]) -> None:
-        self.mlp_extractor = _SplitHeads()
+        self.mlp_extractor = _SplitHeads()  # type: ignore[assignment]  # SB3 types it MlpExtractor; it needs only the forward_* heads
         self.action_net = nn.Identity()
-        self.value_net = nn.Identity()
-        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+        self.value_net = nn.Identity()  # type: ignore[assignment]  # SB3 types it Linear; any module mapping latents serves
+        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)  # type: ignore[call-arg]  # SB3 types the class as the base Optimizer; its subclasses take lr
 
     @property
     def drl_policy(self) -> DRLPolicy:
-        return self.features_extractor.policy
+        return cast(DRLFeatures, self.features_extractor).policy
 
 
 # ----------------------------------------------------------------------------- settings
@@ -139,7 +139,7 @@ class TrainingEnvironment:
         any_of(
             list_of(positive("metres")), positive("metres"), description="a non-empty list of maze sides (m), each > 0"
         ),
-    ] = (60.0, 80.0, 100.0)
+    ] = (60.0, 80.0, 100.0)  # type: ignore[assignment]  # a tuple default, as the field is once made
     max_steps: Annotated[int, whole(1)] = 200  # actions before an episode is truncated
     area_weight: Annotated[float, real(0.0)] = 0.02  # reward per m^2 of newly observed free area
     distance_weight: Annotated[float, real(0.0)] = 0.1  # penalty per metre travelled
@@ -156,7 +156,7 @@ class TrainingEnvironment:
         return validate(cls, values, root)
 
     def to_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "maze_sides_m": list(self.maze_sides_m)}
+        return {**asdict(self), "maze_sides_m": list(cast(tuple[float, ...], self.maze_sides_m))}
 
     def make(self, index: int, protocol: Protocol, policy: DRLPolicyConfig) -> ExploreEnv:
         """Environment `index`: mazes of its side, the policy's observation size, neighbour actions.
@@ -164,7 +164,9 @@ class TrainingEnvironment:
         return ExploreEnv(
             protocol=protocol,
             map="maze",
-            maze_side_m=self.maze_sides_m[index % len(self.maze_sides_m)],
+            maze_side_m=cast(tuple[float, ...], self.maze_sides_m)[
+                index % len(cast(tuple[float, ...], self.maze_sides_m))
+            ],
             action="neighbour",
             max_nodes=policy.max_nodes,
             max_neighbors=policy.max_neighbors,
@@ -178,7 +180,10 @@ class TrainingEnvironment:
 def vector_env(
     environment: TrainingEnvironment, protocol: Protocol, policy: DRLPolicyConfig, settings: PPOSettings, seed: int
 ) -> VecEnv:
-    makers = [(lambda i=i: environment.make(i, protocol, policy)) for i in range(settings.n_envs)]
+    makers = cast(
+        "list[Callable[[], Env]]",  # each called with no argument: its index is bound
+        [(lambda i=i: environment.make(i, protocol, policy)) for i in range(settings.n_envs)],
+    )
     envs = SubprocVecEnv(makers) if settings.subprocess else DummyVecEnv(makers)
     envs.seed(seed)
     return envs
@@ -269,7 +274,7 @@ def with_silent_logger(agent: MaskablePPO) -> MaskablePPO:
 
 def policy_of(agent: MaskablePPO) -> DRLPolicy:
     """The trained `DRLPolicy` inside an agent (shares its weights)."""
-    return agent.policy.drl_policy
+    return cast(DRLActorCritic, agent.policy).drl_policy
 
 
 def evaluate(policy: DRLPolicy, envs: list[ExploreEnv], seeds: list[int]) -> list[dict[str, Any]]:

@@ -34,7 +34,7 @@ import warnings
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import Annotated, Any, Optional, cast
 
 import lightning as L
 import torch
@@ -125,7 +125,7 @@ class InpainterLightning(L.LightningModule):
         gen_opt = torch.optim.Adam(self.generator.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
 
         def cosine(epoch: int) -> float:  # reads max_epochs at call time: a resumed, longer run decays over it
-            total = max(1, (self.trainer.max_epochs if self._trainer is not None else tc.max_epochs) - 1)
+            total = max(1, (cast(int, self.trainer.max_epochs) if self._trainer is not None else tc.max_epochs) - 1)
             t = min(epoch, total) / total
             return tc.lr_min_factor + (1 - tc.lr_min_factor) * 0.5 * (1 + math.cos(math.pi * t))
 
@@ -202,7 +202,7 @@ class InpainterLightning(L.LightningModule):
         self._epoch_started = time.perf_counter()
 
     def on_train_epoch_end(self) -> None:
-        schedulers = self.lr_schedulers()
+        schedulers: Any = self.lr_schedulers()  # one scheduler, a list of them or None
         for scheduler in schedulers if isinstance(schedulers, list) else [schedulers]:
             if scheduler is not None:
                 scheduler.step()
@@ -321,7 +321,7 @@ def train_inpainter(
     batch_size: Optional[int] = None,
     lr: Optional[float] = None,
     accelerator: str = "cpu",
-    devices: int | str = 1,
+    devices: int | list[int] | str = 1,
     num_nodes: int = 1,
     resume: bool = False,
     tracking_uri: Optional[str] = None,
@@ -446,6 +446,8 @@ def _train(
     export_path = run.out_dir / EXPORT_NAME
 
     def write(host: dict[str, Any]) -> None:
+        if data.train_pairs is None or data.val_pairs is None:
+            raise RuntimeError("fit() sets up the data module before the export")
         best_path = result.checkpoint.best_model_path
         generator = module.generator
         if best_path and Path(best_path).is_file():

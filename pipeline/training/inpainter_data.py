@@ -77,7 +77,7 @@ def split_pairs(
                 held.add(maze)
                 held_count += counts[maze]
         if not held:
-            held.add(min(counts, key=counts.get))
+            held.add(min(counts, key=counts.__getitem__))
         masks = [np.array([maze in held for maze in group_ids], dtype=bool) for group_ids in ids]
     else:
         masks = []

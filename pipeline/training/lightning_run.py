@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import Annotated, Any, Optional, cast
 
 import lightning as L
 from lightning.pytorch.callbacks import ModelCheckpoint
@@ -82,8 +82,13 @@ class RunOptions:
         return validate(cls, values)
 
     @property
+    def _checkpoints(self) -> Path:
+        """`checkpoint_dir`, which is never None once made (`out_dir` by default)."""
+        return cast(Path, self.checkpoint_dir)
+
+    @property
     def last(self) -> Path:
-        return self.checkpoint_dir / LAST_CKPT
+        return self._checkpoints / LAST_CKPT
 
     def resume_from(self) -> Optional[str]:
         """The checkpoint a resumed run continues from (None: a fresh run)."""
@@ -101,7 +106,7 @@ class FitResult:
 def start(run: RunOptions, seed: int) -> None:
     """The folders made, a resume with nothing to resume said, and every generator seeded."""
     run.out_dir.mkdir(parents=True, exist_ok=True)
-    run.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+    run._checkpoints.mkdir(parents=True, exist_ok=True)
     if run.resume and run.resume_from() is None:
         warnings.warn(f"resume asked but {run.last} does not exist: training from scratch", stacklevel=3)
     L.seed_everything(seed, workers=True, verbose=False)
@@ -136,7 +141,7 @@ def fit(
         enable_version_counter=False,
     )
     ckpt_path = run.resume_from()
-    run_file = run.checkpoint_dir / MLFLOW_RUN_FILE
+    run_file = run._checkpoints / MLFLOW_RUN_FILE
     run_id = run_file.read_text().strip() if ckpt_path is not None and run_file.is_file() else None
     logger: Any = (
         mlflow_logger(run.experiment, run.run_name, run.tracking_uri, run.artifact_location, run_id)
@@ -169,7 +174,7 @@ def fit(
             log_maze_set(data, "training", run_id=logger.run_id, client=logger.experiment)
         atomic_write_text(run_file, logger.run_id + "\n")
     started = time.perf_counter()
-    with fresh_checkpoints(run.checkpoint_dir, fresh=ckpt_path is None), quiet_checkpoint_folder():
+    with fresh_checkpoints(run._checkpoints, fresh=ckpt_path is None), quiet_checkpoint_folder():
         trainer.fit(module, ckpt_path=ckpt_path, **fit_args)
     return FitResult(trainer, checkpoint, logger, time.perf_counter() - started)
 

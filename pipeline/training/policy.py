@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import Annotated, Any, Optional, cast
 
 import lightning as L
 import numpy as np
@@ -199,7 +199,7 @@ def train_planner(
     train_config: PlannerTrainConfig | dict[str, Any] | None = None,
     *,
     accelerator: str = "cpu",
-    devices: int | str = 1,
+    devices: int | list[int] | str = 1,
     num_nodes: int = 1,
     resume: bool = False,
     tracking_uri: Optional[str] = None,
@@ -269,15 +269,18 @@ def train_planner(
         val_rows = np.random.default_rng(tc.seed).permutation(val_rows) if len(val_rows) else train_rows[:1]
         val_set = PlannerDataset(arrays, mc.obs_steps, val_rows)
         generator = torch.Generator().manual_seed(tc.seed)
-        train_loader = torch.utils.data.DataLoader(
-            train_set,
+        # PlannerDataset is a map-style dataset (__len__, __getitem__) without torch's base class.
+        train_loader: torch.utils.data.DataLoader[Any] = torch.utils.data.DataLoader(
+            cast("torch.utils.data.Dataset[Any]", train_set),
             batch_size=tc.batch_size,
             shuffle=True,
             collate_fn=collate,
             generator=generator,
             drop_last=len(train_set) > tc.batch_size,
         )
-        val_loader = torch.utils.data.DataLoader(val_set, batch_size=tc.batch_size, shuffle=False, collate_fn=collate)
+        val_loader: torch.utils.data.DataLoader[Any] = torch.utils.data.DataLoader(
+            cast("torch.utils.data.Dataset[Any]", val_set), batch_size=tc.batch_size, shuffle=False, collate_fn=collate
+        )
         module = PlannerLightning(mc.to_dict(), asdict(tc))
         if init_policy is not None and run.resume_from() is None:
             start_from(module, init_policy)
@@ -304,7 +307,7 @@ def train_planner(
 
         def write(host: dict[str, Any]) -> None:
             export_policy(
-                module.ema.module.cpu().eval(),
+                cast(DiffusionPolicy, module.ema.module).cpu().eval(),
                 export_path,
                 train_config=asdict(tc),
                 history=list(module.history),

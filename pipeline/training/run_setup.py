@@ -19,7 +19,7 @@ import warnings
 from contextlib import contextmanager
 from datetime import timedelta
 from pathlib import Path
-from typing import Any, Iterator, Optional
+from typing import Any, Iterator, Optional, Sequence, cast
 
 import lightning as L
 import numpy as np
@@ -165,7 +165,7 @@ def atomic_checkpoint_io() -> Any:
     return AtomicCheckpointIO()
 
 
-Generators = list["torch.Generator | np.random.Generator"]
+Generators = Sequence["torch.Generator | np.random.Generator"]
 
 
 def random_states(generators: Generators = ()) -> dict[str, Any]:
@@ -173,7 +173,9 @@ def random_states(generators: Generators = ()) -> dict[str, Any]:
     (augmentation and diffusion noise draw from them) and `generators` (a data loader's shuffle,
     a data set's augmentation), so that a resumed run draws what an uninterrupted one would and
     trains the same weights."""
-    kind, keys, position, has_gauss, gauss = np.random.get_state()  # plain values: a weights-only load reads them
+    kind, keys, position, has_gauss, gauss = cast(
+        tuple[str, np.ndarray, int, int, float], np.random.get_state()
+    )  # plain values: a weights-only load reads them
     return {
         "torch": torch.get_rng_state(),
         "numpy": [kind, torch.from_numpy(keys.astype(np.int64)), position, has_gauss, gauss],
@@ -307,7 +309,7 @@ def cpu_model(cpuinfo: str | None = None) -> tuple[str, str]:
             cpuinfo = Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace")
         except OSError:
             return platform.processor(), ""
-    fields = {}
+    fields: dict[str, str] = {}
     for line in cpuinfo.splitlines():
         key, _, value = line.partition(":")
         fields.setdefault(key.strip(), value.strip())  # the first processor's

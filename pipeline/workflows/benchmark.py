@@ -34,7 +34,9 @@ from pipeline.workflows.team_benchmark import maps_text, team_benchmark_folder
 from pipeline.world.protocol import Protocol
 
 
-def benchmark_with_summary(maps: MapSet, specs, protocol, out_dir: Path, **options) -> BenchmarkRun:
+def benchmark_with_summary(
+    maps: str | Path | Sequence[str | Path] | MapSet, specs, protocol, out_dir: Path, **options
+) -> BenchmarkRun:
     """`run_benchmark`, then summary.md beside its tables: also for the episodes a Ctrl-C left."""
     try:
         run = run_benchmark(maps, specs, protocol, out_dir, **options)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, cast
 
 from pydantic import ValidationInfo, field_validator
 from pydantic_core import PydanticCustomError
@@ -70,7 +70,7 @@ def episode_preview(out_dir: Path, path: Path, cell_size: float) -> None:
     ground_truth = GroundTruthMap(
         free=episode.ground_truth, start_cell=episode.start_cell, cell_size=cell_size, name=episode.map_name
     )
-    trajectory = [tuple(map(float, p)) for p in episode.positions]
+    trajectory = [cast(tuple[float, float], tuple(map(float, p))) for p in episode.positions]
     image = render_frame(
         ground_truth,
         belief.copy(),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, cast
 
 import cv2
 import numpy as np
@@ -77,7 +77,7 @@ def collect_pairs(settings: Settings, protocol: Protocol, backend: str | None = 
         pairs_per_shard=settings.pairs_per_shard,
         planners=tuple(settings.planners),
         snapshot_every=settings.snapshot_every,
-        stop_steps=tuple(settings.stop_steps),
+        stop_steps=cast(tuple[int, int], tuple(settings.stop_steps)),
         seed=settings.seed,
         protocol=protocol,
     )

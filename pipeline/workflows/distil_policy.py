@@ -220,7 +220,7 @@ def train_round(settings: Settings, r: int, aggregate: Path, init: Path, model: 
     resume_from = resume_point(checkpoints, fingerprint, f"distil_policy round {r}")
     if resume_from is None:
         start_afresh(checkpoints, fingerprint)
-    arguments = dict(
+    arguments: dict[str, Any] = dict(
         observations=aggregate,
         out_dir=folder / "policy",
         model_config=model,

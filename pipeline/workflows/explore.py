@@ -18,6 +18,7 @@ from pipeline.reporting.panels import render_final
 from pipeline.reporting.recorder import EpisodeRecorder
 from pipeline.robot.recording import EpisodeRecording
 from pipeline.world.maps import GroundTruthMap, load_map
+from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, final_belief, run_episode
 from pipeline.world.trajectories import steps_path, write_metrics_csv, write_steps_csv, write_trajectory_csv
@@ -35,7 +36,7 @@ class Exploration:
     label: str
     name: str
     options: dict
-    planner: object
+    planner: Planner
     out: Path
     problems: list[str] = field(default_factory=list)  # why the map may not complete, said before the episode
 

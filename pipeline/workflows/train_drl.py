@@ -20,7 +20,7 @@ import json
 import os
 import time
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, cast
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
@@ -49,6 +49,9 @@ from pipeline.training.drl_imitation import ImitationSettings, warm_start
 from pipeline.training.run_setup import torch_threads, training_host
 from pipeline.world.protocol import Protocol
 from pipeline.world.simulator import run_episode
+
+if TYPE_CHECKING:
+    from pipeline.planners.baselines.drl import DRLPlanner
 
 MODEL_PATH = PIPELINE_DRL
 CHECKPOINT_DIR = CHECKPOINTS.drl
@@ -286,7 +289,7 @@ def evaluate_on_fresh_mazes(
     baseline's, minus one."""
     if count == 0:
         return {}
-    sides = TrainingEnvironment(maze_sides_m=(side_m,), max_steps=protocol.max_steps)
+    sides = TrainingEnvironment(maze_sides_m=[side_m], max_steps=protocol.max_steps)
     env = sides.make(0, protocol, policy_config)
     rows = []
     for i in tqdm(range(count), desc="train_drl evaluation", unit="maze", mininterval=2.0):
@@ -300,7 +303,7 @@ def evaluate_on_fresh_mazes(
                 "distance": result.distance_m,
                 "complete": result.complete,
                 "steps": result.steps,
-                "handovers": innermost(planner).handovers,
+                "handovers": cast("DRLPlanner", innermost(planner)).handovers,
                 "nearest_frontier_distance": baseline.distance_m,
                 "nearest_frontier_complete": baseline.complete,
             }

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 import pydantic
@@ -36,20 +36,34 @@ REPORT_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 # The `train_inpainter` section: TrainConfig's fields and the run's own settings side by side.
 # Every key may be left out: the stage trains with TrainConfig's and InpainterConfig's defaults.
-Settings = pydantic.create_model(
-    "Settings",
-    __base__=Section,
-    __module__=__name__,
-    __doc__="The `train_inpainter` section of params.yaml.",
-    **fields_of(TrainConfig),
-    model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
-    accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
-    devices=(maybe(DEVICES, "1"), None),
-    num_nodes=(maybe(whole(1, note="nodes of a multi-node DDP run"), "1"), None),
-    threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
-    init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
-    experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),
-)
+if TYPE_CHECKING:
+
+    class Settings(Section):
+        """The `train_inpainter` section of params.yaml: the run's own settings as a checker reads them."""
+
+        model: InpainterConfig
+        accelerator: Optional[str]
+        devices: Optional[int | list[int] | str]
+        num_nodes: Optional[int]
+        threads: Optional[int]
+        init_checkpoint: Optional[str]
+        experiment: Optional[str]
+
+else:
+    Settings = pydantic.create_model(
+        "Settings",
+        __base__=Section,
+        __module__=__name__,
+        __doc__="The `train_inpainter` section of params.yaml.",
+        **fields_of(TrainConfig),
+        model=(InpainterConfig, InpainterConfig()),  # its fields, or big_lama: true with overrides
+        accelerator=(maybe(text(note="Lightning's accelerator: cpu, gpu, auto"), "cpu"), None),
+        devices=(maybe(DEVICES, "1"), None),
+        num_nodes=(maybe(whole(1, note="nodes of a multi-node DDP run"), "1"), None),
+        threads=(maybe(whole(0, note="0: torch's default"), "torch's default"), None),
+        init_checkpoint=(maybe(text(note="a Big-LaMa checkpoint or an inpainter export"), "random weights"), None),
+        experiment=(maybe(text(note="an MLflow experiment"), "inpainter"), None),
+    )
 
 
 def prediction_ms(model, size: int = 48, repeats: int = 50) -> float:
@@ -93,7 +107,7 @@ def train_and_report(
     settings: Settings,
     protocol: Protocol,
     accelerator: Optional[str] = None,
-    devices: Optional[int | str] = None,
+    devices: Optional[int | list[int] | str] = None,
     afresh: bool = False,
     init_checkpoint: Optional[str] = None,
     tracking_uri: Optional[str] = None,

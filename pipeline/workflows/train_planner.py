@@ -34,7 +34,7 @@ class Settings(Section):
 
 
 def training_fingerprint(
-    model: dict, train: dict, accelerator: str, devices: str, observations: Path, num_nodes: int = 1
+    model: dict, train: dict, accelerator: str, devices: int | list[int] | str, observations: Path, num_nodes: int = 1
 ) -> str:
     """What a policy's weights depend on: its model and training settings, the device layout
     (devices x nodes: the global batch) and the observations' bytes (not the MLflow experiment or
@@ -47,7 +47,7 @@ def train_and_report(
     settings: Settings,
     variant: str,
     accelerator: str | None = None,
-    devices: str | None = None,
+    devices: int | list[int] | str | None = None,
     afresh: bool = False,
     max_epochs: int | None = None,
 ) -> dict:
