@@ -26,7 +26,7 @@ import functools
 import numbers
 import types
 import typing
-from typing import Annotated, Any, Callable, Literal, Mapping, Optional, TypeVar, Union
+from typing import Annotated, Any, Callable, Literal, Mapping, Optional, TypeVar, Union, dataclass_transform
 
 import annotated_types as at
 import pydantic
@@ -156,7 +156,7 @@ def whole(minimum: int | None = 0, maximum: int | None = None, note: str = "") -
     )
 
 
-def _plain_int(value: Any) -> Rule:
+def _plain_int(value: Any) -> Any:
     """numpy's integers as Python ints (a count computed with numpy is still a count)."""
     return int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
 
@@ -240,14 +240,14 @@ def list_of(item: Any, min_length: int = 1, description: str = "") -> Rule:
             min_length, f"a list of at least {min_length} items"
         )
         description = f"{size} of {_what(item)}"
-    return Rule(Annotated[list[_type(item)], at.MinLen(min_length), _refusing(description)])
+    return Rule(Annotated[types.GenericAlias(list, _type(item)), at.MinLen(min_length), _refusing(description)])
 
 
 def pair(item: Any) -> Rule:
     """An inclusive range [low, high]: two values of type `item`, low <= high."""
     return Rule(
         Annotated[
-            list[_type(item)],
+            types.GenericAlias(list, _type(item)),
             at.Len(2, 2),
             at.Predicate(lambda value: value[0] <= value[1]),
             _refusing(f"a range [low, high] of {_what(item)}, low <= high"),
@@ -356,20 +356,21 @@ class Section(BaseModel):
         return values
 
 
-def fields_of(config: type) -> dict[str, tuple[Any, Any]]:
+def fields_of(config: type[Any]) -> dict[str, tuple[Any, Any]]:
     """The fields of a `config_dataclass` as `pydantic.create_model` takes them (type, field), so
     that a flat params section holding a config's fields beside others checks them by the
     config's own types, written once."""
     return {name: (info.annotation, info) for name, info in config.__pydantic_fields__.items()}
 
 
+@dataclass_transform(frozen_default=True)
 def config_dataclass(cls: type[T]) -> type[T]:
     """A frozen dataclass whose fields are validated when it is made (a planner's or a model's
     config): `dataclasses.fields`, `replace` and pickling work as on any dataclass, an unknown
     keyword is refused, and a refused value is a ValueError of one line, `Name: key: must be ...`."""
-    made = pydantic.dataclasses.dataclass(frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True))(
-        cls
-    )
+    made: Any = pydantic.dataclasses.dataclass(
+        frozen=True, config=ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+    )(cls)
     validating_init = made.__init__
 
     @functools.wraps(validating_init)
@@ -489,11 +490,11 @@ def validate(kind: type[T], values: Mapping[str, Any] | None, root: str = "") ->
     with `explain`'s one line."""
     try:
         if isinstance(kind, type) and issubclass(kind, BaseModel):
-            return kind.model_validate({} if values is None else values)
+            return typing.cast(T, kind.model_validate({} if values is None else values))
         if values is not None and not isinstance(values, Mapping):
             raise ValueError(f"{root + ': ' if root else ''}must be a mapping of settings, got {values!r}")
         values = dict(values or {})
-        known = [field.name for field in dataclasses.fields(kind)]
+        known = [field.name for field in dataclasses.fields(typing.cast(Any, kind))]
         for key in values:
             if key not in known:
                 raise ValueError(

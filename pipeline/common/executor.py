@@ -90,7 +90,7 @@ def start_ray(workers: int | None) -> None:
 
     if ray.is_initialized():
         return
-    quiet = {"include_dashboard": False, "log_to_driver": False, "runtime_env": ray_runtime_env()}
+    quiet: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "runtime_env": ray_runtime_env()}
     if os.environ.get("RAY_ADDRESS"):
         ray.init(address=os.environ["RAY_ADDRESS"], **quiet)
     else:  # "local": a new cluster of this process's own, even when a `ray start` one runs here

@@ -9,8 +9,13 @@ import logging
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 from pipeline.common.fingerprints import files_digest, settings_digest
+
+if TYPE_CHECKING:
+    from mlflow.data.meta_dataset import MetaDataset
+    from mlflow.tracking import MlflowClient
 
 DEFAULT_TRACKING_URI = "sqlite:///mlflow.db"
 
@@ -97,7 +102,7 @@ def dvc_hash(folder: str | Path) -> str | None:
 
 def maze_set_input(
     folder: str | Path, context: str = "evaluation", digest: str | None = None
-) -> tuple[object, dict[str, str]]:
+) -> tuple[MetaDataset, dict[str, str]]:
     """The MLflow dataset input of the maze set (or data set) `folder`: named by the folder,
     its digest DVC's hash where a stage made it (else `digest`, else a digest of its files), its
     source the folder; returns (dataset, tags) for `mlflow.log_input(dataset, context, tags)`."""
@@ -113,7 +118,9 @@ def maze_set_input(
         warnings.simplefilter("ignore", UserWarning)
         source = resolve_dataset_source(str(folder.resolve()))
     name = folder.as_posix() if not folder.is_absolute() else folder.name
-    dataset = MetaDataset(source=source, name=name, digest=recorded or digest or files_digest([folder]))
+    dataset = MetaDataset(  # type: ignore[abstract]  # mlflow marks `profile` abstract; Dataset is no ABC
+        source=source, name=name, digest=recorded or digest or files_digest([folder])
+    )
     tags = {"dvc_hash": recorded or "none (not a DVC output here)", "context": context}
     return dataset, tags
 
@@ -127,12 +134,14 @@ def log_generated_maze_set(name: str, settings: dict, context: str = "training")
     from mlflow.data.meta_dataset import MetaDataset
 
     source = CodeDatasetSource({k: str(v) for k, v in settings.items()})
-    dataset = MetaDataset(source=source, name=name, digest=settings_digest(settings))
+    dataset = MetaDataset(  # type: ignore[abstract]  # mlflow marks `profile` abstract; Dataset is no ABC
+        source=source, name=name, digest=settings_digest(settings)
+    )
     mlflow.log_input(dataset, context=context, tags={"dvc_hash": "none (drawn in the run)", "context": context})
 
 
 def log_maze_set(
-    folder: str | Path, context: str = "evaluation", run_id: str | None = None, client: object | None = None
+    folder: str | Path, context: str = "evaluation", run_id: str | None = None, client: MlflowClient | None = None
 ) -> None:
     """Record the maze set `folder` as a dataset input of the active MLflow run (or of `run_id`
     through `client`, for a run Lightning's logger holds)."""
@@ -146,4 +155,4 @@ def log_maze_set(
     input_tags = [InputTag("mlflow.data.context", context)] + [
         InputTag(k, v) for k, v in tags.items() if k != "context"
     ]
-    client.log_inputs(run_id, datasets=[DatasetInput(dataset._to_mlflow_entity(), input_tags)])
+    cast("MlflowClient", client).log_inputs(run_id, datasets=[DatasetInput(dataset._to_mlflow_entity(), input_tags)])

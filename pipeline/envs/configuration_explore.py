@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from dataclasses import fields
-from typing import Annotated, Any
+from typing import Annotated, Any, Self
 
 from pydantic import AfterValidator, BeforeValidator
 
@@ -149,7 +149,7 @@ class ExploreEnvConfig:
         return MazeConfig(side_m=(self.maze_side_m, self.maze_side_m), cell_size=self.cell_size)
 
     @classmethod
-    def from_kwargs(cls, protocol: Protocol | dict[str, Any] | None = None, **values: Any) -> "ExploreEnvConfig":
+    def from_kwargs(cls, protocol: Protocol | dict[str, Any] | None = None, **values: Any) -> Self:
         """A config from keyword values, with the protocol fields optionally given as one `Protocol`
         (or its dict); a field given by name wins over the protocol's."""
         known = {f.name for f in fields(cls)}

@@ -15,7 +15,7 @@ every change since its last observation, exactly as under `run_episode`.
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import Any, Sequence, cast
 
 import gymnasium
 import numpy as np
@@ -78,11 +78,12 @@ class ExploreEnv(gymnasium.Env):
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
         cfg = self.config
-        self.source = map_source(cfg.map, cfg.start, cfg.protocol(), cfg.maze_config() if cfg.generates_mazes else None)
+        start = cast(tuple[float, float] | None, cfg.start)  # a pair, (col, row) or (x, y) m
+        self.source = map_source(cfg.map, start, cfg.protocol(), cfg.maze_config() if cfg.generates_mazes else None)
         self.graph_config = GlobalGraphConfig(max_nodes=cfg.max_nodes, use_region_evaluation=False)
         self.action_count = SLOTS if cfg.action == "neighbour" else cfg.max_nodes
         self.action_space = spaces.Discrete(self.action_count)
-        self.belief_shape: tuple[int, int] | None = None
+        self.belief_shape: Sequence[int] | None = None  # (rows, cols)
         if cfg.belief_image:
             self.belief_shape = cfg.belief_shape or self.source.largest_shape()
         self.observation_space = self._observation_space()
@@ -147,7 +148,7 @@ class ExploreEnv(gymnasium.Env):
     @property
     def row_nodes(self) -> np.ndarray:
         """The lattice node id of each filled row of the last observation, nearest the robot first."""
-        return self._view.row_nodes
+        return cast(ObservedStep, self._view).row_nodes
 
     def action_masks(self) -> np.ndarray:
         """Which actions are valid now (sb3-contrib's MaskablePPO asks for this)."""
@@ -165,7 +166,9 @@ class ExploreEnv(gymnasium.Env):
             x, y = self.episode.position
             return slot_of_offset(i - int(round(x / d)), j - int(round(y / d)))
         node = self._lattice.node_id(i, j)
-        rows = np.flatnonzero(self._view.row_nodes == node) if node >= 0 else []
+        rows: np.ndarray | list[int] = (
+            np.flatnonzero(cast(ObservedStep, self._view).row_nodes == node) if node >= 0 else []
+        )
         if len(rows) == 0:
             raise ValueError(f"waypoint {tuple(waypoint)} is not a known node among the observation's rows")
         return int(rows[0])
@@ -224,7 +227,7 @@ class ExploreEnv(gymnasium.Env):
     def _path(self, action: int) -> list[int]:
         """The lattice nodes a valid action moves the robot through, in order (its own node not included):
         the neighbour in the action's slot, or the shortest known path to the action's row."""
-        view = self._view
+        view = cast(ObservedStep, self._view)
         if self.config.action == "neighbour":
             return [int(self._table.neighbour[view.robot_node, action])]
         return self._lattice.path_from_predecessors(view.predecessors, int(view.row_nodes[action]))[1:]
@@ -232,7 +235,7 @@ class ExploreEnv(gymnasium.Env):
     def _fold_changes(self, sensed: list[tuple[int, int]]) -> None:
         """Update the lattice graph with the belief cells changed by scans from the `sensed` cells:
         a scan changes cells only within the sensor's reach of where it was taken."""
-        belief, seen = self._episode.belief.grid, self._seen
+        belief, seen = cast(Episode, self._episode).belief.grid, self._seen
         reach = int(np.ceil(self._protocol.sensor_range_cells)) + 1
         cells = np.asarray(sensed)
         rows, cols = belief.shape
@@ -248,7 +251,7 @@ class ExploreEnv(gymnasium.Env):
         view = observe_lattice(
             self._lattice,
             self._table,
-            self._episode.position,
+            cast(Episode, self._episode).position,
             self._visited,
             self.graph_config,
             self.config.max_neighbors,
@@ -268,7 +271,7 @@ class ExploreEnv(gymnasium.Env):
         self._mask = mask
 
     def _observation(self) -> dict[str, Any]:
-        view = self._view
+        view = cast(ObservedStep, self._view)
         obs: dict[str, Any] = {  # fresh arrays: a step that leaves the robot where it was returns the same values
             "features": view.features.copy(),
             "node_mask": view.node_mask.astype(np.int8),
@@ -278,27 +281,28 @@ class ExploreEnv(gymnasium.Env):
         }
         if self.belief_shape is not None:
             obs["belief"] = self._padded_belief()
-            col, row = self._episode.cell
+            col, row = cast(Episode, self._episode).cell
             obs["robot_cell"] = np.array([col, row], dtype=np.int64)
         return obs
 
     def _padded_belief(self) -> np.ndarray:
         """The belief in the top-left corner of a `belief_shape` image; cells beyond the map read OCCUPIED."""
-        grid = self._episode.belief.grid
+        grid = cast(Episode, self._episode).belief.grid
         rows, cols = grid.shape
-        if rows > self.belief_shape[0] or cols > self.belief_shape[1]:
+        shape = cast(Sequence[int], self.belief_shape)
+        if rows > shape[0] or cols > shape[1]:
             raise ValueError(
                 f"belief_shape {self.belief_shape} is smaller than map {self._drawn.ground_truth.name}'s "
                 f"grid {grid.shape}; pass a larger belief_shape"
             )
-        image = np.full(self.belief_shape, OCCUPIED, dtype=np.uint8)
+        image = np.full(shape, OCCUPIED, dtype=np.uint8)
         image[:rows, :cols] = grid
         return image
 
     def _info(
         self, invalid: bool, stuck: bool, parts: tuple[float, float, float, float], area: float, distance: float
     ) -> dict[str, Any]:
-        episode = self._episode
+        episode = cast(Episode, self._episode)
         return {
             "map_name": self._drawn.ground_truth.name,
             "steps": self._steps,

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import copy
 import warnings
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium import spaces
@@ -98,7 +98,7 @@ class TeamExploreEnv(ParallelEnv):
     # ------------------------------------------------------------------ spaces
     def _observation_space(self) -> spaces.Dict:
         """`guide/Explore-v0`'s observation space plus the teammates' rows and whether the robot acts."""
-        keys = dict(self.single.observation_space.spaces)
+        keys = dict(cast(spaces.Dict, self.single.observation_space).spaces)
         rows, columns = MAX_ROBOTS - 1, len(TEAMMATE_COLUMNS)
         keys["teammates"] = spaces.Box(-np.inf, np.inf, (rows, columns), dtype=np.float32)
         keys["acting"] = spaces.Discrete(2)
@@ -116,7 +116,7 @@ class TeamExploreEnv(ParallelEnv):
         """The team episode (read-only: never move it). `episode.observe(k)` is robot k's planner's
         own: the environment never calls it, so a planner sees every change since its last call."""
         self._require_episode()
-        return self._episode
+        return cast(TeamEpisode, self._episode)
 
     @property
     def ground_truth(self) -> GroundTruthMap:
@@ -173,7 +173,7 @@ class TeamExploreEnv(ParallelEnv):
             x, y = self.episode.robots[k].position
             return slot_of_offset(i - round(x / d), j - round(y / d))
         node = self._lattices[k].node_id(i, j)
-        rows = np.flatnonzero(self._views[k].row_nodes == node) if node >= 0 else []
+        rows: np.ndarray | list[int] = np.flatnonzero(self._views[k].row_nodes == node) if node >= 0 else []
         if len(rows) == 0:
             raise ValueError(f"waypoint {tuple(waypoint)} is not a known node among {agent}'s rows")
         return int(rows[0])
@@ -238,7 +238,7 @@ class TeamExploreEnv(ParallelEnv):
         self.agents = list(self.possible_agents)
         self._advance()
         self._refresh()
-        zero = {"invalid": False, "area": 0.0, "distance": 0.0, "parts": (0.0, 0.0, 0.0, 0.0)}
+        zero: dict[str, Any] = {"invalid": False, "area": 0.0, "distance": 0.0, "parts": (0.0, 0.0, 0.0, 0.0)}
         return self._observations(), {agent: self._info(k, **zero) for k, agent in enumerate(self.agents)}
 
     def _draw(self, given: GroundTruthMap | None) -> DrawnMap:
@@ -318,7 +318,7 @@ class TeamExploreEnv(ParallelEnv):
             nodes = [int(self._table.neighbour[view.robot_node, action])]
         else:
             nodes = lattice.path_from_predecessors(view.predecessors, int(view.row_nodes[action]))[1:]
-        return [tuple(map(float, lattice.node_world[node])) for node in nodes]
+        return cast(list[tuple[float, float]], [tuple(map(float, lattice.node_world[node])) for node in nodes])
 
     # ------------------------------------------------------------------ the event loop (run_team_episode's)
     def _advance(self) -> None:
@@ -339,7 +339,7 @@ class TeamExploreEnv(ParallelEnv):
     def _on_event(self, index: int) -> None:
         """After robot `index`'s event: what its scan added to the team's belief, the node it stands
         on, and the visits shared within each linked group."""
-        episode = self._episode
+        episode = cast(TeamEpisode, self._episode)
         known = episode.union.free_count
         self._scanned[index] += known - self._known
         self._known = known
@@ -348,14 +348,14 @@ class TeamExploreEnv(ParallelEnv):
 
     def _stand(self, index: int) -> None:
         """Mark robot `index`'s node as stood on (the `visited` feature)."""
-        position = self._episode.robots[index].position
+        position = cast(TeamEpisode, self._episode).robots[index].position
         self._visited[index][self._lattices[index].nearest_node(position)] = True
 
     def _share_visits(self) -> None:
         """Robots that talk share which nodes the team has stood on, as they share their beliefs."""
         if len(self._holders) == 1:
             return
-        for group in self._episode.groups():
+        for group in cast(TeamEpisode, self._episode).groups():
             if len(group) > 1:
                 merged = np.logical_or.reduce([self._visited[k] for k in group])
                 for k in group:
@@ -364,7 +364,7 @@ class TeamExploreEnv(ParallelEnv):
     # ------------------------------------------------------------------ observations
     def _refresh(self) -> None:
         """Bring every lattice graph up to date with its belief, then rebuild each robot's view and mask."""
-        episode = self._episode
+        episode = cast(TeamEpisode, self._episode)
         for group in self._holders:
             grid, seen = episode.beliefs[group[0]].grid, self._seen[group[0]]
             changed = np.flatnonzero(grid != seen)
@@ -413,7 +413,7 @@ class TeamExploreEnv(ParallelEnv):
         """Robot k's teammates as it last heard of them (the `TeamObservation` it would get), relative
         to it and scaled as the node features are; read from the episode without `observe`, which
         would hand a planner's pending changes to the environment."""
-        episode = self._episode
+        episode = cast(TeamEpisode, self._episode)
         scale = self.graph_config.position_scale_nodes * self._protocol.node_resolution
         x, y = episode.robots[k].position
         rows = np.zeros((MAX_ROBOTS - 1, len(TEAMMATE_COLUMNS)), dtype=np.float32)
@@ -429,7 +429,7 @@ class TeamExploreEnv(ParallelEnv):
     def _info(
         self, k: int, invalid: bool, area: float, distance: float, parts: tuple[float, float, float, float]
     ) -> dict[str, Any]:
-        episode = self._episode
+        episode = cast(TeamEpisode, self._episode)
         robot = episode.robots[k]
         return {
             "action_mask": self._masks[k].copy(),

@@ -9,6 +9,7 @@ near the cells that changed; nothing is rebuilt from scratch.
 from __future__ import annotations
 
 import copy
+import typing
 
 import cv2
 import numba
@@ -71,7 +72,7 @@ class LatticeGraph:
         # length of the way through it in metres.
         self.edge_via = np.full(len(self.edge_nodes), -1, dtype=np.int64)
         self.via_length = np.zeros(len(self.edge_nodes))
-        self._edge_cost = None
+        self._edge_cost: np.ndarray | None = None
         self._adjacency = None
         self._search_matrix = None
         self._neighbour_lists: tuple[np.ndarray, np.ndarray] | None = None
@@ -228,9 +229,9 @@ class LatticeGraph:
         # neighbours first, each ascending): (edge, row, column) per entry.
         edge = np.tile(np.arange(len(self.edge_nodes)), 2)
         rows = np.concatenate([self.edge_nodes[:, 0], self.edge_nodes[:, 1]])
-        cols = np.concatenate([self.edge_nodes[:, 1], self.edge_nodes[:, 0]])
-        order = np.lexsort((cols, cols < rows, rows))
-        self._search_entries = (edge[order], rows[order], cols[order].astype(np.int32))
+        columns = np.concatenate([self.edge_nodes[:, 1], self.edge_nodes[:, 0]])
+        order = np.lexsort((columns, columns < rows, rows))
+        self._search_entries = (edge[order], rows[order], columns[order].astype(np.int32))
 
     # ----------------------------------------------------------------- updates
     def update(self, belief: np.ndarray, changed_flat: np.ndarray | None = None) -> None:
@@ -296,7 +297,7 @@ class LatticeGraph:
         every way round an edge there can take."""
         rows, cols = belief.shape
         step = int(np.ceil(self.spec.node_step_cells))
-        radius = float(self.spec.door_radius_cells)
+        radius = float(typing.cast(float, self.spec.door_radius_cells))  # set: the caller checks
         margin = int(np.ceil(MAX_DETOUR * WINDOW_RADIUS * step * np.sqrt(2))) + int(np.ceil(radius)) + 2
         x0, x1, y0, y1 = box
         wx0, wx1, wy0, wy1 = (

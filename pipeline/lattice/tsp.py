@@ -12,7 +12,7 @@ Two solvers, for two sizes of problem:
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 from python_tsp.exact import solve_tsp_dynamic_programming
@@ -103,6 +103,7 @@ def _improve(distance: np.ndarray, order: list[int], max_moves: int) -> list[int
     p = np.array(order, dtype=np.int64)
     n = len(p)
     eps = 1e-9
+    best_move: tuple[Literal["2opt"], int, int, bool] | tuple[Literal["or"], int, int, bool, int] | None
     for _ in range(max_moves):
         best_gain, best_move = eps, None
         # 2-opt: reverse p[i..j], 1 <= i < j <= n-2.
@@ -155,7 +156,7 @@ def _improve(distance: np.ndarray, order: list[int], max_moves: int) -> list[int
 
 
 # --------------------------------------------------------------------------- large open tours
-def path_cost(dist: np.ndarray, order: Sequence[int]) -> float:
+def path_cost(dist: np.ndarray, order: Sequence[int] | np.ndarray) -> float:
     order = np.asarray(order, dtype=np.int64)
     return float(dist[order[:-1], order[1:]].sum()) if len(order) > 1 else 0.0
 

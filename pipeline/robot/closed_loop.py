@@ -16,7 +16,7 @@ import functools
 import heapq
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -268,7 +268,7 @@ def run_closed_loop(
     c2 = ground_truth.cell_size**2
     return ClosedLoopResult(
         complete,
-        robot.completion_distance if complete else robot.distance,
+        cast(float, robot.completion_distance) if complete else robot.distance,
         decision + 1,
         failed,
         session.state.maps_skipped,

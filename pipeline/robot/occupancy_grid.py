@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -177,8 +177,8 @@ class Canvas:
         def count(mask: np.ndarray) -> np.ndarray:
             if even:  # whole blocks of one size (an aligned finer map): sums of strided slices, fast
                 h, w = int(heights[0]), int(widths[0])
-                rows_summed = sum(mask[k::h].astype(np.int32) for k in range(h))
-                return sum(rows_summed[:, k::w] for k in range(w))
+                rows_summed = cast(np.ndarray, sum(mask[k::h].astype(np.int32) for k in range(h)))
+                return cast(np.ndarray, sum(rows_summed[:, k::w] for k in range(w)))
             per_col = np.add.reduceat(mask.astype(np.int32), col_starts, axis=1)
             return np.add.reduceat(per_col, row_starts, axis=0)
 

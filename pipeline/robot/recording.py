@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import numpy as np
 
@@ -156,7 +156,7 @@ class PlanCapture(PlannerWrapper):
 
     def plan(self, observation: Any) -> list[tuple[float, float]]:
         waypoints = self.inner.plan(observation)
-        self.last_waypoints = [tuple(map(float, w)) for w in waypoints]
+        self.last_waypoints = cast(list[tuple[float, float]], [tuple(map(float, w)) for w in waypoints])
         self.decisions += 1
         return waypoints
 

@@ -30,7 +30,7 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -178,7 +178,7 @@ class ExplorationSession:
 
     def _anchor(self, pose: tuple[float, float, float]) -> None:
         """The belief grid, its lattice anchored at `pose`, with the map that came first painted on."""
-        grid = self.pending
+        grid = cast(Grid, self.pending)  # a map came before the pose
         x, y = pose[:2]
         if not _inside(grid.extent, x, y):
             self.pose = None  # a pose is only kept once it lies on a map
@@ -202,8 +202,8 @@ class ExplorationSession:
     def _fits(self, grid: Grid) -> bool:
         """Whether the belief grid, grown to cover `grid`, stays within MAX_CANVAS_CELLS."""
         x0, y0, x1, y1 = grid.extent
-        ox, oy = self.canvas.origin
-        rows, cols = self.canvas.belief.shape
+        ox, oy = self._grid.origin
+        rows, cols = self._grid.belief.shape
         c = self.protocol.cell_size
         width = (max(x1, ox + cols * c) - min(x0, ox)) / c
         height = (max(y1, oy + rows * c) - min(y0, oy)) / c
@@ -249,7 +249,7 @@ class ExplorationSession:
             return Plan(reason="waiting for a map and a pose")
         reason = self._replan_reason(force)
         if reason is None:
-            return replace(self._last, replanned=False, reason="kept")
+            return replace(cast(Plan, self._last), replanned=False, reason="kept")
         belief = self._belief()
         robot = self._snap(belief)
         if robot is None:
@@ -276,7 +276,7 @@ class ExplorationSession:
             self._reset_planner(frame)
             graph, marks = self._graph_and_visits()
             for x, y in avoided if graph is not None and marks is not None else ():
-                marks[graph.nearest_node(self.canvas.to_world(x, y))] = False  # targets again
+                marks[graph.nearest_node(self._grid.to_world(x, y))] = False  # targets again
             waypoints = self.planner.plan(replace(observation, belief=belief, changed=None))
         self._planned_belief = belief
         self._changed_since = 0
@@ -289,7 +289,7 @@ class ExplorationSession:
         decision = getattr(self.planner, "last_decision", {}) or {}
         target = self._target(decision.get("target"), waypoints)
         plan = Plan(
-            [self.canvas.to_map(w) for w in waypoints],
+            [self._grid.to_map(w) for w in waypoints],
             done=not waypoints,
             target=target,
             decision_ms=_ms(started),
@@ -308,7 +308,7 @@ class ExplorationSession:
         )  # the same building: what was learnt of the predictions holds
         self.planner.reset(frame, self.protocol, self.seed)
         if trust is not None:
-            self.planner.restore_trust(trust)
+            cast(Any, self.planner).restore_trust(trust)
         self._frame = frame
         self.state.resets += 1
         graph, marks = self._graph_and_visits()
@@ -332,7 +332,7 @@ class ExplorationSession:
         if graph is None or marks is None:
             return
         for x, y in self.avoided:
-            marks[graph.nearest_node(self.canvas.to_world(x, y))] = True
+            marks[graph.nearest_node(self._grid.to_world(x, y))] = True
 
     def _visited_points(self) -> list[tuple[float, float]]:
         """The planner's visited nodes as planner positions of the current frame's anchor (which
@@ -342,6 +342,16 @@ class ExplorationSession:
             return []
         return [tuple(xy) for xy in graph.node_world[np.flatnonzero(marks)]]
 
+    @property
+    def _grid(self) -> Canvas:
+        """The belief grid, there once a map and a pose came (its readers run after)."""
+        return cast(Canvas, self.canvas)
+
+    @property
+    def _pose(self) -> tuple[float, float, float]:
+        """The robot's pose, there once one came (its readers run after)."""
+        return cast(tuple[float, float, float], self.pose)
+
     def _replan_reason(self, force: bool) -> str | None:
         last = self._last
         if force:
@@ -350,7 +360,7 @@ class ExplorationSession:
             return "first plan" if last is None else "no plan yet"
         if last.done:
             return "map changed" if self._changed_since else None
-        if last.waypoints and math.dist(self.pose[:2], last.waypoints[0]) <= self.goal_tolerance_m:
+        if last.waypoints and math.dist(self._pose[:2], last.waypoints[0]) <= self.goal_tolerance_m:
             return "waypoint reached"
         if self._changed_since >= self.replan_changed_cells:
             return "map changed"
@@ -364,11 +374,11 @@ class ExplorationSession:
 
     def _belief(self) -> np.ndarray:
         """The canvas's belief with every failed goal's node marked occupied."""
-        belief = self.canvas.belief.copy()
+        belief = self._grid.belief.copy()
         rows, cols = belief.shape
         self.blocked = [goal for goal in self.blocked if goal[2] > self.state.plans]
         for x, y, _ in self.blocked:  # the node's own cell: no plan stands on it, the corridor around stays open
-            col, row = self._node_cell(self.canvas.to_world(x, y))
+            col, row = self._node_cell(self._grid.to_world(x, y))
             if 0 <= col < cols and 0 <= row < rows:
                 belief[row, col] = OCCUPIED
         return belief
@@ -378,8 +388,8 @@ class ExplorationSession:
         d = self.protocol.node_resolution
         i, j = round(world[0] / d), round(world[1] / d)
         return (
-            self.canvas.start_cell[0] + int(round(i * self.step_cells)),
-            self.canvas.start_cell[1] + int(round(j * self.step_cells)),
+            self._grid.start_cell[0] + int(round(i * self.step_cells)),
+            self._grid.start_cell[1] + int(round(j * self.step_cells)),
         )
 
     def _snap(self, belief: np.ndarray) -> tuple[tuple[float, float], tuple[int, int]] | None:
@@ -388,17 +398,17 @@ class ExplorationSession:
         the door-aware graph a robot farther than `goal_tolerance_m` from that node (at a door node,
         on its way to a frontier the lattice does not reach) stands where it is: its own cell, or
         the nearest known-free cell beside it."""
-        world = self.canvas.to_world(*self.pose[:2])
+        world = self._grid.to_world(*self._pose[:2])
         d = self.protocol.node_resolution
-        here = self.canvas.to_cell(*self.pose[:2])
+        here = self._grid.to_cell(*self._pose[:2])
         free = belief == FREE
         rows, cols = belief.shape
         i0, j0 = round(world[0] / d), round(world[1] / d)
         candidates = []
         for di in range(-SNAP_NODES, SNAP_NODES + 1):
             for dj in range(-SNAP_NODES, SNAP_NODES + 1):
-                col = self.canvas.start_cell[0] + (i0 + di) * self.step_cells
-                row = self.canvas.start_cell[1] + (j0 + dj) * self.step_cells
+                col = self._grid.start_cell[0] + (i0 + di) * self.step_cells
+                row = self._grid.start_cell[1] + (j0 + dj) * self.step_cells
                 if 0 <= col < cols and 0 <= row < rows and free[row, col]:
                     node = ((i0 + di) * d, (j0 + dj) * d)
                     candidates.append((math.dist(node, world), node, (col, row)))
@@ -435,16 +445,16 @@ class ExplorationSession:
             return None
         col, row = best[1]
         c = self.protocol.cell_size
-        return ((col - self.canvas.start_cell[0]) * c, (row - self.canvas.start_cell[1]) * c), (col, row)
+        return ((col - self._grid.start_cell[0]) * c, (row - self._grid.start_cell[1]) * c), (col, row)
 
     def _target(self, node: Any, waypoints: list) -> tuple[float, float] | None:
         graph = getattr(innermost(self.planner), "graph", None)
         if node is not None and graph is not None:
             try:
-                return self.canvas.to_map(tuple(graph.node_world[int(node)]))
+                return self._grid.to_map(tuple(graph.node_world[int(node)]))
             except (IndexError, TypeError, ValueError):
                 pass
-        return self.canvas.to_map(waypoints[-1]) if waypoints else None
+        return self._grid.to_map(waypoints[-1]) if waypoints else None
 
     def _skip_map(self, why: str) -> bool:
         self.state.maps_skipped += 1

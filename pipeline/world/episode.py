@@ -20,7 +20,7 @@ from __future__ import annotations
 import heapq
 import math
 import time
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypeVar, cast
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class Robot:
         self.departed_at = 0.0
         self.origin = position  # where the move under way started
         self.heading: tuple[Waypoint, tuple[int, int]] | None = None  # (waypoint, cell) of the move under way
-        self.plan: list[Waypoint] = []
+        self.plan: list[Sequence[float]] = []  # the waypoints of its plan still to drive, as planned
         self.target: Waypoint | None = None
         self.waiting = False  # planned nothing: asks again after the next arrival
         self.stopped = False  # made max_steps moves: stays where it is
@@ -109,7 +109,7 @@ class EpisodeState:
 
     # A segment's length: numpy's for the single robot, `math.hypot` for a team (they can differ in
     # the last bit), so that each face's distances reproduce bit for bit.
-    _length = staticmethod(lambda dx, dy: float(np.hypot(dx, dy)))
+    _length: staticmethod[[float, float], float] = staticmethod(lambda dx, dy: float(np.hypot(dx, dy)))
 
     def __init__(
         self,
@@ -123,7 +123,9 @@ class EpisodeState:
             raise ValueError(f"robots must be 1-{MAX_ROBOTS}, got {robots}")
         if comm_range_m is not None and not (math.isfinite(comm_range_m) and comm_range_m > 0):
             raise ValueError(f"comm_range_m must be a positive number of metres, got {comm_range_m}")
-        points = [(0.0, 0.0)] * robots if starts is None else [tuple(map(float, s)) for s in starts]
+        points = (
+            [(0.0, 0.0)] * robots if starts is None else cast(list[Waypoint], [tuple(map(float, s)) for s in starts])
+        )
         if len(points) != robots:
             raise ValueError(f"{len(points)} starts given for {robots} robots")
         placed = []
@@ -268,7 +270,7 @@ class EpisodeState:
     def arrive(self, robot: int) -> None:
         """Robot `robot` reaches the end of its move: it senses there and the beliefs update."""
         r = self.robots[robot]
-        (target, cell), r.heading = r.heading, None
+        (target, cell), r.heading = cast(tuple[Waypoint, tuple[int, int]], r.heading), None
         r.travelled += self._length(target[0] - r.origin[0], target[1] - r.origin[1])
         r.position, r.cell = target, cell
         r.moves += 1
@@ -330,7 +332,7 @@ class EventLoop:
         episode = self.episode
         robot = episode.robots[index]
         robot.plan = list(plan)
-        robot.target = tuple(map(float, robot.plan[-1])) if robot.plan else None
+        robot.target = cast(Waypoint, tuple(map(float, robot.plan[-1]))) if robot.plan else None
         episode.heard_targets[index][index] = robot.target
         if robot.plan:
             self._depart(index)
@@ -358,8 +360,11 @@ class EventLoop:
                 heapq.heappush(self.queue, (robot.clock, 1, other.index))
 
 
+_EpisodeT = TypeVar("_EpisodeT", bound=EpisodeState)
+
+
 def run_events(
-    episode: EpisodeState, planner: Any, oracle: bool = False, on_event: Callable[[EpisodeState], None] | None = None
+    episode: _EpisodeT, planner: Any, oracle: bool = False, on_event: Callable[[_EpisodeT], None] | None = None
 ) -> tuple[list[list[float]], str]:
     """Run `episode`'s events until it is done or fails; a robot whose plan is used up decides with
     `planner.plan(episode.observe(robot))` (a `Planner` on an `Observation`, a `TeamPlanner` on a

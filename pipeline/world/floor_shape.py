@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -134,7 +135,7 @@ def footprint(free: np.ndarray, cell_size: float) -> np.ndarray:
     kernel = np.ones((size, size), np.uint8)
     closed = cv2.morphologyEx(np.pad(free, size).astype(np.uint8), cv2.MORPH_CLOSE, kernel)[size:-size, size:-size]
     closed = closed.astype(bool) | free
-    around = np.pad(~closed, 1, constant_values=True).astype(np.uint8)  # the outside joined all round
+    around = np.pad(~cast(np.ndarray, closed), 1, constant_values=True).astype(np.uint8)  # the outside joined all round
     count, parts, stats, _ = cv2.connectedComponentsWithStats(around, connectivity=4)
     small = np.zeros(count, dtype=bool)
     small[1:] = stats[1:, cv2.CC_STAT_AREA] * cell_size**2 < FOOTPRINT_HOLE_M2

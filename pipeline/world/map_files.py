@@ -9,6 +9,7 @@ import re
 import threading
 from contextlib import contextmanager
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -117,7 +118,7 @@ def read_gray_image(path: Path) -> np.ndarray:
         )
     try:
         with _opencv_quiet():
-            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+            image: np.ndarray | None = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     except cv2.error as error:
         raise MapError(path, f"not a readable image (OpenCV: {_first_line(error)})") from None
     if image is None or image.size == 0:
@@ -137,7 +138,7 @@ def read_gray_image(path: Path) -> np.ndarray:
             raise MapError(path, f"unsupported image with {image.shape[2]} channels")
     if image.dtype == np.uint16:
         # 16-bit images: keep the top byte so thresholds stay in 0..255.
-        image = (image >> 8).astype(np.uint8)
+        image = (cast(np.ndarray, image) >> 8).astype(np.uint8)
     if image.size > MAX_IMAGE_PIXELS:
         raise MapError(
             path, f"image of {image.shape[1]}x{image.shape[0]} pixels exceeds the limit of {MAX_IMAGE_PIXELS} pixels"

@@ -10,9 +10,10 @@ import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import cast
 
 import numpy as np
-import yaml
+import yaml  # type: ignore[import-untyped]  # no PyYAML stubs installed
 
 from pipeline.common.params import yaml_problem
 from pipeline.world.map_files import MapError, is_file_named, read_gray_image, read_npy_array
@@ -67,7 +68,8 @@ class GroundTruthMap:
     @property
     def frame(self) -> MapFrame:
         """What a robot may know of this map (its extent, cell size and start), none of its cells."""
-        return MapFrame(tuple(self.free.shape), float(self.cell_size), tuple(self.start_cell), self.name)
+        start = cast(tuple[int, int], tuple(self.start_cell))  # (col, row)
+        return MapFrame(tuple(self.free.shape), float(self.cell_size), start, self.name)
 
     @cached_property
     def free_cell_count(self) -> int:
@@ -372,9 +374,9 @@ def load_map(path: str | Path, start: tuple[float, float] | None = None, cell_si
     if suffix in ROS_YAML_SUFFIXES:
         return load_ros_map(path, start_xy=start)
     if suffix in NPY_SUFFIXES:
-        return load_npy_grid(path, start, cell_size)
+        return load_npy_grid(path, cast(tuple[int, int] | None, start), cell_size)
     if suffix in MAZE_PNG_SUFFIXES:
-        return load_maze_png(path, cell_size, start)
+        return load_maze_png(path, cell_size, cast(tuple[int, int] | None, start))
     if path.is_dir():
         raise MapError(path, "is a folder; pass one map file (`guide benchmark --maps` takes folders)")
     if not is_file_named(path):

@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -318,6 +319,7 @@ def _open_loops(free: np.ndarray, rooms: list[_Room], count: int, rng: np.random
     label = np.full(free.shape, -1, dtype=np.int32)
     for index, room in enumerate(rooms):
         label[room.slices] = index
+    open_pairs: dict[tuple[Any, Any], list[tuple[tuple[int, int], tuple[int, int], tuple[int, int]]]]
     for _ in range(count):
         joined, open_pairs = set(), {}
         for block, a, b in _door_sites(free, label):

@@ -23,7 +23,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -134,7 +134,7 @@ def draw_office(config: OfficeConfig, rng: np.random.Generator) -> tuple[np.ndar
     # Narrow doors: the lattice's phase (row, col residues of its lines) is drawn first, each door
     # is placed over one of its lines, and the start (which fixes the lattice) sits on that phase.
     step = config.cells(config.lattice_m)
-    phase = tuple(int(v) for v in rng.integers(0, step, size=2)) if config.aligns_doors else None
+    phase = cast(tuple[int, int], tuple(int(v) for v in rng.integers(0, step, size=2))) if config.aligns_doors else None
 
     def wall_start(low: int, high: int, wall: int, line_phase: int) -> int:
         """A wall's first cell in [low, high): anywhere, or (aligned) between two lattice lines, so
@@ -224,8 +224,8 @@ def _start_cell(
     clear = cv2.erode(free.astype(np.uint8), np.ones((2 * START_CELLS + 1,) * 2, np.uint8)).astype(bool)
     if lattice is not None:
         step, (row_phase, col_phase) = lattice
-        rows, cols = np.indices(clear.shape)
-        clear &= (rows % step == row_phase) & (cols % step == col_phase)
+        cell_rows, cell_cols = np.indices(clear.shape)
+        clear &= (cell_rows % step == row_phase) & (cell_cols % step == col_phase)
     for index in rng.permutation(len(rooms)):
         top, left, bottom, right = rooms[index]
         rows, cols = np.nonzero(clear[top:bottom, left:right])

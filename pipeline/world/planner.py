@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -68,4 +69,5 @@ class OraclePlanner(Planner):
 def reset_planner(planner: Planner, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:
     """Reset `planner` for an episode on `ground_truth`: an oracle gets the map, any other its frame only."""
     oracle = bool(getattr(planner, "uses_ground_truth", False))
-    planner.reset(ground_truth if oracle else ground_truth.frame, protocol, seed)
+    # An oracle's reset takes the map itself.
+    planner.reset(cast(MapFrame, ground_truth) if oracle else ground_truth.frame, protocol, seed)

@@ -38,6 +38,7 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -95,7 +96,7 @@ class ImportedPlan:
     rooms: int | None = None
     room_area_m2: float | None = None  # mean over the labelled rooms
     key: str = ""  # equal for plans equal up to the 8 rotations and flips
-    free: np.ndarray = field(default=None, repr=False)
+    free: np.ndarray = field(default=cast(np.ndarray, None), repr=False)  # always given: a default to follow the others
 
     def record(self) -> dict:
         out = {k: v for k, v in asdict(self).items() if k not in ("free", "key")}

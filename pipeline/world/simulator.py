@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
@@ -169,6 +169,7 @@ class _Decisions:
     row: how many waypoints, the planner's prediction trust, and whether its own rule decided."""
 
     def __init__(self, planner: Planner):
+        self.made: list[tuple[int, Any, bool]]  # per decision: waypoints, trust, fallback
         self.planner, self.made = planner, []
 
     def plan(self, observation: Observation) -> list:
@@ -213,7 +214,7 @@ def run_episode(
     def on_event(_: EpisodeState) -> None:
         if len(episode.trajectory) > shown[0]:
             shown[0] = len(episode.trajectory)
-            on_step(episode)
+            cast(Callable[[Episode], None], on_step)(episode)
 
     decision_ms, ending = run_events(episode, decisions, oracle, on_event if on_step is not None else None)
     failure = {IDLE: STOPPED, MOVE_LIMIT: f"step limit ({protocol.max_steps}) reached"}.get(ending, ending)
@@ -263,8 +264,8 @@ def _result(
         map_name=episode.map.name,
         planner=planner,
         trajectory=list(episode.trajectory),
-        distance_m=episode.completion_distance if complete else episode.distance,
-        steps=(episode.complete_after_waypoint - 1) if complete else episode.steps,
+        distance_m=cast(float, episode.completion_distance) if complete else episode.distance,
+        steps=(cast(int, episode.complete_after_waypoint) - 1) if complete else episode.steps,
         complete=complete,
         explored_ratio=episode.explored_ratio,
         decision_ms=decision_ms,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from typing import Callable, Sequence, cast
 
 import numpy as np
 
@@ -80,7 +80,7 @@ def reset_team_planner(
 ) -> None:
     """Reset `planner` for an episode: an oracle gets the map, any other its frame only."""
     world = ground_truth if getattr(planner, "uses_ground_truth", False) else ground_truth.frame
-    planner.reset(world, protocol, seed, robots)
+    planner.reset(cast(MapFrame, world), protocol, seed, robots)  # an oracle's reset takes the map itself
 
 
 @dataclass
@@ -153,7 +153,7 @@ class TeamEpisode(EpisodeState):
     ):
         super().__init__(ground_truth, team_protocol(protocol), robots, starts, comm_range_m)
 
-    def observe(self, robot: int) -> TeamObservation:
+    def observe(self, robot: int) -> TeamObservation:  # type: ignore[override]  # a team's view adds its teammates'
         """Robot `robot`'s view before it decides; its pending changes are handed over."""
         own = super().observe(robot)
         positions, targets = list(self.heard_positions[robot]), list(self.heard_targets[robot])
@@ -163,7 +163,7 @@ class TeamEpisode(EpisodeState):
     def result(
         self, planner: str, decision_ms: list[list[float]], failure: str, violations: int, seed: int
     ) -> TeamEpisodeResult:
-        end = self.completion_time if self.complete else self.time
+        end = cast(float, self.completion_time) if self.complete else self.time
         return TeamEpisodeResult(
             map_name=self.map.name,
             planner=planner,

@@ -104,7 +104,7 @@ def read_trajectory_csv(path: str | Path) -> np.ndarray:
         raise ValueError(f"{path}: cannot read the file ({error.strerror or type(error).__name__})") from None
     if not rows or [c.strip() for c in rows[0][1]] != ["x", "y"]:
         raise ValueError(f"{path}: a trajectory file starts with the header 'x,y'")
-    points = []
+    points: list[tuple[float, float]] = []
     for number, row in rows[1:]:
         if not row:
             continue
