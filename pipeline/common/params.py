@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml  # type: ignore[import-untyped]  # no PyYAML stubs installed
+import yaml
 
 # A section's machine settings: how this machine runs a stage (its cores, engine, devices), never
 # what the stage makes. dvc.yaml lists every other key of a section one by one and leaves these

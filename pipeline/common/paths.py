@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from types import SimpleNamespace
 
-import yaml  # type: ignore[import-untyped]  # no PyYAML stubs installed
+import yaml
 
 PATHS_FILE = Path(__file__).resolve().parents[1] / "paths.yaml"
 

@@ -20,7 +20,7 @@ import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union
 
-from pipeline.common.config import config_dataclass
+from pipeline.common.config import Rule, config_dataclass
 
 SPEC_KINDS = ("bool", "int", "float", "str")  # what a spec string's value can parse into
 
@@ -134,6 +134,8 @@ def _kinds(annotation: Any) -> set[str] | None:
     """The spec kinds of `annotation`; None where any part of it is not one (a Python object)."""
     if annotation is None or annotation is type(None):
         return set()
+    if isinstance(annotation, Rule):  # a rule read alone: its constrained type
+        return _kinds(annotation.type)
     origin = typing.get_origin(annotation)
     if origin is Annotated:
         return _kinds(typing.get_args(annotation)[0])

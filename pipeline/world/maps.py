@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import cast
 
 import numpy as np
-import yaml  # type: ignore[import-untyped]  # no PyYAML stubs installed
+import yaml
 
 from pipeline.common.params import yaml_problem
 from pipeline.world.map_files import MapError, is_file_named, read_gray_image, read_npy_array

@@ -62,8 +62,8 @@ class Protocol:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> "Protocol":
-        """The protocol a mapping names (a params.yaml `protocol` section, a model's record); a refused
+    def from_dict(cls, values: dict[str, Any] | None) -> "Protocol":
+        """The protocol a mapping names (a params.yaml `protocol` section, a model's record; None: the defaults); a refused
         value is a ValueError naming it as `protocol.key`."""
         return validate(cls, values, "protocol")
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml  # type: ignore[import-untyped]  # no PyYAML stubs installed
+import yaml
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
 from pipeline.world.map_files import MapError
