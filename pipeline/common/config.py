@@ -272,7 +272,7 @@ def satisfies(test: Callable[[Any], Any], description: str, kind: Any = Any, par
     name, by the registry's own lookup); the refusal carries the test's own message. With
     `parses`, the value read is what `test` returns (a planner spec, parsed once)."""
 
-    def check(value: Any) -> Rule:
+    def check(value: Any) -> Any:
         try:
             parsed = test(value)
         except (ValueError, TypeError, KeyError) as error:
@@ -290,7 +290,7 @@ def every_key(kind: Any, optional: tuple[str, ...] = ()) -> Rule:
     `optional`: a params section names every setting, so a default cannot drift from the file."""
     names = list(_field_types(kind))
 
-    def complete(values: Any) -> Rule:
+    def complete(values: Any) -> Any:
         if isinstance(values, Mapping):
             for name in names:
                 if name not in values and name not in optional:
@@ -465,10 +465,11 @@ def explain(error: ValidationError, root: str = "", kind_checked: Any = None) ->
 def check_value(kind: Any, value: Any, path: str) -> Any:
     """`value` as type `kind` takes it (a command-line override of one setting), or a ValueError
     `path: must be ..., got ...`."""
+    kind = _type(kind)
     try:
-        return _adapter(_type(kind)).validate_python(value)
+        return _adapter(kind).validate_python(value)
     except ValidationError as error:
-        raise ValueError(explain(error, path, _type(kind))) from None
+        raise ValueError(explain(error, path, kind)) from None
 
 
 def _adapter(kind: Any) -> pydantic.TypeAdapter:

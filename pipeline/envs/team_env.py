@@ -49,7 +49,7 @@ from pipeline.prediction.observed_graph import (
     slot_of_offset,
     window_moves,
 )
-from pipeline.world.episode import IDLE, MOVE_LIMIT, EventLoop
+from pipeline.world.episode import IDLE, MOTION_RULE, MOVE_LIMIT, EventLoop
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.protocol import Protocol, protocol_for_map
@@ -330,7 +330,7 @@ class TeamExploreEnv(ParallelEnv):
         self._ended, ending = True, self._loop.ending
         self._move_limit = ending == MOVE_LIMIT
         if ending and not self._failure:
-            self._violations = int(ending.startswith("motion rule"))
+            self._violations = int(ending.startswith(MOTION_RULE))
             self._failure = {
                 MOVE_LIMIT: f"step limit ({self._protocol.max_steps} moves of a robot) reached",
                 IDLE: "no reachable target left for any robot",
@@ -339,8 +339,7 @@ class TeamExploreEnv(ParallelEnv):
     def _on_event(self, index: int) -> None:
         """After robot `index`'s event: what its scan added to the team's belief, the node it stands
         on, and the visits shared within each linked group."""
-        episode = cast(TeamEpisode, self._episode)
-        known = episode.union.free_count
+        known = self.episode.union.free_count
         self._scanned[index] += known - self._known
         self._known = known
         self._stand(index)
@@ -348,14 +347,14 @@ class TeamExploreEnv(ParallelEnv):
 
     def _stand(self, index: int) -> None:
         """Mark robot `index`'s node as stood on (the `visited` feature)."""
-        position = cast(TeamEpisode, self._episode).robots[index].position
+        position = self.episode.robots[index].position
         self._visited[index][self._lattices[index].nearest_node(position)] = True
 
     def _share_visits(self) -> None:
         """Robots that talk share which nodes the team has stood on, as they share their beliefs."""
         if len(self._holders) == 1:
             return
-        for group in cast(TeamEpisode, self._episode).groups():
+        for group in self.episode.groups():
             if len(group) > 1:
                 merged = np.logical_or.reduce([self._visited[k] for k in group])
                 for k in group:

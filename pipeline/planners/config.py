@@ -18,7 +18,7 @@ import types
 import typing
 import warnings
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union
+from typing import Annotated, Any, ClassVar, Literal, Union
 
 from pipeline.common.config import Rule, config_dataclass
 
@@ -53,8 +53,6 @@ class PlannerConfig:
     objects: ClassVar[tuple[str, ...]] = ()  # Python objects the planner takes beside its config
     # Old option name -> its new name: still taken for one release, with a one-line FutureWarning.
     renamed: ClassVar[dict[str, str]] = {}
-    if TYPE_CHECKING:  # made by `config_dataclass`
-        __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
 
     def __post_init__(self) -> None:
         self.check()

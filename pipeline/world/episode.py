@@ -34,6 +34,7 @@ from pipeline.world.team_files import MAX_ROBOTS
 LATTICE_TOLERANCE_M = 1e-3
 IDLE = "idle"  # `run_events`: every robot waited with nothing to do
 MOVE_LIMIT = "move limit"  # `run_events`: a robot made `max_steps` moves
+MOTION_RULE = "motion rule"  # `run_events`: the start of the ending of a waypoint the motion rule refused
 
 
 class MotionError(Exception):
@@ -352,7 +353,7 @@ class EventLoop:
         try:
             self.episode.depart(index, robot.plan.pop(0), self.oracle)
         except MotionError as error:
-            self.ending = f"motion rule: {error}"
+            self.ending = f"{MOTION_RULE}: {error}"
             return
         heapq.heappush(self.queue, (robot.clock, 0, index))
         for other in self.episode.robots:  # a robot waiting with nobody moving asks again now that one is

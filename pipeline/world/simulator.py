@@ -12,7 +12,16 @@ from typing import Any, Callable, Sequence, cast
 
 import numpy as np
 
-from pipeline.world.episode import IDLE, LATTICE_TOLERANCE_M, MOVE_LIMIT, EpisodeState, Robot, run_events, waypoint_cell
+from pipeline.world.episode import (
+    IDLE,
+    LATTICE_TOLERANCE_M,
+    MOTION_RULE,
+    MOVE_LIMIT,
+    EpisodeState,
+    Robot,
+    run_events,
+    waypoint_cell,
+)
 from pipeline.world.episode import MotionError as MotionError  # the simulator's error, for its callers
 from pipeline.world.maps import GroundTruthMap
 from pipeline.world.planner import Observation, Planner, reset_planner
@@ -219,7 +228,7 @@ def run_episode(
     decision_ms, ending = run_events(episode, decisions, oracle, on_event if on_step is not None else None)
     failure = {IDLE: STOPPED, MOVE_LIMIT: f"step limit ({protocol.max_steps}) reached"}.get(ending, ending)
     name = getattr(planner, "name", type(planner).__name__)
-    result = _result(episode, name, seed, decision_ms[0], failure, int(failure.startswith("motion rule")))
+    result = _result(episode, name, seed, decision_ms[0], failure, int(failure.startswith(MOTION_RULE)))
     result.waypoint_decision_ms, result.waypoint_trust, result.waypoint_fallback = decisions.rows(
         decision_ms[0], len(result.trajectory)
     )
@@ -248,7 +257,7 @@ def replay(
     episode = Episode(ground_truth, replace(protocol, max_steps=len(points)))  # every row, however many
     script = iter([points[1:]])  # one plan: the file's moves
     _, ending = run_events(episode, SimpleNamespace(plan=lambda _: next(script, [])), oracle)
-    motion = ending.startswith("motion rule")
+    motion = ending.startswith(MOTION_RULE)
     return _result(
         episode, planner_name, 0, [], ending if motion else "trajectory ended before completion", int(motion)
     )

@@ -20,7 +20,7 @@ from typing import Callable, Sequence, cast
 
 import numpy as np
 
-from pipeline.world.episode import IDLE, MOVE_LIMIT, EpisodeState, run_events, waypoint_cell
+from pipeline.world.episode import IDLE, MOTION_RULE, MOVE_LIMIT, EpisodeState, run_events, waypoint_cell
 from pipeline.world.maps import GroundTruthMap, MapFrame
 from pipeline.world.planner import Observation, Waypoint
 from pipeline.world.protocol import Protocol
@@ -218,4 +218,4 @@ def run_team_episode(
         MOVE_LIMIT: f"step limit ({protocol.max_steps} moves of a robot) reached",
     }.get(ending, ending)
     name = getattr(planner, "name", "") or type(planner).__name__
-    return episode.result(name, decision_ms, failure, int(failure.startswith("motion rule")), seed)
+    return episode.result(name, decision_ms, failure, int(failure.startswith(MOTION_RULE)), seed)
