@@ -18,7 +18,9 @@ profiles/real_robot.yaml trains on these.
 A split's `plans_share` of its `count` is drawn from the real floor plans the import_plans stage
 wrote to data/plans/ instead (`pipeline.world.plans.generate_plan_floors`: a plan in one of its 8
 rotations and flips, cropped to a window of the split's `side_m`, a start of its own), written
-beside the split's other maps as plan_NNNN.png (seed sequence [seed, split word, 1, i]).
+beside the split's other maps as plan_NNNN.png (seed sequence [seed, split word, 1, i]); none is
+drawn from the plans its `plans_exclude` names (a fold's held-out plans, so that a benchmark on
+them measures plans never trained on).
 The files keep the maze sets' names and folders, so every later stage reads them as it reads mazes.
 """
 
@@ -31,7 +33,7 @@ import cv2
 import numpy as np
 
 from pipeline.common.atomic import atomic_folder
-from pipeline.common.config import Section, fraction, pair, positive, text, whole
+from pipeline.common.config import Section, fraction, list_of, pair, positive, text, whole
 from pipeline.common.paths import DATA, REPORTS
 from pipeline.stage_runner import read_protocol, read_stage, run_stage_main, stage_arguments
 from pipeline.world.building_config import BuildingConfig
@@ -62,6 +64,7 @@ class Split(Section):
     side_m: pair(positive("metres"))
     kind: text(MAP_KINDS) = "maze"
     plans_share: fraction("of count drawn from data/plans") = 0.0
+    plans_exclude: list_of(text(), min_length=0, description="a list of imported plans' names") = []
 
 
 class Offices(Section):
@@ -132,7 +135,7 @@ def _write_map_sets(
     office_config: OfficeConfig,
     seed: int,
     plan_floors: dict[str, int] | None = None,
-    plans: list[np.ndarray] | None = None,
+    plans: dict[str, list[np.ndarray]] | None = None,
     cell_size: float = 0.4,
 ) -> tuple[dict[str, list[Path]], list[Path]]:
     """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
@@ -152,7 +155,7 @@ def _write_map_sets(
         for split, count in (plan_floors or {}).items():
             if count:
                 drawn[split] += generate_plan_floors(
-                    plans, count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD), sides[split], cell_size
+                    (plans or {})[split], count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD), sides[split], cell_size
                 )
         office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
         write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
@@ -191,7 +194,11 @@ def main(params_path: str = "params.yaml") -> None:
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
     plan_floors = {split: int(round(getattr(mazes, split).plans_share * count)) for split, (_, count) in splits.items()}
     splits = {split: (config, count - plan_floors[split]) for split, (config, count) in splits.items()}
-    plans = load_plan_grids(PLANS_DIR, cell_size) if any(plan_floors.values()) else None
+    plans = {
+        split: load_plan_grids(PLANS_DIR, cell_size, exclude=getattr(mazes, split).plans_exclude)
+        for split, floors in plan_floors.items()
+        if floors
+    }
     office_config = OfficeConfig.for_scale(mazes.office_scale, cell_size=cell_size)
     sides = {split: tuple(getattr(mazes, split).side_m) for split in SPLITS}
     written, office_paths = _write_map_sets(

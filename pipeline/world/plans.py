@@ -394,13 +394,21 @@ def plan_floor_image(
     return render_free_map(crop, (row, col))
 
 
-def load_plan_grids(folder: str | Path, cell_size: float) -> list[np.ndarray]:
-    """The free grids of the plans `import_plans` wrote to `folder`; MapError when there are none
-    or when they are not at `cell_size`."""
+def load_plan_grids(folder: str | Path, cell_size: float, exclude: Sequence[str] = ()) -> list[np.ndarray]:
+    """The free grids of the plans `import_plans` wrote to `folder`, but those `exclude` names (by
+    file stem, as the manifest names them); MapError when none is left, when a name in `exclude` is
+    not there (a misspelt held-out plan would silently be trained on) or when they are not at
+    `cell_size`."""
     folder = Path(folder)
     paths = list_maps(folder) if folder.is_dir() else []
     if not paths:
         raise MapError(folder, "holds no imported plans (run the import_plans stage or `guide plans import` first)")
+    unknown = sorted(set(exclude) - {path.stem for path in paths})
+    if unknown:
+        raise MapError(folder, f"holds no plan named {', '.join(unknown)} to leave out")
+    paths = [path for path in paths if path.stem not in set(exclude)]
+    if not paths:
+        raise MapError(folder, "holds no plan that is not left out (every imported plan is excluded)")
     grids = []
     for path in paths:
         plan = load_map(path)

@@ -101,6 +101,11 @@ ALLOWED = {
     # No plans_share: no floors drawn from the imported plans (params files from before the plans).
     ("mazes.train.plans_share", "delete"),
     ("mazes.test.plans_share", "delete"),
+    # No plans_exclude (params files from before the folds), or an empty one: no plan left out.
+    ("mazes.train.plans_exclude", "delete"),
+    ("mazes.test.plans_exclude", "delete"),
+    ("mazes.train.plans_exclude", "empty list"),
+    ("mazes.test.plans_exclude", "empty list"),
     # Lightning's devices may be a list of device indices.
     ("train_inpainter.devices", "list"),
     ("train_planner.devices", "list"),

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from pipeline.world.maps import load_maze_png
-from pipeline.world.plans import find_plan_sources, import_plans
+from pipeline.world.plans import find_plan_sources, import_plans, load_plan_grids
 from stages.generate_mazes import main
 
 
@@ -70,4 +70,43 @@ def test_plans_at_another_cell_size_or_none_are_refused(tmp_path, monkeypatch):
     cv2.imwrite(str(source / "wing.png"), plan_image())
     import_plans(find_plan_sources(source, resolution=0.05), tmp_path / "data" / "plans", cell_size=0.4)
     with pytest.raises(Exception, match="import the plans at the protocol's cell size"):
+        main()
+
+
+def test_excluded_plans_are_never_drawn_and_a_misspelt_one_is_refused(tmp_path, monkeypatch):
+    source = tmp_path / "plans_src"
+    source.mkdir()
+    cv2.imwrite(str(source / "wing.png"), plan_image())
+    solid = np.zeros((200, 320), np.uint8)
+    solid[10:190, 10:310] = 255  # one open hall: no wall inside, unlike the wing
+    cv2.imwrite(str(source / "hall.png"), solid)
+    import_plans(find_plan_sources(source, resolution=0.05), tmp_path / "data" / "plans")
+    train = {"kind": "building", "count": 6, "side_m": [20, 24], "plans_share": 1.0, "plans_exclude": ["wing"]}
+    params = {
+        "protocol": {"cell_size": 0.2},
+        "mazes": {
+            "seed": 3,
+            "train": train,
+            "test": {"kind": "building", "count": 1, "side_m": [20, 20]},
+            "offices": {"count": 0},
+        },
+    }
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    monkeypatch.chdir(tmp_path)
+    main()
+    # Every window is the whole plan (sides of 20 m or more, plans of 16 x 10 m), turned or flipped:
+    # its free cells are the hall's count, never the wing's.
+    hall_free, wing_free = (int(grid.sum()) for grid in load_plan_grids(tmp_path / "data/plans", 0.2))
+    assert hall_free != wing_free
+    floors = sorted((tmp_path / "data/mazes/train").glob("plan_*.png"))
+    assert len(floors) == 6
+    for path in floors:
+        assert int(load_maze_png(path, 0.2).free.sum()) == hall_free, f"{path.name} was drawn from the excluded wing"
+    train["plans_exclude"] = ["wnig"]
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    with pytest.raises(Exception, match="no plan named wnig"):
+        main()
+    train["plans_exclude"] = ["wing", "hall"]
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    with pytest.raises(Exception, match="every imported plan is excluded"):
         main()
