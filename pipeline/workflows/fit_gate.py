@@ -80,8 +80,34 @@ def collect(
     return run_tasks(_samples, tasks, workers, "gate samples", "maze", keep=keep)
 
 
+def _shares(total: int, sizes: list[int]) -> list[int]:
+    """`total` split over groups in proportion to `sizes` (largest remainders), none over its size."""
+    whole = sum(sizes)
+    exact = [total * size / whole for size in sizes]
+    parts = [int(value) for value in exact]
+    by_remainder = sorted(range(len(sizes)), key=lambda i: (parts[i] - exact[i], i))
+    for i in by_remainder[: total - sum(parts)]:
+        parts[i] += 1
+    return parts
+
+
 def _family_maps(folder: Path, count: int, holdout: int, what: str) -> list[Path]:
-    maps = list_maps(folder)[:count] if count else []
+    """The first `count` maps of `folder`, the last `holdout` of them held out. Where the folder
+    holds maps of several kinds (generated floors beside floors drawn from real plans: the file
+    name before its number), each kind gives its first maps in proportion to its number, to the
+    fitted maps and the held-out ones alike, so the gate sees the mix its planner will."""
+    listed = list_maps(folder) if count else []
+    kinds: dict[str, list[Path]] = {}
+    for path in listed:
+        kinds.setdefault(path.stem.rsplit("_", 1)[0], []).append(path)
+    groups = list(kinds.values())
+    if len(groups) <= 1:
+        maps = listed[:count]
+    else:
+        chosen = _shares(min(count, len(listed)), [len(group) for group in groups])
+        held = _shares(min(holdout, sum(chosen)), chosen)
+        fitted = [path for group, n, h in zip(groups, chosen, held) for path in group[: n - h]]
+        maps = fitted + [path for group, n, h in zip(groups, chosen, held) for path in group[n - h : n]]
     if count and len(maps) <= holdout:
         raise ValueError(f"{folder}: {len(maps)} maps, need more than fit_gate.{what} = {holdout}")
     return maps

@@ -91,3 +91,22 @@ def test_distil_policy_builds_its_observations_as_the_start_policy_was_trained()
     assert observation_settings({})["threshold"] == 0.8  # older exports: the planners' defaults
     with pytest.raises(SystemExit, match="dare observations"):
         observation_settings({"observations": {"variant": "dare"}})
+
+
+def test_the_gate_fits_and_holds_out_each_kind_of_floor_in_proportion(tmp_path):
+    from pipeline.workflows.fit_gate import _family_maps
+
+    for name in [f"building_{i:04d}" for i in range(9)] + [f"plan_{i:04d}" for i in range(3)]:
+        (tmp_path / f"{name}.png").write_bytes(b"")
+    maps = [path.stem for path in _family_maps(tmp_path, 8, 4, "holdout_maps")]
+    assert maps == ["building_0000", "building_0001", "building_0002", "plan_0000"] + [
+        "building_0003",
+        "building_0004",
+        "building_0005",
+        "plan_0001",
+    ]
+    only_mazes = tmp_path / "mazes"
+    only_mazes.mkdir()
+    for i in range(6):
+        (only_mazes / f"maze_{i:04d}.png").write_bytes(b"")
+    assert [p.stem for p in _family_maps(only_mazes, 4, 1, "holdout_maps")] == [f"maze_{i:04d}" for i in range(4)]
