@@ -20,7 +20,8 @@ floors of one building, so a plan of a building another fold trained on is no he
 
 Then the fold's models explore its held-out plans (`guide benchmark` in the fold's folder, so
 that the planners pick its models/) at the real-robot protocol: the plans at 0.2 m with the
-import's start poses, 3 per plan under 1,000 m^2 free (`--starts-small`), 1 on the larger ones.
+import's start poses, 3 per plan under 1,000 m^2 free (`--starts-small`), 1 on the larger ones,
+plans over 3,000 m^2 (the two largest, 4,200-4,400 m^2) left out (`--max-free-m2`).
 `--baseline REV` runs the same episodes of every fold in OUT/baseline/ with the real-robot models
 shipped at git revision REV (trained on generated floors alone before the plans joined them). Each fold's summary.md pairs every planner with
 `greedy_utility`; the script prints a planner x fold table of those paired differences.
@@ -109,12 +110,15 @@ def run_stages(folder: Path, params: dict) -> None:
         marker.touch()
 
 
-def held_out_maps(plans_dir: Path, held_out: tuple[str, ...], out: Path, starts_small: int) -> Path:
-    """ROS maps of the held-out plans, one per start pose of the import's (3 on small plans, 1 else)."""
+def held_out_maps(plans_dir: Path, held_out: tuple[str, ...], out: Path, starts_small: int, max_free_m2: float) -> Path:
+    """ROS maps of the held-out plans of at most `max_free_m2` free, one per start pose of the
+    import's (`starts_small` on plans under SMALL_M2, 1 on larger ones)."""
     manifest = {plan["name"]: plan for plan in json.loads((plans_dir / "manifest.json").read_text())["plans"]}
     out.mkdir(parents=True, exist_ok=True)
     for name in held_out:
         plan = manifest[name]
+        if plan["free_m2"] > max_free_m2:
+            continue
         shutil.copyfile(plans_dir / f"{name}.pgm", out / f"{name}.pgm")
         base = yaml.safe_load((plans_dir / f"{name}.yaml").read_text())
         count = starts_small if plan["free_m2"] < SMALL_M2 else 1
@@ -171,6 +175,9 @@ def main() -> None:
     parser.add_argument("--planner", action="append", default=None)
     parser.add_argument("--starts-small", type=int, default=3)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--max-free-m2", type=float, default=3000.0, help="benchmark held-out plans up to this free area"
+    )
     args = parser.parse_args()
     folds = args.fold or ["f1", "f2"]
     planners = args.planner or list(PLANNERS)
@@ -191,7 +198,7 @@ def main() -> None:
             print(f"shipped {len(SHIPPED)} models to {assets}")
         if args.train_only or not held_out:
             continue
-        maps = held_out_maps(plans_dir, held_out, folder / f"heldout_{fold}", args.starts_small)
+        maps = held_out_maps(plans_dir, held_out, folder / f"heldout_{fold}", args.starts_small, args.max_free_m2)
         bench = benchmark(folder, maps, planners, args.workers)
         if args.baseline:
             shutil.rmtree(folder / f"heldout_bench_{fold}", ignore_errors=True)
