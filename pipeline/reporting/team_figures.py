@@ -1,5 +1,5 @@
-"""Figures of team benchmarks: one team episode's paths on its map, its animation, and team
-coverage against time.
+"""Figures of one team episode: its robots' paths on its map and its animation (the team coverage
+curves are `coverage_figure.team_coverage_figure`).
 
 The paths figure draws the map as `render.render_frame` does (the belief the team built, over the
 faint ground truth), then each robot's path in its own colour, its start as a square (nested
@@ -14,10 +14,7 @@ from typing import Sequence
 
 import cv2
 import numpy as np
-import pandas as pd
 
-from pipeline.common.atomic import atomic_file
-from pipeline.evaluation.exploration_curves import share_at
 from pipeline.reporting.render import (
     FONT,
     OUTLINE_RGB,
@@ -45,7 +42,6 @@ ROBOT_RGB: tuple[tuple[int, int, int], ...] = (
     (227, 119, 194),
     (188, 189, 34),
 )
-GRID_POINTS = 400  # samples along the time axis of the coverage figure
 KEY_HEIGHT = 24  # the strip under the title that names each robot's colour
 
 
@@ -163,51 +159,3 @@ def robot_key(width: int, distances: Sequence[float]) -> np.ndarray:
         cv2.putText(strip, label, (x + 16, 17), FONT, 0.42, (40, 40, 40), 1, cv2.LINE_AA)
         x += 16 + text_width + 14
     return strip
-
-
-def team_coverage_figure(coverage: pd.DataFrame, path: str | Path, title: str = "") -> Path:
-    """Team coverage against time: per run (`label` column) the mean explored share over maps
-    against the team's time in metres of travel, with a band of one standard deviation; one
-    colour per planner spec, one dash per robot count. `coverage` has team_coverage.csv's
-    columns (label, map, robots, time_m, explored_share). A PNG at `path`."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if coverage.empty:
-        raise ValueError("no team coverage to draw")
-    grid = np.linspace(0.0, max(float(coverage["time_m"].max()), 1e-9), GRID_POINTS)
-    runs = list(dict.fromkeys(coverage["label"]))  # in the table's (task) order
-    specs = list(dict.fromkeys(run.rsplit("@", 1)[0] for run in runs))
-    counts = sorted(set(int(c) for c in coverage["robots"]))
-    colors = plt.get_cmap("tab10")
-    styles = ("-", "--", "-.", ":")
-    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=120)
-    for run in runs:
-        rows = coverage[coverage["label"] == run]
-        shares = np.stack(
-            [
-                share_at({"explored_share": episode["explored_share"].to_numpy()}, grid, episode["time_m"].to_numpy())
-                for _, episode in rows.groupby("map", sort=True)
-            ]
-        )
-        mean, std = shares.mean(axis=0), shares.std(axis=0)
-        color = colors(specs.index(run.rsplit("@", 1)[0]) % colors.N)
-        style = styles[counts.index(int(rows["robots"].iloc[0])) % len(styles)]
-        ax.plot(grid, 100 * mean, color=color, ls=style, lw=1.4, label=f"{run} ({len(shares)})")
-        ax.fill_between(
-            grid, 100 * np.clip(mean - std, 0, 1), 100 * np.clip(mean + std, 0, 1), color=color, alpha=0.1, lw=0
-        )
-    ax.set_xlabel("team time (metres each robot can travel)")
-    ax.set_ylabel("explored share of the free area (%)")
-    ax.set_ylim(0, 101)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right", title="run (maps)", title_fontsize=7)
-    ax.set_title(title or "Team coverage: mean over maps, band one standard deviation", fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-    return path

@@ -18,7 +18,8 @@ from pipeline.evaluation.team_benchmark import (
 )
 from pipeline.planners.specs import PlannerSpec, as_specs
 from pipeline.planners.team.registry import team_config
-from pipeline.reporting.team_figures import team_coverage_figure, team_paths_figure
+from pipeline.reporting.coverage_figure import team_coverage_figure
+from pipeline.reporting.team_figures import team_paths_figure
 from pipeline.reporting.tracking import log_team_benchmark
 from pipeline.world.protocol import Protocol
 

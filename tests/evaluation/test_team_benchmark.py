@@ -15,7 +15,8 @@ from pipeline.evaluation.team_benchmark import (
     check_robot_counts,
     run_team_benchmark,
 )
-from pipeline.reporting.team_figures import ROBOT_RGB, team_coverage_figure, team_paths_figure
+from pipeline.reporting.coverage_figure import team_coverage_figure
+from pipeline.reporting.team_figures import ROBOT_RGB, team_paths_figure
 from pipeline.world.maps import list_maps, load_map
 from pipeline.world.protocol import Protocol
 from pipeline.world.team_files import merges_path, read_team_csv
