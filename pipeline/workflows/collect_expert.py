@@ -1,10 +1,18 @@
 """Stage II data (the `collect_expert` stage): expert episodes on the training mazes, stored as raw per-step
 state; written as shards, with a summary and a picture of one episode.
+
+The episodes run on DARE's lattice (`door_graph` off) at every scale. The expert's coverage model
+plans lattice paths on the ground truth and steps along them one lattice node at a time; on the
+door-aware graph of the building scale a robot may stand on a door node off the lattice, where the
+expert has no node, so its episodes would end after a few steps. Its labels are lattice nodes,
+the nodes the policy chooses among; the policy's observations (`build_observations`) are built
+under the stage's own protocol.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any, cast
 
@@ -91,7 +99,7 @@ def collect_expert(settings: Settings, protocol: Protocol, backend: str | None =
         planner_options=tuple(sorted(settings.planner_options.items())),
         horizon=settings.horizon,
         seed=settings.seed,
-        protocol=protocol,
+        protocol=replace(protocol, door_graph=False) if protocol.uses_door_graph else protocol,  # module doc
         random_starts=settings.random_starts,
     )
     started = time.perf_counter()

@@ -178,3 +178,26 @@ def test_stages_without_training_mazes_stop_with_a_hint(stage, tmp_path, monkeyp
     with pytest.raises(SystemExit, match="no training mazes; run the generate_mazes stage first"):
         stage.main()
     assert not (tmp_path / "reports").exists() and sorted(p.name for p in (tmp_path / "data").iterdir()) == ["mazes"]
+
+
+def test_expert_episodes_at_the_building_scale_run_on_the_lattice_to_the_end(tmp_path, monkeypatch):
+    # Under the door-aware graph a robot may stand on a door node, where the expert has no node:
+    # its episodes ended after a few steps. The stage runs them on DARE's lattice.
+    from pipeline.world.building_config import BuildingConfig
+    from pipeline.world.buildings import generate_building_set
+
+    floors = tmp_path / "floors"
+    generate_building_set(BuildingConfig(side_m=24, cell_size=0.2), 2, floors, seed=(3, 0), progress=False)
+    monkeypatch.chdir(tmp_path)
+    stage_folder(tmp_path, floors, {"collect_expert": {**EXPERT, "planner_options": {"time_limit_s": 5}}})
+    params = yaml.safe_load((tmp_path / "params.yaml").read_text())
+    params["protocol"] = {"cell_size": 0.2, "node_resolution": 1.0, "sensor_range": 10.0, "done_unknown_cells": 1000}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    assert Protocol(**params["protocol"]).uses_door_graph
+    collect_expert.main()
+    totals = read_manifest(tmp_path / "data/expert")["totals"]
+    assert totals["complete"] == totals["episodes"] == 2
+    for k in range(2):
+        for episode in load_expert_episodes(shard_path(tmp_path / "data/expert", k)):
+            lattice = episode.positions / 1.0
+            assert np.abs(episode.positions - np.rint(lattice)).max() <= LATTICE_TOLERANCE_M  # lattice nodes only
