@@ -67,7 +67,7 @@ SHIPPED = {  # the fold's model file -> its name in pipeline/assets/real_robot/
     "models/sliver_gate/sliver_gate.json": "sliver_gate.json",
 }
 SMALL_M2 = 1000.0  # a plan under this free area gets --starts-small start poses, a larger one 1
-PLANNERS = ("greedy_utility", "gated=greedy_utility:sliver_gate=true", "guide", "guide_tsp")
+PLANNERS = ("greedy_utility", "gated=greedy_utility:sliver_gate=true", "guide", "guide_tsp", "guide_noregion", "mapex")
 
 
 def shipped_models(rev: str, folder: Path) -> None:
