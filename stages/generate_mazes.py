@@ -135,10 +135,11 @@ def _write_map_sets(
     office_config: OfficeConfig,
     seed: int,
     plan_floors: dict[str, int] | None = None,
-    plans: dict[str, list[np.ndarray]] | None = None,
+    plans_exclude: dict[str, list[str]] | None = None,
     cell_size: float = 0.4,
 ) -> tuple[dict[str, list[Path]], list[Path]]:
-    """Draw the maze splits, the office floors and both previews; (maze paths per split, office paths).
+    """Draw the maze splits, each split's `plan_floors` from the plans in data/plans/ but those its
+    `plans_exclude` names, the office floors and both previews; (maze paths per split, office paths).
 
     Each set is drawn into a temporary folder, and the three replace data/mazes/{train,test} and
     data/offices/train (and whatever they held, so a smaller count leaves no stale map) only once
@@ -154,9 +155,9 @@ def _write_map_sets(
         }
         for split, count in (plan_floors or {}).items():
             if count:
-                drawn[split] += generate_plan_floors(
-                    (plans or {})[split], count, folders[split], (seed, SPLITS[split], PLAN_SEED_WORD), sides[split], cell_size
-                )
+                plans = load_plan_grids(PLANS_DIR, cell_size, exclude=(plans_exclude or {}).get(split, ()))
+                seed_words = (seed, SPLITS[split], PLAN_SEED_WORD)
+                drawn[split] += generate_plan_floors(plans, count, folders[split], seed_words, sides[split], cell_size)
         office_drawn = generate_office_set(office_config, offices, office_folder, seed=(seed, OFFICE_SEED_WORD))
         write_maze_png(preview_image(drawn["test"]), PREVIEW_PATH)
         write_maze_png(
@@ -194,15 +195,17 @@ def main(params_path: str = "params.yaml") -> None:
     splits = {split: _split_config(mazes, split, cell_size) for split in SPLITS}
     plan_floors = {split: int(round(getattr(mazes, split).plans_share * count)) for split, (_, count) in splits.items()}
     splits = {split: (config, count - plan_floors[split]) for split, (config, count) in splits.items()}
-    plans = {
-        split: load_plan_grids(PLANS_DIR, cell_size, exclude=getattr(mazes, split).plans_exclude)
-        for split, floors in plan_floors.items()
-        if floors
-    }
     office_config = OfficeConfig.for_scale(mazes.office_scale, cell_size=cell_size)
     sides = {split: tuple(getattr(mazes, split).side_m) for split in SPLITS}
     written, office_paths = _write_map_sets(
-        splits, sides, mazes.offices.count, office_config, mazes.seed, plan_floors, plans, cell_size
+        splits,
+        sides,
+        mazes.offices.count,
+        office_config,
+        mazes.seed,
+        plan_floors,
+        {split: list(getattr(mazes, split).plans_exclude) for split in SPLITS},
+        cell_size,
     )
     for split, paths in written.items():
         what = {OfficeConfig: "office floors", BuildingConfig: "building floors"}.get(type(splits[split][0]), "mazes")
