@@ -11,7 +11,7 @@ generate_mazes (`--share` of the training floors drawn from the plans, never fro
 held-out plans: `mazes.train.plans_exclude`), collect_pairs, train_inpainter, collect_expert,
 build_observations, train_planner (guide, dare) and fit_gate. The DRL policy and the block model
 are trained on generated mazes alone, so no fold retrains them. Fold `all` leaves no plan out:
-its models are the ones shipped in pipeline/assets/real_robot/ (copy them with `--ship`).
+`--ship` copies its models into pipeline/assets/real_robot/.
 
 The folds split the 14 KTH plans by building (plans whose numbers run on, of one footprint, are
 floors of one building, so a plan of a building another fold trained on is no held-out plan):
@@ -122,9 +122,7 @@ def held_out_maps(plans_dir: Path, held_out: tuple[str, ...], out: Path, starts_
         shutil.copyfile(plans_dir / f"{name}.pgm", out / f"{name}.pgm")
         base = yaml.safe_load((plans_dir / f"{name}.yaml").read_text())
         count = starts_small if plan["free_m2"] < SMALL_M2 else 1
-        for k, (col, row) in enumerate(plan["starts"][:count]):
-            cell = plan["cell_size_m"]
-            start = [round((col + 0.5) * cell, 3), round((row + 0.5) * cell, 3)]
+        for k, start in enumerate(plan["starts_m"][:count]):  # the manifest's starts in map metres
             (out / f"{name}_s{k}.yaml").write_text(yaml.safe_dump({**base, "start": start}, sort_keys=False))
     return out
 

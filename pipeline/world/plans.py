@@ -403,10 +403,11 @@ def load_plan_grids(folder: str | Path, cell_size: float, exclude: Sequence[str]
     paths = list_maps(folder) if folder.is_dir() else []
     if not paths:
         raise MapError(folder, "holds no imported plans (run the import_plans stage or `guide plans import` first)")
-    unknown = sorted(set(exclude) - {path.stem for path in paths})
+    left_out = set(exclude)
+    unknown = sorted(left_out - {path.stem for path in paths})
     if unknown:
         raise MapError(folder, f"holds no plan named {', '.join(unknown)} to leave out")
-    paths = [path for path in paths if path.stem not in set(exclude)]
+    paths = [path for path in paths if path.stem not in left_out]
     if not paths:
         raise MapError(folder, "holds no plan that is not left out (every imported plan is excluded)")
     grids = []
