@@ -1,8 +1,8 @@
 """A teacher's labels for the states another planner drives into (DAgger's data, ours).
 
 The teacher is any belief-only planner that names the lattice node it heads for
-(`last_decision["target"]`): `guide`, `guide_tsp`, `mapex`, `tare`, and `guide:lookahead=3`, the
-best of them here. At every state the driver reaches, the teacher plans from the same
+(`last_decision["target"]`): `guide`, `guide_tsp`, `mapex`, `tare`, `greedy_utility` (gated or
+not) and `guide:lookahead=3`. At every state the driver reaches, the teacher plans from the same
 observation, and its label is the first T_p nodes of the shortest known path from the robot's node
 to that target: a function of the robot's belief alone, so a policy that sees the same belief can
 learn it (the ground-truth expert's moves depend on a map the robot cannot see).
@@ -32,7 +32,7 @@ def teacher_target(teacher: Planner) -> int:
     if decision.get("target") is None:
         raise NoTargetError(
             f"planner {teacher.name!r} does not report the node it heads for (last_decision['target']); "
-            "a teacher must: guide, guide_tsp, mapex or tare (with their options)"
+            "a teacher must: guide, guide_tsp, greedy_utility, mapex or tare (with their options)"
         )
     return int(decision["target"])
 

@@ -56,11 +56,21 @@ def test_path_label_is_the_shortest_known_path_padded_by_staying(small_maze):
 
 
 def test_a_planner_that_names_no_target_cannot_teach(small_maze):
-    with pytest.raises(NoTargetError, match="greedy_utility.*does not report"):
-        labelled_run(small_maze, teacher="greedy_utility")
+    with pytest.raises(NoTargetError, match="nearest_frontier.*does not report"):
+        labelled_run(small_maze, teacher="nearest_frontier")
     assert isinstance(NoTargetError("x"), ValueError)
     with pytest.raises(NoTargetError):
         teacher_target(make_planner("nearest_frontier"))
+
+
+@pytest.mark.parametrize("options", [{}, {"sliver_gate": True}])
+def test_greedy_utility_teaches_by_the_node_it_ranks_first(small_maze, options):
+    planner = TeacherLabelledDriver(make_planner("greedy_utility", **options), horizon=8)
+    result = run_episode(small_maze, planner, PROTOCOL, seed=1)
+    assert len(planner.labels) >= len(result.trajectory) - 1
+    assert np.mean(planner.agrees[:-1]) > 0.9  # greedy walks the shortest path to the node it names
+    teacher = innermost(planner.teacher)
+    assert teacher.last_decision == {} or teacher.last_decision["target"] in range(teacher.graph.node_count)
 
 
 def test_straight_double_edges_are_split_into_unit_steps(small_maze):

@@ -45,6 +45,7 @@ class GreedyUtilityPlanner(GraphPlanner):
 
     def __init__(self, config: GatedPlannerConfig = GreedyUtilityConfig()):
         super().__init__(config)
+        self.last_decision: dict = {}
 
     def ranked_targets(self, observation: Observation) -> tuple[np.ndarray, np.ndarray]:
         """(known-graph predecessors from the robot, its reachable targets by utility per metre, best first)."""
@@ -57,9 +58,12 @@ class GreedyUtilityPlanner(GraphPlanner):
     def plan(self, observation: Observation) -> list[Waypoint]:
         pred, ranked = self.ranked_targets(observation)
         if ranked.size == 0:
+            self.last_decision = {}
             return []
         assert self.graph is not None
-        return self.waypoints_along(self.graph.path_from_predecessors(pred, int(ranked[0])))
+        target = int(ranked[0])
+        self.last_decision = {"target": target}  # the node it heads for (a DAgger teacher's label)
+        return self.waypoints_along(self.graph.path_from_predecessors(pred, target))
 
     def finish_episode(self, episode: Episode, target: int, pred: np.ndarray, per_target: bool = False) -> float | None:
         """Head for `target` until it is reached or stops being a target, then this planner's rule, on
