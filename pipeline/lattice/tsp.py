@@ -1,5 +1,6 @@
 """Routes through points: every TSP path the project plans, and their 2-opt / Or-opt polish.
 
+Both start from one nearest-neighbour construction and measure paths with one `path_length`.
 Two solvers, for two sizes of problem:
 
 - `tsp_path`: the orders TARE and guide_tsp plan at every decision, through at most a few
@@ -46,8 +47,13 @@ def tsp_path(distance: np.ndarray, end: int | None = None, exact_max: int = 10, 
     return _improve(distance, order, max_moves)
 
 
-def path_length(distance: np.ndarray, order: list[int]) -> float:
-    return float(sum(distance[a, b] for a, b in zip(order[:-1], order[1:])))
+def path_length(distance: np.ndarray, order: Sequence[int] | np.ndarray) -> float:
+    """The length of the path through `order` along `distance`, its legs added one by one in
+    order (a sequential sum, so equal paths have equal lengths bit for bit)."""
+    order = np.asarray(order, dtype=np.int64)
+    if len(order) < 2:
+        return 0.0
+    return float(np.add.accumulate(distance[order[:-1], order[1:]])[-1])
 
 
 def _held_karp(distance: np.ndarray, end: int) -> list[int]:
@@ -83,17 +89,22 @@ def _held_karp(distance: np.ndarray, end: int) -> list[int]:
     return order[::-1]
 
 
-def _nearest_neighbour(distance: np.ndarray, end: int) -> list[int]:
+def _nearest_neighbour(distance: np.ndarray, end: int | None = None) -> list[int]:
+    """The path from 0 that always goes on to the nearest point not yet visited (the lowest index
+    among equals), through every point, to `end` last when given (else wherever it ends)."""
     n = len(distance)
     left = np.ones(n, dtype=bool)
-    left[[0, end]] = False
+    left[0] = False
+    if end is not None:
+        left[end] = False
     order = [0]
     while left.any():
         candidates = np.nonzero(left)[0]
         nxt = int(candidates[np.argmin(distance[order[-1], candidates])])
         order.append(nxt)
         left[nxt] = False
-    order.append(end)
+    if end is not None:
+        order.append(end)
     return order
 
 
@@ -156,11 +167,6 @@ def _improve(distance: np.ndarray, order: list[int], max_moves: int) -> list[int
 
 
 # --------------------------------------------------------------------------- large open tours
-def path_cost(dist: np.ndarray, order: Sequence[int] | np.ndarray) -> float:
-    order = np.asarray(order, dtype=np.int64)
-    return float(dist[order[:-1], order[1:]].sum()) if len(order) > 1 else 0.0
-
-
 def _two_opt_open(dist: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Best-improvement 2-opt on an open path with a fixed first node (symmetric distances)."""
     m = len(p)
@@ -186,7 +192,7 @@ def _two_opt_open(dist: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 def _or_opt_open(dist: np.ndarray, p: np.ndarray, max_segment: int = 3) -> np.ndarray:
     """Move a run of 1..max_segment nodes (maybe reversed) elsewhere in an open path."""
-    base = path_cost(dist, p)
+    base = path_length(dist, p)
     improved = True
     while improved:
         improved = False
@@ -201,28 +207,17 @@ def _or_opt_open(dist: np.ndarray, p: np.ndarray, max_segment: int = 3) -> np.nd
                 link = np.where(has_b, dist[rest, b], 0.0)
                 fwd = dist[rest, seg[0]] + np.where(has_b, dist[seg[-1], b], 0.0) - link
                 rev = dist[rest, seg[-1]] + np.where(has_b, dist[seg[0], b], 0.0) - link
-                cost = path_cost(dist, rest) + path_cost(dist, seg) + np.minimum(fwd, rev)
+                cost = path_length(dist, rest) + path_length(dist, seg) + np.minimum(fwd, rev)
                 k = int(np.argmin(cost))
                 if cost[k] < base - 1e-7:
                     piece = seg if fwd[k] <= rev[k] else seg[::-1]
                     p = np.concatenate([rest[: k + 1], piece, rest[k + 1 :]])
-                    base = path_cost(dist, p)
+                    base = path_length(dist, p)
                     improved = True
                     break
             if improved:
                 break
     return p
-
-
-def _nearest_neighbour_open(dist: np.ndarray) -> list[int]:
-    left = np.ones(len(dist), dtype=bool)
-    left[0] = False
-    order = [0]
-    for _ in range(len(dist) - 1):
-        nxt = int(np.argmin(np.where(left, dist[order[-1]], np.inf)))
-        order.append(nxt)
-        left[nxt] = False
-    return order
 
 
 def open_tsp_order(
@@ -245,7 +240,7 @@ def open_tsp_order(
         perm, _ = solve_tsp_dynamic_programming(closed)
         return np.asarray(perm, dtype=np.int64)
     if x0 is None:
-        x0 = _nearest_neighbour_open(dist)
+        x0 = _nearest_neighbour(dist)
     # Lin-Kernighan gets a symmetric instance in whole millimetres: python-tsp 0.5's LK
     # tracks the tour length incrementally and, on float lengths, can take rounding noise
     # for an improvement and never stop (seen on 17-node instances, with the asymmetric
@@ -263,8 +258,8 @@ def open_tsp_order(
     perm = [0] + perm[2:][::-1] if perm[1] == n else [v for v in perm if v != n]
     p = np.asarray(perm, dtype=np.int64)
     for _ in range(4):
-        before = path_cost(dist, p)
+        before = path_length(dist, p)
         p = _or_opt_open(dist, _two_opt_open(dist, p))
-        if path_cost(dist, p) >= before - 1e-7:
+        if path_length(dist, p) >= before - 1e-7:
             break
     return p

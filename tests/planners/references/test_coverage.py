@@ -150,7 +150,7 @@ def test_objective_counts_only_uncovered_cells_and_survives_an_empty_set(maze):
 # --------------------------------------------------------------------------- TSP
 def brute_force_open(dist: np.ndarray) -> float:
     n = len(dist)
-    return min(tsp.path_cost(dist, [0, *p]) for p in itertools.permutations(range(1, n)))
+    return min(tsp.path_length(dist, [0, *p]) for p in itertools.permutations(range(1, n)))
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 7])
@@ -160,7 +160,7 @@ def test_open_tsp_exact_for_small_instances(n):
     dist = np.hypot(*(points[:, None] - points[None]).transpose(2, 0, 1))
     order = tsp.open_tsp_order(dist)
     assert order[0] == 0 and sorted(order) == list(range(n))
-    assert tsp.path_cost(dist, order) == pytest.approx(brute_force_open(dist))
+    assert tsp.path_length(dist, order) == pytest.approx(brute_force_open(dist))
 
 
 def test_open_tsp_heuristic_on_graph_distances(small_maze):
@@ -175,7 +175,7 @@ def test_open_tsp_heuristic_on_graph_distances(small_maze):
         heuristic = tsp.open_tsp_order(dist, exact_max_nodes=0)
         assert heuristic[0] == 0 and sorted(heuristic) == list(range(len(nodes)))
         exact = tsp.open_tsp_order(dist)
-        assert tsp.path_cost(dist, heuristic) <= 1.05 * tsp.path_cost(dist, exact) + 1e-6
+        assert tsp.path_length(dist, heuristic) <= 1.05 * tsp.path_length(dist, exact) + 1e-6
 
 
 def test_open_tsp_lin_kernighan_terminates_where_float_lengths_loop(small_maze):
@@ -191,7 +191,7 @@ def test_open_tsp_lin_kernighan_terminates_where_float_lengths_loop(small_maze):
     assert not worker.is_alive(), "open_tsp_order did not terminate"
     order = result[0]
     assert order[0] == 0 and sorted(order) == list(range(len(nodes)))
-    assert tsp.path_cost(dist, order) <= tsp.path_cost(dist, tsp._nearest_neighbour_open(dist)) + 1e-6
+    assert tsp.path_length(dist, order) <= tsp.path_length(dist, tsp._nearest_neighbour(dist)) + 1e-6
 
 
 # --------------------------------------------------------------------------- tours
