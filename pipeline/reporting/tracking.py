@@ -4,7 +4,9 @@ benchmark), with its options, summary metrics and tables."""
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Sequence
 
 import pandas as pd
 
@@ -30,6 +32,57 @@ def maze_set_logger(map_set: MapSet):
     return lambda: mlflow.log_input(dataset, context="evaluation", tags=tags)
 
 
+@dataclass(frozen=True)
+class TrackedRun:
+    """One MLflow run of a benchmark: its name, params and metrics."""
+
+    name: str
+    params: dict[str, Any]
+    metrics: dict[str, float]
+
+
+def log_runs(
+    runs: Sequence[TrackedRun],
+    out_dir: Path,
+    artifacts: Sequence[str],
+    map_set: MapSet,
+    tracking_uri: str | None,
+    experiment: str,
+) -> list[str]:
+    """One MLflow run per entry of `runs` in `experiment`, each with the maze set as its dataset
+    input, its params and metrics, and as artifacts the files of `artifacts` that `out_dir` holds.
+    Returns the run ids."""
+    mlflow = import_mlflow()
+    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
+    mlflow.set_experiment(experiment)
+    log_maze_set = maze_set_logger(map_set)
+    run_ids = []
+    for tracked in runs:
+        with mlflow.start_run(run_name=tracked.name) as active:
+            log_maze_set()
+            mlflow.log_params(tracked.params)
+            mlflow.log_metrics(tracked.metrics)
+            for name in artifacts:
+                if (out_dir / name).is_file():
+                    mlflow.log_artifact(str(out_dir / name))
+            run_ids.append(active.info.run_id)
+    return run_ids
+
+
+def planner_params(record: dict[str, Any], label: str) -> dict[str, Any]:
+    """The planner's name, options and description and the run's seed, from its run record
+    (run.json or team_run.json); none when the record does not list the planner."""
+    ran = record.get("planners", {}).get(label, {})
+    if not ran:
+        return {}
+    return {
+        "planner_name": ran.get("name", label),
+        "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
+        "planner_description": str(ran.get("description", ""))[:500],
+        "seed": record.get("seed"),
+    }
+
+
 def log_benchmark(
     run: BenchmarkRun,
     out_dir: str | Path,
@@ -45,54 +98,33 @@ def log_benchmark(
 
     Returns the run ids.
     """
-    mlflow = import_mlflow()
     out_dir = Path(out_dir)
-    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
-    mlflow.set_experiment(experiment)
-    summary = run.summary
     record_path = out_dir / RUN_RECORD
     record = json.loads(record_path.read_text()) if record_path.is_file() else {}
     exploration = run.exploration.set_index("planner")
-    log_maze_set, maps = maze_set_logger(run.map_set), run.map_set.folder
-    run_ids = []
-    for planner, row in summary.iterrows():
-        with mlflow.start_run(run_name=str(planner)) as active:
-            ran = record.get("planners", {}).get(str(planner), {})
-            variant = (
-                {
-                    "planner_name": ran.get("name", planner),
-                    "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
-                    "planner_description": str(ran.get("description", ""))[:500],
-                    "seed": record.get("seed"),
-                }
-                if ran
-                else {}
-            )
-            log_maze_set()
-            mlflow.log_params(
-                {
-                    **record.get("protocol", protocol.to_dict()),
-                    "planner": planner,
-                    "maps": maps,
-                    "episodes": int(row.episodes),
-                    **variant,
-                }
-            )
-            mlflow.log_metrics(
-                {
-                    "distance_mean_m": float(row.distance_mean_m),
-                    "distance_std_m": float(row.distance_std_m),
-                    "completion_rate": float(row.completion_rate),
-                    "decision_ms_median": float(row.decision_ms_median),
-                    "decision_ms_p95": float(row.decision_ms_p95),
-                    **exploration_metrics(exploration, str(planner)),
-                }
-            )
-            for name in ("summary.md", "metrics.csv", EXPLORATION_CSV, COVERAGE_FIGURE):
-                if (out_dir / name).is_file():
-                    mlflow.log_artifact(str(out_dir / name))
-            run_ids.append(active.info.run_id)
-    return run_ids
+    tracked = [
+        TrackedRun(
+            str(planner),
+            {
+                **record.get("protocol", protocol.to_dict()),
+                "planner": planner,
+                "maps": run.map_set.folder,
+                "episodes": int(row.episodes),
+                **planner_params(record, str(planner)),
+            },
+            {
+                "distance_mean_m": float(row.distance_mean_m),
+                "distance_std_m": float(row.distance_std_m),
+                "completion_rate": float(row.completion_rate),
+                "decision_ms_median": float(row.decision_ms_median),
+                "decision_ms_p95": float(row.decision_ms_p95),
+                **exploration_metrics(exploration, str(planner)),
+            },
+        )
+        for planner, row in run.summary.iterrows()
+    ]
+    artifacts = ("summary.md", "metrics.csv", EXPLORATION_CSV, COVERAGE_FIGURE)
+    return log_runs(tracked, out_dir, artifacts, run.map_set, tracking_uri, experiment)
 
 
 EXPLORATION_METRICS = (
@@ -140,34 +172,26 @@ def log_team_benchmark(
 
     Returns the run ids.
     """
-    mlflow = import_mlflow()
-    out_dir = Path(out_dir)
-    mlflow.set_tracking_uri(resolve_tracking_uri(tracking_uri))
-    mlflow.set_experiment(experiment)
     record = run.record
-    log_maze_set, maps = maze_set_logger(run.map_set), run.map_set.folder
-    run_ids = []
-    for run_label, row in run.summary.items():
-        with mlflow.start_run(run_name=run_label) as active:
-            ran = record.get("planners", {}).get(row["label"], {})
-            log_maze_set()
-            mlflow.log_params(
-                {
-                    **record.get("protocol", protocol.to_dict()),
-                    "planner": row["label"],
-                    "maps": maps,
-                    "episodes": int(row["episodes"]),
-                    "robots": int(row["robots"]),
-                    "comm_range_m": "none" if row["comm_range_m"] is None else row["comm_range_m"],
-                    "planner_name": ran.get("name", row["label"]),
-                    "planner_options": json.dumps(ran.get("options", {}), sort_keys=True),
-                    "planner_description": str(ran.get("description", ""))[:500],
-                    "seed": record.get("seed"),
-                }
-            )
-            mlflow.log_metrics({name: float(row[name]) for name in TEAM_METRICS if row.get(name) is not None})
-            for name in (TEAM_SUMMARY_JSON, TEAM_METRICS_CSV, TEAM_COVERAGE_FIGURE):
-                if (out_dir / name).is_file():
-                    mlflow.log_artifact(str(out_dir / name))
-            run_ids.append(active.info.run_id)
-    return run_ids
+    tracked = [
+        TrackedRun(
+            run_label,
+            {
+                **record.get("protocol", protocol.to_dict()),
+                "planner": row["label"],
+                "maps": run.map_set.folder,
+                "episodes": int(row["episodes"]),
+                "robots": int(row["robots"]),
+                "comm_range_m": "none" if row["comm_range_m"] is None else row["comm_range_m"],
+                "planner_name": row["label"],
+                "planner_options": "{}",
+                "planner_description": "",
+                "seed": record.get("seed"),
+                **planner_params(record, row["label"]),
+            },
+            {name: float(row[name]) for name in TEAM_METRICS if row.get(name) is not None},
+        )
+        for run_label, row in run.summary.items()
+    ]
+    artifacts = (TEAM_SUMMARY_JSON, TEAM_METRICS_CSV, TEAM_COVERAGE_FIGURE)
+    return log_runs(tracked, Path(out_dir), artifacts, run.map_set, tracking_uri, experiment)
