@@ -27,7 +27,8 @@ def planners(
         "each protocol's own noted beside them.",
     ),
 ) -> None:
-    """List every registered planner name with a one-line description (or, with --options NAME, its options).
+    """List every registered planner name with a one-line description (or, with --options NAME, its options,
+    by the part of the planner each sets: the paper's parts first, then ours).
 
     Options are set as label=name:key=value,... on the command line and in params.yaml, and as
     make_planner(name, key=value) in Python. Some defaults depend on the protocol a planner runs
@@ -54,16 +55,24 @@ def planners(
                     else " (the config's own)"
                 )
             )
-        for info in config.options():
-            if info.kinds is None:
-                continue  # a Python object: not set from a spec
-            if protocol is not None:
-                mark = " *" if info.name in at_protocol else ""
-                typer.echo(f"  {info.name} = {_shown(at_protocol.get(info.name, info.default))}{mark}")
-            else:
-                beside = [f"{name}: {_shown(table[info.name])}" for name, table in others.items() if info.name in table]
-                typer.echo(f"  {info.name} = {_shown(info.default)}" + (f"   ({'; '.join(beside)})" if beside else ""))
-            typer.echo(f"      {info.help}")
+        parts = [
+            (title, [info for info in infos if info.kinds is not None])  # a Python object is not set from a spec
+            for title, infos in config.option_parts()
+        ]
+        parts = [(title, infos) for title, infos in parts if infos]
+        for title, infos in parts:
+            if len(parts) > 1:
+                typer.echo(f"  # {title or options + chr(39) + 's own'}")
+            for info in infos:
+                if protocol is not None:
+                    mark = " *" if info.name in at_protocol else ""
+                    typer.echo(f"  {info.name} = {_shown(at_protocol.get(info.name, info.default))}{mark}")
+                else:
+                    beside = [f"{n}: {_shown(table[info.name])}" for n, table in others.items() if info.name in table]
+                    typer.echo(
+                        f"  {info.name} = {_shown(info.default)}" + (f"   ({'; '.join(beside)})" if beside else "")
+                    )
+                typer.echo(f"      {info.help}")
         if config.objects and config.objects != ("base_options",):
             typer.echo(f"  (from Python only: {', '.join(o for o in config.objects if o != 'base_options')})")
         if getattr(config, "base_planner", None) is not None:

@@ -58,6 +58,7 @@ class TourVoteOptions(
         "ranked plans and the stall hand-over (extensions/) around it"
     )
     renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file", "block_model": "block_model_file"}
+    part = "the mode"
 
     mode: Annotated[str, text(MODES)] = option(
         "tour",

@@ -46,6 +46,7 @@ class PlannerConfig:
     name: ClassVar[str] = ""  # the registered name (set by `register_planner`)
     description: ClassVar[str] = ""
     composition: ClassVar[str] = ""  # what the planner is built of, where it wraps others (one line)
+    part: ClassVar[str] = ""  # the part of a planner the fields this class declares set ("" : the planner's own)
     uses_ground_truth: ClassVar[bool] = False  # an oracle: sees the ground truth (a reference or a bound)
     ignores_motion_rule: ClassVar[bool] = False  # moves through unobserved free space (the `optimal` reference only)
     needs_policy: ClassVar[bool] = False  # runs a trained diffusion policy (models/ or the shipped default)
@@ -75,6 +76,17 @@ class PlannerConfig:
             OptionInfo(f.name, f.default, option_kinds(hints.get(f.name, f.type)), f.metadata.get("help", ""))
             for f in dataclasses.fields(cls)
         ]
+
+    @classmethod
+    def option_parts(cls) -> list[tuple[str, list[OptionInfo]]]:
+        """The options grouped by the part of the planner they set: the `part` of the config class
+        that first declares each one (its base-most), "" for the planner's own; the paper's parts
+        (those naming a section) first, then the planner's own, then the rest, each group in the
+        order of its first option in `options`."""
+        parts: dict[str, list[OptionInfo]] = {}
+        for info in cls.options():
+            parts.setdefault(_declared_part(cls, info.name), []).append(info)
+        return sorted(parts.items(), key=lambda part: 0 if "Sec." in part[0] else 1 if not part[0] else 2)
 
     @classmethod
     def split(cls, options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any], list[str]]:
@@ -107,6 +119,14 @@ class PlannerConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+def _declared_part(cls: type, name: str) -> str:
+    """The `part` of the base-most class of `cls` that declares the field `name`."""
+    for klass in reversed(cls.__mro__):
+        if name in klass.__dict__.get("__annotations__", {}):
+            return str(klass.__dict__.get("part", ""))
+    return ""
 
 
 def _field_annotations(cls: type) -> dict[str, Any]:

@@ -25,6 +25,8 @@ from pipeline.world.protocol import Protocol
 class LatticePlannerConfig(PlannerConfig):
     """The options every lattice-graph planner has."""
 
+    part = "targets on the lattice (Sec. IV-A)"
+
     min_utility: Annotated[int, whole(1)] = option(
         2,
         "a node is a target when it sees at least this many frontier cells (below 1, "
@@ -35,6 +37,8 @@ class LatticePlannerConfig(PlannerConfig):
 @config_dataclass
 class GatedPlannerConfig(LatticePlannerConfig):
     """A lattice-graph planner that can leave slivers for later (`pipeline.models.sliver_gate`)."""
+
+    part = "the sliver gate (ours)"
 
     sliver_gate: Annotated[bool, flag()] = option(
         False,

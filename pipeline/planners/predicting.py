@@ -39,6 +39,8 @@ if TYPE_CHECKING:
 class PredictorOptions(LatticePlannerConfig):
     """The options of a planner that predicts free nodes in unknown space (Algorithm 1)."""
 
+    part = "the node predictor (Sec. IV-B)"
+
     # an injected inpainter (node image -> free probability): tests pass an oracle
     objects: ClassVar[tuple[str, ...]] = ("inpaint",)
     renamed = {"checkpoint": "inpainter_file"}
@@ -61,6 +63,8 @@ class PredictorOptions(LatticePlannerConfig):
 @config_dataclass
 class GlobalGraphOptions(PredictorOptions):
     """The options of a planner that builds the global graph of Sec. IV-B from its predictions."""
+
+    part = "the global graph (Sec. IV-B)"
 
     count_threshold: Annotated[float | None, maybe(fraction(), "threshold")] = option(
         DEFAULT_COUNT_THRESHOLD, "tau of the predicted nodes the utility boost counts [None: threshold]"

@@ -740,6 +740,25 @@ def test_planners_options_says_what_guide_is_built_of():
         line.split(" = ")[0].strip() for line in result.output.splitlines() if line.startswith("  ") and " = " in line
     ]
     assert names[:2] == ["min_utility", "inpainter_file"] and "policy_file" in names[:8]  # the paper's options first
+    parts = [line[4:] for line in result.output.splitlines() if line.startswith("  # ")]
+    assert parts[:4] == [
+        "targets on the lattice (Sec. IV-A)",
+        "the node predictor (Sec. IV-B)",
+        "the global graph (Sec. IV-B)",
+        "the diffusion policy (Sec. IV-C)",
+    ]
+    assert {
+        "the tour vote (ours, mode tour)",
+        "the lookahead (ours, mode tour)",
+        "trust in the predictions (ours)",
+    } <= set(parts)
+    lines = result.output.splitlines()
+    vote = lines.index("  # the tour vote (ours, mode tour)")
+    assert lines[vote + 1].startswith("  prior_weight = ")  # each option under the part that declares it
+    greedy = runner.invoke(app, ["planners", "--options", "greedy_utility"]).output
+    assert "  # the sliver gate (ours)" in greedy and "  sliver_gate = false" in greedy
+    tare = runner.invoke(app, ["planners", "--options", "tare"]).output
+    assert "  # tare's own" in tare
 
 
 def test_planners_options_prints_each_protocols_defaults():

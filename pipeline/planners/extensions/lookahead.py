@@ -51,6 +51,7 @@ class RolloutSettings:
 class LookaheadConfig(PlannerConfig):
     """The block-model lookahead of a planner that chooses among targets (the tour vote)."""
 
+    part = "the lookahead (ours, mode tour)"
     renamed = {"block_model": "block_model_file"}
 
     lookahead: Annotated[

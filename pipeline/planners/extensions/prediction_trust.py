@@ -30,6 +30,8 @@ if TYPE_CHECKING:
 
 @config_dataclass
 class PredictionTrustOptions(PlannerConfig):
+    part = "trust in the predictions (ours)"
+
     trust: Annotated[bool, flag()] = option(
         True,
         "lean on predictions only as far as they have been right: their lift over the base "

@@ -25,6 +25,8 @@ LATER_STEP_WEIGHT = 0.8  # a plan's k-th step counts 0.8^k of its utility: near 
 class SampledPlansConfig(PlannerConfig):
     """How many plans the policy samples per decision (the ranked plans and the tour vote read it)."""
 
+    part = "sampled plans (ours)"
+
     candidates: Annotated[int, whole(1)] = option(
         8, "plans sampled per decision, in one batched pass (mode policy, 1: the paper's single sample)"
     )

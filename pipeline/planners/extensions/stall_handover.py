@@ -25,6 +25,8 @@ from pipeline.world.sensor import FREE
 
 @config_dataclass
 class StallHandoverConfig(PlannerConfig):
+    part = "the stall hand-over (ours, mode policy)"
+
     stall_steps: Annotated[int, whole(1)] = option(
         3, "mode policy: after this many moves that reveal nothing, one step toward the nearest useful node instead"
     )

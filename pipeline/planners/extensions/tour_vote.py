@@ -48,6 +48,8 @@ from pipeline.world.protocol import Protocol
 
 @config_dataclass
 class TourVoteConfig(PlannerConfig):
+    part = "the tour vote (ours, mode tour)"
+
     prior_weight: Annotated[float, real(0.0, note="0 = the policy does not vote")] = option(
         1.0,
         "mode tour: an option's score is multiplied by 1 + prior_weight x the share of samples heading for it "

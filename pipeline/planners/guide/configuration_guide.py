@@ -22,6 +22,7 @@ SAMPLERS = ("ddpm", "ddim")
 @config_dataclass
 class GuideConfig(GlobalGraphOptions):
     description = "GUIDE: diffusion policy conditioned on the region-evaluated global graph (predicted nodes)"
+    part = "the diffusion policy (Sec. IV-C)"
     needs_policy = True
     objects = ("inpaint", "policy")  # an injected inpainter and an injected policy (tests, notebooks)
     renamed = {"checkpoint": "policy_file", "inpainter_checkpoint": "inpainter_file"}

@@ -22,6 +22,8 @@ class TourOptions(GlobalGraphOptions, GatedPlannerConfig):
     """The frontier tour over the global graph: how useful nodes cluster, how the tour is solved,
     how its first target is scored."""
 
+    part = "the frontier tour (ours)"
+
     sliver_gate: Annotated[bool, flag()] = option(
         True, GatedPlannerConfig.__dataclass_fields__["sliver_gate"].metadata["help"]
     )

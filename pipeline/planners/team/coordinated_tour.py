@@ -59,6 +59,8 @@ from pipeline.world.team import TeamObservation, TeamPlanner
 class TeamRouteOptions(PlannerConfig):
     """How a coordinated tour team splits the frontier into min-max routes."""
 
+    part = "the team's routes (ours)"
+
     routes_exact_max: Annotated[int, whole(0, EXACT_MAX_LIMIT)] = option(
         8, "min-max splits of up to this many targets are solved exactly; larger ones by OR-Tools"
     )
