@@ -2,11 +2,10 @@
 state; written as shards, with a summary and a picture of one episode.
 
 The episodes run on DARE's lattice (`door_graph` off) at every scale. The expert's coverage model
-plans lattice paths on the ground truth and steps along them one lattice node at a time; on the
-door-aware graph of the building scale a robot may stand on a door node off the lattice, where the
-expert has no node, so its episodes would end after a few steps. Its labels are lattice nodes,
-the nodes the policy chooses among; the policy's observations (`build_observations`) are built
-under the stage's own protocol.
+plans lattice paths on the ground truth and steps along them one lattice node at a time (it
+plans on the lattice under any protocol); its labels are lattice nodes, the nodes the policy
+chooses among, and the episodes' done rule is the lattice's as well. The policy's observations
+(`build_observations`) are built under the stage's own protocol.
 """
 
 from __future__ import annotations

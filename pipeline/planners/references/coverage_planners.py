@@ -16,6 +16,7 @@ Both are oracles (`uses_ground_truth = True`) built on `pipeline.planners.refere
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Annotated, cast
 
 import numpy as np
@@ -153,6 +154,10 @@ class ExpertPlanner(GraphPlanner):
         self.replan_on_change = replan_on_change
 
     def reset(self, ground_truth: GroundTruthMap, protocol: Protocol, seed: int) -> None:  # type: ignore[override]  # an oracle: reset with the map itself
+        # DARE's lattice at every scale: the coverage model plans lattice paths and detours follow
+        # the observed graph, whose door nodes (the building scale's) the model has no node for;
+        # an edge valid only through a door node, walked straight, would break the motion rule.
+        protocol = replace(protocol, door_graph=False) if protocol.uses_door_graph else protocol
         super().reset(ground_truth.frame, protocol, seed)
         self.model = coverage_model(ground_truth, protocol)
         self.seed = seed

@@ -119,3 +119,20 @@ def test_expert_heads_for_where_its_plan_completes_when_no_viewpoint_is_left(sma
     monkeypatch.setattr(coverage_planners, "plan_coverage", lambda *args, **kwargs: cut)
     planner._replan(robot, np.zeros(small_maze.free.shape, dtype=bool))
     assert planner.tour == [path[-1]]
+
+
+def test_expert_under_the_door_aware_graph_plans_on_the_lattice_and_completes(tmp_path):
+    # The building scale's observed graph has door nodes the coverage model has none for; a detour
+    # along an edge valid only through one broke the motion rule within a few steps.
+    from pipeline.world.building_config import BuildingConfig
+    from pipeline.world.buildings import generate_building_set
+    from pipeline.world.maps import load_map
+
+    generate_building_set(BuildingConfig(side_m=24, cell_size=0.2), 2, tmp_path, seed=(3, 0), progress=False)
+    protocol = Protocol(cell_size=0.2, node_resolution=1.0, sensor_range=10.0, done_unknown_cells=1000)
+    assert protocol.uses_door_graph
+    for path in sorted(tmp_path.glob("*.png")):
+        result = run_episode(load_map(path, cell_size=0.2), make_planner("expert", time_limit_s=5), protocol, seed=0)
+        assert result.complete and not result.failure and result.motion_violations == 0, result.failure
+        positions = np.asarray(result.trajectory)
+        assert np.abs(positions - np.rint(positions)).max() < 1e-6  # lattice nodes only (1 m spacing)
