@@ -33,8 +33,8 @@ class DaggerConfig:
 
     maps: tuple[str, ...]
     episodes_per_shard: int
-    teacher: str = "guide"
-    teacher_options: dict[str, Any] = field(default_factory=lambda: {"lookahead": 3})
+    teacher: str = "greedy_utility"  # gated greedy: deterministic given the belief, its target a node the policy sees
+    teacher_options: dict[str, Any] = field(default_factory=lambda: {"sliver_gate": True})
     student: str | None = None  # the policy export that drives; None: the teacher drives
     horizon: int = 8  # T_p labelled waypoints per step
     seed: int = 0

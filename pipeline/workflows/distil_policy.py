@@ -2,9 +2,10 @@
 with the policy driving.
 
 The policy trained on the ground-truth expert (`train_planner`) imitates moves that depend on a map
-the robot cannot see. Here its teacher sees only the belief (`guide:lookahead=3` by default) and
-labels each state with the first T_p steps of the shortest known path toward its target
-(`pipeline.data.teacher_labels`).
+the robot cannot see. Here its teacher sees only the belief (gated greedy,
+`greedy_utility:sliver_gate=true`, by default: deterministic given the belief, its target a node
+of the graph the policy sees) and labels each state with the first T_p steps of the shortest
+known path toward its target (`pipeline.data.teacher_labels`).
 
 - Round 0: the teacher drives `teacher_episodes` episodes on training mazes and labels its own
   states; the policy (from `start_policy`) is fine-tuned on them.
