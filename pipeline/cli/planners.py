@@ -62,7 +62,7 @@ def planners(
         parts = [(title, infos) for title, infos in parts if infos]
         for title, infos in parts:
             if len(parts) > 1:
-                typer.echo(f"  # {title or options + chr(39) + 's own'}")
+                typer.echo("  # " + (title or f"{options}'s own"))
             for info in infos:
                 if protocol is not None:
                     mark = " *" if info.name in at_protocol else ""
