@@ -27,8 +27,7 @@ from pipeline.evaluation.benchmark import BenchmarkInterrupted, EpisodeErrors
 from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
 from pipeline.evaluation.team_benchmark import TEAM_METRICS_CSV, check_comm_range, check_robot_counts
 from pipeline.reporting.benchmark_markdown import team_summary_markdown
-from pipeline.workflows.benchmark import benchmark_folder
-from pipeline.workflows.team_benchmark import team_benchmark_folder
+from pipeline.workflows.benchmark import benchmark_folder, team_benchmark_folder
 from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.world.team import MAX_ROBOTS

@@ -19,7 +19,7 @@ import warnings
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypeVar
 
 import numpy as np
 import pandas as pd
@@ -44,7 +44,6 @@ from pipeline.planners.registry import planner_config
 from pipeline.planners.specs import PlannerSpec, build_planner, resolve_planner_specs
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import GroundTruthMap, list_maps, load_map
-from pipeline.world.planner import Planner
 from pipeline.world.protocol import Protocol, ProtocolMismatchWarning, protocol_for_map
 from pipeline.world.simulator import EpisodeResult, run_episode
 from pipeline.world.trajectories import (
@@ -67,6 +66,8 @@ OUTPUT_FILES = (
 )  # a label names a folder beside these
 ERRORS_FILE = "errors.txt"  # beside metrics.csv when a planner raised: each such episode and its traceback
 KEPT_EPISODES = ".episodes"  # OUT/.episodes/: the finished episodes of a run not yet complete
+T = TypeVar("T")  # a run's task
+R = TypeVar("R")  # its episode's result
 
 
 def with_policy_checkpoint(
@@ -183,19 +184,29 @@ class EpisodeTask:
 @dataclass(frozen=True)
 class BenchmarkInputs:
     """What every episode of a run reads (the executor's shared inputs): the maps and the planners
-    built for the run's specs, each reset by its episodes."""
+    built for the run's specs (single-robot or team planners), each reset by its episodes."""
 
     maps: MapSet
-    planners: dict[PlannerSpec, Planner]
+    planners: dict[PlannerSpec, Any]
+
+
+def guarded_episode(
+    inputs: BenchmarkInputs, spec: PlannerSpec, episode: Callable[[Any], R]
+) -> tuple[R, ErrorsEndTheEpisode]:
+    """`episode(planner)` with the run's planner for `spec`, whose exception fails this episode
+    only (`ErrorsEndTheEpisode`, returned beside the result to say whether it raised)."""
+    with warnings.catch_warnings():
+        # The run has said it once, before the episodes; each worker would repeat it.
+        warnings.simplefilter("ignore", ProtocolMismatchWarning)
+        planner = ErrorsEndTheEpisode(inputs.planners[spec])
+        return episode(planner), planner
 
 
 def run_task(inputs: BenchmarkInputs, task: EpisodeTask) -> EpisodeResult:
     ground_truth, protocol = inputs.maps.episode_map(task.map_path)
-    with warnings.catch_warnings():
-        # run_benchmark has said it once, before the episodes; each worker would repeat it.
-        warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        planner = ErrorsEndTheEpisode(inputs.planners[task.spec])  # a planner that raises fails this episode only
-        result = run_episode(ground_truth, planner, protocol, seed=task.seed)
+    result, planner = guarded_episode(
+        inputs, task.spec, lambda planner: run_episode(ground_truth, planner, protocol, seed=task.seed)
+    )
     if planner.error:
         result.failure, result.error_traceback, result.complete, result.early_stop = (
             planner.error,
@@ -205,6 +216,68 @@ def run_task(inputs: BenchmarkInputs, task: EpisodeTask) -> EpisodeResult:
         )
     result.planner = task.spec.label
     return result
+
+
+def open_run(
+    maps: "str | Path | Sequence[str | Path] | MapSet",
+    protocol: Protocol,
+    start: tuple[float, float] | None,
+    out_dir: str | Path,
+    warn: Callable[[str], None] | None,
+    other_run: Callable[[Path], bool],
+    stale: str,
+) -> tuple[MapSet, Path]:
+    """The run's maps (each line of `map_checks` said to `warn`) and its output folder, made; the
+    warning `stale` (formatted with `out_dir` and `names`) when the folder holds folders of runs
+    this one does not write (`other_run`)."""
+    map_set = MapSet.of(maps, protocol, start)
+    for problem in map_set.problems:
+        if warn is not None:
+            warn(problem)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if names := sorted(d.name for d in out_dir.iterdir() if d.is_dir() and other_run(d)):
+        warnings.warn(stale.format(out_dir=out_dir, names=", ".join(names)), stacklevel=3)
+    return map_set, out_dir
+
+
+def run_kept_episodes(
+    run_one: Callable[[BenchmarkInputs, T], R],
+    tasks: Sequence[T],
+    task_rows: list[list[Any]],
+    inputs: BenchmarkInputs,
+    descriptions: Sequence[str],
+    keep_dir: Path,
+    on_result: Callable[[int, R], None],
+    *,
+    workers: int | None,
+    backend: str,
+    progress: bool,
+    what: str,
+    **settings: Any,
+) -> None:
+    """Every task's episode on the executor's engine, each handed to `on_result` as it finishes and
+    kept in `keep_dir` until all are; a rerun with the same identity (the `task_rows`, `settings`,
+    protocol, maps, planners' descriptions and code) makes only the rest. The kept ones are dropped
+    once the run completes. A Ctrl-C comes through as KeyboardInterrupt."""
+    maps = inputs.maps
+    identity = {"tasks": task_rows, **settings, "protocol": maps.protocol.to_dict(), "maps": maps.digest}
+    keep = KeptResults(keep_dir, {**identity, "planners": list(descriptions), "source": source_digest()})
+    workers = default_workers() if workers is None else workers
+    run_tasks(
+        run_one,  # type: ignore[arg-type]  # with shared, run_tasks calls run_one(shared, task)
+        tasks,
+        min(workers, len(tasks)),
+        what,
+        "ep",
+        keep=keep,
+        backend=backend,
+        progress=progress,
+        on_result=on_result,
+        collect=False,
+        shared=inputs,
+    )
+    shutil.rmtree(keep.folder, ignore_errors=True)
 
 
 @dataclass
@@ -265,73 +338,43 @@ def run_benchmark(
     backend = resolve_backend(backend)
     specs = resolve_planner_specs(planners, OUTPUT_FILES)
     built = {spec: build_planner(spec) for spec in specs}  # a refused value fails before any map is read
-    map_set = MapSet.of(maps, protocol, start)
-    protocol, start, loaded = map_set.protocol, map_set.start, map_set.loaded
-    if warn is not None:
-        for problem in map_set.problems:
-            warn(problem)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     labels = {spec.label for spec in specs}
-    stale = sorted(d.name for d in out_dir.iterdir() if d.is_dir() and d.name not in labels and any(d.glob("*.csv")))
-    if stale:
-        warnings.warn(
-            f"{out_dir} holds trajectories of planners this run does not write ({', '.join(stale)}); "
-            "its metrics.csv and summary.md list only this run's",
-            stacklevel=2,
-        )
+    map_set, out_dir = open_run(
+        *(maps, protocol, start, out_dir, warn),
+        lambda d: d.name not in labels and any(d.glob("*.csv")),
+        "{out_dir} holds trajectories of planners this run does not write ({names}); "
+        "its metrics.csv and summary.md list only this run's",
+    )
+    protocol, start = map_set.protocol, map_set.start
     protocol_record = recorded_protocol(protocol, map_set.cell_sizes)
     for planner in built.values():  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)  # (a learned planner takes the protocol's models first: the record names them)
     descriptions = [planner.description for planner in built.values()]
     write_run_record(out_dir / RUN_RECORD, specs, descriptions, seed, start, protocol_record, map_set.paths, speed)
     tasks = [EpisodeTask(path, spec, seed) for spec in specs for path in map_set.paths]
-    identity = {
-        "tasks": [
-            [
-                t.map_path,
-                t.spec.name,
-                t.spec.label,
-                json.dumps(t.spec.options, sort_keys=True, default=str),
-                t.seed,
-                start,
-            ]
-            for t in tasks
-        ],
-        "protocol": protocol.to_dict(),
-        "maps": map_set.digest,
-        "planners": descriptions,
-        "source": source_digest(),
-    }
-    keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / KEPT_EPISODES, identity)
+    rows = [[t.map_path, t.spec.name, t.spec.label, t.spec.options_key, t.seed, start] for t in tasks]
     results: list[EpisodeResult] = []
-
-    def finished(index: int, result: EpisodeResult) -> None:
-        results.append(_write_result(result, tasks[index], out_dir))
-
-    workers = default_workers() if workers is None else workers
     try:
-        run_tasks(
-            run_task,  # type: ignore[arg-type]  # with shared, run_tasks calls run_task(shared, task)
+        run_kept_episodes(
+            run_task,
             tasks,
-            min(workers, len(tasks)),
-            "episodes",
-            "ep",
-            keep=keep,
+            rows,
+            BenchmarkInputs(map_set, built),
+            descriptions,
+            Path(keep_dir) if keep_dir is not None else out_dir / KEPT_EPISODES,
+            lambda index, result: results.append(_write_result(result, tasks[index], out_dir)),
+            workers=workers,
             backend=backend,
             progress=progress,
-            on_result=finished,
-            collect=False,
-            shared=BenchmarkInputs(map_set, built),
+            what="episodes",
         )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         partial = _write_tables(results, out_dir, protocol_record, baseline, speed, map_set) if results else None
         raise BenchmarkInterrupted(len(results), len(tasks), out_dir, partial) from None
-    shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     run = _write_tables(results, out_dir, protocol_record, baseline, speed, map_set)
     record_fallbacks(out_dir / RUN_RECORD, run.frame)
     if warn is not None:
-        for hint in failure_hints(run.frame, loaded):
+        for hint in failure_hints(run.frame, map_set.loaded):
             warn(hint)
     run.errors = write_planner_errors([(r.map_name, r.planner, r.failure, r.error_traceback) for r in results], out_dir)
     return run

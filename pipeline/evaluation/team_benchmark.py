@@ -7,12 +7,9 @@ never mix with a single-robot benchmark's `OUT/<label>/` (a label cannot hold `@
 means its coordinated team version where one is registered, else every robot runs that planner
 uncoordinated (`pipeline.planners.team.registry`).
 
-As in the single-robot benchmark (`pipeline.evaluation.benchmark`), maps are loaded and planners
-built once, in this process, before the episodes (a bad name, option or map fails before any
-work); they reach the episodes as the run's shared inputs; each finished episode is kept (in
-OUT/.team_episodes/, apart from the single benchmark's OUT/.episodes/) until the run completes,
-so a killed run, rerun with the same command, makes only the episodes still missing. The tables
-are written in task order, so a resumed run writes the same files as an uninterrupted one.
+The episodes run on the single-robot benchmark's engine (`pipeline.evaluation.benchmark`: maps
+and planners read and built once, finished episodes kept, here in OUT/.team_episodes/, until the
+run completes); the tables are written in task order, so a resumed run writes the same files.
 
 Files: OUT/<run>/<map>.team.csv (the team trajectory, times at the speed model's speed), its
 merges file beside it under a communication range, OUT/<run>/<map>.robots.csv (per robot:
@@ -24,32 +21,31 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence, cast
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import pandas as pd
 
 from pipeline.common.atomic import atomic_file, atomic_write_text
-from pipeline.common.executor import default_workers, resolve_backend, run_tasks
-from pipeline.common.fingerprints import source_digest
-from pipeline.common.kept_results import KeptResults
+from pipeline.common.executor import resolve_backend
 from pipeline.evaluation.benchmark import (
+    BenchmarkInputs,
     BenchmarkInterrupted,
     MapSet,
+    guarded_episode,
+    open_run,
     recorded_protocol,
+    run_kept_episodes,
     write_planner_errors,
     write_run_record,
 )
-from pipeline.evaluation.episode_errors import ErrorsEndTheEpisode
 from pipeline.evaluation.exploration_curves import SpeedModel
 from pipeline.planners.specs import PlannerSpec, check_reserved, parse_planner_spec
 from pipeline.planners.team.registry import make_team_planner
 from pipeline.world.maps import GroundTruthMap
-from pipeline.world.protocol import Protocol, ProtocolMismatchWarning
+from pipeline.world.protocol import Protocol
 from pipeline.world.team import MAX_ROBOTS, TeamEpisodeResult, TeamPlanner, run_team_episode
 from pipeline.world.team_files import TEAM_SUFFIX, merges_path, write_merges_csv, write_team_csv
 
@@ -154,30 +150,16 @@ class TeamEpisodeTask:
         return team_run_label(self.spec.label, self.robots)
 
 
-@dataclass(frozen=True)
-class TeamEpisodeInputs:
-    """What every team episode of a run reads: the maps and the team planners built for the
-    run's specs (each episode resets its planner)."""
-
-    maps: MapSet
-    planners: dict[PlannerSpec, TeamPlanner]
-
-
-def run_team_task(inputs: TeamEpisodeInputs, task: TeamEpisodeTask) -> TeamEpisodeResult:
+def run_team_task(inputs: BenchmarkInputs, task: TeamEpisodeTask) -> TeamEpisodeResult:
     """One team episode with the run's map and planner (the executor's shared inputs)."""
     ground_truth, protocol = inputs.maps.episode_map(task.map_path)
-    with warnings.catch_warnings():
-        # run_team_benchmark has said it once, before the episodes; each worker would repeat it.
-        warnings.simplefilter("ignore", ProtocolMismatchWarning)
-        planner = ErrorsEndTheEpisode(inputs.planners[task.spec])  # a planner that raises fails this episode only
-        result = run_team_episode(
-            ground_truth,
-            cast(TeamPlanner, planner),
-            protocol,
-            task.robots,
-            comm_range_m=task.comm_range_m,
-            seed=task.seed,
-        )
+    result, planner = guarded_episode(
+        inputs,
+        task.spec,
+        lambda planner: run_team_episode(
+            ground_truth, planner, protocol, task.robots, comm_range_m=task.comm_range_m, seed=task.seed
+        ),
+    )
     if planner.error:
         result.failure, result.complete = planner.error, False
     result.map_name = Path(task.map_path).stem
@@ -236,25 +218,14 @@ def run_team_benchmark(
     counts = check_robot_counts(robots)
     comm_range_m = check_comm_range(comm_range_m)
     resolved = resolve_team_specs(planners)  # a refused name or value fails before any map is read
-    map_set = MapSet.of(maps, protocol, start)
-    protocol, start = map_set.protocol, map_set.start
-    if warn is not None:
-        for problem in map_set.problems:
-            warn(problem)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     run_labels = {team_run_label(spec.label, count) for spec, _ in resolved for count in counts}
-    stale = sorted(
-        d.name
-        for d in out_dir.iterdir()
-        if d.is_dir() and "@" in d.name and d.name not in run_labels and any(d.glob("*" + TEAM_SUFFIX))
+    map_set, out_dir = open_run(
+        *(maps, protocol, start, out_dir, warn),
+        lambda d: "@" in d.name and d.name not in run_labels and any(d.glob("*" + TEAM_SUFFIX)),
+        "{out_dir} holds team trajectories of runs this one does not write ({names}); "
+        f"its {TEAM_METRICS_CSV} lists only this run's",
     )
-    if stale:
-        warnings.warn(
-            f"{out_dir} holds team trajectories of runs this one does not write ({', '.join(stale)}); "
-            f"its {TEAM_METRICS_CSV} lists only this run's",
-            stacklevel=2,
-        )
+    protocol, start = map_set.protocol, map_set.start
     for _, planner in resolved:  # models trained at other protocol values: said once here, not by every worker
         planner.check_protocol(protocol)
     specs = [spec for spec, _ in resolved]
@@ -276,46 +247,34 @@ def run_team_benchmark(
         for count in counts
         for path in map_set.paths
     ]
-    inputs = TeamEpisodeInputs(map_set, dict(resolved))
-    identity = {
-        "tasks": [
-            [t.map_path, t.spec.name, t.spec.label, t.robots, json.dumps(t.spec.options, sort_keys=True, default=str)]
-            + [t.seed, t.comm_range_m]
-            for t in tasks
-        ],
-        "start": list(start) if start is not None else None,
-        "protocol": protocol.to_dict(),
-        "maps": map_set.digest,
-        "planners": descriptions,
-        "source": source_digest(),
-    }
-    keep = KeptResults(Path(keep_dir) if keep_dir is not None else out_dir / TEAM_KEPT_EPISODES, identity)
+    rows = [
+        [t.map_path, t.spec.name, t.spec.label, t.robots, t.spec.options_key, t.seed, t.comm_range_m] for t in tasks
+    ]
     finished: dict[int, TeamEpisodeResult] = {}
 
     def on_result(index: int, result: TeamEpisodeResult) -> None:
         write_episode_files(result, tasks[index], out_dir, speed)
         finished[index] = result
 
-    workers = default_workers() if workers is None else workers
     try:
-        run_tasks(
-            run_team_task,  # type: ignore[arg-type]  # with shared, run_tasks calls run_team_task(shared, task)
+        run_kept_episodes(
+            run_team_task,
             tasks,
-            min(workers, len(tasks)),
-            "team episodes",
-            "ep",
-            keep=keep,
+            rows,
+            BenchmarkInputs(map_set, dict(resolved)),
+            descriptions,
+            Path(keep_dir) if keep_dir is not None else out_dir / TEAM_KEPT_EPISODES,
+            on_result,
+            workers=workers,
             backend=backend,
             progress=progress,
-            on_result=on_result,
-            collect=False,
-            shared=inputs,
+            what="team episodes",
+            start=list(start) if start is not None else None,
         )
     except KeyboardInterrupt:  # Ctrl-C: the finished episodes are kept, as a long run's partial result
         if finished:
             write_team_tables([(tasks[i], finished[i]) for i in sorted(finished)], out_dir, record, map_set)
         raise BenchmarkInterrupted(len(finished), len(tasks), out_dir) from None
-    shutil.rmtree(keep.folder, ignore_errors=True)  # complete: the tables below hold every episode
     episodes = [(tasks[i], finished[i]) for i in sorted(finished)]
     run = write_team_tables(episodes, out_dir, record, map_set)
     run.errors = write_planner_errors(

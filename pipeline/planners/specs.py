@@ -7,6 +7,7 @@ int, float, bool or str and checked against the planner's config before anything
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -26,6 +27,11 @@ class PlannerSpec:
     label: str
     name: str
     options: dict[str, Any] = field(default_factory=dict, hash=False)
+
+    @property
+    def options_key(self) -> str:
+        """The options as one canonical string (keys sorted): what tells two runs' variants apart."""
+        return json.dumps(self.options, sort_keys=True, default=str)
 
     def __str__(self) -> str:
         if not self.options and self.label == self.name:
