@@ -31,7 +31,6 @@ from pipeline.evaluation.exploration_curves import PAPER_SPEED_MPS, SpeedModel
 from pipeline.evaluation.team_benchmark import check_comm_range
 from pipeline.planners.matched_models import model_files
 from pipeline.workflows import explore as exploration
-from pipeline.workflows import team_explore
 from pipeline.world.map_files import MapError
 from pipeline.world.protocol import Protocol
 from pipeline.world.team import MAX_ROBOTS
@@ -203,16 +202,16 @@ def explore_team(
 ) -> None:
     """`guide explore --robots N`: one team episode, its files, a summary line; exit 1 when it did not complete."""
     try:
-        run = team_explore.prepare_team(map_path, planner, rules, robots, comm_range, out, start, checkpoint)
+        run = exploration.prepare_team(map_path, planner, rules, robots, comm_range, out, start, checkpoint)
     except (MapError, ValueError, FileNotFoundError, TypeError) as error:  # an unknown planner name is a ValueError too
         fail(str(error))
     before_episode(ctx, map_path, run, cell_size)
     range_text = "full communication" if run.comm_range_m is None else f"{run.comm_range_m:g} m range"
     typer.echo(f"{run.label}: {run.planner.description} ({robots} robot{'s' if robots != 1 else ''}, {range_text})")
-    result, written = team_explore.run_team(run, seed=seed, gif=gif, progress=progress, start=start, speed=speed)
+    result, written = exploration.run_team(run, seed=seed, gif=gif, progress=progress, start=start, speed=speed)
     after_episode(
-        team_explore.team_summary_line(run, result),
+        exploration.team_summary_line(run, result),
         written,
         result.complete,
-        lambda: team_explore.after_team_failure(run, result),
+        lambda: exploration.after_failure(run, result),
     )
