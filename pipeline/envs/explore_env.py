@@ -44,6 +44,28 @@ from pipeline.world.simulator import Episode
 LATTICE_CACHE_SIZE = 4
 
 
+class LatticeCache:
+    """Empty lattice graphs of the last `size` map files with their window tables: a reset copies
+    one instead of laying it out anew; a generated maze (never seen again) gets a fresh one."""
+
+    def __init__(self, size: int = LATTICE_CACHE_SIZE):
+        self.size = size
+        self.kept: dict[str, tuple[LatticeGraph, WindowTable]] = {}
+
+    def fresh(self, drawn: DrawnMap) -> tuple[LatticeGraph, WindowTable]:
+        """An empty lattice graph of the drawn map and its window table."""
+        if not drawn.key:
+            graph = LatticeGraph(LatticeSpec.for_map(drawn.ground_truth, drawn.protocol))
+            return graph, WindowTable(graph)
+        if drawn.key not in self.kept:
+            if len(self.kept) >= self.size:
+                self.kept.pop(next(iter(self.kept)))
+            graph = LatticeGraph(LatticeSpec.for_map(drawn.ground_truth, drawn.protocol))
+            self.kept[drawn.key] = (graph, WindowTable(graph))
+        template, table = self.kept[drawn.key]
+        return copy.deepcopy(template), table
+
+
 def checked_action(action: Any, count: int) -> int:
     """A discrete action as an int in 0..count-1 (a 0-d array accepted); ValueError otherwise."""
     if isinstance(action, np.ndarray) and action.shape == ():
@@ -87,7 +109,7 @@ class ExploreEnv(gymnasium.Env):
         if cfg.belief_image:
             self.belief_shape = cfg.belief_shape or self.source.largest_shape()
         self.observation_space = self._observation_space()
-        self._lattices: dict[str, tuple[LatticeGraph, WindowTable]] = {}
+        self._lattices = LatticeCache()
         self._episode: Episode | None = None
         self._view: ObservedStep | None = None  # the last observation's arrays and search
         self._over = True
@@ -179,7 +201,7 @@ class ExploreEnv(gymnasium.Env):
         drawn = self.source.draw(self.np_random)
         self._drawn, self._protocol = drawn, drawn.protocol
         self._episode = Episode(drawn.ground_truth, drawn.protocol)
-        self._lattice, self._table = self._fresh_lattice(drawn)
+        self._lattice, self._table = self._lattices.fresh(drawn)
         self._visited = np.zeros(self._lattice.node_count, dtype=bool)
         belief = self._episode.belief.grid
         self._lattice.update(belief, None)
@@ -321,20 +343,6 @@ class ExploreEnv(gymnasium.Env):
             "reward_invalid": parts[3],
         }
 
-    def _fresh_lattice(self, drawn: DrawnMap) -> tuple[LatticeGraph, WindowTable]:
-        """An empty lattice graph of the drawn map and its window table: copied from a kept one for a
-        map file, laid out anew for a generated maze."""
-        if not drawn.key:
-            graph = LatticeGraph(LatticeSpec.for_map(drawn.ground_truth, drawn.protocol))
-            return graph, WindowTable(graph)
-        if drawn.key not in self._lattices:
-            if len(self._lattices) >= LATTICE_CACHE_SIZE:
-                self._lattices.pop(next(iter(self._lattices)))
-            graph = LatticeGraph(LatticeSpec.for_map(drawn.ground_truth, drawn.protocol))
-            self._lattices[drawn.key] = (graph, WindowTable(graph))
-        template, table = self._lattices[drawn.key]
-        return copy.deepcopy(template), table
-
     # ------------------------------------------------------------------ render
     def render(self) -> np.ndarray | None:
         """rgb_array: the belief (white free, grey unknown, black occupied), the path in blue, the robot in red."""
@@ -350,7 +358,7 @@ class ExploreEnv(gymnasium.Env):
         return image
 
     def close(self) -> None:
-        self._lattices.clear()
+        self._lattices.kept.clear()
         super().close()
 
 

@@ -37,18 +37,10 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from pipeline.envs.configuration_team import TeamExploreEnvConfig
-from pipeline.envs.explore_env import ExploreEnv, checked_action
+from pipeline.envs.explore_env import ExploreEnv, LatticeCache, checked_action
 from pipeline.envs.map_sources import DrawnMap
 from pipeline.lattice.graph import LatticeGraph
-from pipeline.lattice.spec import LatticeSpec
-from pipeline.prediction.observed_graph import (
-    STAY_SLOT,
-    ObservedStep,
-    WindowTable,
-    observe_lattice,
-    slot_of_offset,
-    window_moves,
-)
+from pipeline.prediction.observed_graph import STAY_SLOT, ObservedStep, observe_lattice, slot_of_offset, window_moves
 from pipeline.world.episode import IDLE, MOTION_RULE, MOVE_LIMIT, EventLoop
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import GroundTruthMap
@@ -89,7 +81,7 @@ class TeamExploreEnv(ParallelEnv):
         base = self._observation_space()
         self._observation_spaces = {agent: copy.deepcopy(base) for agent in self.possible_agents}
         self._action_spaces = {agent: spaces.Discrete(self.action_count) for agent in self.possible_agents}
-        self._lattice_template: tuple[str, LatticeGraph, WindowTable] | None = None  # the last map file's
+        self._lattice_cache = LatticeCache(size=1)  # the last map file's
         self._episode: TeamEpisode | None = None
         self._acting: int | None = None  # the robot whose action the next step uses
         self._failure = ""
@@ -215,7 +207,7 @@ class TeamExploreEnv(ParallelEnv):
         self._episode = TeamEpisode(drawn.ground_truth, drawn.protocol, cfg.robots, starts, cfg.comm_range_m)
         episode = self._episode
         # Robots that hold one belief share one lattice graph and one record of the nodes stood on.
-        lattice, self._table = self._fresh_lattice(drawn)
+        lattice, self._table = self._lattice_cache.fresh(drawn)
         beliefs = list({id(belief): belief for belief in episode.beliefs}.values())
         graphs = [lattice] + [copy.deepcopy(lattice) for _ in beliefs[1:]]  # copied while still empty
         holders: dict[int, tuple[LatticeGraph, np.ndarray, np.ndarray]] = {}
@@ -251,17 +243,6 @@ class TeamExploreEnv(ParallelEnv):
             return DrawnMap(given, protocol_for_map(self.config.protocol(), given), "")
         except MapError as error:
             raise ValueError(f"options['map']: {error}") from None
-
-    def _fresh_lattice(self, drawn: DrawnMap) -> tuple[LatticeGraph, WindowTable]:
-        """An empty lattice graph of the map and its window table; the last map file's is kept to copy."""
-        if drawn.key and self._lattice_template is not None and self._lattice_template[0] == drawn.key:
-            _, template, table = self._lattice_template
-            return copy.deepcopy(template), table
-        graph = LatticeGraph(LatticeSpec.for_map(drawn.ground_truth, drawn.protocol))
-        table = WindowTable(graph)
-        if drawn.key:
-            self._lattice_template = (drawn.key, copy.deepcopy(graph), table)
-        return graph, table
 
     def step(self, actions: dict[str, Any]):
         if self._episode is None or not self.agents:
@@ -451,7 +432,7 @@ class TeamExploreEnv(ParallelEnv):
         }
 
     def close(self) -> None:
-        self._lattice_template = None
+        self._lattice_cache.kept.clear()
         self.single.close()
 
 
