@@ -44,6 +44,25 @@ from pipeline.world.simulator import Episode
 LATTICE_CACHE_SIZE = 4
 
 
+def graph_observation(view: ObservedStep, mask: np.ndarray) -> dict[str, Any]:
+    """The observed-graph keys of an observation and the action mask, as fresh arrays (a step that
+    leaves the robot where it was returns the same values)."""
+    return {
+        "features": view.features.copy(),
+        "node_mask": view.node_mask.astype(np.int8),
+        "neighbors": view.neighbors.copy(),
+        "robot": np.int64(view.robot_row),
+        "action_mask": mask.copy(),
+    }
+
+
+def reward_info(area: float, distance: float, parts: tuple[float, float, float, float]) -> dict[str, float]:
+    """An info's account of a step's reward: the new free area (m^2), the distance moved (m), and
+    the reward's four terms (area, distance, completion bonus, invalid-action penalty)."""
+    keys = ("reward_area", "reward_distance", "reward_bonus", "reward_invalid")
+    return {"new_area_m2": area, "step_distance_m": distance, **dict(zip(keys, parts))}
+
+
 class LatticeCache:
     """Empty lattice graphs of the last `size` map files with their window tables: a reset copies
     one instead of laying it out anew; a generated maze (never seen again) gets a fresh one."""
@@ -293,14 +312,7 @@ class ExploreEnv(gymnasium.Env):
         self._mask = mask
 
     def _observation(self) -> dict[str, Any]:
-        view = cast(ObservedStep, self._view)
-        obs: dict[str, Any] = {  # fresh arrays: a step that leaves the robot where it was returns the same values
-            "features": view.features.copy(),
-            "node_mask": view.node_mask.astype(np.int8),
-            "neighbors": view.neighbors.copy(),
-            "robot": np.int64(view.robot_row),
-            "action_mask": self._mask.copy(),
-        }
+        obs = graph_observation(cast(ObservedStep, self._view), self._mask)
         if self.belief_shape is not None:
             obs["belief"] = self._padded_belief()
             col, row = cast(Episode, self._episode).cell
@@ -335,12 +347,7 @@ class ExploreEnv(gymnasium.Env):
             "trajectory": list(episode.trajectory),
             "invalid_action": invalid,
             "stuck": stuck,
-            "new_area_m2": area,
-            "step_distance_m": distance,
-            "reward_area": parts[0],
-            "reward_distance": parts[1],
-            "reward_bonus": parts[2],
-            "reward_invalid": parts[3],
+            **reward_info(area, distance, parts),
         }
 
     # ------------------------------------------------------------------ render

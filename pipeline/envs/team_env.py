@@ -37,7 +37,7 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from pipeline.envs.configuration_team import TeamExploreEnvConfig
-from pipeline.envs.explore_env import ExploreEnv, LatticeCache, checked_action
+from pipeline.envs.explore_env import ExploreEnv, LatticeCache, checked_action, graph_observation, reward_info
 from pipeline.envs.map_sources import DrawnMap
 from pipeline.lattice.graph import LatticeGraph
 from pipeline.prediction.observed_graph import STAY_SLOT, ObservedStep, observe_lattice, slot_of_offset, window_moves
@@ -378,13 +378,8 @@ class TeamExploreEnv(ParallelEnv):
         return {agent: self._observation(k) for k, agent in enumerate(self.agents)}
 
     def _observation(self, k: int) -> dict[str, Any]:
-        view = self._views[k]
         return {
-            "features": view.features.copy(),
-            "node_mask": view.node_mask.astype(np.int8),
-            "neighbors": view.neighbors.copy(),
-            "robot": np.int64(view.robot_row),
-            "action_mask": self._masks[k].copy(),
+            **graph_observation(self._views[k], self._masks[k]),
             "teammates": self._teammates(k),
             "acting": np.int64(k == self._acting),
         }
@@ -423,12 +418,7 @@ class TeamExploreEnv(ParallelEnv):
             "complete": episode.complete,
             "failure": self._failure,
             "invalid_action": invalid,
-            "new_area_m2": area,
-            "step_distance_m": distance,
-            "reward_area": parts[0],
-            "reward_distance": parts[1],
-            "reward_bonus": parts[2],
-            "reward_invalid": parts[3],
+            **reward_info(area, distance, parts),
         }
 
     def close(self) -> None:
