@@ -56,6 +56,22 @@ def graph_observation(view: ObservedStep, mask: np.ndarray) -> dict[str, Any]:
     }
 
 
+def waypoint_action(
+    action: str, lattice: LatticeGraph, view: ObservedStep, position: Sequence[float], waypoint, rows_of: str
+) -> int:
+    """The action of mode `action` that moves a robot at `position` to a lattice waypoint (metres):
+    its slot in neighbour mode, its row of `view` in node mode; ValueError when it has none."""
+    d = lattice.spec.node_resolution
+    i, j = int(round(float(waypoint[0]) / d)), int(round(float(waypoint[1]) / d))
+    if action == "neighbour":
+        return slot_of_offset(i - int(round(position[0] / d)), j - int(round(position[1] / d)))
+    node = lattice.node_id(i, j)
+    rows: np.ndarray | list[int] = np.flatnonzero(view.row_nodes == node) if node >= 0 else []
+    if len(rows) == 0:
+        raise ValueError(f"waypoint {tuple(waypoint)} is not a known node among {rows_of}'s rows")
+    return int(rows[0])
+
+
 def reward_info(area: float, distance: float, parts: tuple[float, float, float, float]) -> dict[str, float]:
     """An info's account of a step's reward: the new free area (m^2), the distance moved (m), and
     the reward's four terms (area, distance, completion bonus, invalid-action penalty)."""
@@ -201,18 +217,10 @@ class ExploreEnv(gymnasium.Env):
         """The action that moves the robot to a lattice waypoint (metres): its slot in neighbour mode
         (the waypoint must lie in the robot's 5 x 5 window), its row in node mode. ValueError when
         the waypoint has no action (off the lattice, out of the window, not among the rows)."""
-        d = self._protocol.node_resolution
-        i, j = int(round(float(waypoint[0]) / d)), int(round(float(waypoint[1]) / d))
-        if self.config.action == "neighbour":
-            x, y = self.episode.position
-            return slot_of_offset(i - int(round(x / d)), j - int(round(y / d)))
-        node = self._lattice.node_id(i, j)
-        rows: np.ndarray | list[int] = (
-            np.flatnonzero(cast(ObservedStep, self._view).row_nodes == node) if node >= 0 else []
+        view = cast(ObservedStep, self._view)
+        return waypoint_action(
+            self.config.action, self._lattice, view, self.episode.position, waypoint, "the observation"
         )
-        if len(rows) == 0:
-            raise ValueError(f"waypoint {tuple(waypoint)} is not a known node among the observation's rows")
-        return int(rows[0])
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -37,10 +37,17 @@ from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
 from pipeline.envs.configuration_team import TeamExploreEnvConfig
-from pipeline.envs.explore_env import ExploreEnv, LatticeCache, checked_action, graph_observation, reward_info
+from pipeline.envs.explore_env import (
+    ExploreEnv,
+    LatticeCache,
+    checked_action,
+    graph_observation,
+    reward_info,
+    waypoint_action,
+)
 from pipeline.envs.map_sources import DrawnMap
 from pipeline.lattice.graph import LatticeGraph
-from pipeline.prediction.observed_graph import STAY_SLOT, ObservedStep, observe_lattice, slot_of_offset, window_moves
+from pipeline.prediction.observed_graph import STAY_SLOT, ObservedStep, observe_lattice, window_moves
 from pipeline.world.episode import IDLE, MOTION_RULE, MOVE_LIMIT, EventLoop
 from pipeline.world.map_files import MapError
 from pipeline.world.maps import GroundTruthMap
@@ -159,16 +166,8 @@ class TeamExploreEnv(ParallelEnv):
         mode (the waypoint must lie in the robot's 5 x 5 window), its row in node mode. ValueError when
         the waypoint has no action (out of the window, not among the rows)."""
         k = self._index(agent)
-        d = self._protocol.node_resolution
-        i, j = round(float(waypoint[0]) / d), round(float(waypoint[1]) / d)
-        if self.config.action == "neighbour":
-            x, y = self.episode.robots[k].position
-            return slot_of_offset(i - round(x / d), j - round(y / d))
-        node = self._lattices[k].node_id(i, j)
-        rows: np.ndarray | list[int] = np.flatnonzero(self._views[k].row_nodes == node) if node >= 0 else []
-        if len(rows) == 0:
-            raise ValueError(f"waypoint {tuple(waypoint)} is not a known node among {agent}'s rows")
-        return int(rows[0])
+        position = self.episode.robots[k].position
+        return waypoint_action(self.config.action, self._lattices[k], self._views[k], position, waypoint, agent)
 
     def team_result(self, planner: str = ENV_NAME) -> TeamEpisodeResult:
         """The episode's figures as `run_team_episode` reports them (no decision times: the agents decide)."""
