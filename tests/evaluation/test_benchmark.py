@@ -342,3 +342,46 @@ def test_a_planner_that_raises_fails_its_episode_and_the_run_goes_on(generated_m
     assert result.exit_code == 1
     assert f"1 episode failed with a planner error (tracebacks in {tmp_path / 'b' / 'errors.txt'})" in result.output
     assert f"nearest_frontier on {broken}: planner error: RuntimeError" in result.output
+
+
+def test_a_benchmark_reads_and_hashes_its_map_folder_once_and_parses_each_spec_once(
+    generated_maze_dir, tmp_path, monkeypatch
+):
+    """`guide benchmark`'s workflow with MLflow: the maps are loaded once each, the folder hashed once
+    (run identity and MLflow's dataset input share the digest), each spec string parsed once."""
+    import pipeline.common.mlflow_store as mlflow_store
+    import pipeline.evaluation.benchmark as benchmark
+    import pipeline.planners.specs as specs
+    from pipeline.workflows.benchmark import benchmark_folder
+
+    calls = {"load": [], "digest": 0, "parse": []}
+    load, digest, parse = benchmark.load_map, benchmark.files_digest, specs.parse_planner_spec
+
+    def counted_load(path, **kwargs):
+        calls["load"].append(str(path))
+        return load(path, **kwargs)
+
+    def counted_digest(paths):
+        calls["digest"] += 1
+        return digest(paths)
+
+    def counted_parse(text, *args):
+        calls["parse"].append(text)
+        return parse(text, *args)
+
+    monkeypatch.setattr(benchmark, "load_map", counted_load)
+    monkeypatch.setattr(benchmark, "files_digest", counted_digest)
+    monkeypatch.setattr(mlflow_store, "files_digest", counted_digest)
+    monkeypatch.setattr(specs, "parse_planner_spec", counted_parse)
+    planners = ["nearest_frontier", "g5=greedy_utility:min_utility=5"]
+    benchmark_folder(
+        generated_maze_dir,
+        planners,
+        Protocol(max_steps=3),
+        tmp_path / "out",
+        workers=1,
+        tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}",
+    )
+    assert sorted(calls["load"]) == sorted(map(str, list_maps(generated_maze_dir)))
+    assert calls["digest"] == 1
+    assert calls["parse"] == planners
